@@ -1,0 +1,444 @@
+// Robot: construction from tables, kinematics and dynamics.
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "convert.hpp"
+#include "coopsim/generated.hpp"
+#include "coopsim/robot.hpp"
+
+namespace py = pybind11;
+using namespace coopsim;
+using namespace coopsim::py_convert;
+
+namespace {
+
+JointType joint_type(char c, int k) {
+  if (c == 'R' || c == 'r') return JointType::Revolute;
+  if (c == 'P' || c == 'p') return JointType::Prismatic;
+  throw py::value_error("joint_types[" + std::to_string(k) + "] must be 'R' or 'P', got '" + std::string(1, c) +
+                        "'");
+}
+
+DHParams dh_row(const double* r) { return DHParams{r[0], r[1], r[2], r[3]}; }
+
+Tool make_tool(const py::object& tool, int n) {
+  Tool t;
+  if (tool.is_none()) return t;
+  if (py::isinstance<Tool>(tool)) return tool.cast<Tool>();
+  t.offset = pose(tool, "tool");
+  t.second_point = t.offset.translation();
+  return t;
+}
+
+Robot make_robot(const py::object& dh, const py::object& com, const py::object& masses,
+                 const py::object& inertias, const std::string& joint_types, const py::object& friction,
+                 const py::object& q_limits, const py::object& tau_limits, const py::object& gravity,
+                 const py::object& base_position, double base_yaw, const py::object& tool,
+                 const std::string& name, double end_stop_stiffness, double end_stop_damping_ratio) {
+  Arr D = array(dh, {-1, 4}, "dh");
+  const int n = static_cast<int>(D.shape(0));
+  if (n < 1 || n > kMaxDof)
+    throw py::value_error("dh must have 1 to " + std::to_string(kMaxDof) + " rows, got " + std::to_string(n));
+  if (static_cast<int>(joint_types.size()) != n)
+    throw py::value_error("joint_types must have one letter per DH row: expected " + std::to_string(n) +
+                          ", got " + std::to_string(joint_types.size()));
+  Arr C = array(com, {n, 4}, "com");
+  Arr Ms = array(masses, {n}, "masses");
+  Arr I = as_array(inertias, "inertias");
+  if (!(I.ndim() == 3 && I.shape(0) == n && I.shape(1) == 3 && I.shape(2) == 3) &&
+      !(I.ndim() == 2 && I.shape(0) == n && I.shape(1) == 6))
+    throw py::value_error("wrong shape for inertias: expected (" + std::to_string(n) + ", 3, 3) or (" +
+                          std::to_string(n) + ", 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got " + shape_str(I));
+  check_finite(I.data(), static_cast<size_t>(I.size()), "inertias");
+  std::vector<Link> links(n);
+  Arr K = friction.is_none() ? Arr() : array(friction, {n}, "friction");
+  Arr QL = q_limits.is_none() ? Arr() : array(q_limits, {n, 2}, "q_limits", false);
+  Arr TL = tau_limits.is_none() ? Arr() : array(tau_limits, {n}, "tau_limits", false);
+  for (int k = 0; k < n; ++k) {
+    Link& L = links[k];
+    L.type = joint_type(joint_types[k], k);
+    L.dh = dh_row(D.data() + 4 * k);
+    L.com = dh_row(C.data() + 4 * k);
+    L.mass = Ms.data()[k];
+    if (I.ndim() == 3) {
+      L.inertia = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I.data() + 9 * k);
+    } else {
+      const double* v = I.data() + 6 * k;
+      L.inertia << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
+    }
+    if (K) L.friction = K.data()[k];
+    if (QL) {
+      L.q_min = QL.data()[2 * k];
+      L.q_max = QL.data()[2 * k + 1];
+    }
+    if (TL) L.tau_max = TL.data()[k];
+  }
+  const Eigen::Vector3d g = vecx(gravity, 3, "gravity");
+  const Eigen::Vector3d bp = vecx(base_position, 3, "base_position");
+  if (!std::isfinite(base_yaw)) throw py::value_error("base_yaw must be finite");
+  EndStop es{end_stop_stiffness, end_stop_damping_ratio};
+  return Robot(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es);
+}
+
+// Joint torques of f_ext, with the robot's kinematics already in ws:
+// None, a (6,) wrench at the tool centre point, or a list of Wrench.
+bool external(const Robot& r, Workspace& ws, const py::object& f_ext, VecN& tau) {
+  if (f_ext.is_none()) return false;
+  if (py::isinstance<ExternalWrench>(f_ext)) {
+    r.external_torques({f_ext.cast<ExternalWrench>()}, ws, tau);
+    return true;
+  }
+  if (py::isinstance<py::list>(f_ext) || py::isinstance<py::tuple>(f_ext)) {
+    py::sequence s = f_ext;
+    bool all_wrenches = py::len(s) > 0;
+    for (auto item : s) all_wrenches = all_wrenches && py::isinstance<ExternalWrench>(item);
+    if (all_wrenches) {
+      r.external_torques(f_ext.cast<std::vector<ExternalWrench>>(), ws, tau);
+      return true;
+    }
+  }
+  Arr w = array(f_ext, {6}, "f_ext");
+  r.tool_wrench_torques(Eigen::Map<const Vec6>(w.data()), ws, tau);
+  return true;
+}
+
+py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
+  py::array_t<double> out({static_cast<py::ssize_t>(Ts.size()), py::ssize_t(4), py::ssize_t(4)});
+  double* p = out.mutable_data();
+  for (size_t i = 0; i < Ts.size(); ++i)
+    Eigen::Map<Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(p + 16 * i) = Ts[i].matrix();
+  return out;
+}
+
+py::tuple robot_state(const Robot& r) {
+  const int n = r.dof();
+  py::array_t<double> dh({n, 4}), com({n, 4}), m(n), I({n, 3, 3}), K(n), ql({n, 2}), tl(n);
+  for (int k = 0; k < n; ++k) {
+    const Link& L = r.links()[k];
+    double* d = dh.mutable_data() + 4 * k;
+    d[0] = L.dh.theta; d[1] = L.dh.d; d[2] = L.dh.a; d[3] = L.dh.alpha;
+    double* c = com.mutable_data() + 4 * k;
+    c[0] = L.com.theta; c[1] = L.com.d; c[2] = L.com.a; c[3] = L.com.alpha;
+    m.mutable_data()[k] = L.mass;
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I.mutable_data() + 9 * k) = L.inertia;
+    K.mutable_data()[k] = L.friction;
+    ql.mutable_data()[2 * k] = L.q_min;
+    ql.mutable_data()[2 * k + 1] = L.q_max;
+    tl.mutable_data()[k] = L.tau_max;
+  }
+  return py::make_tuple(dh, com, m, I, r.joint_types(), K, ql, tl);
+}
+
+}  // namespace
+
+void bind_robot(py::module_& m) {
+  m.def("box_inertia", [](double mass, double lx, double ly, double lz) {
+         return to_numpy(box_inertia(mass, lx, ly, lz));
+       }, py::arg("mass"), py::arg("lx"), py::arg("ly"), py::arg("lz"),
+        "Inertia tensor (3, 3) in kg m^2 of a solid box of `mass` kg and edges lx, ly, lz (m) along x, y, z, "
+        "about its centre.");
+  m.def(
+      "dh_transform",
+      [](double theta, double d, double a, double alpha) { return to_numpy(dh_transform(theta, d, a, alpha)); },
+      py::arg("theta"), py::arg("d"), py::arg("a"), py::arg("alpha"),
+      "Homogeneous transform (4, 4) Rz(theta) Tz(d) Tx(a) Rx(alpha) of one standard DH row.");
+
+  py::class_<Tool>(m, "Tool",
+                   "Tool centre point: orientation of `offset` on `link`; position midway between the point "
+                   "offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).")
+      .def(py::init([](int link, const py::object& offset, int second_link, const py::object& second_point) {
+             Tool t;
+             t.link = link;
+             t.offset = pose(offset, "offset");
+             t.second_link = second_link;
+             t.second_point = vecx(second_point, 3, "second_point");
+             return t;
+           }),
+           py::arg("link") = -1, py::arg("offset") = py::module_::import("numpy").attr("eye")(4),
+           py::arg("second_link") = -1, py::arg("second_point") = py::make_tuple(0.0, 0.0, 0.0))
+      .def_readonly("link", &Tool::link)
+      .def_property_readonly("offset", [](const Tool& t) { return to_numpy(t.offset); })
+      .def_readonly("second_link", &Tool::second_link)
+      .def_property_readonly("second_point", [](const Tool& t) { return to_numpy(t.second_point); })
+      .def(py::pickle(
+          [](const Tool& t) {
+            return py::make_tuple(t.link, to_numpy(t.offset), t.second_link, to_numpy(t.second_point));
+          },
+          [](py::tuple s) {
+            Tool t;
+            t.link = s[0].cast<int>();
+            t.offset = pose(s[1], "offset");
+            t.second_link = s[2].cast<int>();
+            t.second_point = vecx(s[3], 3, "second_point");
+            return t;
+          }));
+
+  py::class_<ExternalWrench>(m, "Wrench",
+                             "External wrench on a link: force (N) and moment (N m) in world coordinates, "
+                             "[fx, fy, fz, mx, my, mz], applied at `point` given in the DH frame of `link` "
+                             "(1..n, negative counts from the last).")
+      .def(py::init([](int link, const py::object& point, const py::object& wrench) {
+             ExternalWrench w;
+             w.link = link;
+             w.point = vecx(point, 3, "point");
+             w.wrench = vecx(wrench, 6, "wrench");
+             return w;
+           }),
+           py::arg("link"), py::arg("point"), py::arg("wrench"))
+      .def_readonly("link", &ExternalWrench::link)
+      .def_property_readonly("point", [](const ExternalWrench& w) { return to_numpy(w.point); })
+      .def_property_readonly("wrench", [](const ExternalWrench& w) { return to_numpy(w.wrench); });
+
+  py::class_<Robot> R(m, "Robot", py::dynamic_attr(),
+                      "A serial robot: standard DH table, centre-of-mass table, mass properties, friction "
+                      "and limits, placed in the world. Immutable except for its dynamics backend; build "
+                      "one with Robot.from_dh or coopsim.robots.");
+  R.def_static("from_dh", &make_robot, py::arg("dh"), py::arg("com"), py::arg("masses"), py::arg("inertias"),
+               py::arg("joint_types"), py::arg("friction") = py::none(), py::arg("q_limits") = py::none(),
+               py::arg("tau_limits") = py::none(),
+               py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.81),
+               py::arg("base_position") = py::make_tuple(0.0, 0.0, 0.0), py::arg("base_yaw") = 0.0,
+               py::arg("tool") = py::none(), py::arg("name") = "robot",
+               py::arg("end_stop_stiffness") = EndStop().stiffness,
+               py::arg("end_stop_damping_ratio") = EndStop().damping_ratio,
+               R"doc(Defines a serial robot from tables.
+
+dh: (n, 4) standard DH rows [theta, d, a, alpha] (rad, m, m, rad); q_i is added
+    to theta_i (revolute) or d_i (prismatic), which are offsets.
+com: (n, 4) centre-of-mass rows, same parameters, from frame i-1 to the CoM
+    frame of link i, q_i added in the same slot.
+masses: (n,) kg, > 0.
+inertias: (n, 3, 3) or (n, 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], kg m^2, about
+    the CoM in the CoM frame; symmetric, positive semi-definite, triangle
+    inequality.
+joint_types: string of 'R' / 'P', one per row, e.g. "RRPRRP".
+friction: (n,) viscous K (N m s/rad or N s/m), default 0.
+q_limits: (n, 2) [q_min, q_max] (rad or m), default unbounded (+-inf).
+tau_limits: (n,) actuator limits |tau_i| <= tau_max (N m or N), default inf.
+gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad.
+tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
+end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
+    end stops used by the integrators beyond q_limits.)doc");
+  R.def_property_readonly("dof", &Robot::dof, "Number of joints n.")
+      .def_property_readonly("name", &Robot::name)
+      .def_property_readonly("joint_types", &Robot::joint_types, "e.g. 'RRPRRP'.")
+      .def_property_readonly("dh", [](const Robot& r) { return robot_state(r)[0]; }, "(n, 4) [theta, d, a, alpha].")
+      .def_property_readonly("com", [](const Robot& r) { return robot_state(r)[1]; }, "(n, 4) CoM rows.")
+      .def_property_readonly("masses", [](const Robot& r) { return robot_state(r)[2]; }, "(n,) kg.")
+      .def_property_readonly("inertias", [](const Robot& r) { return robot_state(r)[3]; },
+                             "(n, 3, 3) kg m^2 about each CoM in its CoM frame.")
+      .def_property_readonly("friction_coefficients", [](const Robot& r) { return robot_state(r)[5]; },
+                             "(n,) viscous K.")
+      .def_property_readonly("q_limits", [](const Robot& r) { return robot_state(r)[6]; },
+                             "(n, 2) [q_min, q_max].")
+      .def_property_readonly("tau_limits", [](const Robot& r) { return robot_state(r)[7]; }, "(n,) N m or N.")
+      .def_property_readonly("gravity_vector", [](const Robot& r) { return to_numpy(r.gravity()); },
+                             "(3,) m/s^2, world frame.")
+      .def_property_readonly("base_position", [](const Robot& r) { return to_numpy(r.base_position()); })
+      .def_property_readonly("base_yaw", &Robot::base_yaw)
+      .def_property_readonly("base", [](const Robot& r) { return to_numpy(r.base()); },
+                             "(4, 4) pose of DH frame 0 in the world.")
+      .def_property_readonly("tool", &Robot::tool)
+      .def_property_readonly("end_stop_stiffness", [](const Robot& r) { return r.end_stop().stiffness; })
+      .def_property_readonly("end_stop_damping_ratio", [](const Robot& r) { return r.end_stop().damping_ratio; })
+      .def_property_readonly("parameter_vector",
+                             [](const Robot& r) {
+                               const auto& p = r.parameter_vector();
+                               return to_numpy(Eigen::Map<const Eigen::VectorXd>(p.data(), p.size()));
+                             },
+                             "(16 n + 3,) parameters read by generated code: per link [theta d a alpha, "
+                             "com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K], then gravity in frame 0.")
+      .def_property_readonly("backend", &Robot::backend, "'generated' or 'numeric'.")
+      .def_property_readonly("has_generated", &Robot::has_generated)
+      .def("set_backend", &Robot::set_backend, py::arg("backend"),
+           "Selects 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).")
+      .def("with_base", [](const Robot& r, const py::object& position, double yaw) {
+             if (!std::isfinite(yaw)) throw py::value_error("yaw must be finite");
+             return r.with_base(vecx(position, 3, "position"), yaw);
+           }, py::arg("position"), py::arg("yaw") = 0.0, "A copy placed at `position` (3,) m with `yaw` rad.")
+      .def("with_gravity", [](const Robot& r, const py::object& g) { return r.with_gravity(vecx(g, 3, "gravity")); },
+           py::arg("gravity"), "A copy with another gravity vector (3,) m/s^2.");
+
+  // kinematics
+  R.def("fk", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         return to_numpy(r.tool_pose(ws));
+       }, py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,).")
+      .def("frames", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         std::vector<Eigen::Isometry3d> T;
+         for (int i = 0; i <= r.dof(); ++i) T.push_back(r.frame(ws, i));
+         return poses(T);
+       }, py::arg("q"), "World poses (n + 1, 4, 4) of DH frames 0..n.")
+      .def("com_frames", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         std::vector<Eigen::Isometry3d> T;
+         for (int i = 1; i <= r.dof(); ++i) T.push_back(r.com_frame(ws, i));
+         return poses(T);
+       }, py::arg("q"), "World poses (n, 4, 4) of the CoM frames of links 1..n.")
+      .def("jacobian", [](const Robot& r, const py::object& q, int link, const py::object& point) {
+         const VecN qv = vec(q, r.dof(), "q");
+         const Eigen::Vector3d p = point.is_none() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(vecx(point, 3, "point"));
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         Mat6N J;
+         r.jacobian(ws, link, p, J);
+         return to_numpy(J);
+       }, py::arg("q"), py::arg("link") = -1, py::arg("point") = py::none(),
+       "Geometric Jacobian (6, n), linear rows first, of `point` (3,) m given in the DH frame of `link` "
+       "(1..n, negative from the last; 0 is the base); world coordinates.")
+      .def("tool_jacobian", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         Mat6N J;
+         r.tool_jacobian(ws, J);
+         return to_numpy(J);
+       }, py::arg("q"), "Jacobian (6, n) of the tool centre point, linear rows first.");
+
+  // dynamics
+  R.def("mass_matrix", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         MatN M;
+         r.mass_matrix(qv.data(), ws, M);
+         return to_numpy(M);
+       }, py::arg("q"), "Inertia matrix M(q) (n, n).")
+      .def("gravity", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         VecN g;
+         r.gravity_vector(qv.data(), ws, g);
+         return to_numpy(g);
+       }, py::arg("q"), "Gravity vector G(q) (n,) in N m or N.")
+      .def("coriolis", [](const Robot& r, const py::object& q, const py::object& qd) {
+         const VecN qv = vec(q, r.dof(), "q"), qdv = vec(qd, r.dof(), "qd");
+         Workspace ws;
+         VecN c;
+         r.coriolis_vector(qv.data(), qdv.data(), ws, c);
+         return to_numpy(c);
+       }, py::arg("q"), py::arg("qd"), "Coriolis and centrifugal vector C(q, qd) (n,) = coriolis_matrix @ qd.")
+      .def("coriolis_matrix", [](const Robot& r, const py::object& q, const py::object& qd) {
+         const VecN qv = vec(q, r.dof(), "q"), qdv = vec(qd, r.dof(), "qd");
+         Workspace ws;
+         MatN C;
+         r.coriolis_matrix(qv.data(), qdv.data(), ws, C);
+         return to_numpy(C);
+       }, py::arg("q"), py::arg("qd"), "Coriolis matrix (n, n) in Christoffel form; Mdot - 2 C is skew.")
+      .def("mass_matrix_derivatives", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         std::vector<MatN> dM;
+         r.mass_matrix_derivatives(qv.data(), ws, dM);
+         const int n = r.dof();
+         py::array_t<double> out({n, n, n});
+         for (int k = 0; k < n; ++k)
+           for (int i = 0; i < n; ++i)
+             for (int j = 0; j < n; ++j) out.mutable_data()[(k * n + i) * n + j] = dM[k](i, j);
+         return out;
+       }, py::arg("q"), "dM/dq (n, n, n); [k] is the derivative with respect to q_k.")
+      .def("friction", [](const Robot& r, const py::object& qd) {
+         const VecN v = vec(qd, r.dof(), "qd");
+         return to_numpy(VecN(r.friction_coefficients().cwiseProduct(v)));
+       }, py::arg("qd"), "Viscous friction torques K qd (n,).")
+      .def("external_torques", [](const Robot& r, const py::object& q, const py::object& f_ext) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         VecN t = VecN::Zero(r.dof());
+         external(r, ws, f_ext, t);
+         return to_numpy(t);
+       }, py::arg("q"), py::arg("f_ext"),
+       "Joint torques J^T F (n,) of f_ext: a (6,) wrench [f; m] (world, N and N m) at the tool centre point, "
+       "or a Wrench or list of Wrench on any point of any link.")
+      .def("inverse_dynamics", [](const Robot& r, const py::object& q, const py::object& qd, const py::object& qdd,
+                                  const py::object& f_ext) {
+         const int n = r.dof();
+         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), qddv = vec(qdd, n, "qdd");
+         Workspace ws;
+         VecN te = VecN::Zero(n), tau;
+         bool has_ext = false;
+         if (!f_ext.is_none()) {
+           r.kinematics(qv.data(), ws);
+           has_ext = external(r, ws, f_ext, te);
+         }
+         r.inverse_dynamics(qv.data(), qdv.data(), qddv.data(), has_ext ? te.data() : nullptr, ws, tau);
+         return to_numpy(tau);
+       }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(),
+       "Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + K qd.")
+      .def("forward_dynamics", [](const Robot& r, const py::object& q, const py::object& qd, const py::object& tau,
+                                  const py::object& f_ext) {
+         const int n = r.dof();
+         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), tv = vec(tau, n, "tau");
+         Workspace ws;
+         VecN te = VecN::Zero(n), qdd;
+         bool has_ext = false;
+         if (!f_ext.is_none()) {
+           r.kinematics(qv.data(), ws);
+           has_ext = external(r, ws, f_ext, te);
+         }
+         r.forward_dynamics(qv.data(), qdv.data(), tv.data(), has_ext ? te.data() : nullptr, ws, qdd);
+         return to_numpy(qdd);
+       }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(),
+       "Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - K qd), solved by Cholesky.")
+      .def("end_stop_torques", [](const Robot& r, const py::object& q, const py::object& qd) {
+         const int n = r.dof();
+         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd");
+         Workspace ws;
+         MatN M;
+         r.mass_matrix(qv.data(), ws, M);
+         VecN t;
+         r.end_stop_torques(qv.data(), qdv.data(), M, t);
+         return to_numpy(t);
+       }, py::arg("q"), py::arg("qd"), "Soft end-stop torques (n,) beyond the joint limits.")
+      .def("energy", [](const Robot& r, const py::object& q, const py::object& qd) {
+         const int n = r.dof();
+         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd");
+         Workspace ws;
+         const double T = r.kinetic_energy(qv.data(), qdv.data(), ws);
+         const double V = r.potential_energy(qv.data(), ws);
+         return py::make_tuple(T, V);
+       }, py::arg("q"), py::arg("qd"), "(kinetic, potential) energy in J; potential relative to z = 0.")
+      .def("__repr__", [](const Robot& r) {
+         return "<coopsim.Robot '" + r.name() + "' " + r.joint_types() + ", " + std::to_string(r.dof()) +
+                " dof, backend=" + r.backend() + ">";
+       })
+      .def(py::pickle(
+          [](py::object self) {
+            const Robot& r = self.cast<const Robot&>();
+            py::tuple s = robot_state(r);
+            py::dict d = self.attr("__dict__");
+            return py::make_tuple(s, to_numpy(r.gravity()), to_numpy(r.base_position()), r.base_yaw(),
+                                  py::cast(r.tool()), r.name(), r.end_stop().stiffness,
+                                  r.end_stop().damping_ratio, r.backend(),
+                                  r.has_generated() ? r.generated()->name : std::string(), d);
+          },
+          [](py::tuple t) {
+            py::tuple s = t[0];
+            Robot r = make_robot(s[0], s[1], s[2], s[3], s[4].cast<std::string>(), s[5], s[6], s[7], t[1], t[2],
+                                 t[3].cast<double>(), t[4], t[5].cast<std::string>(), t[6].cast<double>(),
+                                 t[7].cast<double>());
+            const std::string gen = t[9].cast<std::string>();
+            if (!gen.empty()) {
+              const GeneratedDynamics* g = builtin_generated(gen);
+              if (!g) throw py::value_error("cannot unpickle: generated dynamics '" + gen + "' not in this build");
+              r.attach_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));
+              r.set_backend(t[8].cast<std::string>());
+            }
+            return std::make_pair(r, t[10].cast<py::dict>());
+          }));
+
+  m.def("builtin_generated_names", &builtin_generated_names, "Names of robots whose generated dynamics are compiled into this build.");
+  m.def("attach_builtin_generated", [](Robot& r, const std::string& name) {
+    const GeneratedDynamics* g = builtin_generated(name);
+    if (!g) throw py::value_error("no generated dynamics named '" + name + "' in this build");
+    r.attach_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));
+  }, py::arg("robot"), py::arg("name"),
+  "Attaches the compiled-in generated dynamics `name` to `robot` (structure checked) and selects it.");
+}

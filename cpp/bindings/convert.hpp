@@ -1,0 +1,126 @@
+// Conversions between numpy arrays and the engine's Eigen types, with the
+// argument checks of the Python API: every failure is a ValueError that names
+// the argument and says what was wrong.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "coopsim/robot.hpp"
+
+namespace coopsim::py_convert {
+
+namespace py = pybind11;
+using Arr = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+inline Arr as_array(const py::handle& obj, const char* name) {
+  if (obj.is_none()) throw py::value_error(std::string(name) + " must be an array of numbers, got None");
+  Arr a;
+  try {
+    a = Arr::ensure(obj);
+  } catch (py::error_already_set&) {
+    a = Arr();
+  }
+  if (!a) {
+    PyErr_Clear();
+    throw py::value_error(std::string(name) + " must be an array of real numbers");
+  }
+  return a;
+}
+
+inline std::string shape_str(const Arr& a) {
+  std::ostringstream s;
+  s << "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s << (i ? ", " : "") << a.shape(i);
+  if (a.ndim() == 1) s << ",";
+  s << ")";
+  return s.str();
+}
+
+inline void check_finite(const double* p, size_t count, const char* name) {
+  for (size_t i = 0; i < count; ++i)
+    if (!std::isfinite(p[i])) throw py::value_error(std::string(name) + " must be finite (got NaN or inf)");
+}
+
+// A 1-D array of exactly n finite numbers.
+inline VecN vec(const py::handle& obj, int n, const char* name) {
+  Arr a = as_array(obj, name);
+  if (a.ndim() != 1 || a.shape(0) != n) {
+    std::ostringstream s;
+    s << "wrong shape for " << name << ": expected (" << n << ",), got " << shape_str(a);
+    throw py::value_error(s.str());
+  }
+  check_finite(a.data(), n, name);
+  return Eigen::Map<const VecN>(a.data(), n);
+}
+
+inline Eigen::VectorXd vecx(const py::handle& obj, py::ssize_t n, const char* name) {
+  Arr a = as_array(obj, name);
+  if (a.ndim() != 1 || a.shape(0) != n) {
+    std::ostringstream s;
+    s << "wrong shape for " << name << ": expected (" << n << ",), got " << shape_str(a);
+    throw py::value_error(s.str());
+  }
+  check_finite(a.data(), n, name);
+  return Eigen::Map<const Eigen::VectorXd>(a.data(), n);
+}
+
+// A C-contiguous array of the given shape (-1: any extent) of finite numbers.
+inline Arr array(const py::handle& obj, std::vector<py::ssize_t> shape, const char* name,
+                 bool finite = true) {
+  Arr a = as_array(obj, name);
+  bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
+  for (size_t i = 0; ok && i < shape.size(); ++i) ok = shape[i] < 0 || a.shape(i) == shape[i];
+  if (!ok) {
+    std::ostringstream s;
+    s << "wrong shape for " << name << ": expected (";
+    for (size_t i = 0; i < shape.size(); ++i) {
+      s << (i ? ", " : "");
+      if (shape[i] < 0) s << "N"; else s << shape[i];
+    }
+    s << (shape.size() == 1 ? ",)" : ")") << ", got " << shape_str(a);
+    throw py::value_error(s.str());
+  }
+  if (finite) check_finite(a.data(), static_cast<size_t>(a.size()), name);
+  return a;
+}
+
+inline Eigen::Isometry3d pose(const py::handle& obj, const char* name) {
+  Arr a = array(obj, {4, 4}, name);
+  Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(a.data());
+  if ((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-12)
+    throw py::value_error(std::string(name) + " must be a homogeneous transform (last row 0 0 0 1)");
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || R.determinant() <= 0)
+    throw py::value_error(std::string(name) + " must be a rigid transform (orthonormal rotation)");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.matrix() = M;
+  return T;
+}
+
+template <class Derived>
+py::array_t<double> to_numpy(const Eigen::MatrixBase<Derived>& m) {
+  if (m.cols() == 1) {
+    py::array_t<double> out(m.rows());
+    double* p = out.mutable_data();
+    for (Eigen::Index i = 0; i < m.rows(); ++i) p[i] = m(i, 0);
+    return out;
+  }
+  py::array_t<double> out({m.rows(), m.cols()});
+  double* p = out.mutable_data();
+  for (Eigen::Index i = 0; i < m.rows(); ++i)
+    for (Eigen::Index j = 0; j < m.cols(); ++j) p[i * m.cols() + j] = m(i, j);
+  return out;
+}
+
+inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T) {
+  py::array_t<double> out({4, 4});
+  Eigen::Map<Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(out.mutable_data()) = T.matrix();
+  return out;
+}
+
+}  // namespace coopsim::py_convert

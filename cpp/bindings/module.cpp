@@ -1,0 +1,20 @@
+// The compiled core of coopsim. Each area binds itself in bind_<area>.cpp.
+#include <pybind11/pybind11.h>
+
+namespace py = pybind11;
+
+void bind_robot(py::module_& m);
+void bind_integrator(py::module_& m);
+void bind_collision(py::module_& m);
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)";
+#ifdef COOPSIM_OPTIMISED
+  m.attr("build_optimised") = true;
+#else
+  m.attr("build_optimised") = false;
+#endif
+  bind_robot(m);
+  bind_integrator(m);
+  bind_collision(m);
+}

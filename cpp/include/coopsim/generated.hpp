@@ -1,0 +1,46 @@
+// Interface between the engine and closed-form dynamics emitted by the
+// symbolic generator (python/coopsim/codegen). Generated code reads every
+// length, mass, inertia, friction and gravity value from the robot's
+// parameter vector p (see Robot::parameter_vector), so that changing a
+// dimension or a mass at run time needs no regeneration. Joint types and the
+// angle parameters (DH and CoM theta offsets and alpha) are structural: they
+// were fixed at generation and are checked when the code is attached.
+//
+// Array layouts: q, qd: n; M, C: n x n column-major; c, g: n.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace coopsim {
+
+struct GeneratedDynamics {
+  std::string name;          // e.g. "scara1"
+  int dof = 0;
+  std::string joint_types;   // e.g. "RRPRRP"
+  // structural angles per link: dh theta, dh alpha, com theta, com alpha
+  // (theta of a revolute row is the offset added to q)
+  std::vector<double> angles;
+  std::string generator_version;
+  long operation_count = 0;
+  void (*mass_matrix)(const double* p, const double* q, double* M) = nullptr;
+  void (*coriolis)(const double* p, const double* q, const double* qd, double* c) = nullptr;
+  void (*coriolis_matrix)(const double* p, const double* q, const double* qd, double* C) = nullptr;
+  void (*gravity)(const double* p, const double* q, double* g) = nullptr;
+};
+
+// Per link parameter block length and offsets into the parameter vector.
+constexpr int kParamsPerLink = 16;
+enum ParamOffset : int {
+  kDhTheta = 0, kDhD = 1, kDhA = 2, kDhAlpha = 3,
+  kComTheta = 4, kComD = 5, kComA = 6, kComAlpha = 7,
+  kMass = 8, kIxx = 9, kIyy = 10, kIzz = 11, kIxy = 12, kIxz = 13, kIyz = 14,
+  kFriction = 15
+};
+// Gravity (gx, gy, gz) in frame 0 follows the n link blocks.
+
+// Generated code compiled into the engine, looked up by robot name; null if none.
+const GeneratedDynamics* builtin_generated(const std::string& name);
+std::vector<std::string> builtin_generated_names();
+
+}  // namespace coopsim

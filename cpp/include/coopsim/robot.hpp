@@ -1,0 +1,223 @@
+// Serial robot description: standard Denavit-Hartenberg table, the paper's
+// centre-of-mass table, mass properties, friction and limits.
+//
+// Conventions (SI units, radians):
+// - Standard (distal) DH: A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i); joint i
+//   moves about / along z_{i-1}. For a revolute joint q_i is added to theta_i,
+//   for a prismatic joint q_i is added to d_i (theta_i, d_i are offsets).
+// - A centre-of-mass row uses the same four parameters, applied from frame i-1
+//   to the centre-of-mass (CoM) frame of link i, with q_i added in the same
+//   slot as in the DH row, so the CoM frame moves with its link.
+// - Link i (1-based) is the body moved by joint i; link 0 is the fixed base.
+// - The inertia tensor of link i is about its CoM, expressed in its CoM frame.
+// - Frame 0 is the base frame, placed in the world by a position and a yaw.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace coopsim {
+
+// Largest number of joints; workspaces use fixed storage of this size so that
+// hot paths never allocate.
+constexpr int kMaxDof = 12;
+
+using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxDof, 1>;
+using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
+using Mat6N = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxDof>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+enum class JointType : char { Revolute = 'R', Prismatic = 'P' };
+
+// Four Denavit-Hartenberg parameters [theta, d, a, alpha] (rad, m, m, rad).
+struct DHParams {
+  double theta = 0.0;
+  double d = 0.0;
+  double a = 0.0;
+  double alpha = 0.0;
+};
+
+// One joint and the link it moves.
+struct Link {
+  JointType type = JointType::Revolute;
+  DHParams dh;                 // joint frame i-1 -> frame i (q added to theta or d)
+  DHParams com;                // frame i-1 -> CoM frame of link i (q in the same slot)
+  double mass = 1.0;           // kg, > 0
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Identity() * 1e-3;  // kg m^2 about CoM, CoM frame
+  double friction = 0.0;       // viscous K_i: N m s/rad or N s/m, >= 0
+  double q_min = -kInf;        // rad or m (may be -inf)
+  double q_max = kInf;         // rad or m (may be +inf)
+  double tau_max = kInf;       // actuator limit |tau_i| <= tau_max: N m or N, > 0
+};
+
+// The tool centre point (TCP). Its orientation is that of `offset` on `link`;
+// its position is the midpoint between the point `offset.translation()` on
+// `link` and `second_point` on `second_link` (both in their link's DH frame).
+// A fixed tool uses the same link and point twice; a clamp with one fixed and
+// one moving jaw uses a point on each jaw, so the TCP stays between the jaws.
+struct Tool {
+  int link = -1;                                     // 1..n, or -1 for the last link
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  int second_link = -1;                              // 1..n, or -1 for the last link
+  Eigen::Vector3d second_point = Eigen::Vector3d::Zero();
+};
+
+// A wrench applied to a link: force (N) and moment (N m), both in world
+// coordinates, acting at `point` given in the DH frame of `link` (1..n).
+struct ExternalWrench {
+  int link = -1;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Vec6 wrench = Vec6::Zero();  // [fx, fy, fz, mx, my, mz]
+};
+
+// End stops: beyond a joint limit a spring-damper pushes the joint back,
+// tau_stop = -k (q - q_lim) - b qd, never pulling towards the limit.
+struct EndStop {
+  double stiffness = 2e4;   // N m/rad or N/m
+  double damping_ratio = 1.0;  // b = 2 zeta sqrt(k M_ii(q))
+};
+
+struct GeneratedDynamics;  // see generated.hpp
+
+// Fixed-size scratch memory for evaluating a robot: kinematics of every frame
+// and CoM, and recursion buffers. One per thread; reused across calls.
+struct Workspace {
+  int n = 0;
+  std::array<Eigen::Matrix3d, kMaxDof + 1> R;   // world rotation of DH frames 0..n
+  std::array<Eigen::Vector3d, kMaxDof + 1> o;   // world origin of DH frames 0..n
+  std::array<Eigen::Vector3d, kMaxDof> c;       // world CoM of links 1..n (index i-1)
+  std::array<Eigen::Matrix3d, kMaxDof> Iw;      // world inertia about CoM, links 1..n
+  // recursion buffers
+  std::array<Eigen::Vector3d, kMaxDof> w, wd, a, f, nm;
+  std::array<Eigen::Vector3d, kMaxDof> cm_c;    // composite CoM
+  std::array<double, kMaxDof> cm_m;             // composite mass
+  std::array<Eigen::Matrix3d, kMaxDof> cm_I;    // composite inertia about composite CoM
+};
+
+class Robot {
+ public:
+  // Validates every field; throws std::invalid_argument naming what is wrong.
+  Robot(std::vector<Link> links, Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81),
+        Eigen::Vector3d base_position = Eigen::Vector3d::Zero(), double base_yaw = 0.0,
+        Tool tool = Tool(), std::string name = "robot", EndStop end_stop = EndStop());
+
+  int dof() const { return n_; }
+  const std::string& name() const { return name_; }
+  std::string joint_types() const;
+  const std::vector<Link>& links() const { return links_; }
+  const Eigen::Vector3d& gravity() const { return gravity_; }
+  const Eigen::Vector3d& base_position() const { return base_p_; }
+  double base_yaw() const { return base_yaw_; }
+  const Eigen::Isometry3d& base() const { return base_; }
+  const Tool& tool() const { return tool_; }
+  const EndStop& end_stop() const { return end_stop_; }
+  VecN q_min() const;
+  VecN q_max() const;
+  VecN tau_max() const;
+  VecN friction_coefficients() const;
+
+  // A copy with another base placement, gravity or name (all else equal).
+  Robot with_base(const Eigen::Vector3d& position, double yaw) const;
+  Robot with_gravity(const Eigen::Vector3d& gravity) const;
+
+  // Dynamics backend: the numeric recursive algorithms (always available) or
+  // generated closed-form code for this robot's structure.
+  bool has_generated() const { return static_cast<bool>(generated_); }
+  bool uses_generated() const { return use_generated_ && generated_; }
+  std::string backend() const { return uses_generated() ? "generated" : "numeric"; }
+  // Attaches generated code (checked against this robot's structure) and
+  // selects it; throws std::invalid_argument when the structure differs.
+  void attach_generated(std::shared_ptr<const GeneratedDynamics> gen);
+  void set_backend(const std::string& backend);  // "generated" or "numeric"
+  const std::shared_ptr<const GeneratedDynamics>& generated() const { return generated_; }
+  // Parameter vector read by generated code: per link [theta d a alpha,
+  // com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K] then gravity in frame 0.
+  const std::vector<double>& parameter_vector() const { return params_; }
+
+  // ---- kinematics (all poses in the world frame) ----
+  // Computes frames and CoMs of q into ws; the functions below taking a
+  // Workspace without q read what this left there.
+  void kinematics(const double* q, Workspace& ws) const;
+  Eigen::Isometry3d frame(const Workspace& ws, int i) const;      // DH frame i = 0..n
+  Eigen::Isometry3d com_frame(const Workspace& ws, int i) const;  // link i = 1..n
+  Eigen::Isometry3d tool_pose(const Workspace& ws) const;
+  // Geometric Jacobian (6 x n, linear rows first) of a point fixed on `link`
+  // (1..n; 0 gives zeros) given in that link's DH frame.
+  void jacobian(const Workspace& ws, int link, const Eigen::Vector3d& point, Mat6N& J) const;
+  void tool_jacobian(const Workspace& ws, Mat6N& J) const;
+
+  // ---- dynamics: tau + J^T F = M qdd + C(q, qd) + G(q) + K qd ----
+  void mass_matrix(const double* q, Workspace& ws, MatN& M) const;
+  // Recursive Newton-Euler: M qdd + C + G (+ K qd if with_friction), gravity
+  // scaled by gravity_scale (0 to leave it out).
+  void rnea(const double* q, const double* qd, const double* qdd, Workspace& ws, VecN& tau,
+            double gravity_scale, bool with_friction) const;
+  void gravity_vector(const double* q, Workspace& ws, VecN& g) const;
+  void coriolis_vector(const double* q, const double* qd, Workspace& ws, VecN& c) const;
+  // C in Christoffel form: C_kj = sum_i Gamma_ijk qd_i, Gamma from dM/dq.
+  void coriolis_matrix(const double* q, const double* qd, Workspace& ws, MatN& C) const;
+  // dM/dq_k for k = 0..n-1, each n x n.
+  void mass_matrix_derivatives(const double* q, Workspace& ws, std::vector<MatN>& dM) const;
+  // Joint torques of external wrenches: sum J(link, point)^T w.
+  void external_torques(const std::vector<ExternalWrench>& wrenches, Workspace& ws, VecN& tau) const;
+  void tool_wrench_torques(const Vec6& wrench, Workspace& ws, VecN& tau) const;
+  // Eq. (1): tau = M qdd + C + G + K qd - tau_ext.
+  void inverse_dynamics(const double* q, const double* qd, const double* qdd, const double* tau_ext,
+                        Workspace& ws, VecN& tau) const;
+  // Eq. (2): qdd = M^-1 (tau + tau_ext - C - G - K qd), by LDLT; tau_ext may be null.
+  void forward_dynamics(const double* q, const double* qd, const double* tau, const double* tau_ext,
+                        Workspace& ws, VecN& qdd, bool end_stops = false) const;
+  // End-stop torques for (q, qd) given the diagonal of M.
+  void end_stop_torques(const double* q, const double* qd, const MatN& M, VecN& tau) const;
+  // Kinetic and potential energy (J); potential of gravity relative to z = 0.
+  double kinetic_energy(const double* q, const double* qd, Workspace& ws) const;
+  double potential_energy(const double* q, Workspace& ws) const;
+
+  // Checks q / vectors (size and finiteness); throws std::invalid_argument.
+  void check_vector(const Eigen::Ref<const Eigen::VectorXd>& v, const char* name) const;
+
+ private:
+  void build_();
+  void mass_matrix_kin_(Workspace& ws, MatN& M) const;
+  void rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,
+                 bool with_friction) const;
+  int link_index_(int link, const char* what) const;
+
+  std::vector<Link> links_;
+  int n_ = 0;
+  Eigen::Vector3d gravity_;
+  Eigen::Vector3d base_p_;
+  double base_yaw_ = 0.0;
+  Eigen::Isometry3d base_;
+  Tool tool_;
+  std::string name_;
+  EndStop end_stop_;
+  std::shared_ptr<const GeneratedDynamics> generated_;
+  bool use_generated_ = false;
+  std::vector<double> params_;
+  // precomputed constants per link: fixed part of the DH transform and the
+  // transform from DH frame i to the CoM frame of link i
+  struct Pre {
+    double ct, st, ca, sa;               // cos/sin of theta offset (prismatic) and alpha
+    Eigen::Matrix3d R_com;               // CoM frame rotation in frame i
+    Eigen::Vector3d p_com;               // CoM position in frame i
+    Eigen::Matrix3d I_local;             // inertia about CoM in frame i
+  };
+  std::vector<Pre> pre_;
+};
+
+// Solid cuboid inertia about its centre, edges lx, ly, lz along x, y, z (kg m^2).
+Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz);
+// Homogeneous transform of one DH row with the joint variable already added.
+Eigen::Isometry3d dh_transform(double theta, double d, double a, double alpha);
+
+}  // namespace coopsim

@@ -1,0 +1,632 @@
+#include "coopsim/robot.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "coopsim/generated.hpp"
+
+namespace coopsim {
+
+namespace {
+
+std::string link_name(size_t k) {
+  std::ostringstream s;
+  s << "link " << (k + 1);
+  return s.str();
+}
+
+void require(bool ok, const std::string& msg) {
+  if (!ok) throw std::invalid_argument(msg);
+}
+
+bool finite_dh(const DHParams& p) {
+  return std::isfinite(p.theta) && std::isfinite(p.d) && std::isfinite(p.a) && std::isfinite(p.alpha);
+}
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+// |r|^2 E - r r^T: the parallel-axis term per unit mass
+Eigen::Matrix3d shift_inertia(const Eigen::Vector3d& r) {
+  Eigen::Matrix3d P = -r * r.transpose();
+  P.diagonal().array() += r.squaredNorm();
+  return P;
+}
+
+}  // namespace
+
+Eigen::Isometry3d dh_transform(double theta, double d, double a, double alpha) {
+  const double ct = std::cos(theta), st = std::sin(theta), ca = std::cos(alpha), sa = std::sin(alpha);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() << ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0, sa, ca;
+  T.translation() << a * ct, a * st, d;
+  return T;
+}
+
+Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz) {
+  require(std::isfinite(mass) && mass > 0, "box_inertia: mass must be finite and > 0");
+  require(std::isfinite(lx) && std::isfinite(ly) && std::isfinite(lz) && lx >= 0 && ly >= 0 && lz >= 0,
+          "box_inertia: edge lengths must be finite and >= 0");
+  Eigen::Matrix3d I = Eigen::Matrix3d::Zero();
+  I(0, 0) = mass * (ly * ly + lz * lz) / 12.0;
+  I(1, 1) = mass * (lx * lx + lz * lz) / 12.0;
+  I(2, 2) = mass * (lx * lx + ly * ly) / 12.0;
+  return I;
+}
+
+Robot::Robot(std::vector<Link> links, Eigen::Vector3d gravity, Eigen::Vector3d base_position,
+             double base_yaw, Tool tool, std::string name, EndStop end_stop)
+    : links_(std::move(links)),
+      gravity_(gravity),
+      base_p_(base_position),
+      base_yaw_(base_yaw),
+      tool_(tool),
+      name_(std::move(name)),
+      end_stop_(end_stop) {
+  build_();
+}
+
+void Robot::build_() {
+  n_ = static_cast<int>(links_.size());
+  {
+    std::ostringstream s;
+    s << "a robot needs 1 to " << kMaxDof << " joints, got " << n_;
+    require(n_ >= 1 && n_ <= kMaxDof, s.str());
+  }
+  for (size_t k = 0; k < links_.size(); ++k) {
+    const Link& L = links_[k];
+    const std::string who = link_name(k);
+    require(L.type == JointType::Revolute || L.type == JointType::Prismatic,
+            who + ": joint type must be 'R' or 'P'");
+    require(finite_dh(L.dh), who + ": DH parameters must be finite");
+    require(finite_dh(L.com), who + ": centre-of-mass parameters must be finite");
+    require(std::isfinite(L.mass) && L.mass > 0, who + ": mass must be finite and > 0 kg");
+    require(L.inertia.allFinite(), who + ": inertia tensor must be finite");
+    const double scale = L.inertia.cwiseAbs().maxCoeff();
+    const double tol = 1e-9 * std::max(scale, 1e-300);
+    require((L.inertia - L.inertia.transpose()).cwiseAbs().maxCoeff() <= tol,
+            who + ": inertia tensor must be symmetric");
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(L.inertia, Eigen::EigenvaluesOnly);
+    const Eigen::Vector3d ev = es.eigenvalues();  // ascending
+    require(ev(0) >= -tol, who + ": inertia tensor must be positive semi-definite");
+    require(ev(0) + ev(1) >= ev(2) - tol,
+            who + ": inertia tensor violates the triangle inequality (I1 + I2 >= I3)");
+    require(std::isfinite(L.friction) && L.friction >= 0, who + ": friction K must be finite and >= 0");
+    require(!std::isnan(L.q_min) && !std::isnan(L.q_max) && L.q_min < L.q_max,
+            who + ": joint limits must satisfy q_min < q_max");
+    require(!std::isnan(L.tau_max) && L.tau_max > 0, who + ": actuator limit tau_max must be > 0");
+  }
+  require(gravity_.allFinite(), "gravity must be finite");
+  require(base_p_.allFinite() && std::isfinite(base_yaw_), "base position and yaw must be finite");
+  require(std::isfinite(end_stop_.stiffness) && end_stop_.stiffness >= 0 &&
+              std::isfinite(end_stop_.damping_ratio) && end_stop_.damping_ratio >= 0,
+          "end stop stiffness and damping ratio must be finite and >= 0");
+  tool_.link = link_index_(tool_.link, "tool link");
+  tool_.second_link = link_index_(tool_.second_link, "tool second_link");
+  require(tool_.link >= 1 && tool_.second_link >= 1, "tool links must be 1..n (not the base)");
+  require(tool_.offset.matrix().allFinite() && tool_.second_point.allFinite(), "tool offset must be finite");
+  {
+    const Eigen::Matrix3d Rt = tool_.offset.linear();
+    require((Rt.transpose() * Rt - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
+                Rt.determinant() > 0,
+            "tool offset must be a rigid transform (rotation part orthonormal)");
+  }
+
+  base_ = Eigen::Isometry3d::Identity();
+  base_.linear() = Eigen::AngleAxisd(base_yaw_, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  base_.translation() = base_p_;
+
+  pre_.resize(n_);
+  params_.assign(kParamsPerLink * n_ + 3, 0.0);
+  for (int k = 0; k < n_; ++k) {
+    const Link& L = links_[k];
+    Pre& P = pre_[k];
+    P.ct = std::cos(L.dh.theta);
+    P.st = std::sin(L.dh.theta);
+    P.ca = std::cos(L.dh.alpha);
+    P.sa = std::sin(L.dh.alpha);
+    // transform from DH frame i to the CoM frame; constant because q enters
+    // the same slot of both rows and Rz, Tz commute
+    const Eigen::Isometry3d A = dh_transform(L.dh.theta, L.dh.d, L.dh.a, L.dh.alpha);
+    const Eigen::Isometry3d C = dh_transform(L.com.theta, L.com.d, L.com.a, L.com.alpha);
+    const Eigen::Isometry3d X = A.inverse() * C;
+    P.R_com = X.linear();
+    P.p_com = X.translation();
+    P.I_local = P.R_com * L.inertia * P.R_com.transpose();
+    double* b = &params_[kParamsPerLink * k];
+    b[kDhTheta] = L.dh.theta; b[kDhD] = L.dh.d; b[kDhA] = L.dh.a; b[kDhAlpha] = L.dh.alpha;
+    b[kComTheta] = L.com.theta; b[kComD] = L.com.d; b[kComA] = L.com.a; b[kComAlpha] = L.com.alpha;
+    b[kMass] = L.mass;
+    b[kIxx] = L.inertia(0, 0); b[kIyy] = L.inertia(1, 1); b[kIzz] = L.inertia(2, 2);
+    b[kIxy] = L.inertia(0, 1); b[kIxz] = L.inertia(0, 2); b[kIyz] = L.inertia(1, 2);
+    b[kFriction] = L.friction;
+  }
+  const Eigen::Vector3d g0 = base_.linear().transpose() * gravity_;
+  params_[kParamsPerLink * n_ + 0] = g0.x();
+  params_[kParamsPerLink * n_ + 1] = g0.y();
+  params_[kParamsPerLink * n_ + 2] = g0.z();
+}
+
+int Robot::link_index_(int link, const char* what) const {
+  const int l = link < 0 ? n_ + 1 + link : link;
+  if (l < 0 || l > n_) {
+    std::ostringstream s;
+    s << what << " must be in [-" << n_ << ", " << n_ << "], got " << link;
+    throw std::invalid_argument(s.str());
+  }
+  return l;
+}
+
+std::string Robot::joint_types() const {
+  std::string s;
+  for (const Link& L : links_) s.push_back(static_cast<char>(L.type));
+  return s;
+}
+
+VecN Robot::q_min() const {
+  VecN v(n_);
+  for (int k = 0; k < n_; ++k) v[k] = links_[k].q_min;
+  return v;
+}
+VecN Robot::q_max() const {
+  VecN v(n_);
+  for (int k = 0; k < n_; ++k) v[k] = links_[k].q_max;
+  return v;
+}
+VecN Robot::tau_max() const {
+  VecN v(n_);
+  for (int k = 0; k < n_; ++k) v[k] = links_[k].tau_max;
+  return v;
+}
+VecN Robot::friction_coefficients() const {
+  VecN v(n_);
+  for (int k = 0; k < n_; ++k) v[k] = links_[k].friction;
+  return v;
+}
+
+Robot Robot::with_base(const Eigen::Vector3d& position, double yaw) const {
+  Robot r = *this;
+  r.base_p_ = position;
+  r.base_yaw_ = yaw;
+  r.build_();
+  return r;
+}
+
+Robot Robot::with_gravity(const Eigen::Vector3d& gravity) const {
+  Robot r = *this;
+  r.gravity_ = gravity;
+  r.build_();
+  return r;
+}
+
+void Robot::attach_generated(std::shared_ptr<const GeneratedDynamics> gen) {
+  require(static_cast<bool>(gen), "attach_generated: no generated dynamics given");
+  require(gen->dof == n_, "generated dynamics '" + gen->name + "' has " + std::to_string(gen->dof) +
+                              " joints, robot has " + std::to_string(n_));
+  require(gen->joint_types == joint_types(), "generated dynamics '" + gen->name + "' is for joint types " +
+                                                 gen->joint_types + ", robot has " + joint_types());
+  require(static_cast<int>(gen->angles.size()) == 4 * n_,
+          "generated dynamics '" + gen->name + "' carries a malformed angle table");
+  for (int k = 0; k < n_; ++k) {
+    const Link& L = links_[k];
+    const double mine[4] = {L.dh.theta, L.dh.alpha, L.com.theta, L.com.alpha};
+    const char* what[4] = {"DH theta", "DH alpha", "CoM theta", "CoM alpha"};
+    for (int j = 0; j < 4; ++j) {
+      if (std::abs(mine[j] - gen->angles[4 * k + j]) > 1e-12) {
+        std::ostringstream s;
+        s << "generated dynamics '" << gen->name << "' was generated for " << what[j] << " = "
+          << gen->angles[4 * k + j] << " on " << link_name(k) << ", robot has " << mine[j]
+          << " (angles are structural: regenerate)";
+        throw std::invalid_argument(s.str());
+      }
+    }
+  }
+  require(gen->mass_matrix && gen->coriolis && gen->coriolis_matrix && gen->gravity,
+          "generated dynamics '" + gen->name + "' lacks a function");
+  generated_ = std::move(gen);
+  use_generated_ = true;
+}
+
+void Robot::set_backend(const std::string& backend) {
+  if (backend == "numeric") {
+    use_generated_ = false;
+  } else if (backend == "generated") {
+    require(static_cast<bool>(generated_),
+            "backend 'generated' is not available for robot '" + name_ + "': no generated code attached");
+    use_generated_ = true;
+  } else {
+    throw std::invalid_argument("backend must be 'generated' or 'numeric', got '" + backend + "'");
+  }
+}
+
+void Robot::check_vector(const Eigen::Ref<const Eigen::VectorXd>& v, const char* name) const {
+  if (v.size() != n_) {
+    std::ostringstream s;
+    s << "wrong size for " << name << ": expected " << n_ << ", got " << v.size();
+    throw std::invalid_argument(s.str());
+  }
+  if (!v.allFinite()) {
+    std::ostringstream s;
+    s << name << " must be finite (got NaN or inf)";
+    throw std::invalid_argument(s.str());
+  }
+}
+
+// ---------------------------------------------------------------- kinematics
+
+void Robot::kinematics(const double* q, Workspace& ws) const {
+  ws.n = n_;
+  ws.R[0] = base_.linear();
+  ws.o[0] = base_.translation();
+  for (int k = 0; k < n_; ++k) {
+    const Link& L = links_[k];
+    const Pre& P = pre_[k];
+    double ct = P.ct, st = P.st, d = L.dh.d;
+    if (L.type == JointType::Revolute) {
+      const double th = L.dh.theta + q[k];
+      ct = std::cos(th);
+      st = std::sin(th);
+    } else {
+      d += q[k];
+    }
+    const double ca = P.ca, sa = P.sa, a = L.dh.a;
+    Eigen::Matrix3d Rl;
+    Rl << ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0, sa, ca;
+    const Eigen::Vector3d pl(a * ct, a * st, d);
+    ws.o[k + 1].noalias() = ws.o[k] + ws.R[k] * pl;
+    ws.R[k + 1].noalias() = ws.R[k] * Rl;
+    ws.c[k].noalias() = ws.o[k + 1] + ws.R[k + 1] * P.p_com;
+    const Eigen::Matrix3d RI = ws.R[k + 1] * P.I_local;
+    ws.Iw[k].noalias() = RI * ws.R[k + 1].transpose();
+  }
+}
+
+Eigen::Isometry3d Robot::frame(const Workspace& ws, int i) const {
+  const int l = link_index_(i, "frame");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = ws.R[l];
+  T.translation() = ws.o[l];
+  return T;
+}
+
+Eigen::Isometry3d Robot::com_frame(const Workspace& ws, int i) const {
+  const int l = link_index_(i, "link");
+  require(l >= 1, "com_frame: link must be 1..n (the base has no CoM frame)");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = ws.R[l] * pre_[l - 1].R_com;
+  T.translation() = ws.c[l - 1];
+  return T;
+}
+
+Eigen::Isometry3d Robot::tool_pose(const Workspace& ws) const {
+  Eigen::Isometry3d T = frame(ws, tool_.link) * tool_.offset;
+  const Eigen::Vector3d pb = ws.o[tool_.second_link] + ws.R[tool_.second_link] * tool_.second_point;
+  T.translation() = 0.5 * (T.translation() + pb);
+  return T;
+}
+
+void Robot::jacobian(const Workspace& ws, int link, const Eigen::Vector3d& point, Mat6N& J) const {
+  const int l = link_index_(link, "link");
+  J.setZero(6, n_);
+  if (l == 0) return;
+  const Eigen::Vector3d p = ws.o[l] + ws.R[l] * point;
+  for (int j = 0; j < l; ++j) {
+    const Eigen::Vector3d z = ws.R[j].col(2);
+    if (links_[j].type == JointType::Revolute) {
+      J.col(j).head<3>() = z.cross(p - ws.o[j]);
+      J.col(j).tail<3>() = z;
+    } else {
+      J.col(j).head<3>() = z;
+    }
+  }
+}
+
+void Robot::tool_jacobian(const Workspace& ws, Mat6N& J) const {
+  Mat6N Jb;
+  jacobian(ws, tool_.link, tool_.offset.translation(), J);
+  jacobian(ws, tool_.second_link, tool_.second_point, Jb);
+  J.topRows<3>() = 0.5 * (J.topRows<3>() + Jb.topRows<3>());
+}
+
+// ------------------------------------------------------------------ dynamics
+
+void Robot::mass_matrix(const double* q, Workspace& ws, MatN& M) const {
+  M.resize(n_, n_);
+  if (uses_generated()) {
+    generated_->mass_matrix(params_.data(), q, M.data());
+    return;
+  }
+  kinematics(q, ws);
+  mass_matrix_kin_(ws, M);
+}
+
+void Robot::mass_matrix_kin_(Workspace& ws, MatN& M) const {
+  // composite rigid bodies: links k..n-1, mass, CoM and inertia about the CoM
+  for (int k = n_ - 1; k >= 0; --k) {
+    const double m = links_[k].mass;
+    if (k == n_ - 1) {
+      ws.cm_m[k] = m;
+      ws.cm_c[k] = ws.c[k];
+      ws.cm_I[k] = ws.Iw[k];
+    } else {
+      const double mc = m + ws.cm_m[k + 1];
+      const Eigen::Vector3d cc = (m * ws.c[k] + ws.cm_m[k + 1] * ws.cm_c[k + 1]) / mc;
+      ws.cm_I[k] = ws.Iw[k] + m * shift_inertia(ws.c[k] - cc) + ws.cm_I[k + 1] +
+                   ws.cm_m[k + 1] * shift_inertia(ws.cm_c[k + 1] - cc);
+      ws.cm_m[k] = mc;
+      ws.cm_c[k] = cc;
+    }
+  }
+  // column k: momentum of composite body k under a unit rate of joint k,
+  // projected on joints j <= k
+  for (int k = 0; k < n_; ++k) {
+    const Eigen::Vector3d z = ws.R[k].col(2);
+    const Eigen::Vector3d r = ws.cm_c[k] - ws.o[k];
+    Eigen::Vector3d h, L;
+    if (links_[k].type == JointType::Revolute) {
+      h = ws.cm_m[k] * z.cross(r);
+      L = ws.cm_I[k] * z + r.cross(h);
+      M(k, k) = z.dot(L);
+    } else {
+      h = ws.cm_m[k] * z;
+      L = r.cross(h);
+      M(k, k) = z.dot(h);
+    }
+    for (int j = 0; j < k; ++j) {
+      const Eigen::Vector3d zj = ws.R[j].col(2);
+      double v;
+      if (links_[j].type == JointType::Revolute) {
+        v = zj.dot(L + (ws.o[k] - ws.o[j]).cross(h));
+      } else {
+        v = zj.dot(h);
+      }
+      M(j, k) = v;
+      M(k, j) = v;
+    }
+  }
+}
+
+void Robot::rnea(const double* q, const double* qd, const double* qdd, Workspace& ws, VecN& tau,
+                 double gravity_scale, bool with_friction) const {
+  tau.resize(n_);
+  if (uses_generated()) {
+    const double* p = params_.data();
+    VecN tmp(n_);
+    tau.setZero();
+    if (qdd) {
+      MatN M(n_, n_);
+      generated_->mass_matrix(p, q, M.data());
+      tau.noalias() = M * Eigen::Map<const VecN>(qdd, n_);
+    }
+    generated_->coriolis(p, q, qd, tmp.data());
+    tau += tmp;
+    if (gravity_scale != 0.0) {
+      generated_->gravity(p, q, tmp.data());
+      tau += gravity_scale * tmp;
+    }
+    if (with_friction)
+      for (int k = 0; k < n_; ++k) tau[k] += links_[k].friction * qd[k];
+    return;
+  }
+  kinematics(q, ws);
+  rnea_kin_(qd, qdd, ws, tau, gravity_scale, with_friction);
+}
+
+void Robot::rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,
+                      bool with_friction) const {
+  Eigen::Vector3d w = Eigen::Vector3d::Zero(), wd = Eigen::Vector3d::Zero();
+  Eigen::Vector3d ap = -gravity_scale * gravity_;  // acceleration of the joint point on the previous body
+  for (int k = 0; k < n_; ++k) {
+    const Eigen::Vector3d z = ws.R[k].col(2);
+    const double qdk = qd[k], qddk = qdd ? qdd[k] : 0.0;
+    Eigen::Vector3d aJ;
+    if (links_[k].type == JointType::Revolute) {
+      wd += z * qddk + w.cross(z * qdk);
+      w += z * qdk;
+      aJ = ap;
+    } else {
+      aJ = ap + z * qddk + 2.0 * w.cross(z * qdk);
+    }
+    const Eigen::Vector3d rc = ws.c[k] - ws.o[k];
+    const Eigen::Vector3d ac = aJ + wd.cross(rc) + w.cross(w.cross(rc));
+    const Eigen::Vector3d rn = ws.o[k + 1] - ws.o[k];
+    ap = aJ + wd.cross(rn) + w.cross(w.cross(rn));
+    ws.f[k] = links_[k].mass * ac;
+    ws.nm[k] = ws.Iw[k] * wd + w.cross(ws.Iw[k] * w);
+  }
+  Eigen::Vector3d F = Eigen::Vector3d::Zero(), N = Eigen::Vector3d::Zero();  // about o[k+1]
+  for (int k = n_ - 1; k >= 0; --k) {
+    const Eigen::Vector3d rn = ws.o[k + 1] - ws.o[k];
+    N = ws.nm[k] + (ws.c[k] - ws.o[k]).cross(ws.f[k]) + N + rn.cross(F);  // about o[k]
+    F += ws.f[k];
+    const Eigen::Vector3d z = ws.R[k].col(2);
+    tau[k] = links_[k].type == JointType::Revolute ? z.dot(N) : z.dot(F);
+    if (with_friction) tau[k] += links_[k].friction * qd[k];
+  }
+}
+
+void Robot::gravity_vector(const double* q, Workspace& ws, VecN& g) const {
+  g.resize(n_);
+  if (uses_generated()) {
+    generated_->gravity(params_.data(), q, g.data());
+    return;
+  }
+  VecN zero = VecN::Zero(n_);
+  rnea(q, zero.data(), nullptr, ws, g, 1.0, false);
+}
+
+void Robot::coriolis_vector(const double* q, const double* qd, Workspace& ws, VecN& c) const {
+  c.resize(n_);
+  if (uses_generated()) {
+    generated_->coriolis(params_.data(), q, qd, c.data());
+    return;
+  }
+  rnea(q, qd, nullptr, ws, c, 0.0, false);
+}
+
+void Robot::mass_matrix_derivatives(const double* q, Workspace& ws, std::vector<MatN>& dM) const {
+  kinematics(q, ws);
+  const int n = n_;
+  dM.assign(n, MatN::Zero(n, n));
+  auto isR = [&](int j) { return links_[j].type == JointType::Revolute; };
+  Mat6N J(6, n), dJ(6, n);
+  for (int l = 0; l < n; ++l) {
+    const Eigen::Vector3d& cl = ws.c[l];
+    const Eigen::Matrix3d& I = ws.Iw[l];
+    const double m = links_[l].mass;
+    // CoM Jacobian of link l
+    J.setZero();
+    for (int j = 0; j <= l; ++j) {
+      const Eigen::Vector3d z = ws.R[j].col(2);
+      if (isR(j)) {
+        J.col(j).head<3>() = z.cross(cl - ws.o[j]);
+        J.col(j).tail<3>() = z;
+      } else {
+        J.col(j).head<3>() = z;
+      }
+    }
+    for (int k = 0; k <= l; ++k) {
+      const Eigen::Vector3d zk = ws.R[k].col(2);
+      dJ.setZero();
+      for (int j = 0; j <= l; ++j) {
+        const Eigen::Vector3d z = ws.R[j].col(2);
+        Eigen::Vector3d dz = Eigen::Vector3d::Zero();
+        if (k < j && isR(k)) dz = zk.cross(z);
+        if (isR(j)) {
+          // d/dq_k [z_j x (c_l - o_j)]
+          Eigen::Vector3d dr;  // d(c_l - o_j)/dq_k
+          if (k < j) {
+            dr = isR(k) ? Eigen::Vector3d(zk.cross(cl - ws.o[j])) : Eigen::Vector3d::Zero();
+          } else {
+            dr = isR(k) ? Eigen::Vector3d(zk.cross(cl - ws.o[k])) : zk;
+          }
+          dJ.col(j).head<3>() = dz.cross(cl - ws.o[j]) + z.cross(dr);
+          dJ.col(j).tail<3>() = dz;
+        } else {
+          dJ.col(j).head<3>() = dz;
+        }
+      }
+      const auto Jv = J.topRows<3>();
+      const auto Jw = J.bottomRows<3>();
+      const auto dJv = dJ.topRows<3>();
+      const auto dJw = dJ.bottomRows<3>();
+      MatN A = m * (dJv.transpose() * Jv) + dJw.transpose() * (I * Jw);
+      MatN& D = dM[k];
+      D += A + A.transpose();
+      if (isR(k)) {
+        const Eigen::Matrix3d S = skew(zk);
+        const Eigen::Matrix3d dI = S * I - I * S;
+        D += Jw.transpose() * dI * Jw;
+      }
+    }
+  }
+}
+
+void Robot::coriolis_matrix(const double* q, const double* qd, Workspace& ws, MatN& C) const {
+  C.resize(n_, n_);
+  if (uses_generated()) {
+    generated_->coriolis_matrix(params_.data(), q, qd, C.data());
+    return;
+  }
+  std::vector<MatN> dM;
+  mass_matrix_derivatives(q, ws, dM);
+  C.setZero();
+  for (int k = 0; k < n_; ++k)
+    for (int j = 0; j < n_; ++j) {
+      double s = 0;
+      for (int i = 0; i < n_; ++i) s += (dM[i](k, j) + dM[j](k, i) - dM[k](i, j)) * qd[i];
+      C(k, j) = 0.5 * s;
+    }
+}
+
+void Robot::external_torques(const std::vector<ExternalWrench>& wrenches, Workspace& ws, VecN& tau) const {
+  tau.setZero(n_);
+  Mat6N J;
+  for (const ExternalWrench& w : wrenches) {
+    require(w.point.allFinite() && w.wrench.allFinite(), "external wrench must be finite");
+    const int l = link_index_(w.link, "external wrench link");
+    jacobian(ws, l, w.point, J);
+    tau.noalias() += J.transpose() * w.wrench;
+  }
+}
+
+void Robot::tool_wrench_torques(const Vec6& wrench, Workspace& ws, VecN& tau) const {
+  Mat6N J;
+  tool_jacobian(ws, J);
+  tau.noalias() = J.transpose() * wrench;
+}
+
+void Robot::inverse_dynamics(const double* q, const double* qd, const double* qdd, const double* tau_ext,
+                             Workspace& ws, VecN& tau) const {
+  rnea(q, qd, qdd, ws, tau, 1.0, true);
+  if (tau_ext) tau -= Eigen::Map<const VecN>(tau_ext, n_);
+}
+
+void Robot::end_stop_torques(const double* q, const double* qd, const MatN& M, VecN& tau) const {
+  tau.setZero(n_);
+  const double k = end_stop_.stiffness;
+  if (k <= 0) return;
+  for (int j = 0; j < n_; ++j) {
+    const Link& L = links_[j];
+    double pen = 0;
+    if (q[j] > L.q_max) pen = q[j] - L.q_max;
+    else if (q[j] < L.q_min) pen = q[j] - L.q_min;
+    else continue;
+    const double b = 2.0 * end_stop_.damping_ratio * std::sqrt(k * M(j, j));
+    double t = -k * pen - b * qd[j];
+    // a stop pushes, never pulls the joint towards the limit
+    if (pen > 0 && t > 0) t = 0;
+    if (pen < 0 && t < 0) t = 0;
+    tau[j] = t;
+  }
+}
+
+void Robot::forward_dynamics(const double* q, const double* qd, const double* tau, const double* tau_ext,
+                             Workspace& ws, VecN& qdd, bool end_stops) const {
+  MatN M;
+  VecN b;
+  if (uses_generated()) {
+    mass_matrix(q, ws, M);
+    rnea(q, qd, nullptr, ws, b, 1.0, true);
+  } else {
+    kinematics(q, ws);
+    M.resize(n_, n_);
+    mass_matrix_kin_(ws, M);
+    b.resize(n_);
+    rnea_kin_(qd, nullptr, ws, b, 1.0, true);
+  }
+  VecN rhs = Eigen::Map<const VecN>(tau, n_) - b;
+  if (tau_ext) rhs += Eigen::Map<const VecN>(tau_ext, n_);
+  if (end_stops) {
+    VecN ts;
+    end_stop_torques(q, qd, M, ts);
+    rhs += ts;
+  }
+  Eigen::LLT<MatN> llt(M);
+  if (llt.info() != Eigen::Success)
+    throw std::runtime_error("forward_dynamics: mass matrix is not positive definite");
+  qdd = llt.solve(rhs);
+}
+
+double Robot::kinetic_energy(const double* q, const double* qd, Workspace& ws) const {
+  MatN M;
+  mass_matrix(q, ws, M);
+  const Eigen::Map<const VecN> v(qd, n_);
+  return 0.5 * v.dot(M * v);
+}
+
+double Robot::potential_energy(const double* q, Workspace& ws) const {
+  kinematics(q, ws);
+  double V = 0;
+  for (int k = 0; k < n_; ++k) V -= links_[k].mass * gravity_.dot(ws.c[k]);
+  return V;
+}
+
+}  // namespace coopsim

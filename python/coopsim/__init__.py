@@ -1,0 +1,43 @@
+"""coopsim: simulation and control of serial manipulators, alone and cooperating.
+
+The engine is C++ (Eigen, Bullet) in the compiled module ``coopsim._core``;
+this package re-exports it and adds robot definitions, planning, plotting
+and the cooperative task. SI units and radians throughout; arrays are numpy
+float64.
+"""
+from . import _core
+from ._core import (
+    CollisionWorld,
+    Contact,
+    Robot,
+    Tool,
+    Wrench,
+    box_inertia,
+    dh_transform,
+    euler_step,
+    forward_dynamics_batch,
+    integrate,
+    rk4_step,
+)
+from . import robots
+from .urdf import to_urdf
+
+Robot.to_urdf = to_urdf
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CollisionWorld",
+    "Contact",
+    "Robot",
+    "Tool",
+    "Wrench",
+    "box_inertia",
+    "dh_transform",
+    "euler_step",
+    "forward_dynamics_batch",
+    "integrate",
+    "rk4_step",
+    "robots",
+    "to_urdf",
+]

@@ -1,0 +1,225 @@
+"""The two SCARA robots of the paper, built from DH and centre-of-mass tables.
+
+The paper gives the joint structure (Tables 1 and 2) but no numbers; the
+defaults below are coopsim's (``shared/design/robots.md``). Every dimension is
+a keyword argument. Changing one rebuilds the tables, and the mass properties
+follow it: each link is a uniform box whose mass scales with its volume
+(constant density), unless ``masses`` is given, and whose inertia tensor is
+the box's about its centre of mass.
+
+Clamp model (both robots): a fixed jaw on the clamp body (link 5) and a moving
+jaw (link 6) on a prismatic joint whose variable is the opening d6 between the
+jaws' inner faces. Jaws are plates of ``jaw_length`` x ``width`` x
+``jaw_thickness``. The tool centre point (TCP) is midway between the jaws'
+inner faces, halfway along the jaws; the tool frame has z along the approach
+(out of the clamp), y along the jaw axis (fixed jaw towards moving jaw).
+
+Units: m, kg, rad, N, N m.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._core import Robot, Tool, box_inertia
+
+__all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS"]
+
+DEG = math.pi / 180.0
+
+#: SCARA #1 (RRPRRP) defaults: lengths in m, masses in kg.
+SCARA1_DEFAULTS = dict(
+    L_base=0.42,        # base height: floor to joint 2's plane
+    L1=0.30,            # first arm segment
+    L2=0.25,            # second arm segment
+    L4=0.05,            # wrist: quill tip to the pitch axis
+    L5=0.08,            # clamp body: pitch axis to the jaws
+    quill_length=0.30,  # vertical quill (joint 3 strokes 0 .. 0.25 down)
+    jaw_length=0.04,
+    jaw_thickness=0.01,
+    width=0.06,         # robot width w
+    height=0.04,        # link height h
+)
+_SCARA1_MASSES = np.array([3.0, 2.2, 0.8, 0.3, 0.25, 0.05])
+_SCARA1_K = np.array([1.0, 0.8, 4.0, 0.05, 0.05, 2.0])
+_SCARA1_QLIM = np.array([[-160 * DEG, 160 * DEG], [-145 * DEG, 145 * DEG], [0.0, 0.25],
+                         [-180 * DEG, 180 * DEG], [-10 * DEG, 120 * DEG], [0.0, 0.05]])
+_SCARA1_TAU = np.array([30.0, 20.0, 100.0, 2.0, 2.0, 15.0])
+
+#: SCARA #2 (RRRPRP) defaults.
+SCARA2_DEFAULTS = dict(
+    L_base=0.40,
+    L1=0.20,
+    L2=0.18,
+    L3=0.15,
+    L5=0.06,            # clamp body, vertical, below the quill tip
+    quill_length=0.30,  # joint 4 strokes 0 .. 0.30 down
+    jaw_length=0.04,
+    jaw_thickness=0.01,
+    width=0.05,
+    height=0.04,
+)
+_SCARA2_MASSES = np.array([2.0, 1.6, 1.2, 0.6, 0.25, 0.05])
+_SCARA2_K = np.array([0.8, 0.6, 0.4, 3.0, 0.05, 2.0])
+_SCARA2_QLIM = np.array([[-170 * DEG, 170 * DEG], [-150 * DEG, 150 * DEG], [-150 * DEG, 150 * DEG],
+                         [0.0, 0.30], [-180 * DEG, 180 * DEG], [0.0, 0.05]])
+_SCARA2_TAU = np.array([25.0, 15.0, 8.0, 80.0, 1.5, 15.0])
+
+
+def _check_dims(dims: dict, defaults: dict, name: str) -> dict:
+    unknown = set(dims) - set(defaults)
+    if unknown:
+        raise TypeError(f"{name}() got unknown dimension(s) {sorted(unknown)}; known: {sorted(defaults)}")
+    out = dict(defaults)
+    for key, value in dims.items():
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{key} must be a number in metres, got {value!r}") from None
+        if not math.isfinite(v) or v <= 0:
+            raise ValueError(f"{key} must be finite and > 0 m, got {value!r}")
+        out[key] = v
+    return out
+
+
+def _masses(boxes, default_boxes, default_masses, masses, n):
+    """Masses at constant density (volume ratio), or the given ones."""
+    if masses is not None:
+        m = np.asarray(masses, dtype=float)
+        if m.shape != (n,):
+            raise ValueError(f"wrong shape for masses: expected ({n},), got {m.shape}")
+        return m
+    vol = np.array([np.prod(b) for b in boxes])
+    vol0 = np.array([np.prod(b) for b in default_boxes])
+    return default_masses * vol / vol0
+
+
+def _build(name, types, dh, com, boxes, default_boxes, default_masses, masses, friction, q_limits,
+           tau_limits, tool, base_position, base_yaw, dims, gravity):
+    """Robot from the tables; `friction` is the viscous K to use (n,)."""
+    n = len(types)
+    m = _masses(boxes, default_boxes, default_masses, masses, n)
+    if np.any(~np.isfinite(m)) or np.any(m <= 0):
+        raise ValueError("masses must be finite and > 0 kg")
+    inertias = np.array([box_inertia(mi, *b) for mi, b in zip(m, boxes)])
+    robot = Robot.from_dh(
+        dh=np.array(dh, dtype=float), com=np.array(com, dtype=float), masses=m, inertias=inertias,
+        joint_types=types,
+        friction=friction,
+        q_limits=q_limits, tau_limits=tau_limits, gravity=gravity, base_position=base_position,
+        base_yaw=base_yaw, tool=tool, name=name)
+    robot.dimensions = dict(dims)
+    robot.link_boxes = np.array(boxes, dtype=float)
+    return robot
+
+
+def _scara1_geometry(d):
+    w, h, Lj, tj = d["width"], d["height"], d["jaw_length"], d["jaw_thickness"]
+    dh = [  # theta, d, a, alpha
+        [0.0, d["L_base"], d["L1"], 0.0],
+        [0.0, 0.0, d["L2"], math.pi],
+        [0.0, 0.0, 0.0, 0.0],             # P: d3, quill down
+        [0.0, d["L4"], 0.0, math.pi / 2],  # R: theta4, clamp yaw about the vertical
+        [0.0, 0.0, d["L5"], 0.0],         # R: theta5, clamp pitch; body along x5
+        [0.0, 0.0, 0.0, 0.0],             # P: d6, moving jaw along z5
+    ]
+    com = [
+        [0.0, d["L_base"], d["L1"] / 2, 0.0],
+        [0.0, 0.0, d["L2"] / 2, 0.0],
+        [0.0, -d["quill_length"] / 2, 0.0, 0.0],  # d3 - Lc3: CoM Lc3 above the quill tip
+        [0.0, d["L4"] / 2, 0.0, 0.0],
+        [0.0, 0.0, d["L5"] / 2, 0.0],
+        [0.0, tj / 2, Lj / 2, 0.0],               # jaw plate beyond the clamp tip
+    ]
+    boxes = [(d["L1"], w, h), (d["L2"], w, h), (w, h, d["quill_length"]), (w, h, d["L4"]),
+             (d["L5"], w, h), (Lj, w, tj)]
+    # tool frame in frame 5: z along x5 (approach), y along z5 (jaw), x = y5
+    R = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = [Lj / 2, 0.0, 0.0]
+    tool = Tool(link=5, offset=T, second_link=6, second_point=[Lj / 2, 0.0, 0.0])
+    return dh, com, boxes, tool
+
+
+def _scara2_geometry(d):
+    w, h, Lj, tj = d["width"], d["height"], d["jaw_length"], d["jaw_thickness"]
+    dh = [
+        [0.0, d["L_base"], d["L1"], 0.0],
+        [0.0, 0.0, d["L2"], 0.0],
+        [0.0, 0.0, d["L3"], math.pi],
+        [0.0, 0.0, 0.0, 0.0],             # P: d4, quill down
+        [0.0, d["L5"], 0.0, math.pi / 2],  # R: theta5, clamp yaw; z5 horizontal
+        [0.0, 0.0, 0.0, 0.0],             # P: d6, moving jaw along z5
+    ]
+    com = [
+        [0.0, d["L_base"], d["L1"] / 2, 0.0],
+        [0.0, 0.0, d["L2"] / 2, 0.0],
+        [0.0, 0.0, d["L3"] / 2, 0.0],
+        [0.0, -d["quill_length"] / 2, 0.0, 0.0],  # d4 - Lc4 (paper Table 2, corrected)
+        [0.0, d["L5"] / 2, 0.0, 0.0],
+        [math.pi / 2, tj / 2, Lj / 2, 0.0],       # jaw plate hanging along y5 (down)
+    ]
+    boxes = [(d["L1"], w, h), (d["L2"], w, h), (d["L3"], w, h), (w, h, d["quill_length"]),
+             (w, h, d["L5"]), (Lj, w, tj)]
+    # tool frame in frame 5: z along y5 (down, approach), y along z5 (jaw), x = -x5
+    R = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = [0.0, Lj / 2, 0.0]
+    tool = Tool(link=5, offset=T, second_link=6, second_point=[0.0, Lj / 2, 0.0])
+    return dh, com, boxes, tool
+
+
+def scara1(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction=None,
+           gravity=(0.0, 0.0, -9.81), backend="generated", **dims) -> Robot:
+    """SCARA #1 of the paper: RRP positioning plus a 3-joint clamp (RRPRRP).
+
+    Joints: theta1, theta2 (horizontal arm, rad), d3 (quill, m, down),
+    theta4 (clamp yaw about the vertical), theta5 (clamp pitch; 0 horizontal,
+    pi/2 pointing down), d6 (jaw opening, m).
+
+    Keyword dimensions (m): L_base, L1, L2, L4, L5, quill_length, jaw_length,
+    jaw_thickness, width, height; see SCARA1_DEFAULTS. base_position (3,) m
+    and base_yaw (rad) place frame 0 in the world. masses (6,) kg overrides
+    the volume-scaled masses; friction (6,) the viscous K. backend selects
+    'generated' closed-form dynamics when compiled in, else 'numeric'.
+    """
+    d = _check_dims(dims, SCARA1_DEFAULTS, "scara1")
+    dh, com, boxes, tool = _scara1_geometry(d)
+    _, _, boxes0, _ = _scara1_geometry(SCARA1_DEFAULTS)
+    r = _build("scara1", "RRPRRP", dh, com, boxes, boxes0, _SCARA1_MASSES, masses, _SCARA1_K if friction is None else friction, _SCARA1_QLIM,
+               _SCARA1_TAU, tool, base_position, base_yaw, d, gravity)
+    _select_backend(r, backend)
+    return r
+
+
+def scara2(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction=None,
+           gravity=(0.0, 0.0, -9.81), backend="generated", **dims) -> Robot:
+    """SCARA #2 of the paper: over-actuated RRRPRP (Tables 1 and 2, corrected).
+
+    Joints: theta1, theta2, theta3 (horizontal arm, rad), d4 (quill, m, down),
+    theta5 (clamp yaw about the vertical), d6 (jaw opening, m).
+
+    Keyword dimensions (m): L_base, L1, L2, L3, L5, quill_length, jaw_length,
+    jaw_thickness, width, height; see SCARA2_DEFAULTS. Other keywords as for
+    scara1.
+    """
+    d = _check_dims(dims, SCARA2_DEFAULTS, "scara2")
+    dh, com, boxes, tool = _scara2_geometry(d)
+    _, _, boxes0, _ = _scara2_geometry(SCARA2_DEFAULTS)
+    r = _build("scara2", "RRRPRP", dh, com, boxes, boxes0, _SCARA2_MASSES, masses, _SCARA2_K if friction is None else friction, _SCARA2_QLIM,
+               _SCARA2_TAU, tool, base_position, base_yaw, d, gravity)
+    _select_backend(r, backend)
+    return r
+
+
+def _select_backend(robot: Robot, backend: str) -> None:
+    from . import _core
+
+    if backend not in ("generated", "numeric"):
+        raise ValueError(f"backend must be 'generated' or 'numeric', got {backend!r}")
+    if robot.name in _core.builtin_generated_names():
+        _core.attach_builtin_generated(robot, robot.name)
+    robot.set_backend(backend if robot.has_generated else "numeric")
