@@ -6,6 +6,7 @@ namespace py = pybind11;
 void bind_robot(py::module_& m);
 void bind_integrator(py::module_& m);
 void bind_collision(py::module_& m);
+void bind_trajectory(py::module_& m);
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)";
@@ -17,4 +18,5 @@ PYBIND11_MODULE(_core, m) {
   bind_robot(m);
   bind_integrator(m);
   bind_collision(m);
+  bind_trajectory(m);
 }

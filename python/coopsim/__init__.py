@@ -9,6 +9,8 @@ from . import _core
 from ._core import (
     CollisionWorld,
     Contact,
+    CubicTrajectory,
+    Reference,
     Robot,
     Tool,
     Wrench,
@@ -29,6 +31,8 @@ __version__ = "0.1.0"
 __all__ = [
     "CollisionWorld",
     "Contact",
+    "CubicTrajectory",
+    "Reference",
     "Robot",
     "Tool",
     "Wrench",

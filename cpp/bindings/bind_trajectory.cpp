@@ -1,0 +1,246 @@
+// Joint-space references: the abstract Reference (subclassable from Python)
+// and the piecewise cubic CubicTrajectory.
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <stdexcept>
+
+#include "convert.hpp"
+#include "coopsim/reference.hpp"
+#include "coopsim/trajectory.hpp"
+
+namespace py = pybind11;
+using namespace coopsim;
+using namespace coopsim::py_convert;
+
+namespace {
+
+using RowMat = CubicTrajectory::RowMat;
+
+// Lets a Python class implement Reference: it defines dof, t_start, t_end
+// (read as methods or properties) and evaluate(t) -> (q, qd, qdd), each (n,).
+class PyReference : public Reference {
+ public:
+  int dof() const override { return attr_("dof").cast<int>(); }
+  double t_start() const override { return attr_("t_start").cast<double>(); }
+  double t_end() const override { return attr_("t_end").cast<double>(); }
+  void evaluate(double t, double* q, double* qd, double* qdd) const override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Reference*>(this), "evaluate");
+    if (!f) throw std::runtime_error("Reference subclass must define evaluate(t) -> (q, qd, qdd)");
+    py::object out = f(t);
+    const int n = dof();
+    py::sequence s = out;
+    if (py::len(s) != 3) throw py::value_error("Reference.evaluate(t) must return (q, qd, qdd)");
+    double* dst[3] = {q, qd, qdd};
+    const char* names[3] = {"q returned by evaluate", "qd returned by evaluate", "qdd returned by evaluate"};
+    for (int i = 0; i < 3; ++i)
+      if (dst[i]) {
+        const Eigen::VectorXd v = vecx(s[i], n, names[i]);
+        for (int j = 0; j < n; ++j) dst[i][j] = v[j];
+      }
+  }
+
+ private:
+  // the subclass's own attribute (method, property or value), never the
+  // base binding's property, which would call back here
+  py::object attr_(const char* name) const {
+    py::gil_scoped_acquire gil;
+    py::object self = py::cast(static_cast<const Reference*>(this));
+    py::object base = py::type::of<Reference>();
+    bool found = py::hasattr(self, "__dict__") && self.attr("__dict__").contains(name);
+    for (auto cls : self.get_type().attr("__mro__")) {
+      if (found || cls.is(base)) break;
+      found = cls.attr("__dict__").contains(name);
+    }
+    if (!found) throw py::type_error(std::string("Reference subclass must define ") + name);
+    py::object a = self.attr(name);
+    if (PyCallable_Check(a.ptr())) a = a();
+    return a;
+  }
+};
+
+// A scalar or a 1-D array of finite times.
+Arr times_arg(const py::object& t, const char* name) {
+  Arr a = as_array(t, name);
+  if (a.ndim() > 1) throw py::value_error(std::string("wrong shape for ") + name + ": expected a scalar or (N,), got " + shape_str(a));
+  check_finite(a.data(), static_cast<size_t>(a.size()), name);
+  return a;
+}
+
+// (q, qd, qdd) of a Reference at a scalar time -> (n,) each, or at (N,) times -> (N, n) each.
+py::tuple evaluate_ref(const Reference& r, const py::object& t) {
+  Arr ta = times_arg(t, "t");
+  const py::ssize_t n = r.dof();
+  if (ta.ndim() == 0) {
+    py::array_t<double> q(n), qd(n), qdd(n);
+    r.evaluate(ta.data()[0], q.mutable_data(), qd.mutable_data(), qdd.mutable_data());
+    return py::make_tuple(q, qd, qdd);
+  }
+  const py::ssize_t m = ta.shape(0);
+  py::array_t<double> q({m, n}), qd({m, n}), qdd({m, n});
+  double *pq = q.mutable_data(), *pqd = qd.mutable_data(), *pqdd = qdd.mutable_data();
+  const double* pt = ta.data();
+  if (auto* c = dynamic_cast<const CubicTrajectory*>(&r)) {
+    py::gil_scoped_release nogil;
+    c->evaluate_many(pt, static_cast<long>(m), pq, pqd, pqdd);
+  } else {
+    for (py::ssize_t i = 0; i < m; ++i) r.evaluate(pt[i], pq + i * n, pqd + i * n, pqdd + i * n);
+  }
+  return py::make_tuple(q, qd, qdd);
+}
+
+RowMat matrix_arg(const py::object& obj, py::ssize_t rows, py::ssize_t cols, const char* name) {
+  Arr a = as_array(obj, name);
+  if (a.ndim() == 1 && cols <= 1) {
+    // one joint given as a flat (N,) array
+    if (rows >= 0 && a.shape(0) != rows)
+      throw py::value_error(std::string("wrong length for ") + name + ": expected " + std::to_string(rows) +
+                            " rows (one per time), got " + std::to_string(a.shape(0)));
+    check_finite(a.data(), static_cast<size_t>(a.size()), name);
+    return Eigen::Map<const RowMat>(a.data(), a.shape(0), 1);
+  }
+  if (a.ndim() != 2) throw py::value_error(std::string("wrong shape for ") + name + ": expected (N, n), got " + shape_str(a));
+  if (rows >= 0 && a.shape(0) != rows)
+    throw py::value_error(std::string("wrong length for ") + name + ": expected " + std::to_string(rows) +
+                          " rows (one per time), got " + std::to_string(a.shape(0)));
+  if (cols >= 0 && a.shape(1) != cols)
+    throw py::value_error(std::string("wrong shape for ") + name + ": expected (" + std::to_string(rows) + ", " +
+                          std::to_string(cols) + "), got " + shape_str(a));
+  check_finite(a.data(), static_cast<size_t>(a.size()), name);
+  return Eigen::Map<const RowMat>(a.data(), a.shape(0), a.shape(1));
+}
+
+std::shared_ptr<CubicTrajectory> make_cubic(const py::object& times, const py::object& q_points,
+                                            const py::object& qd_points, bool spline, const py::object& qd_start,
+                                            const py::object& qd_end) {
+  Arr ta = as_array(times, "times");
+  if (ta.ndim() != 1) throw py::value_error("wrong shape for times: expected (N,), got " + shape_str(ta));
+  const py::ssize_t N = ta.shape(0);
+  if (N < 2)
+    throw py::value_error("times must have at least 2 points (one segment), got " + std::to_string(N));
+  check_finite(ta.data(), static_cast<size_t>(N), "times");
+  std::vector<double> t(ta.data(), ta.data() + N);
+  RowMat Q = matrix_arg(q_points, N, -1, "q_points");
+  const py::ssize_t n = Q.cols();
+  RowMat V;
+  KnotVelocities rule = spline ? KnotVelocities::Spline : KnotVelocities::Heuristic;
+  if (!qd_points.is_none()) {
+    if (spline)
+      throw py::value_error("qd_points cannot be given with spline=True (the spline sets the interior "
+                            "velocities); give qd_start and qd_end instead");
+    if (!qd_start.is_none() || !qd_end.is_none())
+      throw py::value_error("qd_start / qd_end cannot be given with qd_points (its first and last rows are "
+                            "the end velocities)");
+    V = matrix_arg(qd_points, N, n, "qd_points");
+    rule = KnotVelocities::Given;
+  } else {
+    V = RowMat::Zero(N, n);
+    if (!qd_start.is_none()) V.row(0) = vecx(qd_start, n, "qd_start").transpose();
+    if (!qd_end.is_none()) V.row(N - 1) = vecx(qd_end, n, "qd_end").transpose();
+  }
+  try {
+    return std::make_shared<CubicTrajectory>(std::move(t), std::move(Q), std::move(V), rule);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(e.what());
+  }
+}
+
+// (N, n) even for one joint (to_numpy would flatten a single column)
+py::array_t<double> rows(const RowMat& M) {
+  py::array_t<double> out({static_cast<py::ssize_t>(M.rows()), static_cast<py::ssize_t>(M.cols())});
+  Eigen::Map<RowMat>(out.mutable_data(), M.rows(), M.cols()) = M;
+  return out;
+}
+
+const char* rule_name(KnotVelocities r) {
+  switch (r) {
+    case KnotVelocities::Given: return "given";
+    case KnotVelocities::Spline: return "spline";
+    default: return "heuristic";
+  }
+}
+
+}  // namespace
+
+void bind_trajectory(py::module_& m) {
+  // the controllers' side may bind Reference too; register it once
+  if (!py::detail::get_type_info(typeid(Reference))) {
+    py::class_<Reference, PyReference, std::shared_ptr<Reference>>(
+        m, "Reference",
+        "A joint-space reference: desired q, qd, qdd at any time; holds its end point after t_end. "
+        "Subclass it in Python by defining dof, t_start, t_end and evaluate(t) -> (q, qd, qdd), each (n,).")
+        .def(py::init<>())
+        .def_property_readonly("dof", &Reference::dof, "Number of joints n.")
+        .def_property_readonly("t_start", &Reference::t_start, "First time (s).")
+        .def_property_readonly("t_end", &Reference::t_end, "Last time (s); the end point is held after it.")
+        .def("evaluate", &evaluate_ref, py::arg("t"),
+             "(q, qd, qdd) at time t (s): each (n,) for a scalar t, (N, n) for an array of N times; "
+             "rad, rad/s, rad/s^2 (m, m/s, m/s^2 for prismatic joints).");
+  }
+
+  py::class_<CubicTrajectory, Reference, std::shared_ptr<CubicTrajectory>>(m, "CubicTrajectory", R"doc(
+Piecewise cubic joint trajectory through via-points (the paper's eqs. 6-8).
+
+Segment k of joint j is c0 + c1 tau + c2 tau^2 + c3 tau^3 in the local time
+tau = t - times[k], meeting the four Hermite conditions (position and velocity
+at both ends), so q and qd are continuous at every knot. Knot velocities:
+- qd_points (N, n) if given;
+- spline=True: the C2 cubic spline (continuous acceleration) with end
+  velocities qd_start, qd_end (default 0);
+- otherwise: ends qd_start, qd_end (default 0); interior knots the average of
+  the neighbouring segment slopes, or 0 where the slope changes sign or is 0.
+Before times[0] and after times[-1] the first / last point is held at rest.
+
+times: (N,) s, strictly increasing, N >= 2. q_points: (N, n) rad or m
+(a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
+qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.)doc")
+      .def(py::init(&make_cubic), py::arg("times"), py::arg("q_points"), py::arg("qd_points") = py::none(),
+           py::kw_only(), py::arg("spline") = false, py::arg("qd_start") = py::none(),
+           py::arg("qd_end") = py::none())
+      .def_property_readonly("times", [](const CubicTrajectory& c) {
+         return to_numpy(Eigen::Map<const Eigen::VectorXd>(c.times().data(), c.times().size()));
+       }, "(N,) knot times, s.")
+      .def_property_readonly("q_points", [](const CubicTrajectory& c) { return rows(c.points()); },
+                             "(N, n) via-points.")
+      .def_property_readonly("qd_points", [](const CubicTrajectory& c) { return rows(c.velocities()); },
+                             "(N, n) knot velocities used (given, heuristic or spline).")
+      .def_property_readonly("segments", &CubicTrajectory::segments, "Number of segments N - 1.")
+      .def_property_readonly("duration", [](const CubicTrajectory& c) { return c.t_end() - c.t_start(); },
+                             "t_end - t_start, s.")
+      .def_property_readonly("velocity_rule", [](const CubicTrajectory& c) { return rule_name(c.rule()); },
+                             "'given', 'heuristic' or 'spline'.")
+      .def_property_readonly("coefficients", [](const CubicTrajectory& c) {
+         const py::ssize_t S = c.segments(), n = c.dof();
+         py::array_t<double> out({S, n, py::ssize_t(4)});
+         double* p = out.mutable_data();
+         for (int k = 0; k < S; ++k)
+           for (int j = 0; j < n; ++j)
+             for (int i = 0; i < 4; ++i) *p++ = c.coefficients(k, j)[i];
+         return out;
+       }, "(N - 1, n, 4) [c0, c1, c2, c3] of each segment and joint, in local time tau = t - times[k].")
+      .def("segment", [](const CubicTrajectory& c, double t) {
+         if (!std::isfinite(t)) throw py::value_error("t must be finite");
+         return c.segment(t);
+       }, py::arg("t"), "Index of the segment containing time t (clamped to 0 .. segments - 1).")
+      .def("__repr__", [](const CubicTrajectory& c) {
+         return "CubicTrajectory(dof=" + std::to_string(c.dof()) + ", segments=" + std::to_string(c.segments()) +
+                ", t=[" + std::to_string(c.t_start()) + ", " + std::to_string(c.t_end()) + "] s, velocities='" +
+                rule_name(c.rule()) + "')";
+       })
+      .def(py::pickle(
+          [](const CubicTrajectory& c) {
+            // the knot velocities used, with the rule: rebuilding recomputes the same interior rows
+            return py::make_tuple(
+                to_numpy(Eigen::Map<const Eigen::VectorXd>(c.times().data(), c.times().size())),
+                rows(c.points()), rows(c.velocities()), static_cast<int>(c.rule()));
+          },
+          [](py::tuple s) {
+            Arr ta = array(s[0], {-1}, "times");
+            const RowMat Q = matrix_arg(s[1], ta.shape(0), -1, "q_points");
+            const RowMat V = matrix_arg(s[2], ta.shape(0), Q.cols(), "qd_points");
+            return std::make_shared<CubicTrajectory>(std::vector<double>(ta.data(), ta.data() + ta.shape(0)), Q, V,
+                                                     static_cast<KnotVelocities>(s[3].cast<int>()));
+          }));
+}
