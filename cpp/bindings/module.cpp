@@ -6,6 +6,7 @@ namespace py = pybind11;
 void bind_robot(py::module_& m);
 void bind_integrator(py::module_& m);
 void bind_collision(py::module_& m);
+void bind_codegen(py::module_& m);
 void bind_trajectory(py::module_& m);
 
 PYBIND11_MODULE(_core, m) {
@@ -18,5 +19,6 @@ PYBIND11_MODULE(_core, m) {
   bind_robot(m);
   bind_integrator(m);
   bind_collision(m);
+  bind_codegen(m);
   bind_trajectory(m);
 }

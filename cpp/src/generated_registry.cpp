@@ -1,27 +1,50 @@
-// Looks up closed-form dynamics compiled into the engine by robot name. The
-// table is filled by the generated sources in cpp/generated, each of which
-// registers itself through generated_table().
-#include "coopsim/generated.hpp"
-
+// Looks up generated dynamics by name: the robots compiled into the engine
+// (listed explicitly by the generated cpp/generated/registry.cpp, so a static
+// link keeps them) and code registered at run time from shared libraries.
 #include <map>
+#include <mutex>
+#include <stdexcept>
+
+#include "coopsim/generated.hpp"
 
 namespace coopsim {
 
-std::map<std::string, const GeneratedDynamics*>& generated_table() {
-  static std::map<std::string, const GeneratedDynamics*> table;
+namespace {
+
+std::mutex& runtime_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::map<std::string, std::shared_ptr<const GeneratedDynamics>>& runtime_table() {
+  static std::map<std::string, std::shared_ptr<const GeneratedDynamics>> table;
   return table;
 }
 
+}  // namespace
+
 const GeneratedDynamics* builtin_generated(const std::string& name) {
-  auto& t = generated_table();
-  auto it = t.find(name);
-  return it == t.end() ? nullptr : it->second;
+  static const std::vector<const GeneratedDynamics*> compiled = compiled_generated();
+  for (const GeneratedDynamics* g : compiled)
+    if (g->name == name) return g;
+  std::lock_guard<std::mutex> lock(runtime_mutex());
+  auto it = runtime_table().find(name);
+  return it == runtime_table().end() ? nullptr : it->second.get();
 }
 
 std::vector<std::string> builtin_generated_names() {
   std::vector<std::string> out;
-  for (const auto& kv : generated_table()) out.push_back(kv.first);
+  for (const GeneratedDynamics* g : compiled_generated()) out.push_back(g->name);
   return out;
+}
+
+void register_generated(std::shared_ptr<const GeneratedDynamics> gen) {
+  if (!gen) throw std::invalid_argument("register_generated: no generated dynamics given");
+  for (const GeneratedDynamics* g : compiled_generated())
+    if (g->name == gen->name)
+      throw std::invalid_argument("register_generated: '" + gen->name + "' is compiled into the engine");
+  std::lock_guard<std::mutex> lock(runtime_mutex());
+  runtime_table()[gen->name] = std::move(gen);
 }
 
 }  // namespace coopsim

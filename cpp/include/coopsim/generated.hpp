@@ -9,6 +9,7 @@
 // Array layouts: q, qd: n; M, C: n x n column-major; c, g: n.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,8 @@ struct GeneratedDynamics {
   void (*coriolis)(const double* p, const double* q, const double* qd, double* c) = nullptr;
   void (*coriolis_matrix)(const double* p, const double* q, const double* qd, double* C) = nullptr;
   void (*gravity)(const double* p, const double* q, double* g) = nullptr;
+  // optional: M and h = C(q, qd) qd + G(q) + K qd in one pass (shared sin/cos)
+  void (*dynamics)(const double* p, const double* q, const double* qd, double* M, double* h) = nullptr;
 };
 
 // Per link parameter block length and offsets into the parameter vector.
@@ -39,8 +42,14 @@ enum ParamOffset : int {
 };
 // Gravity (gx, gy, gz) in frame 0 follows the n link blocks.
 
-// Generated code compiled into the engine, looked up by robot name; null if none.
+// Generated code compiled into the engine or registered at run time, looked
+// up by name; null if none. The names are those compiled into the engine.
 const GeneratedDynamics* builtin_generated(const std::string& name);
 std::vector<std::string> builtin_generated_names();
+// Keeps `gen` for the process lifetime and makes it findable by name (code
+// loaded from a shared library, e.g. by coopsim.codegen.compile).
+void register_generated(std::shared_ptr<const GeneratedDynamics> gen);
+// The list emitted by the generator in cpp/generated/registry.cpp.
+std::vector<const GeneratedDynamics*> compiled_generated();
 
 }  // namespace coopsim

@@ -1,0 +1,314 @@
+"""Symbolic Lagrange-Euler dynamics of a serial R/P robot from its DH and CoM tables.
+
+Only the joint types and the angle columns (DH theta and alpha, CoM theta and
+alpha) are fixed: they are the robot's *structure*. Every length (DH and CoM
+d, a), mass, inertia entry, friction coefficient and the gravity vector (in
+frame 0) stays a symbol, so generated code reads them at run time.
+
+Conventions are those of ``coopsim.Robot`` (``cpp/include/coopsim/robot.hpp``):
+A_i = Rz(theta_i [+ q_i]) Tz(d_i [+ q_i]) Tx(a_i) Rx(alpha_i); the CoM row of
+link i takes frame i-1 to the CoM frame of link i with q_i in the same slot;
+the inertia tensor is about the CoM in the CoM frame.
+
+Internally cos and sin of each revolute joint's DH angle theta_i + q_i are
+the symbols ``c_i`` and ``s_i``, which keeps every expression polynomial in
+them; derivatives use d c_i/dq_i = -s_i and d s_i/dq_i = c_i. Derivation
+(tractable at 6 DOF): row i of M is assembled from the link Jacobians
+expressed in DH frame i, where joint i's axis and origin do not depend on
+q_i, so M_ij only contains q_(i+1) .. q_n and no identity c^2 + s^2 = 1 has
+to be found by simplification:
+
+    M = sum_l m_l Jv_l^T Jv_l + Jw_l^T R_l I_l R_l^T Jw_l
+    Gamma_ijk = (dM_kj/dq_i + dM_ki/dq_j - dM_ij/dq_k) / 2,  C_kj = sum_i Gamma_ijk qd_i
+    G = dV/dq,  V = -sum_l m_l g . c_l
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Sequence
+
+import sympy as sp
+
+__all__ = ["Structure", "SymbolicModel", "exact_angle", "structure_of", "derive"]
+
+# per link block of the parameter vector (cpp/include/coopsim/generated.hpp)
+PARAMS_PER_LINK = 16
+OFFSETS = dict(dh_theta=0, d=1, a=2, dh_alpha=3, com_theta=4, dc=5, ac=6, com_alpha=7, m=8,
+               Ixx=9, Iyy=10, Izz=11, Ixy=12, Ixz=13, Iyz=14, K=15)
+
+
+def exact_angle(x: float) -> sp.Expr:
+    """Exact sympy value of a structural angle (rad): k pi / 12 when within 1e-12, else the float."""
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"angle must be finite, got {x!r}")
+    k = round(x / (math.pi / 12))
+    if abs(x - k * math.pi / 12) <= 1e-12:
+        return sp.Rational(k, 12) * sp.pi
+    return sp.Float(repr(x), 17)
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What generated code is specialised to: joint types and the angle columns.
+
+    name: identifier used in generated C++ (letters, digits, underscore).
+    joint_types: e.g. "RRPRRP".
+    angles: one (dh theta, dh alpha, com theta, com alpha) tuple per link, rad.
+    """
+
+    name: str
+    joint_types: str
+    angles: tuple
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValueError(f"name must be a C identifier, got {self.name!r}")
+        if not self.joint_types or any(c not in "RP" for c in self.joint_types):
+            raise ValueError(f"joint_types must be a non-empty string of 'R'/'P', got {self.joint_types!r}")
+        angles = tuple(tuple(float(v) for v in row) for row in self.angles)
+        if len(angles) != len(self.joint_types) or any(len(r) != 4 for r in angles):
+            raise ValueError(f"angles must have shape ({len(self.joint_types)}, 4), one row per joint")
+        if not all(math.isfinite(v) for r in angles for v in r):
+            raise ValueError("angles must be finite")
+        object.__setattr__(self, "angles", angles)
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_types)
+
+
+def structure_of(robot, name: str | None = None) -> Structure:
+    """Structure of a ``coopsim.Robot`` (or any object with dh, com, joint_types, name)."""
+    dh, com = robot.dh, robot.com
+    angles = tuple((float(dh[k][0]), float(dh[k][3]), float(com[k][0]), float(com[k][3]))
+                   for k in range(len(robot.joint_types)))
+    return Structure(name or robot.name, robot.joint_types, angles)
+
+
+def _rz(c, s):
+    return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def _rx(c, s):
+    return sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _cross(u, v):
+    return sp.Matrix([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
+
+
+def _dot(u, v):
+    return sum((u[i] * v[i] for i in range(3)), sp.Integer(0))
+
+
+@dataclass
+class _Link:
+    kind: str
+    q: sp.Symbol
+    qd: sp.Symbol
+    c: sp.Expr       # cos(theta + q) (revolute: symbol c_i; prismatic: constant)
+    s: sp.Expr
+    ca: sp.Expr      # cos/sin of alpha (exact)
+    sa: sp.Expr
+    d: sp.Expr       # d (+ q for prismatic)
+    a: sp.Symbol
+    Rc: sp.Matrix    # CoM frame rotation in frame i (constant)
+    pc: sp.Matrix    # CoM position in frame i (constant)
+    m: sp.Symbol
+    I: sp.Matrix
+    K: sp.Symbol
+    params: dict = field(default_factory=dict)
+
+
+class SymbolicModel:
+    """Lagrange-Euler model of one structure with symbolic parameters.
+
+    Attributes (sympy, cos/sin of joint i written c_i, s_i unless ``trig``
+    is used): M (n, n) inertia matrix; C (n,) Coriolis/centrifugal vector
+    C(q, qd) qd; C_matrix (n, n) Christoffel form; G (n,) gravity vector;
+    friction (n,) K qd; q, qd joint symbols; parameters: symbol -> index in
+    the robot's parameter vector.
+    """
+
+    def __init__(self, structure: Structure):
+        self.structure = structure
+        n = self.n = structure.dof
+        self.q = [sp.Symbol(f"q_{i + 1}", real=True) for i in range(n)]
+        self.qd = [sp.Symbol(f"qd_{i + 1}", real=True) for i in range(n)]
+        self.g = sp.Matrix(sp.symbols("g_x g_y g_z", real=True))
+        self.parameters: dict[sp.Symbol, int] = {}
+        self.trig: dict[sp.Symbol, tuple[int, float]] = {}  # c_i/s_i -> (joint, DH theta offset)
+        base = PARAMS_PER_LINK * n
+        for j, gs in enumerate(self.g):
+            self.parameters[gs] = base + j
+        self.links = [self._link(i) for i in range(n)]
+
+    # ---------------------------------------------------------------- tables
+    def _sym(self, name, i, key):
+        s = sp.Symbol(f"{name}_{i + 1}", real=True)
+        self.parameters[s] = PARAMS_PER_LINK * i + OFFSETS[key]
+        return s
+
+    def _link(self, i):
+        kind = self.structure.joint_types[i]
+        th, al, thc, alc = self.structure.angles[i]
+        th_x, al_x, thc_x, alc_x = (exact_angle(v) for v in (th, al, thc, alc))
+        q, qd = self.q[i], self.qd[i]
+        d, a = self._sym("d", i, "d"), self._sym("a", i, "a")
+        dc, ac = self._sym("dc", i, "dc"), self._sym("ac", i, "ac")
+        m, K = self._sym("m", i, "m"), self._sym("K", i, "K")
+        Ixx, Iyy, Izz = (self._sym(k, i, k) for k in ("Ixx", "Iyy", "Izz"))
+        Ixy, Ixz, Iyz = (self._sym(k, i, k) for k in ("Ixy", "Ixz", "Iyz"))
+        I = sp.Matrix([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
+        if kind == "R":
+            c, s = sp.Symbol(f"c_{i + 1}", real=True), sp.Symbol(f"s_{i + 1}", real=True)
+            self.trig[c] = (i, th)
+            self.trig[s] = (i, th)
+            dq = d
+        else:
+            c, s = sp.cos(th_x), sp.sin(th_x)
+            dq = d + q
+        ca, sa = sp.cos(al_x), sp.sin(al_x)
+        # CoM frame of link i in DH frame i: constant, since q enters both
+        # rows in the same slot and Rz, Tz commute with each other
+        dth = thc_x - th_x
+        cd, sd = sp.cos(dth), sp.sin(dth)
+        rx_t = _rx(ca, sa).T
+        Rc = rx_t * _rz(cd, sd) * _rx(sp.cos(alc_x), sp.sin(alc_x))
+        pc = rx_t * sp.Matrix([ac * cd - a, ac * sd, dc - d])
+        return _Link(kind, q, qd, c, s, ca, sa, dq, a, Rc, pc, m, I, K)
+
+    def _chain(self, i):
+        """Frames i..n expressed in DH frame i (0 = base): lists R[k], p[k] for k = i..n."""
+        R, p = {i: sp.eye(3)}, {i: sp.zeros(3, 1)}
+        for k in range(i + 1, self.n + 1):
+            L = self.links[k - 1]
+            Rl = _rz(L.c, L.s) * _rx(L.ca, L.sa)
+            pl = sp.Matrix([L.a * L.c, L.a * L.s, L.d])
+            R[k] = R[k - 1] * Rl
+            p[k] = p[k - 1] + R[k - 1] * pl
+        return R, p
+
+    # ------------------------------------------------------------- dynamics
+    @cached_property
+    def M(self) -> sp.Matrix:
+        n = self.n
+        M = sp.zeros(n, n)
+        for i in range(1, n + 1):  # row i (1-based joint i) in DH frame i
+            R, p = self._chain(i)
+            Li = self.links[i - 1]
+            # joint i's axis z_(i-1) and origin o_(i-1) seen from frame i
+            axes = {i: (sp.Matrix([0, Li.sa, Li.ca]), -sp.Matrix([Li.a, Li.sa * Li.d, Li.ca * Li.d]))}
+            for j in range(i + 1, n + 1):
+                axes[j] = (R[j - 1][:, 2], p[j - 1])
+            coms = {}
+            for l in range(i, n + 1):
+                L = self.links[l - 1]
+                coms[l] = (p[l] + R[l] * L.pc, R[l] * L.Rc)
+            for j in range(i, n + 1):
+                total = sp.Integer(0)
+                for l in range(j, n + 1):
+                    L = self.links[l - 1]
+                    cl, Rcl = coms[l]
+                    Jv, Jw = [], []
+                    for jj in (i, j):
+                        z, o = axes[jj]
+                        if self.links[jj - 1].kind == "R":
+                            Jv.append(_cross(z, cl - o))
+                            Jw.append(Rcl.T * z)  # in the CoM frame
+                        else:
+                            Jv.append(z)
+                            Jw.append(None)
+                    term = L.m * _dot(Jv[0], Jv[1])
+                    if Jw[0] is not None and Jw[1] is not None:
+                        term += _dot(Jw[0], L.I * Jw[1])
+                    total += term
+                M[i - 1, j - 1] = total
+                M[j - 1, i - 1] = total
+        return M
+
+    @cached_property
+    def potential_energy(self) -> sp.Expr:
+        """V = -sum m_l g . c_l, g in frame 0 (J)."""
+        R, p = self._chain(0)
+        V = sp.Integer(0)
+        for l in range(1, self.n + 1):
+            L = self.links[l - 1]
+            V -= L.m * _dot(self.g, p[l] + R[l] * L.pc)
+        return V
+
+    def diff_q(self, expr: sp.Expr, k: int) -> sp.Expr:
+        """d expr / d q_k (k 0-based), chain rule through c_k, s_k."""
+        L = self.links[k]
+        if L.kind == "R":
+            return -L.s * sp.diff(expr, L.c) + L.c * sp.diff(expr, L.s)
+        return sp.diff(expr, L.q)
+
+    @cached_property
+    def G(self) -> sp.Matrix:
+        V = self.potential_energy
+        return sp.Matrix([self.diff_q(V, k) for k in range(self.n)])
+
+    @cached_property
+    def dM(self) -> list:
+        """[dM/dq_k for k in 0..n-1], each symmetric (n, n)."""
+        n, M = self.n, self.M
+        out = []
+        for k in range(n):
+            D = sp.zeros(n, n)
+            for i in range(n):
+                for j in range(i, n):
+                    D[i, j] = D[j, i] = self.diff_q(M[i, j], k)
+            out.append(D)
+        return out
+
+    @cached_property
+    def C_matrix(self) -> sp.Matrix:
+        n, D, qd = self.n, self.dM, self.qd
+        C = sp.zeros(n, n)
+        for k in range(n):
+            for j in range(n):
+                C[k, j] = sum(((D[i][k, j] + D[j][k, i] - D[k][i, j]) * qd[i] for i in range(n)),
+                              sp.Integer(0)) / 2
+        return C
+
+    @cached_property
+    def C(self) -> sp.Matrix:
+        """C(q, qd) qd = Mdot qd - (1/2) [qd^T dM/dq_k qd]_k, the same as C_matrix * qd."""
+        n, D, qd = self.n, self.dM, self.qd
+        out = []
+        for k in range(n):
+            v = sp.Integer(0)
+            for i in range(n):
+                for j in range(n):
+                    v += (D[i][k, j] - D[k][i, j] / 2) * qd[i] * qd[j]
+            out.append(v)
+        return sp.Matrix(out)
+
+    @cached_property
+    def friction(self) -> sp.Matrix:
+        return sp.Matrix([L.K * L.qd for L in self.links])
+
+    # -------------------------------------------------------------- display
+    def trig_substitutions(self) -> dict:
+        """c_i -> cos(theta_i + q_i), s_i -> sin(theta_i + q_i) for display and textbook checks."""
+        out = {}
+        for sym, (i, th) in self.trig.items():
+            ang = self.q[i] + exact_angle(th)
+            out[sym] = sp.cos(ang) if sym.name.startswith("c_") else sp.sin(ang)
+        return out
+
+    def in_trig(self, expr):
+        """expr with c_i, s_i replaced by cos/sin of the joint angles."""
+        return expr.xreplace(self.trig_substitutions())
+
+
+def derive(structure_or_robot) -> SymbolicModel:
+    """Symbolic model of a Structure or a coopsim.Robot (M, C, C_matrix, G, friction are lazy)."""
+    s = structure_or_robot
+    if not isinstance(s, Structure):
+        s = structure_of(s)
+    return SymbolicModel(s)
