@@ -396,6 +396,12 @@ void Robot::mass_matrix_kin_(Workspace& ws, MatN& M) const {
 void Robot::rnea(const double* q, const double* qd, const double* qdd, Workspace& ws, VecN& tau,
                  double gravity_scale, bool with_friction) const {
   tau.resize(n_);
+  if (uses_generated() && generated_->dynamics && gravity_scale == 1.0 && with_friction) {
+    MatN M(n_, n_);
+    generated_->dynamics(params_.data(), q, qd, M.data(), tau.data());
+    if (qdd) tau.noalias() += M * Eigen::Map<const VecN>(qdd, n_);
+    return;
+  }
   if (uses_generated()) {
     const double* p = params_.data();
     VecN tmp(n_);
@@ -592,7 +598,11 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
                              Workspace& ws, VecN& qdd, bool end_stops) const {
   MatN M;
   VecN b;
-  if (uses_generated()) {
+  if (uses_generated() && generated_->dynamics) {
+    M.resize(n_, n_);
+    b.resize(n_);
+    generated_->dynamics(params_.data(), q, qd, M.data(), b.data());
+  } else if (uses_generated()) {
     mass_matrix(q, ws, M);
     rnea(q, qd, nullptr, ws, b, 1.0, true);
   } else {
