@@ -35,6 +35,6 @@ void bind_collision(py::module_& m) {
       .def("pose", [](const CollisionWorld& w, int id) { return to_numpy(w.pose(id)); }, py::arg("id"))
       .def("name", &CollisionWorld::name, py::arg("id"))
       .def("__len__", &CollisionWorld::size)
-      .def("contacts", &CollisionWorld::contacts, py::arg("margin") = 0.0,
-           "Contact points (list of Contact) of all pairs closer than margin (m).");
+      .def("contacts", &CollisionWorld::contacts,
+           "Contact points (list of Contact) of all pairs of touching or penetrating shapes.");
 }

@@ -34,7 +34,7 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
                  const py::object& inertias, const std::string& joint_types, const py::object& friction,
                  const py::object& q_limits, const py::object& tau_limits, const py::object& gravity,
                  const py::object& base_position, double base_yaw, const py::object& tool,
-                 const std::string& name, double end_stop_stiffness, double end_stop_damping_ratio) {
+                 const std::string& name, double end_stop_frequency, double end_stop_damping_ratio) {
   Arr D = array(dh, {-1, 4}, "dh");
   const int n = static_cast<int>(D.shape(0));
   if (n < 1 || n > kMaxDof)
@@ -51,9 +51,10 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
                           std::to_string(n) + ", 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got " + shape_str(I));
   check_finite(I.data(), static_cast<size_t>(I.size()), "inertias");
   std::vector<Link> links(n);
-  Arr K = friction.is_none() ? Arr() : array(friction, {n}, "friction");
-  Arr QL = q_limits.is_none() ? Arr() : array(q_limits, {n, 2}, "q_limits", false);
-  Arr TL = tau_limits.is_none() ? Arr() : array(tau_limits, {n}, "tau_limits", false);
+  const bool hasK = !friction.is_none(), hasQL = !q_limits.is_none(), hasTL = !tau_limits.is_none();
+  Arr K = hasK ? array(friction, {n}, "friction") : Arr();
+  Arr QL = hasQL ? array(q_limits, {n, 2}, "q_limits", false) : Arr();
+  Arr TL = hasTL ? array(tau_limits, {n}, "tau_limits", false) : Arr();
   for (int k = 0; k < n; ++k) {
     Link& L = links[k];
     L.type = joint_type(joint_types[k], k);
@@ -66,17 +67,17 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
       const double* v = I.data() + 6 * k;
       L.inertia << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
     }
-    if (K) L.friction = K.data()[k];
-    if (QL) {
+    if (hasK) L.friction = K.data()[k];
+    if (hasQL) {
       L.q_min = QL.data()[2 * k];
       L.q_max = QL.data()[2 * k + 1];
     }
-    if (TL) L.tau_max = TL.data()[k];
+    if (hasTL) L.tau_max = TL.data()[k];
   }
   const Eigen::Vector3d g = vecx(gravity, 3, "gravity");
   const Eigen::Vector3d bp = vecx(base_position, 3, "base_position");
   if (!std::isfinite(base_yaw)) throw py::value_error("base_yaw must be finite");
-  EndStop es{end_stop_stiffness, end_stop_damping_ratio};
+  EndStop es{end_stop_frequency, end_stop_damping_ratio};
   return Robot(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es);
 }
 
@@ -103,6 +104,8 @@ bool external(const Robot& r, Workspace& ws, const py::object& f_ext, VecN& tau)
 }
 
 py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
+  for (const auto& T : Ts)
+    if (!T.matrix().allFinite()) throw py::value_error("frames: result is not finite for this input (values out of range?)");
   py::array_t<double> out({static_cast<py::ssize_t>(Ts.size()), py::ssize_t(4), py::ssize_t(4)});
   double* p = out.mutable_data();
   for (size_t i = 0; i < Ts.size(); ++i)
@@ -199,7 +202,7 @@ void bind_robot(py::module_& m) {
                py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.81),
                py::arg("base_position") = py::make_tuple(0.0, 0.0, 0.0), py::arg("base_yaw") = 0.0,
                py::arg("tool") = py::none(), py::arg("name") = "robot",
-               py::arg("end_stop_stiffness") = EndStop().stiffness,
+               py::arg("end_stop_frequency") = EndStop().frequency,
                py::arg("end_stop_damping_ratio") = EndStop().damping_ratio,
                R"doc(Defines a serial robot from tables.
 
@@ -217,21 +220,22 @@ q_limits: (n, 2) [q_min, q_max] (rad or m), default unbounded (+-inf).
 tau_limits: (n,) actuator limits |tau_i| <= tau_max (N m or N), default inf.
 gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad.
 tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
-end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
-    end stops used by the integrators beyond q_limits.)doc");
+end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
+    used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
+    + 2 zeta w qd), pushing only; keep w dt below about 2.5.)doc");
   R.def_property_readonly("dof", &Robot::dof, "Number of joints n.")
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("joint_types", &Robot::joint_types, "e.g. 'RRPRRP'.")
-      .def_property_readonly("dh", [](const Robot& r) { return robot_state(r)[0]; }, "(n, 4) [theta, d, a, alpha].")
-      .def_property_readonly("com", [](const Robot& r) { return robot_state(r)[1]; }, "(n, 4) CoM rows.")
-      .def_property_readonly("masses", [](const Robot& r) { return robot_state(r)[2]; }, "(n,) kg.")
-      .def_property_readonly("inertias", [](const Robot& r) { return robot_state(r)[3]; },
+      .def_property_readonly("dh", [](const Robot& r) { return py::object(robot_state(r)[0]); }, "(n, 4) [theta, d, a, alpha].")
+      .def_property_readonly("com", [](const Robot& r) { return py::object(robot_state(r)[1]); }, "(n, 4) CoM rows.")
+      .def_property_readonly("masses", [](const Robot& r) { return py::object(robot_state(r)[2]); }, "(n,) kg.")
+      .def_property_readonly("inertias", [](const Robot& r) { return py::object(robot_state(r)[3]); },
                              "(n, 3, 3) kg m^2 about each CoM in its CoM frame.")
-      .def_property_readonly("friction_coefficients", [](const Robot& r) { return robot_state(r)[5]; },
+      .def_property_readonly("friction_coefficients", [](const Robot& r) { return py::object(robot_state(r)[5]); },
                              "(n,) viscous K.")
-      .def_property_readonly("q_limits", [](const Robot& r) { return robot_state(r)[6]; },
+      .def_property_readonly("q_limits", [](const Robot& r) { return py::object(robot_state(r)[6]); },
                              "(n, 2) [q_min, q_max].")
-      .def_property_readonly("tau_limits", [](const Robot& r) { return robot_state(r)[7]; }, "(n,) N m or N.")
+      .def_property_readonly("tau_limits", [](const Robot& r) { return py::object(robot_state(r)[7]); }, "(n,) N m or N.")
       .def_property_readonly("gravity_vector", [](const Robot& r) { return to_numpy(r.gravity()); },
                              "(3,) m/s^2, world frame.")
       .def_property_readonly("base_position", [](const Robot& r) { return to_numpy(r.base_position()); })
@@ -239,7 +243,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
       .def_property_readonly("base", [](const Robot& r) { return to_numpy(r.base()); },
                              "(4, 4) pose of DH frame 0 in the world.")
       .def_property_readonly("tool", &Robot::tool)
-      .def_property_readonly("end_stop_stiffness", [](const Robot& r) { return r.end_stop().stiffness; })
+      .def_property_readonly("end_stop_frequency", [](const Robot& r) { return r.end_stop().frequency; })
       .def_property_readonly("end_stop_damping_ratio", [](const Robot& r) { return r.end_stop().damping_ratio; })
       .def_property_readonly("parameter_vector",
                              [](const Robot& r) {
@@ -264,7 +268,9 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          const VecN qv = vec(q, r.dof(), "q");
          Workspace ws;
          r.kinematics(qv.data(), ws);
-         return to_numpy(r.tool_pose(ws));
+         const Eigen::Isometry3d T = r.tool_pose(ws);
+         checked(T.matrix(), "fk");
+         return to_numpy(T);
        }, py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,).")
       .def("frames", [](const Robot& r, const py::object& q) {
          const VecN qv = vec(q, r.dof(), "q");
@@ -289,7 +295,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          r.kinematics(qv.data(), ws);
          Mat6N J;
          r.jacobian(ws, link, p, J);
-         return to_numpy(J);
+         return checked(J, "jacobian");
        }, py::arg("q"), py::arg("link") = -1, py::arg("point") = py::none(),
        "Geometric Jacobian (6, n), linear rows first, of `point` (3,) m given in the DH frame of `link` "
        "(1..n, negative from the last; 0 is the base); world coordinates.")
@@ -299,7 +305,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          r.kinematics(qv.data(), ws);
          Mat6N J;
          r.tool_jacobian(ws, J);
-         return to_numpy(J);
+         return checked(J, "tool_jacobian");
        }, py::arg("q"), "Jacobian (6, n) of the tool centre point, linear rows first.");
 
   // dynamics
@@ -308,28 +314,28 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          Workspace ws;
          MatN M;
          r.mass_matrix(qv.data(), ws, M);
-         return to_numpy(M);
+         return checked(M, "mass_matrix");
        }, py::arg("q"), "Inertia matrix M(q) (n, n).")
       .def("gravity", [](const Robot& r, const py::object& q) {
          const VecN qv = vec(q, r.dof(), "q");
          Workspace ws;
          VecN g;
          r.gravity_vector(qv.data(), ws, g);
-         return to_numpy(g);
+         return checked(g, "gravity");
        }, py::arg("q"), "Gravity vector G(q) (n,) in N m or N.")
       .def("coriolis", [](const Robot& r, const py::object& q, const py::object& qd) {
          const VecN qv = vec(q, r.dof(), "q"), qdv = vec(qd, r.dof(), "qd");
          Workspace ws;
          VecN c;
          r.coriolis_vector(qv.data(), qdv.data(), ws, c);
-         return to_numpy(c);
+         return checked(c, "coriolis");
        }, py::arg("q"), py::arg("qd"), "Coriolis and centrifugal vector C(q, qd) (n,) = coriolis_matrix @ qd.")
       .def("coriolis_matrix", [](const Robot& r, const py::object& q, const py::object& qd) {
          const VecN qv = vec(q, r.dof(), "q"), qdv = vec(qd, r.dof(), "qd");
          Workspace ws;
          MatN C;
          r.coriolis_matrix(qv.data(), qdv.data(), ws, C);
-         return to_numpy(C);
+         return checked(C, "coriolis_matrix");
        }, py::arg("q"), py::arg("qd"), "Coriolis matrix (n, n) in Christoffel form; Mdot - 2 C is skew.")
       .def("mass_matrix_derivatives", [](const Robot& r, const py::object& q) {
          const VecN qv = vec(q, r.dof(), "q");
@@ -345,7 +351,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
        }, py::arg("q"), "dM/dq (n, n, n); [k] is the derivative with respect to q_k.")
       .def("friction", [](const Robot& r, const py::object& qd) {
          const VecN v = vec(qd, r.dof(), "qd");
-         return to_numpy(VecN(r.friction_coefficients().cwiseProduct(v)));
+         return checked(VecN(r.friction_coefficients().cwiseProduct(v)), "friction");
        }, py::arg("qd"), "Viscous friction torques K qd (n,).")
       .def("external_torques", [](const Robot& r, const py::object& q, const py::object& f_ext) {
          const VecN qv = vec(q, r.dof(), "q");
@@ -353,7 +359,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          r.kinematics(qv.data(), ws);
          VecN t = VecN::Zero(r.dof());
          external(r, ws, f_ext, t);
-         return to_numpy(t);
+         return checked(t, "external_torques");
        }, py::arg("q"), py::arg("f_ext"),
        "Joint torques J^T F (n,) of f_ext: a (6,) wrench [f; m] (world, N and N m) at the tool centre point, "
        "or a Wrench or list of Wrench on any point of any link.")
@@ -369,7 +375,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
            has_ext = external(r, ws, f_ext, te);
          }
          r.inverse_dynamics(qv.data(), qdv.data(), qddv.data(), has_ext ? te.data() : nullptr, ws, tau);
-         return to_numpy(tau);
+         return checked(tau, "inverse_dynamics");
        }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(),
        "Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + K qd.")
       .def("forward_dynamics", [](const Robot& r, const py::object& q, const py::object& qd, const py::object& tau,
@@ -384,7 +390,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
            has_ext = external(r, ws, f_ext, te);
          }
          r.forward_dynamics(qv.data(), qdv.data(), tv.data(), has_ext ? te.data() : nullptr, ws, qdd);
-         return to_numpy(qdd);
+         return checked(qdd, "forward_dynamics");
        }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(),
        "Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - K qd), solved by Cholesky.")
       .def("end_stop_torques", [](const Robot& r, const py::object& q, const py::object& qd) {
@@ -395,7 +401,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          r.mass_matrix(qv.data(), ws, M);
          VecN t;
          r.end_stop_torques(qv.data(), qdv.data(), M, t);
-         return to_numpy(t);
+         return checked(t, "end_stop_torques");
        }, py::arg("q"), py::arg("qd"), "Soft end-stop torques (n,) beyond the joint limits.")
       .def("energy", [](const Robot& r, const py::object& q, const py::object& qd) {
          const int n = r.dof();
@@ -403,6 +409,8 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
          Workspace ws;
          const double T = r.kinetic_energy(qv.data(), qdv.data(), ws);
          const double V = r.potential_energy(qv.data(), ws);
+         if (!std::isfinite(T) || !std::isfinite(V))
+           throw py::value_error("energy: result is not finite for this input (values out of range?)");
          return py::make_tuple(T, V);
        }, py::arg("q"), py::arg("qd"), "(kinetic, potential) energy in J; potential relative to z = 0.")
       .def("__repr__", [](const Robot& r) {
@@ -415,7 +423,7 @@ end_stop_stiffness (N m/rad or N/m) and end_stop_damping_ratio: the soft
             py::tuple s = robot_state(r);
             py::dict d = self.attr("__dict__");
             return py::make_tuple(s, to_numpy(r.gravity()), to_numpy(r.base_position()), r.base_yaw(),
-                                  py::cast(r.tool()), r.name(), r.end_stop().stiffness,
+                                  py::cast(r.tool()), r.name(), r.end_stop().frequency,
                                   r.end_stop().damping_ratio, r.backend(),
                                   r.has_generated() ? r.generated()->name : std::string(), d);
           },

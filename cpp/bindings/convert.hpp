@@ -19,13 +19,10 @@ using Arr = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 inline Arr as_array(const py::handle& obj, const char* name) {
   if (obj.is_none()) throw py::value_error(std::string(name) + " must be an array of numbers, got None");
-  Arr a;
-  try {
-    a = Arr::ensure(obj);
-  } catch (py::error_already_set&) {
-    a = Arr();
-  }
-  if (!a) {
+  // ensure() returns a null handle (with a Python error set) when numpy
+  // cannot make float64 of obj
+  Arr a = Arr::ensure(obj);
+  if (!a.ptr()) {
     PyErr_Clear();
     throw py::value_error(std::string(name) + " must be an array of real numbers");
   }
@@ -102,9 +99,12 @@ inline Eigen::Isometry3d pose(const py::handle& obj, const char* name) {
   return T;
 }
 
+inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T);
+
 template <class Derived>
 py::array_t<double> to_numpy(const Eigen::MatrixBase<Derived>& m) {
-  if (m.cols() == 1) {
+  // vectors by type give 1-D arrays; matrices stay 2-D even with one column
+  if constexpr (Derived::ColsAtCompileTime == 1) {
     py::array_t<double> out(m.rows());
     double* p = out.mutable_data();
     for (Eigen::Index i = 0; i < m.rows(); ++i) p[i] = m(i, 0);
@@ -115,6 +115,16 @@ py::array_t<double> to_numpy(const Eigen::MatrixBase<Derived>& m) {
   for (Eigen::Index i = 0; i < m.rows(); ++i)
     for (Eigen::Index j = 0; j < m.cols(); ++j) p[i * m.cols() + j] = m(i, j);
   return out;
+}
+
+// Converts a computed result, refusing to hand back NaN or inf: inputs that
+// are finite but far out of range (e.g. a prismatic joint at 1e200 m) would
+// otherwise yield a silently wrong answer.
+template <class Derived>
+py::array_t<double> checked(const Eigen::MatrixBase<Derived>& m, const char* what) {
+  if (!m.allFinite())
+    throw py::value_error(std::string(what) + ": result is not finite for this input (values out of range?)");
+  return to_numpy(m);
 }
 
 inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T) {

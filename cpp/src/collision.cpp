@@ -104,8 +104,7 @@ const std::string& CollisionWorld::name(int id) const {
 
 int CollisionWorld::size() const { return static_cast<int>(impl_->objects.size()); }
 
-std::vector<Contact> CollisionWorld::contacts(double margin) {
-  if (!std::isfinite(margin) || margin < 0) throw std::invalid_argument("margin must be finite and >= 0 m");
+std::vector<Contact> CollisionWorld::contacts() {
   impl_->world.updateAabbs();
   impl_->world.performDiscreteCollisionDetection();
   std::vector<Contact> out;
@@ -117,7 +116,7 @@ std::vector<Contact> CollisionWorld::contacts(double margin) {
     const int ib = static_cast<const btCollisionObject*>(m->getBody1())->getUserIndex();
     for (int j = 0; j < m->getNumContacts(); ++j) {
       const btManifoldPoint& p = m->getContactPoint(j);
-      if (p.getDistance() > margin) continue;
+      if (p.getDistance() > 0.0) continue;  // manifold points kept past separation
       Contact c;
       c.a = ia;
       c.b = ib;

@@ -1,6 +1,7 @@
 #include "coopsim/integrator.hpp"
 
 #include <algorithm>
+#include <string>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -59,15 +60,27 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
     ++out.rows;
   };
   record(0);
+  auto fail = [&](int step, const std::string& why) {
+    std::ostringstream msg;
+    msg << "integration diverged at step " << step << " (t = " << step * dt << " s): " << why
+        << "; last finite state q = [" << q.transpose() << "], qd = [" << qd.transpose() << "]";
+    throw std::runtime_error(msg.str());
+  };
   for (int s = 0; s < steps; ++s) {
     const double* u = tau + (tau_rows == 1 ? 0 : static_cast<size_t>(s) * n);
-    if (method == Method::RK4) rk4_step(robot, ws, q, qd, u, nullptr, dt, end_stops);
-    else euler_step(robot, ws, q, qd, u, nullptr, dt, end_stops);
+    const VecN q_prev = q, qd_prev = qd;
+    try {
+      if (method == Method::RK4) rk4_step(robot, ws, q, qd, u, nullptr, dt, end_stops);
+      else euler_step(robot, ws, q, qd, u, nullptr, dt, end_stops);
+    } catch (const std::domain_error& e) {
+      q = q_prev;
+      qd = qd_prev;
+      fail(s + 1, e.what());
+    }
     if (!q.allFinite() || !qd.allFinite()) {
-      std::ostringstream msg;
-      msg << "integration diverged at step " << s + 1 << " (t = " << (s + 1) * dt
-          << " s): state is no longer finite";
-      throw std::runtime_error(msg.str());
+      q = q_prev;
+      qd = qd_prev;
+      fail(s + 1, "state is no longer finite");
     }
     if ((s + 1) % record_every == 0 || s + 1 == steps) record(s + 1);
   }

@@ -105,9 +105,9 @@ void Robot::build_() {
   }
   require(gravity_.allFinite(), "gravity must be finite");
   require(base_p_.allFinite() && std::isfinite(base_yaw_), "base position and yaw must be finite");
-  require(std::isfinite(end_stop_.stiffness) && end_stop_.stiffness >= 0 &&
+  require(std::isfinite(end_stop_.frequency) && end_stop_.frequency >= 0 &&
               std::isfinite(end_stop_.damping_ratio) && end_stop_.damping_ratio >= 0,
-          "end stop stiffness and damping ratio must be finite and >= 0");
+          "end stop frequency and damping ratio must be finite and >= 0");
   tool_.link = link_index_(tool_.link, "tool link");
   tool_.second_link = link_index_(tool_.second_link, "tool second_link");
   require(tool_.link >= 1 && tool_.second_link >= 1, "tool links must be 1..n (not the base)");
@@ -577,15 +577,16 @@ void Robot::inverse_dynamics(const double* q, const double* qd, const double* qd
 
 void Robot::end_stop_torques(const double* q, const double* qd, const MatN& M, VecN& tau) const {
   tau.setZero(n_);
-  const double k = end_stop_.stiffness;
-  if (k <= 0) return;
+  const double w = end_stop_.frequency;
+  if (w <= 0) return;
   for (int j = 0; j < n_; ++j) {
     const Link& L = links_[j];
     double pen = 0;
     if (q[j] > L.q_max) pen = q[j] - L.q_max;
     else if (q[j] < L.q_min) pen = q[j] - L.q_min;
     else continue;
-    const double b = 2.0 * end_stop_.damping_ratio * std::sqrt(k * M(j, j));
+    const double k = M(j, j) * w * w;
+    const double b = 2.0 * end_stop_.damping_ratio * w * M(j, j);
     double t = -k * pen - b * qd[j];
     // a stop pushes, never pulls the joint towards the limit
     if (pen > 0 && t > 0) t = 0;
@@ -621,7 +622,7 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
   }
   Eigen::LLT<MatN> llt(M);
   if (llt.info() != Eigen::Success)
-    throw std::runtime_error("forward_dynamics: mass matrix is not positive definite");
+    throw std::domain_error("forward_dynamics: mass matrix is not positive definite for this q (values out of range?)");
   qdd = llt.solve(rhs);
 }
 

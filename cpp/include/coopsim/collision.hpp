@@ -34,8 +34,8 @@ class CollisionWorld {
   Eigen::Isometry3d pose(int id) const;
   const std::string& name(int id) const;
   int size() const;
-  // All contact points between pairs of shapes closer than `margin` (m).
-  std::vector<Contact> contacts(double margin = 0.0);
+  // All contact points between pairs of touching or penetrating shapes.
+  std::vector<Contact> contacts();
 
  private:
   struct Impl;

@@ -1,0 +1,64 @@
+"""Shared fixtures: the built-in robots and random serial robots."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+
+
+def random_inertia(rng: np.random.Generator, mass: float) -> np.ndarray:
+    """A physically valid inertia tensor (kg m^2): random box-like principal
+    moments (triangle inequality holds) in a random orientation."""
+    dims = rng.uniform(0.02, 0.4, 3)
+    principal = np.diag(cs.box_inertia(mass, *dims))
+    A = rng.normal(size=(3, 3))
+    Q, _ = np.linalg.qr(A)
+    if np.linalg.det(Q) < 0:
+        Q[:, 0] *= -1
+    I = Q @ np.diag(principal) @ Q.T
+    return 0.5 * (I + I.T)
+
+
+def random_robot(seed: int, dof: int | None = None, friction: bool = True, **kw) -> cs.Robot:
+    """A random serial robot: mixed R/P joints, random DH and CoM rows,
+    masses in [0.2, 5] kg, random valid inertias, random base placement."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 8)) if dof is None else dof
+    types = "".join(rng.choice(["R", "P"], size=n, p=[0.7, 0.3]))
+    dh = np.column_stack([rng.uniform(-np.pi, np.pi, n), rng.uniform(-0.3, 0.3, n),
+                          rng.uniform(-0.4, 0.4, n), rng.uniform(-np.pi, np.pi, n)])
+    com = np.column_stack([rng.uniform(-np.pi, np.pi, n), rng.uniform(-0.2, 0.2, n),
+                           rng.uniform(-0.2, 0.2, n), rng.uniform(-np.pi, np.pi, n)])
+    masses = rng.uniform(0.2, 5.0, n)
+    inertias = np.array([random_inertia(rng, m) for m in masses])
+    K = rng.uniform(0.0, 2.0, n) if friction else np.zeros(n)
+    return cs.Robot.from_dh(dh, com, masses, inertias, joint_types=types, friction=K,
+                            base_position=rng.uniform(-1, 1, 3), base_yaw=float(rng.uniform(-3, 3)),
+                            name=f"random{seed}", **kw)
+
+
+def random_state(robot: cs.Robot, rng: np.random.Generator):
+    """Random (q, qd, qdd) inside the joint limits where they are finite."""
+    n = robot.dof
+    lim = robot.q_limits
+    lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -np.pi)
+    hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], np.pi)
+    q = rng.uniform(lo, hi)
+    return q, rng.normal(size=n), rng.normal(size=n)
+
+
+ROBOT_FACTORIES = {
+    "scara1": lambda: cs.robots.scara1(backend="numeric"),
+    "scara2": lambda: cs.robots.scara2(backend="numeric"),
+}
+
+
+@pytest.fixture(params=sorted(ROBOT_FACTORIES))
+def scara(request) -> cs.Robot:
+    return ROBOT_FACTORIES[request.param]()
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(12345)

@@ -1,0 +1,167 @@
+"""Fixed-step integration: energy conservation, dissipation, order of
+convergence, end stops and the batch entry point."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+from conftest import random_robot
+
+DT = 2e-4
+
+
+def frictionless(name, **kw):
+    make = getattr(cs.robots, name)
+    return make(friction=np.zeros(6), backend="numeric", **kw)
+
+
+def total_energy(robot, Q, QD):
+    return np.array([sum(robot.energy(q, qd)) for q, qd in zip(Q, QD)])
+
+
+MOVING = {
+    "scara1": (np.array([0.3, -0.8, 0.1, 0.5, 0.6, 0.02]), np.array([1.5, -2.0, 0.2, 3.0, -1.0, 0.05])),
+    "scara2": (np.array([0.3, -0.8, 0.5, 0.1, 0.5, 0.02]), np.array([1.5, -2.0, 1.0, 0.2, 3.0, 0.05])),
+}
+
+
+@pytest.mark.parametrize("name", ["scara1", "scara2"])
+@pytest.mark.parametrize("gravity", [True, False], ids=["gravity", "no-gravity"])
+def test_rk4_conserves_energy_without_torque_or_friction(name, gravity):
+    """Zero torque, zero friction, RK4 at 0.2 ms over 5 s: total energy
+    constant to 1e-6 relative. End stops are off (they dissipate); with
+    gravity the quill falls freely, so the scale is the largest kinetic
+    energy reached, the energy exchanged."""
+    g = (0.0, 0.0, -9.81) if gravity else (0.0, 0.0, 0.0)
+    r = frictionless(name, gravity=g)
+    q0, qd0 = MOVING[name]
+    t, Q, QD = cs.integrate(r, q0, qd0, np.zeros(6), dt=DT, steps=25000, end_stops=False, record_every=50)
+    assert t[-1] == pytest.approx(5.0)
+    E = total_energy(r, Q, QD)
+    kinetic = np.array([r.energy(q, qd)[0] for q, qd in zip(Q, QD)])
+    scale = kinetic.max()
+    assert np.abs(E - E[0]).max() <= 1e-6 * scale
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_rk4_conserves_energy_random_robots(seed):
+    r = random_robot(500 + seed, dof=5, friction=False)
+    rng = np.random.default_rng(seed)
+    q0, qd0 = rng.uniform(-1, 1, 5), rng.normal(size=5)
+    t, Q, QD = cs.integrate(r, q0, qd0, np.zeros(5), dt=DT, steps=10000, end_stops=False, record_every=100)
+    E = total_energy(r, Q, QD)
+    kinetic = np.array([r.energy(q, qd)[0] for q, qd in zip(Q, QD)])
+    assert np.abs(E - E[0]).max() <= 1e-6 * kinetic.max()
+
+
+@pytest.mark.parametrize("name", ["scara1", "scara2"])
+def test_friction_never_increases_energy(name):
+    r = getattr(cs.robots, name)(backend="numeric")
+    q0, qd0 = MOVING[name]
+    t, Q, QD = cs.integrate(r, q0, qd0, np.zeros(6), dt=DT, steps=10000, end_stops=False, record_every=10)
+    E = total_energy(r, Q, QD)
+    dE = np.diff(E)
+    # dissipation is K qd^2 >= 0; allow only round-off of the energy itself
+    assert dE.max() <= 1e-12 * np.abs(E).max()
+    assert E[-1] < E[0]
+
+
+def final_state(robot, q0, qd0, dt, t_end, method="rk4"):
+    steps = int(round(t_end / dt))
+    _, Q, QD = cs.integrate(robot, q0, qd0, np.zeros(robot.dof), dt=dt, steps=steps, method=method,
+                            end_stops=False, record_every=steps)
+    return np.concatenate([Q[-1], QD[-1]])
+
+
+@pytest.mark.parametrize("name", ["scara1", "scara2"])
+def test_rk4_is_fourth_order(name):
+    """Halving dt divides the error by about 2^4 = 16."""
+    r = frictionless(name)
+    q0, qd0 = MOVING[name]
+    ref = final_state(r, q0, qd0, 2.5e-4, 0.5)
+    e1 = np.abs(final_state(r, q0, qd0, 4e-3, 0.5) - ref).max()
+    e2 = np.abs(final_state(r, q0, qd0, 2e-3, 0.5) - ref).max()
+    assert 13.0 < e1 / e2 < 19.0
+
+
+def test_semi_implicit_euler_is_first_order():
+    r = frictionless("scara2")
+    q0, qd0 = MOVING["scara2"]
+    ref = final_state(r, q0, qd0, 2.5e-4, 0.5)
+    e1 = np.abs(final_state(r, q0, qd0, 2e-3, 0.5, "euler") - ref).max()
+    e2 = np.abs(final_state(r, q0, qd0, 1e-3, 0.5, "euler") - ref).max()
+    assert 1.6 < e1 / e2 < 2.4
+
+
+def test_rk4_step_matches_integrate():
+    r = cs.robots.scara1(backend="numeric")
+    q, qd = MOVING["scara1"]
+    tau = np.array([1.0, -0.5, 2.0, 0.1, 0.05, 0.0])
+    q1, qd1 = cs.rk4_step(r, q, qd, tau, DT)
+    _, Q, QD = cs.integrate(r, q, qd, tau, dt=DT, steps=1)
+    np.testing.assert_array_equal(Q[-1], q1)
+    np.testing.assert_array_equal(QD[-1], qd1)
+
+
+def test_integrate_records_first_and_last_and_per_step_torques():
+    r = cs.robots.scara2(backend="numeric")
+    q, qd = MOVING["scara2"]
+    tau = np.tile(np.array([0.5, 0.1, 0.0, 5.0, 0.0, 0.0]), (7, 1))
+    t, Q, QD = cs.integrate(r, q, qd, tau, dt=DT, steps=7, record_every=3)
+    np.testing.assert_allclose(t, [0, 3 * DT, 6 * DT, 7 * DT])
+    qs, qds = q.copy(), qd.copy()
+    for k in range(7):
+        qs, qds = cs.rk4_step(r, qs, qds, tau[k], DT)
+    np.testing.assert_array_equal(Q[-1], qs)
+
+
+@pytest.mark.parametrize("name,joint", [("scara1", 2), ("scara2", 3)])
+def test_quill_end_stop_bounds_penetration(name, joint):
+    """The quill falls under gravity onto its lower end stop: it stops within
+    a few millimetres of the limit and comes to rest there, never passing
+    through."""
+    r = getattr(cs.robots, name)(backend="numeric")
+    q0 = np.zeros(6)
+    q0[joint] = 0.05
+    q0[5] = 0.02
+    t, Q, QD = cs.integrate(r, q0, np.zeros(6), np.zeros(6), dt=DT, steps=10000, record_every=10)
+    q_max = r.q_limits[joint, 1]
+    # impact at about 2 m/s: penetration ~ v / (e w) = 1.5 mm at w = 500 rad/s
+    assert Q[:, joint].max() < q_max + 2e-3
+    assert abs(Q[-1, joint] - q_max) < 1e-4     # rests on the stop (static sag g / w^2)
+    assert abs(QD[-1, joint]) < 1e-3
+    # without end stops it falls through
+    _, Qf, _ = cs.integrate(r, q0, np.zeros(6), np.zeros(6), dt=DT, steps=10000, end_stops=False,
+                            record_every=10000)
+    assert Qf[-1, joint] > q_max + 0.1
+
+
+def test_end_stop_pushes_and_never_pulls():
+    r = cs.robots.scara2(backend="numeric")
+    q = np.array([0.0, 0.0, 0.0, 0.31, 0.0, 0.0])  # 1 cm beyond the quill's stroke
+    assert r.end_stop_torques(q, np.zeros(6))[3] < 0
+    # leaving the stop fast: damping would pull, the stop gives zero instead
+    assert r.end_stop_torques(q, np.array([0, 0, 0, -10.0, 0, 0]))[3] == 0.0
+    assert np.all(r.end_stop_torques(np.zeros(6) + [0, 0, 0, 0.1, 0, 0.01], np.ones(6)) == 0)
+
+
+def test_batch_forward_dynamics_equals_single_calls():
+    r = cs.robots.scara1(backend="numeric")
+    rng = np.random.default_rng(3)
+    N = 2000
+    Q, QD, TAU = rng.uniform(-1, 1, (N, 6)), rng.normal(size=(N, 6)), rng.normal(size=(N, 6))
+    out = cs.forward_dynamics_batch(r, Q, QD, TAU)
+    single = np.array([r.forward_dynamics(q, qd, tau) for q, qd, tau in zip(Q, QD, TAU)])
+    np.testing.assert_array_equal(out, single)
+    np.testing.assert_array_equal(cs.forward_dynamics_batch(r, Q, QD, TAU, threads=1), out)
+
+
+def test_divergence_is_reported_with_the_step():
+    # absurd stiffness on the stop with a huge step makes the state blow up
+    r = cs.robots.scara2(backend="numeric")
+    q0 = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+    with pytest.raises((RuntimeError, ValueError), match="step"):
+        cs.integrate(cs.Robot.from_dh(r.dh, r.com, r.masses, r.inertias, r.joint_types, q_limits=r.q_limits,
+                                      end_stop_frequency=1e5), q0, np.zeros(6), np.zeros(6), dt=0.05,
+                     steps=200)
