@@ -8,6 +8,8 @@ void bind_integrator(py::module_& m);
 void bind_collision(py::module_& m);
 void bind_codegen(py::module_& m);
 void bind_trajectory(py::module_& m);
+void bind_control(py::module_& m);
+void bind_simulation(py::module_& m);
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)";
@@ -21,4 +23,6 @@ PYBIND11_MODULE(_core, m) {
   bind_collision(m);
   bind_codegen(m);
   bind_trajectory(m);
+  bind_control(m);
+  bind_simulation(m);
 }

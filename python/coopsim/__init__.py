@@ -23,6 +23,7 @@ from ._core import (
 )
 from . import robots
 from .urdf import to_urdf
+from .simulation import ComputedTorque, Controller, DivergenceError, PID, Pacer, RobotLog, RunStats, Simulation, SimulationLog, run_batch, simulate  # noqa: E501
 
 Robot.to_urdf = to_urdf
 
@@ -44,4 +45,5 @@ __all__ = [
     "rk4_step",
     "robots",
     "to_urdf",
+    "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
 ]

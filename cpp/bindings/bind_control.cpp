@@ -1,0 +1,202 @@
+// Controllers: the abstract Controller (subclassable from Python), PID and
+// ComputedTorque.
+#include <pybind11/pybind11.h>
+
+#include <memory>
+#include <stdexcept>
+
+#include "convert.hpp"
+#include "coopsim/controller.hpp"
+
+namespace py = pybind11;
+using namespace coopsim;
+using namespace coopsim::py_convert;
+
+namespace {
+
+// Lets a Python class implement Controller: it defines
+// compute(t, q, qd, q_ref, qd_ref, qdd_ref) -> tau and, optionally,
+// reset(robot, period). Calls take the GIL, so a simulation with such a
+// controller runs its steps in C++ but its updates in Python.
+class PyController : public Controller {
+ public:
+  void reset(const Robot& robot, double period) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Controller*>(this), "reset");
+    if (f) f(robot, period);
+  }
+  void compute(const ControlInput& in, double* tau) override {
+    py::gil_scoped_acquire gil;
+    py::function f = py::get_override(static_cast<const Controller*>(this), "compute");
+    if (!f) throw py::type_error("Controller subclass must define compute(t, q, qd, q_ref, qd_ref, qdd_ref) -> tau");
+    auto arr = [&](const double* p) {
+      py::array_t<double> a(in.n);
+      std::copy(p, p + in.n, a.mutable_data());
+      return a;
+    };
+    py::object out = f(in.t, arr(in.q), arr(in.qd), arr(in.q_ref), arr(in.qd_ref), arr(in.qdd_ref));
+    // non-finite values pass through: the simulation reports them with context
+    Arr a = array(out, {in.n}, "tau returned by compute", false);
+    std::copy(a.data(), a.data() + in.n, tau);
+  }
+};
+
+// A scalar (every joint) or a 1-D array of per-joint gains.
+Eigen::VectorXd gains(const py::handle& obj, const char* name) {
+  Arr a = as_array(obj, name);
+  if (a.ndim() > 1)
+    throw py::value_error(std::string("wrong shape for ") + name + ": expected a scalar or (n,), got " + shape_str(a));
+  Eigen::VectorXd g(a.size());
+  for (py::ssize_t i = 0; i < a.size(); ++i) g[i] = a.data()[i];
+  return g;
+}
+
+std::shared_ptr<const Robot> model_arg(const py::object& model) {
+  if (model.is_none()) return nullptr;
+  if (!py::isinstance<Robot>(model)) throw py::value_error("model must be a coopsim.Robot or None");
+  return std::make_shared<const Robot>(model.cast<const Robot&>());
+}
+
+py::object model_out(const std::shared_ptr<const Robot>& m) {
+  if (!m) return py::none();
+  return py::cast(*m);  // a copy: the controller's model stays immutable
+}
+
+py::array_t<double> np(const Eigen::VectorXd& v) { return to_numpy(v); }
+
+py::array_t<double> compute_py(Controller& c, double t, const py::object& q, const py::object& qd,
+                               const py::object& q_ref, const py::object& qd_ref, const py::object& qdd_ref) {
+  Arr qa = as_array(q, "q");
+  if (qa.ndim() != 1) throw py::value_error("wrong shape for q: expected (n,), got " + shape_str(qa));
+  const int n = static_cast<int>(qa.shape(0));
+  if (n < 1 || n > kMaxDof) throw py::value_error("q must have 1.." + std::to_string(kMaxDof) + " values");
+  const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), qr = vec(q_ref, n, "q_ref"), qdr = vec(qd_ref, n, "qd_ref"),
+             qddr = vec(qdd_ref, n, "qdd_ref");
+  if (!std::isfinite(t)) throw py::value_error("t must be finite");
+  ControlInput in;
+  in.n = n;
+  in.t = t;
+  in.q = qv.data();
+  in.qd = qdv.data();
+  in.q_ref = qr.data();
+  in.qd_ref = qdr.data();
+  in.qdd_ref = qddr.data();
+  py::array_t<double> tau(n);
+  c.compute(in, tau.mutable_data());
+  return tau;
+}
+
+}  // namespace
+
+void bind_control(py::module_& m) {
+  py::class_<Controller, PyController, std::shared_ptr<Controller>>(m, "Controller", R"doc(
+Abstract joint-space controller (the paper's Controller).
+
+Subclass it in Python: call super().__init__(), define
+compute(t, q, qd, q_ref, qd_ref, qdd_ref) -> tau, all (n,) float64 arrays
+(t in s; q in rad or m; tau in N m or N), and optionally
+reset(robot, period), called once before a run with the simulated robot and
+the time between updates (s). The simulation saturates tau at the robot's
+actuator limits. Controllers keep state, so give each robot its own.)doc")
+      .def(py::init<>())
+      .def("reset", &Controller::reset, py::arg("robot"), py::arg("period"),
+           "Prepares for a run on `robot` with updates every `period` s; clears the state.")
+      .def("compute", &compute_py, py::arg("t"), py::arg("q"), py::arg("qd"), py::arg("q_ref"), py::arg("qd_ref"),
+           py::arg("qdd_ref"),
+           "Torques (n,) in N m or N at time t (s) from the measured q, qd and the reference q_ref, qd_ref, "
+           "qdd_ref, all (n,). Built-ins need reset() first.")
+      .def(py::pickle(
+          // Python subclasses: their attributes are their state
+          [](py::object self) {
+            if (!py::hasattr(self, "__dict__"))
+              throw py::type_error("this controller cannot be pickled");
+            return py::dict(self.attr("__dict__"));
+          },
+          [](py::dict d) {
+            return std::make_pair(std::shared_ptr<Controller>(std::make_shared<PyController>()), d);
+          }));
+
+  py::class_<PID, Controller, std::shared_ptr<PID>>(m, "PID", R"doc(
+Per-joint PID controller (the paper's PID), derivative on measurement.
+
+tau = sat(kp e + ki I + kd (qd_ref - v) [+ G(q)]), e = q_ref - q (rad or m),
+I the integral of e (updated as I += e h, h the controller period), v the
+measured position differentiated by backward difference and low-pass
+filtered with time constant derivative_filter (s; 0: unfiltered; v starts at
+the measured velocity). Anti-windup: I stops growing while the output is
+saturated in the direction e pushes, and |ki I| <= integral_limit (default:
+the actuator limits). gravity_compensation adds G(q) of `model` (default:
+the simulated robot). The output is saturated at the actuator limits.
+
+kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
+(n,) arrays, all >= 0 (N/m ... for prismatic joints).)doc")
+      .def(py::init([](const py::object& kp, const py::object& ki, const py::object& kd, bool gravity_compensation,
+                       double derivative_filter, const py::object& integral_limit, const py::object& model) {
+             Eigen::VectorXd il;
+             if (!integral_limit.is_none()) il = gains(integral_limit, "integral_limit");
+             return std::make_shared<PID>(gains(kp, "kp"), gains(ki, "ki"), gains(kd, "kd"), gravity_compensation,
+                                          derivative_filter, il, model_arg(model));
+           }),
+           py::arg("kp"), py::arg("ki"), py::arg("kd"), py::kw_only(), py::arg("gravity_compensation") = true,
+           py::arg("derivative_filter") = 0.0, py::arg("integral_limit") = py::none(), py::arg("model") = py::none())
+      .def_property_readonly("kp", [](const PID& c) { return np(c.kp()); }, "Proportional gains, (n,) or (1,).")
+      .def_property_readonly("ki", [](const PID& c) { return np(c.ki()); }, "Integral gains, (n,) or (1,).")
+      .def_property_readonly("kd", [](const PID& c) { return np(c.kd()); }, "Derivative gains, (n,) or (1,).")
+      .def_property_readonly("gravity_compensation", &PID::gravity_compensation)
+      .def_property_readonly("derivative_filter", &PID::derivative_filter, "Filter time constant, s.")
+      .def_property_readonly("integral_limit", [](const PID& c) -> py::object {
+         if (c.integral_limit().size() == 0) return py::none();
+         return np(c.integral_limit());
+       }, "Bound on |ki I| (N m or N), or None for the actuator limits.")
+      .def_property_readonly("model", [](const PID& c) { return model_out(c.model()); },
+                             "Model for gravity compensation (a copy), or None for the simulated robot.")
+      .def_property_readonly("integral", [](const PID& c) { return to_numpy(c.integral()); },
+                             "Integral of the error after the last update, (n,).")
+      .def_property_readonly("velocity_estimate", [](const PID& c) { return to_numpy(c.velocity_estimate()); },
+                             "Filtered measured velocity after the last update, (n,).")
+      .def("__repr__", [](const PID& c) {
+         return std::string("<coopsim.PID gravity_compensation=") + (c.gravity_compensation() ? "True" : "False") +
+                ">";
+       })
+      .def(py::pickle(
+          [](const PID& c) {
+            return py::make_tuple(np(c.kp()), np(c.ki()), np(c.kd()), c.gravity_compensation(),
+                                  c.derivative_filter(),
+                                  c.integral_limit().size() ? py::object(np(c.integral_limit())) : py::none(),
+                                  model_out(c.model()));
+          },
+          [](py::tuple s) {
+            Eigen::VectorXd il;
+            if (!s[5].is_none()) il = gains(s[5], "integral_limit");
+            return std::make_shared<PID>(gains(s[0], "kp"), gains(s[1], "ki"), gains(s[2], "kd"), s[3].cast<bool>(),
+                                         s[4].cast<double>(), il, model_arg(s[6]));
+          }));
+
+  py::class_<ComputedTorque, Controller, std::shared_ptr<ComputedTorque>>(m, "ComputedTorque", R"doc(
+Computed-torque controller (the paper's nonlinear controller):
+
+    tau = M(q) (qdd_ref + kd (qd_ref - qd) + kp (q_ref - q)) + C(q, qd) + G(q) + K qd
+
+with M, C, G, K from `model` (default: the simulated robot itself; give a
+deliberately wrong copy, e.g. scara1(masses=1.2 * r.masses), to study
+robustness), saturated at the actuator limits. With the exact model each
+joint's error obeys e'' + kd e' + kp e = 0: kp = w^2, kd = 2 w is critically
+damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.)doc")
+      .def(py::init([](const py::object& kp, const py::object& kd, const py::object& model) {
+             return std::make_shared<ComputedTorque>(gains(kp, "kp"), gains(kd, "kd"), model_arg(model));
+           }),
+           py::arg("kp"), py::arg("kd"), py::kw_only(), py::arg("model") = py::none())
+      .def_property_readonly("kp", [](const ComputedTorque& c) { return np(c.kp()); }, "(n,) or (1,), 1/s^2.")
+      .def_property_readonly("kd", [](const ComputedTorque& c) { return np(c.kd()); }, "(n,) or (1,), 1/s.")
+      .def_property_readonly("model", [](const ComputedTorque& c) { return model_out(c.model()); },
+                             "The controller's model (a copy), or None for the simulated robot.")
+      .def("__repr__", [](const ComputedTorque& c) {
+         return std::string("<coopsim.ComputedTorque model=") + (c.model() ? "'" + c.model()->name() + "'" : "own") +
+                ">";
+       })
+      .def(py::pickle(
+          [](const ComputedTorque& c) { return py::make_tuple(np(c.kp()), np(c.kd()), model_out(c.model())); },
+          [](py::tuple s) {
+            return std::make_shared<ComputedTorque>(gains(s[0], "kp"), gains(s[1], "kd"), model_arg(s[2]));
+          }));
+}

@@ -1,0 +1,157 @@
+#include "coopsim/controller.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace coopsim {
+
+namespace {
+
+void check_gains(const Eigen::VectorXd& g, const char* name, bool allow_empty = false) {
+  if (g.size() == 0) {
+    if (allow_empty) return;
+    throw std::invalid_argument(std::string(name) + " must have at least one value");
+  }
+  if (g.size() > kMaxDof)
+    throw std::invalid_argument(std::string(name) + " has " + std::to_string(g.size()) + " values, more than " +
+                                std::to_string(kMaxDof) + " joints");
+  for (Eigen::Index i = 0; i < g.size(); ++i) {
+    if (!std::isfinite(g[i])) throw std::invalid_argument(std::string(name) + " must be finite (got NaN or inf)");
+    if (g[i] < 0)
+      throw std::invalid_argument(std::string(name) + " must be >= 0, got " + std::to_string(g[i]) + " at joint " +
+                                  std::to_string(i + 1));
+  }
+}
+
+void check_size(const Eigen::VectorXd& g, const char* name, const Robot& robot) {
+  if (g.size() != 1 && g.size() != robot.dof())
+    throw std::invalid_argument("wrong size for " + std::string(name) + ": expected 1 or " +
+                                std::to_string(robot.dof()) + " values for robot '" + robot.name() + "', got " +
+                                std::to_string(g.size()));
+}
+
+void check_model(const std::shared_ptr<const Robot>& model, const Robot& robot) {
+  if (model && model->dof() != robot.dof())
+    throw std::invalid_argument("model has " + std::to_string(model->dof()) + " joints but robot '" + robot.name() +
+                                "' has " + std::to_string(robot.dof()));
+}
+
+// (1,) broadcasts to every joint
+VecN expand(const Eigen::VectorXd& g, int n) {
+  VecN out(n);
+  for (int i = 0; i < n; ++i) out[i] = g.size() == 1 ? g[0] : g[i];
+  return out;
+}
+
+}  // namespace
+
+// ---- PID ----
+
+PID::PID(Eigen::VectorXd kp, Eigen::VectorXd ki, Eigen::VectorXd kd, bool gravity_compensation,
+         double derivative_filter, Eigen::VectorXd integral_limit, std::shared_ptr<const Robot> model)
+    : kp_(std::move(kp)), ki_(std::move(ki)), kd_(std::move(kd)), ilim_(std::move(integral_limit)),
+      gravity_(gravity_compensation), tf_(derivative_filter), model_(std::move(model)) {
+  check_gains(kp_, "kp");
+  check_gains(ki_, "ki");
+  check_gains(kd_, "kd");
+  check_gains(ilim_, "integral_limit", true);
+  if (!std::isfinite(tf_) || tf_ < 0)
+    throw std::invalid_argument("derivative_filter must be finite and >= 0 s, got " + std::to_string(tf_));
+}
+
+void PID::check(const Robot& robot) const {
+  check_size(kp_, "kp", robot);
+  check_size(ki_, "ki", robot);
+  check_size(kd_, "kd", robot);
+  if (ilim_.size()) check_size(ilim_, "integral_limit", robot);
+  check_model(model_, robot);
+}
+
+void PID::reset(const Robot& robot, double period) {
+  check(robot);
+  if (!(period > 0) || !std::isfinite(period))
+    throw std::invalid_argument("period must be finite and > 0 s");
+  n_ = robot.dof();
+  h_ = period;
+  Kp_ = expand(kp_, n_);
+  Ki_ = expand(ki_, n_);
+  Kd_ = expand(kd_, n_);
+  tau_max_ = robot.tau_max();
+  Ilim_ = ilim_.size() ? expand(ilim_, n_) : tau_max_;
+  gmodel_ = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  integral_ = VecN::Zero(n_);
+  v_ = VecN::Zero(n_);
+  q_prev_ = VecN::Zero(n_);
+  g_ = VecN::Zero(n_);
+  first_ = true;
+}
+
+void PID::compute(const ControlInput& in, double* tau) {
+  if (n_ == 0 || in.n != n_) throw std::logic_error("PID.compute called before reset() for this robot");
+  const int n = n_;
+  // filtered derivative of the measured position
+  if (first_) {
+    for (int i = 0; i < n; ++i) v_[i] = in.qd[i];
+    first_ = false;
+  } else {
+    const double a = tf_ / (tf_ + h_);
+    for (int i = 0; i < n; ++i) v_[i] = a * v_[i] + (1.0 - a) * ((in.q[i] - q_prev_[i]) / h_);
+  }
+  for (int i = 0; i < n; ++i) q_prev_[i] = in.q[i];
+  if (gmodel_) gmodel_->gravity_vector(in.q, ws_, g_);
+  for (int i = 0; i < n; ++i) {
+    const double e = in.q_ref[i] - in.q[i];
+    double u0 = Kp_[i] * e + Kd_[i] * (in.qd_ref[i] - v_[i]);
+    if (gmodel_) u0 += g_[i];
+    double I = integral_[i] + e * h_;
+    // anti-windup: do not integrate further into saturation
+    const double u = u0 + Ki_[i] * I;
+    if ((u > tau_max_[i] && e > 0) || (u < -tau_max_[i] && e < 0)) I = integral_[i];
+    if (Ki_[i] > 0) {
+      const double imax = Ilim_[i] / Ki_[i];
+      if (I > imax) I = imax;
+      else if (I < -imax) I = -imax;
+    }
+    integral_[i] = I;
+    tau[i] = u0 + Ki_[i] * I;
+  }
+  saturate(n, tau_max_.data(), tau);
+}
+
+// ---- computed torque ----
+
+ComputedTorque::ComputedTorque(Eigen::VectorXd kp, Eigen::VectorXd kd, std::shared_ptr<const Robot> model)
+    : kp_(std::move(kp)), kd_(std::move(kd)), model_(std::move(model)) {
+  check_gains(kp_, "kp");
+  check_gains(kd_, "kd");
+}
+
+void ComputedTorque::check(const Robot& robot) const {
+  check_size(kp_, "kp", robot);
+  check_size(kd_, "kd", robot);
+  check_model(model_, robot);
+}
+
+void ComputedTorque::reset(const Robot& robot, double period) {
+  check(robot);
+  n_ = robot.dof();
+  Kp_ = expand(kp_, n_);
+  Kd_ = expand(kd_, n_);
+  tau_max_ = robot.tau_max();
+  run_model_ = model_ ? model_ : std::make_shared<const Robot>(robot);
+  v_ = VecN::Zero(n_);
+  out_ = VecN::Zero(n_);
+}
+
+void ComputedTorque::compute(const ControlInput& in, double* tau) {
+  if (n_ == 0 || in.n != n_) throw std::logic_error("ComputedTorque.compute called before reset() for this robot");
+  for (int i = 0; i < n_; ++i)
+    v_[i] = in.qdd_ref[i] + Kd_[i] * (in.qd_ref[i] - in.qd[i]) + Kp_[i] * (in.q_ref[i] - in.q[i]);
+  // M v + C + G + K qd in one Newton-Euler pass
+  run_model_->rnea(in.q, in.qd, v_.data(), ws_, out_, 1.0, true);
+  for (int i = 0; i < n_; ++i) tau[i] = out_[i];
+  saturate(n_, tau_max_.data(), tau);
+}
+
+}  // namespace coopsim

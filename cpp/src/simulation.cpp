@@ -1,0 +1,331 @@
+#include "coopsim/simulation.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <sstream>
+#include <thread>
+
+namespace coopsim {
+
+namespace {
+
+std::string vec_str(const VecN& v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << "[";
+  for (int i = 0; i < v.size(); ++i) s << (i ? ", " : "") << v[i];
+  s << "]";
+  return s.str();
+}
+
+}  // namespace
+
+Simulation::Simulation(SimulationOptions options) : opt_(options) {
+  if (!std::isfinite(opt_.dt) || opt_.dt <= 0)
+    throw std::invalid_argument("dt must be finite and > 0 s, got " + std::to_string(opt_.dt));
+  if (opt_.control_every < 1)
+    throw std::invalid_argument("control_every must be >= 1, got " + std::to_string(opt_.control_every));
+  if (opt_.log_every < 0)
+    throw std::invalid_argument("log_every must be >= 0 (0: no log), got " + std::to_string(opt_.log_every));
+  if (!(opt_.max_speed > 0))
+    throw std::invalid_argument("max_speed must be > 0, got " + std::to_string(opt_.max_speed));
+  if (!(opt_.max_position > 0))
+    throw std::invalid_argument("max_position must be > 0, got " + std::to_string(opt_.max_position));
+}
+
+Simulation::Slot& Simulation::slot_(int i) {
+  if (i < 0 || i >= robot_count())
+    throw std::out_of_range("robot index " + std::to_string(i) + " out of range (" + std::to_string(robot_count()) +
+                            " robots)");
+  return slots_[i];
+}
+
+const Simulation::Slot& Simulation::slot_(int i) const {
+  return const_cast<Simulation*>(this)->slot_(i);
+}
+
+int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> controller,
+                          std::shared_ptr<const Reference> reference, const double* q0, const double* qd0) {
+  if (started_ || k_ != 0) throw std::invalid_argument("robots can only be added before the first step (call reset())");
+  if (!controller) throw std::invalid_argument("controller must not be None");
+  if (!reference) throw std::invalid_argument("reference must not be None");
+  const int n = robot.dof();
+  if (reference->dof() != n)
+    throw std::invalid_argument("reference has " + std::to_string(reference->dof()) + " joints but robot '" +
+                                robot.name() + "' has " + std::to_string(n));
+  for (const Slot& s : slots_)
+    if (s.controller == controller)
+      throw std::invalid_argument("controller is already driving another robot: give each robot its own instance");
+  controller->check(robot);
+  Slot s(robot);
+  s.controller = std::move(controller);
+  s.reference = std::move(reference);
+  s.q0 = VecN::Zero(n);
+  s.qd0 = VecN::Zero(n);
+  s.reference->evaluate(0.0, s.q0.data(), s.qd0.data(), nullptr);
+  if (q0) s.q0 = Eigen::Map<const VecN>(q0, n);
+  if (qd0) s.qd0 = Eigen::Map<const VecN>(qd0, n);
+  if (!s.q0.allFinite()) throw std::invalid_argument("q0 must be finite");
+  if (!s.qd0.allFinite()) throw std::invalid_argument("qd0 must be finite");
+  s.q = s.q0;
+  s.qd = s.qd0;
+  s.tau = VecN::Zero(n);
+  s.tau_max = robot.tau_max();
+  s.q_ref = s.qd_ref = s.qdd_ref = s.k1 = s.q_prev = s.qd_prev = VecN::Zero(n);
+  s.metrics.sum_sq_error = s.metrics.max_abs_error = s.metrics.max_abs_tau = VecN::Zero(n);
+  slots_.push_back(std::move(s));
+  return robot_count() - 1;
+}
+
+void Simulation::reset() {
+  k_ = 0;
+  logged_at_ = -1;
+  started_ = false;
+  diverged_ = false;
+  divergence_.clear();
+  log_t_.clear();
+  for (Slot& s : slots_) {
+    const int n = s.robot.dof();
+    s.q = s.q0;
+    s.qd = s.qd0;
+    s.tau.setZero(n);
+    s.k1_valid = false;
+    s.updated_at = -1;
+    s.log = RobotLog();
+    s.metrics.steps = 0;
+    s.metrics.sum_sq_error.setZero(n);
+    s.metrics.max_abs_error.setZero(n);
+    s.metrics.max_abs_tau.setZero(n);
+  }
+}
+
+long Simulation::steps_until(double t_end) const {
+  if (!std::isfinite(t_end)) throw std::invalid_argument("t_end must be finite");
+  const double span = (t_end - time()) / opt_.dt;
+  if (span < -1e-9)
+    throw std::invalid_argument("t_end = " + std::to_string(t_end) + " s is before the current time " +
+                                std::to_string(time()) + " s");
+  if (span > 4e18) throw std::invalid_argument("t_end is too far ahead for dt");
+  return std::max(0L, static_cast<long>(std::floor(span + 1e-9)));
+}
+
+void Simulation::reserve(long steps) {
+  if (opt_.log_every == 0 || steps <= 0) return;
+  const size_t rows = log_t_.size() + static_cast<size_t>(steps / opt_.log_every + 2);
+  if (rows <= log_t_.capacity()) return;
+  // geometric growth keeps many small advances linear overall
+  const size_t cap = std::max(rows, 2 * log_t_.capacity());
+  log_t_.reserve(cap);
+  for (Slot& s : slots_) {
+    const size_t m = cap * static_cast<size_t>(s.robot.dof());
+    for (auto* v : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) v->reserve(m);
+  }
+}
+
+void Simulation::start_() {
+  const double period = opt_.dt * opt_.control_every;
+  for (Slot& s : slots_) {
+    s.controller->reset(s.robot, period);
+    s.updated_at = -1;
+    s.k1_valid = false;
+  }
+  started_ = true;
+}
+
+void Simulation::qdd_(Slot& s, VecN& out) {
+  s.robot.forward_dynamics(s.q.data(), s.qd.data(), s.tau.data(), nullptr, s.ws, out, opt_.end_stops);
+}
+
+void Simulation::update_() {
+  const double t = time();
+  const bool control = k_ % opt_.control_every == 0;
+  ControlInput in;
+  in.t = t;
+  for (Slot& s : slots_) {
+    if (s.updated_at == k_) continue;
+    const int n = s.robot.dof();
+    s.reference->evaluate(t, s.q_ref.data(), s.qd_ref.data(), s.qdd_ref.data());
+    if (control) {
+      in.n = n;
+      in.q = s.q.data();
+      in.qd = s.qd.data();
+      in.q_ref = s.q_ref.data();
+      in.qd_ref = s.qd_ref.data();
+      in.qdd_ref = s.qdd_ref.data();
+      VecN u(n);
+      s.controller->compute(in, u.data());
+      if (!u.allFinite()) {
+        std::ostringstream msg;
+        msg << "controller of robot " << (&s - slots_.data()) << " '" << s.robot.name()
+            << "' returned a non-finite torque at step " << k_ << " (t = " << t << " s): tau = " << vec_str(u)
+            << ", q = " << vec_str(s.q) << ", qd = " << vec_str(s.qd);
+        diverged_ = true;
+        divergence_ = msg.str();
+        throw DivergenceError(divergence_, k_, t, static_cast<int>(&s - slots_.data()), s.q, s.qd);
+      }
+      // actuator limits bind whatever the controller did
+      saturate(n, s.tau_max.data(), u.data());
+      s.tau = u;
+      s.k1_valid = false;
+    }
+    TrackingMetrics& m = s.metrics;
+    for (int i = 0; i < n; ++i) {
+      const double e = s.q_ref[i] - s.q[i];
+      m.sum_sq_error[i] += e * e;
+      m.max_abs_error[i] = std::max(m.max_abs_error[i], std::abs(e));
+      m.max_abs_tau[i] = std::max(m.max_abs_tau[i], std::abs(s.tau[i]));
+    }
+    ++m.steps;
+    s.updated_at = k_;
+  }
+  if (opt_.log_every == 0 || k_ % opt_.log_every != 0 || logged_at_ == k_) return;
+  for (size_t i = 0; i < slots_.size(); ++i) {
+    Slot& s = slots_[i];
+    try {
+      qdd_(s, s.k1);
+    } catch (const std::exception& e) {
+      diverge_(static_cast<int>(i), e.what(), false);
+    }
+    s.k1_valid = true;
+  }
+  log_t_.push_back(time());
+  for (Slot& s : slots_) {
+    const int n = s.robot.dof();
+    auto put = [n](std::vector<double>& v, const VecN& x) { v.insert(v.end(), x.data(), x.data() + n); };
+    put(s.log.q, s.q);
+    put(s.log.qd, s.qd);
+    put(s.log.qdd, s.k1);
+    put(s.log.tau, s.tau);
+    put(s.log.q_ref, s.q_ref);
+    put(s.log.qd_ref, s.qd_ref);
+  }
+  logged_at_ = k_;
+}
+
+void Simulation::diverge_(int i, const std::string& why, bool in_step) {
+  Slot& bad = slots_[i];
+  const VecN q_bad = bad.q, qd_bad = bad.qd;
+  const long step = in_step ? k_ + 1 : k_;
+  // a rejected step goes back to the last good state
+  for (Slot& s : slots_) {
+    if (in_step) {
+      s.q = s.q_prev;
+      s.qd = s.qd_prev;
+    }
+    s.k1_valid = false;
+  }
+  diverged_ = true;
+  std::ostringstream msg;
+  msg << "simulation diverged at step " << step << " (t = " << step * opt_.dt << " s, dt = " << opt_.dt
+      << " s): robot " << i << " '" << bad.robot.name() << "': " << why << "; state q = " << vec_str(q_bad)
+      << ", qd = " << vec_str(qd_bad) << ", torque held = " << vec_str(bad.tau) << "; the log ends at t = "
+      << (log_t_.empty() ? 0.0 : log_t_.back()) << " s";
+  divergence_ = msg.str();
+  throw DivergenceError(divergence_, step, step * opt_.dt, i, q_bad, qd_bad);
+}
+
+void Simulation::step_() {
+  const double h = opt_.dt;
+  for (Slot& s : slots_) {
+    s.q_prev = s.q;
+    s.qd_prev = s.qd;
+  }
+  for (size_t i = 0; i < slots_.size(); ++i) {
+    Slot& s = slots_[i];
+    const int n = s.robot.dof();
+    const double* u = s.tau.data();
+    Workspace& ws = s.ws;
+    const Robot& r = s.robot;
+    const bool es = opt_.end_stops;
+    try {
+      // classic RK4 on x = [q; qd], torque held; k1 reused from the log row
+      if (!s.k1_valid) qdd_(s, s.k1);
+      VecN k2v, k3v, k4v, qs(n), vs(n);
+      const VecN& q = s.q_prev;
+      const VecN& v = s.qd_prev;
+      qs = q + 0.5 * h * v;
+      vs = v + 0.5 * h * s.k1;
+      const VecN k2q = vs;
+      r.forward_dynamics(qs.data(), vs.data(), u, nullptr, ws, k2v, es);
+      qs = q + 0.5 * h * k2q;
+      vs = v + 0.5 * h * k2v;
+      const VecN k3q = vs;
+      r.forward_dynamics(qs.data(), vs.data(), u, nullptr, ws, k3v, es);
+      qs = q + h * k3q;
+      vs = v + h * k3v;
+      const VecN k4q = vs;
+      r.forward_dynamics(qs.data(), vs.data(), u, nullptr, ws, k4v, es);
+      s.q = q + (h / 6.0) * (v + 2.0 * k2q + 2.0 * k3q + k4q);
+      s.qd = v + (h / 6.0) * (s.k1 + 2.0 * k2v + 2.0 * k3v + k4v);
+    } catch (const std::exception& e) {
+      diverge_(static_cast<int>(i), e.what(), true);
+    }
+    s.k1_valid = false;
+    bool finite = true, fast = false, far = false;
+    for (int j = 0; j < n; ++j) {
+      if (!std::isfinite(s.q[j]) || !std::isfinite(s.qd[j])) finite = false;
+      else if (std::abs(s.qd[j]) > opt_.max_speed) fast = true;
+      else if (std::abs(s.q[j]) > opt_.max_position) far = true;
+    }
+    if (!finite) diverge_(static_cast<int>(i), "state is no longer finite", true);
+    if (fast) diverge_(static_cast<int>(i), "a joint speed exceeds max_speed = " + std::to_string(opt_.max_speed), true);
+    if (far)
+      diverge_(static_cast<int>(i), "a joint position exceeds max_position = " + std::to_string(opt_.max_position), true);
+  }
+  ++k_;
+}
+
+void Simulation::advance(long n) {
+  if (n < 0) throw std::invalid_argument("n must be >= 0, got " + std::to_string(n));
+  if (slots_.empty()) throw std::invalid_argument("the simulation has no robot: add one with add_robot()");
+  if (diverged_) throw std::runtime_error("the simulation has diverged (" + divergence_ + "); call reset()");
+  if (!started_) start_();
+  reserve(n);
+  update_();
+  for (long i = 0; i < n; ++i) {
+    step_();
+    update_();
+  }
+}
+
+std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads) {
+  const int N = static_cast<int>(sims.size());
+  for (int i = 0; i < N; ++i) {
+    if (!sims[i]) throw std::invalid_argument("sims must not contain None");
+    for (int j = 0; j < i; ++j) {
+      if (sims[i] == sims[j])
+        throw std::invalid_argument("sims[" + std::to_string(i) + "] is the same simulation as sims[" +
+                                    std::to_string(j) + "]");
+      for (int a = 0; a < sims[i]->robot_count(); ++a)
+        for (int b = 0; b < sims[j]->robot_count(); ++b)
+          if (sims[i]->controller(a) == sims[j]->controller(b))
+            throw std::invalid_argument("sims[" + std::to_string(i) + "] and sims[" + std::to_string(j) +
+                                        "] share a controller instance: give each its own");
+    }
+  }
+  if (!std::isfinite(t_end)) throw std::invalid_argument("t_end must be finite");
+  std::vector<std::exception_ptr> errors(N);
+  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = std::max(1, std::min(threads, N));
+  std::atomic<int> next{0};
+  auto work = [&]() {
+    for (int i = next++; i < N; i = next++) {
+      try {
+        sims[i]->advance(sims[i]->steps_until(t_end));
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  if (threads == 1) {
+    work();
+  } else {
+    std::vector<std::thread> pool;
+    for (int t = 0; t < threads; ++t) pool.emplace_back(work);
+    for (auto& th : pool) th.join();
+  }
+  return errors;
+}
+
+}  // namespace coopsim
