@@ -6,6 +6,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "coopsim/generated.hpp"
 
@@ -270,9 +271,7 @@ void Robot::kinematics(const double* q, Workspace& ws) const {
     const Pre& P = pre_[k];
     double ct = P.ct, st = P.st, d = L.dh.d;
     if (L.type == JointType::Revolute) {
-      const double th = L.dh.theta + q[k];
-      ct = std::cos(th);
-      st = std::sin(th);
+      ::sincos(L.dh.theta + q[k], &st, &ct);
     } else {
       d += q[k];
     }
@@ -620,10 +619,57 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
     end_stop_torques(q, qd, M, ts);
     rhs += ts;
   }
-  Eigen::LLT<MatN> llt(M);
-  if (llt.info() != Eigen::Success)
+  if (!solve_spd(M, rhs, qdd))
     throw std::domain_error("forward_dynamics: mass matrix is not positive definite for this q (values out of range?)");
-  qdd = llt.solve(rhs);
+}
+
+namespace {
+
+// Cholesky factorisation and solve with the size known at compile time, so
+// the loops unroll; a[i + j * N] is column-major.
+template <int N>
+bool solve_spd_fixed(double* a, const double* b, double* x) {
+  for (int j = 0; j < N; ++j) {
+    double d = a[j + j * N];
+    for (int k = 0; k < j; ++k) d -= a[j + k * N] * a[j + k * N];
+    if (!(d > 0.0)) return false;
+    d = std::sqrt(d);
+    a[j + j * N] = d;
+    const double inv = 1.0 / d;
+    for (int i = j + 1; i < N; ++i) {
+      double s = a[i + j * N];
+      for (int k = 0; k < j; ++k) s -= a[i + k * N] * a[j + k * N];
+      a[i + j * N] = s * inv;
+    }
+  }
+  for (int i = 0; i < N; ++i) {
+    double s = b[i];
+    for (int k = 0; k < i; ++k) s -= a[i + k * N] * x[k];
+    x[i] = s / a[i + i * N];
+  }
+  for (int i = N - 1; i >= 0; --i) {
+    double s = x[i];
+    for (int k = i + 1; k < N; ++k) s -= a[k + i * N] * x[k];
+    x[i] = s / a[i + i * N];
+  }
+  return true;
+}
+
+template <int... Ns>
+bool solve_spd_dispatch(int n, double* a, const double* b, double* x, std::integer_sequence<int, Ns...>) {
+  bool ok = false;
+  ((n == Ns + 1 ? (ok = solve_spd_fixed<Ns + 1>(a, b, x), true) : false) || ...);
+  return ok;
+}
+
+}  // namespace
+
+bool solve_spd(MatN& A, const VecN& b, VecN& x) {
+  // plain Cholesky, unrolled per size: far fewer instructions than Eigen's
+  // blocked LLT on these small matrices
+  const int n = static_cast<int>(A.rows());
+  x.resize(n);
+  return solve_spd_dispatch(n, A.data(), b.data(), x.data(), std::make_integer_sequence<int, kMaxDof>());
 }
 
 double Robot::kinetic_energy(const double* q, const double* qd, Workspace& ws) const {

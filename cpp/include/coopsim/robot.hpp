@@ -222,6 +222,10 @@ class Robot {
   std::vector<Pre> pre_;
 };
 
+// Solves A x = b for symmetric positive definite A by Cholesky, overwriting A
+// with its factor; false if A is not positive definite.
+bool solve_spd(MatN& A, const VecN& b, VecN& x);
+
 // Solid cuboid inertia about its centre, edges lx, ly, lz along x, y, z (kg m^2).
 Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz);
 // Homogeneous transform of one DH row with the joint variable already added.

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Installs everything coopsim needs on a fresh Debian machine, idempotently:
+# Debian packages (compiler, Eigen, Bullet, pkg-config) through apt-get, then
+# the package itself with its Python dependencies through pip. Re-running it
+# skips what is already there and rebuilds incrementally in build/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+export PIP_ROOT_USER_ACTION=ignore PIP_DISABLE_PIP_VERSION_CHECK=1
+PY=${PYTHON:-python3}
+
+need=()
+for pkg in g++ pkg-config libeigen3-dev libbullet-dev; do
+  dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
+done
+if [ ${#need[@]} -gt 0 ]; then
+  echo "setup: installing Debian packages: ${need[*]}"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+fi
+
+echo "setup: building and installing coopsim (incremental build in build/)"
+"$PY" -m pip install -q ".[test,data,notebooks]" -Cbuild-dir=build/{wheel_tag}
+"$PY" -c "import coopsim, sys; assert coopsim._core.build_optimised, 'coopsim was not built optimised'; print('setup: coopsim', coopsim.__version__, 'ready')"
