@@ -8,6 +8,7 @@ void bind_integrator(py::module_& m);
 void bind_collision(py::module_& m);
 void bind_codegen(py::module_& m);
 void bind_trajectory(py::module_& m);
+void bind_ik(py::module_& m);
 void bind_control(py::module_& m);
 void bind_simulation(py::module_& m);
 
@@ -23,6 +24,7 @@ PYBIND11_MODULE(_core, m) {
   bind_collision(m);
   bind_codegen(m);
   bind_trajectory(m);
+  bind_ik(m);
   bind_control(m);
   bind_simulation(m);
 }

@@ -10,6 +10,7 @@ from ._core import (
     CollisionWorld,
     Contact,
     CubicTrajectory,
+    IKError,
     Reference,
     Robot,
     Tool,
@@ -23,6 +24,7 @@ from ._core import (
 )
 from . import robots
 from .urdf import to_urdf
+from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Pacer, RobotLog, RunStats, Simulation, SimulationLog, run_batch, simulate  # noqa: E501
 
 Robot.to_urdf = to_urdf
@@ -33,11 +35,15 @@ __all__ = [
     "CollisionWorld",
     "Contact",
     "CubicTrajectory",
+    "IKError",
     "Reference",
     "Robot",
     "Tool",
     "Wrench",
     "box_inertia",
+    "clamp_pose",
+    "plan_cartesian",
+    "planning",
     "dh_transform",
     "euler_step",
     "forward_dynamics_batch",

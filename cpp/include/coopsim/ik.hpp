@@ -1,0 +1,106 @@
+// Inverse kinematics of the tool centre point (TCP): closed form for the two
+// SCARA structures of the paper (section 6) and damped least squares
+// (Levenberg-Marquardt) for any robot.
+//
+// Targets are TCP poses in the world frame (the pose Robot::tool_pose gives).
+// Every solution returned has been checked by forward kinematics against the
+// target and lies within the joint limits; otherwise IKError is thrown with
+// the reason (out of reach, which joint limit, orientation the structure
+// cannot take, singular target). No solver returns NaN.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "coopsim/robot.hpp"
+
+namespace coopsim {
+
+// The target cannot be reached within the limits; what() says why.
+class IKError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Which closed-form solver fits a robot.
+//  Scara1: joints RRPRRP, arm plane horizontal (alpha1 = 0, alpha2 in {0, pi}),
+//    vertical quill (a3 = 0, alpha3 in {0, pi}), yaw axis on the quill
+//    (a4 = 0), pitch axis not vertical (sin alpha4 != 0), jaw joint 6; solved
+//    decoupled: wrist point (frame 4 origin) -> theta1, theta2, d3; clamp
+//    orientation -> theta4, theta5.
+//  Scara2: joints RRRPRP, alpha1 = alpha2 = 0, alpha3 in {0, pi}, zero theta
+//    offsets on joints 2 and 3, a4 = 0, alpha4 in {0, pi}, jaw joint 6;
+//    solved through the homogeneous transforms with the redundancy resolved
+//    by theta2 = theta3 (joint variables).
+//  Both need the tool on links 5 and 6 (clamp body and moving jaw).
+enum class AnalyticKind { None, Scara1, Scara2 };
+// The solver kind for this robot; when None, `why` (if given) says which
+// structural condition failed.
+AnalyticKind analytic_kind(const Robot& robot, std::string* why = nullptr);
+
+struct IKSolution {
+  VecN q;
+  // elbow branch: +1 / -1 is the sign of the elbow angle (theta2 for SCARA #1,
+  // theta2 = theta3 for SCARA #2); +-2 is SCARA #2's folded family (the other
+  // root of its distance equation, only near the base).
+  int branch = 0;
+  double position_error = 0.0;     // m, by forward kinematics
+  double orientation_error = 0.0;  // rad, angle of R_target^T R
+};
+
+struct AnalyticIKOptions {
+  double opening = 0.0;     // jaw opening d6 (m): the pose does not determine it
+  int branch = 0;           // +1, -1 (or +-2 for SCARA #2), 0 = any
+  const VecN* q_near = nullptr;  // pick the solution nearest this (n,), and shift
+                                 // angles by 2 pi k to be nearest it
+  double tol = 1e-9;        // m and rad: largest accepted pose residual
+};
+
+// Every closed-form solution within the joint limits, sorted by distance to
+// q_near (if given) or by branch (+1 first). Throws IKError when there is
+// none, saying why each candidate failed; std::invalid_argument when the
+// robot's structure does not fit.
+std::vector<IKSolution> analytic_ik_all(const Robot& robot, const Eigen::Isometry3d& target,
+                                        const AnalyticIKOptions& options);
+// The first of analytic_ik_all for the requested branch.
+IKSolution analytic_ik(const Robot& robot, const Eigen::Isometry3d& target, const AnalyticIKOptions& options);
+
+struct NumericIKOptions {
+  // weights of the pose error [x, y, z, rx, ry, rz] (world frame; 0 drops a
+  // component, e.g. position only = {1, 1, 1, 0, 0, 0}); the orientation
+  // rows are scaled by `length` (m) so that they weigh like positions
+  std::array<double, 6> weights{1, 1, 1, 1, 1, 1};
+  double length = 0.1;
+  std::vector<int> locked;  // joint indices (0-based) held at their start value
+  double tol = 1e-10;       // converged when |position error| and |orientation error| (m, rad) < tol
+  int max_iterations = 100;  // per attempt
+  int restarts = 10;         // random restarts after the first attempt
+  unsigned long seed = 0;    // for the restarts (deterministic)
+};
+
+struct NumericIKResult {
+  VecN q;
+  double position_error = 0.0;     // m (weighted components only)
+  double orientation_error = 0.0;  // rad (weighted components only)
+  int iterations = 0;              // total over attempts
+  int attempts = 0;
+};
+
+// Levenberg-Marquardt on the weighted pose error with the geometric tool
+// Jacobian, from q0 and then from random points within the limits, each
+// iterate projected into the limits. Returns the first converged solution;
+// throws IKError with the best residual (and the joints resting at limits)
+// when none converges.
+NumericIKResult numeric_ik(const Robot& robot, const Eigen::Isometry3d& target, const VecN& q0,
+                           const NumericIKOptions& options);
+
+// Pose residual between a TCP pose and a target: position (m) and rotation
+// angle (rad).
+void pose_error(const Eigen::Isometry3d& T, const Eigen::Isometry3d& target, double& position, double& angle);
+
+}  // namespace coopsim

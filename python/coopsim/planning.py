@@ -1,0 +1,254 @@
+"""Cartesian planning: tool poses with times -> inverse kinematics -> cubic
+joint trajectory (paper section 7).
+
+The paper samples the tool path at user-given poses, maps each through the
+inverse kinematics and joins the joint via-points with cubic polynomials;
+the more poses, the closer the tool follows the intended path between them.
+``plan_cartesian`` does that in one call, keeping the elbow branch of the
+first pose and unwrapping angles (each solution is the 2 pi k copy nearest the
+previous one), and can insert straight-line intermediate poses.
+
+Poses are (4, 4) homogeneous transforms of the tool centre point in the
+world (what ``Robot.fk`` returns). Units: m, rad, s.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._core import CubicTrajectory, IKError, Robot
+
+__all__ = ["plan_cartesian", "clamp_pose", "interpolate_poses", "rotz"]
+
+
+def rotz(angle: float) -> np.ndarray:
+    """Rotation (3, 3) by `angle` rad about z."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def clamp_pose(robot: Robot, position, yaw: float = 0.0, pitch: float | None = None) -> np.ndarray:
+    """TCP pose (4, 4) of a SCARA clamp from its position, yaw and pitch.
+
+    position: (3,) m in the world. yaw: rad about the world vertical,
+    measured from the clamp orientation at q = 0 with the base unrotated (for
+    both built-in SCARAs, yaw = 0 has the approach along world +x for robot #1
+    at pitch 0 and the jaw axis along world +y for robot #2). pitch: SCARA #1
+    only, theta5 in rad (0 horizontal, pi/2 pointing down; default 0).
+    """
+    kind = robot.ik_kind
+    if kind is None:
+        raise ValueError(f"clamp_pose needs a SCARA structure: {robot.ik_kind_reason()}")
+    p = np.asarray(position, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"position must be 3 finite numbers (m), got shape {p.shape}")
+    if not math.isfinite(yaw):
+        raise ValueError("yaw must be finite")
+    q = np.zeros(robot.dof)
+    if kind == "scara1":
+        pitch = 0.0 if pitch is None else float(pitch)
+        if not math.isfinite(pitch):
+            raise ValueError("pitch must be finite")
+        q[4] = pitch
+    elif pitch is not None:
+        raise ValueError("pitch applies to SCARA #1 only: SCARA #2's clamp always points down")
+    R_ref = robot.with_base(np.zeros(3), 0.0).fk(q)[:3, :3]
+    T = np.eye(4)
+    T[:3, :3] = rotz(yaw) @ R_ref
+    T[:3, 3] = p
+    return T
+
+
+def _log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (3,) of a rotation matrix (angle in [0, pi])."""
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s, c = 0.5 * np.linalg.norm(v), 0.5 * (np.trace(R) - 1.0)
+    angle = math.atan2(s, c)
+    if angle < 1e-9:
+        return 0.5 * v
+    if math.pi - angle < 1e-6:
+        # near pi the skew part vanishes: axis from the symmetric part
+        B = 0.5 * (R + np.eye(3))
+        axis = B[:, int(np.argmax(np.diag(B)))]
+        axis = axis / np.linalg.norm(axis)
+        if np.dot(axis, v) < 0:
+            axis = -axis
+        return angle * axis
+    return angle / (2.0 * math.sin(angle)) * v
+
+
+def _exp_so3(w: np.ndarray) -> np.ndarray:
+    angle = float(np.linalg.norm(w))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = w / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+
+
+def _roty(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
+    """Poses (len(s), 4, 4) on the straight line from T0 to T1, s in [0, 1].
+
+    Position is linear in s. Orientation, by `mode`:
+    - 'geodesic': along the shortest rotation (constant angular rate);
+    - 'clamp': a yaw about the world vertical times a pitch about the tool's
+      y axis (the jaw axis), each linear in s (shortest way round). These are
+      the only rotations a SCARA clamp makes, so every pose on the way stays
+      reachable, which a geodesic between two yawed and pitched clamp poses
+      in general is not.
+    s = 0 gives T0 and s = 1 gives T1 exactly.
+    """
+    T0, T1 = np.asarray(T0, dtype=float), np.asarray(T1, dtype=float)
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    R0, R1 = T0[:3, :3], T1[:3, :3]
+    if mode == "geodesic":
+        w = _log_so3(R0.T @ R1)
+        rot = lambda si: R0 @ _exp_so3(si * w)  # noqa: E731
+    elif mode == "clamp":
+        # yaw: turn of the jaw axis about the vertical; pitch: what is left, about the jaw axis
+        y0, y1 = R0[:, 1], R1[:, 1]
+        dpsi = math.atan2(y0[0] * y1[1] - y0[1] * y1[0], y0[0] * y1[0] + y0[1] * y1[1])
+        M = R0.T @ rotz(-dpsi) @ R1
+        dphi = math.atan2(M[0, 2], M[0, 0])
+        rot = lambda si: rotz(si * dpsi) @ R0 @ _roty(si * dphi)  # noqa: E731
+    else:
+        raise ValueError(f"mode must be 'geodesic' or 'clamp', got {mode!r}")
+    out = np.repeat(np.eye(4)[None], len(s), axis=0)
+    for i, si in enumerate(s):
+        if si == 0.0:
+            out[i] = T0
+        elif si == 1.0:
+            out[i] = T1
+        else:
+            out[i, :3, :3] = rot(si)
+            out[i, :3, 3] = (1.0 - si) * T0[:3, 3] + si * T1[:3, 3]
+    return out
+
+
+def _poses_arg(poses) -> np.ndarray:
+    P = np.asarray(poses, dtype=float)
+    if P.ndim == 2:
+        P = P[None]
+    if P.ndim != 3 or P.shape[1:] != (4, 4):
+        raise ValueError(f"wrong shape for poses: expected (N, 4, 4), got {np.shape(poses)}")
+    if not np.all(np.isfinite(P)):
+        raise ValueError("poses must be finite (got NaN or inf)")
+    return P
+
+
+def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, branch=None,
+                   intermediate: int = 0, spline: bool = False, qd_start=None, qd_end=None,
+                   method: str = "auto", keep_branch: bool = True, info: bool = False, **ik_options):
+    """Joint trajectory whose tool passes through `poses` at `times`.
+
+    robot: the Robot. poses: (N, 4, 4) TCP poses in the world, N >= 2.
+    times: (N,) s, strictly increasing.
+    opening: SCARA jaw opening d6 (m), a scalar or (N,) one per pose
+        (interpolated linearly for intermediate poses); default q_start's,
+        else 0.
+    q_start: (n,) configuration to start near (picks the first branch and the
+        2 pi k copy of each angle); branch: +1 / -1 elbow branch for the first
+        pose (closed-form IK). With keep_branch (default) every later pose
+        uses the first pose's branch, so the elbow never flips on the way.
+    intermediate: number of poses inserted on the straight line between
+        consecutive given poses, at evenly spaced times (interpolate_poses:
+        position linear; orientation 'clamp' for the SCARAs, else
+        'geodesic'); more points, closer to the line.
+    spline, qd_start, qd_end: passed to CubicTrajectory (C2 spline instead
+        of the averaged-slope rule; end velocities, default rest).
+    method and further keywords (tol, weights, locked, restarts, ...) go to
+        Robot.ik; each pose after the first is solved near the previous q.
+    info: also return a dict with the knot times, poses and joint points.
+
+    Returns a CubicTrajectory (and the dict when info). Raises IKError naming
+    the pose that cannot be reached, ValueError on bad input.
+    """
+    P = _poses_arg(poses)
+    t = np.asarray(times, dtype=float)
+    if t.ndim != 1:
+        raise ValueError(f"wrong shape for times: expected (N,), got {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("times must be finite (got NaN or inf)")
+    if len(P) != len(t):
+        raise ValueError(f"poses and times must have the same length: got {len(P)} poses and {len(t)} times")
+    if len(t) < 2:
+        raise ValueError(f"times must have at least 2 points (one segment), got {len(t)}")
+    if np.any(np.diff(t) <= 0):
+        i = int(np.argmax(np.diff(t) <= 0))
+        raise ValueError(f"times must be strictly increasing: times[{i + 1}] = {t[i + 1]} <= times[{i}] = {t[i]}")
+    if isinstance(intermediate, bool) or int(intermediate) != intermediate or intermediate < 0:
+        raise ValueError(f"intermediate must be an integer >= 0, got {intermediate!r}")
+    intermediate = int(intermediate)
+    N = len(t)
+    mode = "clamp" if robot.ik_kind is not None else "geodesic"
+    if opening is not None:
+        if robot.ik_kind is None:
+            raise ValueError("opening applies to the SCARA clamps only")
+        op = np.broadcast_to(np.asarray(opening, dtype=float), (N,)) if np.ndim(opening) == 0 else \
+            np.asarray(opening, dtype=float)
+        if op.shape != (N,):
+            raise ValueError(f"wrong shape for opening: expected a scalar or ({N},), got {op.shape}")
+        if not np.all(np.isfinite(op)):
+            raise ValueError("opening must be finite")
+    else:
+        op = None
+    if q_start is not None:
+        q_start = np.asarray(q_start, dtype=float)
+        if q_start.shape != (robot.dof,) or not np.all(np.isfinite(q_start)):
+            raise ValueError(f"wrong shape for q_start: expected ({robot.dof},) finite, got {q_start.shape}")
+
+    # knots: the given poses plus straight-line poses between them
+    knot_t, knot_T, knot_op, given = [], [], [], []
+    s = np.linspace(0.0, 1.0, intermediate + 2)
+    for k in range(N - 1):
+        seg = interpolate_poses(P[k], P[k + 1], s[:-1], mode)
+        for j, sj in enumerate(s[:-1]):
+            knot_t.append(t[k] + sj * (t[k + 1] - t[k]))
+            knot_T.append(seg[j])
+            knot_op.append(None if op is None else (1.0 - sj) * op[k] + sj * op[k + 1])
+            given.append(j == 0)
+    knot_t.append(t[-1])
+    knot_T.append(P[-1])
+    knot_op.append(None if op is None else op[-1])
+    given.append(True)
+
+    analytic = robot.ik_kind is not None and method in ("auto", "analytic")
+    if branch is not None and not analytic:
+        raise ValueError("branch applies to the closed-form IK (SCARA robots, method 'auto' or 'analytic')")
+    q_prev = q_start
+    first_branch = branch
+    Q = np.empty((len(knot_t), robot.dof))
+    for i, (T, o) in enumerate(zip(knot_T, knot_op)):
+        kw = dict(ik_options)
+        if o is not None:
+            kw["opening"] = o
+        if analytic:
+            b = first_branch if (i == 0 or keep_branch) else None
+            kw["branch"] = b
+            kw["info"] = True
+        try:
+            res = robot.ik(T, q_near=q_prev, method=method, **kw)
+        except IKError as e:
+            which = f"pose {given[:i + 1].count(True) - 1}" if given[i] else \
+                f"the straight-line pose at t = {knot_t[i]:.6g} s"
+            extra = f" on elbow branch {first_branch:+d}" if analytic and keep_branch and first_branch else ""
+            raise IKError(f"{which}{extra}: {e}") from None
+        if analytic:
+            q, d = res
+            if i == 0 and first_branch is None:
+                first_branch = d["branch"]
+        else:
+            q = res
+        Q[i] = q
+        q_prev = q
+    traj = CubicTrajectory(np.array(knot_t), Q, spline=spline, qd_start=qd_start, qd_end=qd_end)
+    if info:
+        return traj, dict(times=np.array(knot_t), poses=np.array(knot_T), q_points=Q,
+                          given=np.array(given), branch=first_branch)
+    return traj
