@@ -19,6 +19,12 @@ std::string vec_str(const VecN& v) {
   return s.str();
 }
 
+std::string num(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
 }  // namespace
 
 Simulation::Simulation(SimulationOptions options) : opt_(options) {
@@ -185,7 +191,7 @@ void Simulation::update_() {
     try {
       qdd_(s, s.k1);
     } catch (const std::exception& e) {
-      diverge_(static_cast<int>(i), e.what(), false);
+      diverge_(static_cast<int>(i), e.what(), false, true);
     }
     s.k1_valid = true;
   }
@@ -203,7 +209,7 @@ void Simulation::update_() {
   logged_at_ = k_;
 }
 
-void Simulation::diverge_(int i, const std::string& why, bool in_step) {
+void Simulation::diverge_(int i, const std::string& why, bool in_step, bool state_is_result) {
   Slot& bad = slots_[i];
   const VecN q_bad = bad.q, qd_bad = bad.qd;
   const long step = in_step ? k_ + 1 : k_;
@@ -218,7 +224,8 @@ void Simulation::diverge_(int i, const std::string& why, bool in_step) {
   diverged_ = true;
   std::ostringstream msg;
   msg << "simulation diverged at step " << step << " (t = " << step * opt_.dt << " s, dt = " << opt_.dt
-      << " s): robot " << i << " '" << bad.robot.name() << "': " << why << "; state q = " << vec_str(q_bad)
+      << " s): robot " << i << " '" << bad.robot.name() << "': " << why << "; "
+      << (state_is_result ? "state reached" : "state at the start of the step") << ": q = " << vec_str(q_bad)
       << ", qd = " << vec_str(qd_bad) << ", torque held = " << vec_str(bad.tau) << "; the log ends at t = "
       << (log_t_.empty() ? 0.0 : log_t_.back()) << " s";
   divergence_ = msg.str();
@@ -259,7 +266,7 @@ void Simulation::step_() {
       s.q = q + (h / 6.0) * (v + 2.0 * k2q + 2.0 * k3q + k4q);
       s.qd = v + (h / 6.0) * (s.k1 + 2.0 * k2v + 2.0 * k3v + k4v);
     } catch (const std::exception& e) {
-      diverge_(static_cast<int>(i), e.what(), true);
+      diverge_(static_cast<int>(i), std::string("the dynamics failed in an RK4 stage (") + e.what() + ")", true, false);
     }
     s.k1_valid = false;
     bool finite = true, fast = false, far = false;
@@ -268,10 +275,10 @@ void Simulation::step_() {
       else if (std::abs(s.qd[j]) > opt_.max_speed) fast = true;
       else if (std::abs(s.q[j]) > opt_.max_position) far = true;
     }
-    if (!finite) diverge_(static_cast<int>(i), "state is no longer finite", true);
-    if (fast) diverge_(static_cast<int>(i), "a joint speed exceeds max_speed = " + std::to_string(opt_.max_speed), true);
+    if (!finite) diverge_(static_cast<int>(i), "state is no longer finite", true, true);
+    if (fast) diverge_(static_cast<int>(i), "a joint speed exceeds max_speed = " + num(opt_.max_speed), true, true);
     if (far)
-      diverge_(static_cast<int>(i), "a joint position exceeds max_position = " + std::to_string(opt_.max_position), true);
+      diverge_(static_cast<int>(i), "a joint position exceeds max_position = " + num(opt_.max_position), true, true);
   }
   ++k_;
 }

@@ -302,7 +302,9 @@ class SimulationLog:
         """Reads a log written by :meth:`to_csv`."""
         import pandas as pd
 
-        return cls.from_dataframe(pd.read_csv(path, float_precision="round_trip"))
+        # exact decimal -> binary parsing: the default from pandas 3, an option before
+        exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+        return cls.from_dataframe(pd.read_csv(path, **exact))
 
     @classmethod
     def read_excel(cls, path, sheet_name: str = "log") -> "SimulationLog":

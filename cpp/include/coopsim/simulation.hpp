@@ -156,7 +156,7 @@ class Simulation {
   void start_();
   void update_();
   void step_();
-  [[noreturn]] void diverge_(int i, const std::string& why, bool in_step);
+  [[noreturn]] void diverge_(int i, const std::string& why, bool in_step, bool state_is_result);
   void qdd_(Slot& s, VecN& out);
 
   SimulationOptions opt_;

@@ -1,0 +1,553 @@
+"""The simulation loop: log layout and decimation, zero-order hold, export
+round trips, errors mid-run, divergence, pacing, batch runs, pickling."""
+from __future__ import annotations
+
+import concurrent.futures
+import functools
+import os
+import pickle
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+
+DT = 2e-4
+
+
+def trajectory(robot: cs.Robot, duration: float = 1.0) -> cs.CubicTrajectory:
+    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
+    mid, span = (lo + hi) / 2, hi - lo
+    pts = np.array([mid - 0.1 * span, mid + 0.15 * span, mid - 0.05 * span])
+    return cs.CubicTrajectory([0.0, duration / 2, duration], pts)
+
+
+def pid(robot: cs.Robot, w: float = 40.0, **kw) -> cs.PID:
+    J = np.maximum(np.diag(robot.mass_matrix(trajectory(robot).evaluate(0.0)[0])), 0.01)
+    return cs.PID(J * w * w, J * w ** 3 / 10, 2 * J * w, **kw)
+
+
+def make_sim(robot=None, controller=None, reference=None, **kw) -> cs.Simulation:
+    robot = robot or cs.robots.scara1()
+    sim = cs.Simulation(**kw)
+    sim.add_robot(robot, controller or pid(robot), reference if reference is not None else trajectory(robot))
+    return sim
+
+
+QTY = ("q", "qd", "qdd", "tau", "q_ref", "qd_ref")
+
+
+def assert_logs_equal(a: cs.SimulationLog, b: cs.SimulationLog):
+    np.testing.assert_array_equal(a.t, b.t)
+    assert len(a.robots) == len(b.robots)
+    for ra, rb in zip(a.robots, b.robots):
+        for qty in QTY:
+            np.testing.assert_array_equal(getattr(ra, qty), getattr(rb, qty), err_msg=qty)
+
+
+# ---- log layout ----
+
+def test_log_shapes_and_contents():
+    robot = cs.robots.scara1()
+    traj = trajectory(robot)
+    sim = make_sim(robot, reference=traj)
+    log = sim.run(0.1, progress=False)
+    rows = round(0.1 / DT) + 1
+    assert len(log) == rows and sim.steps == rows - 1
+    assert log.t.shape == (rows,)
+    np.testing.assert_allclose(log.t, np.arange(rows) * DT, rtol=0, atol=1e-15)
+    for qty in QTY:
+        arr = getattr(log, qty)
+        assert arr.shape == (rows, 6) and arr.dtype == np.float64, qty
+    np.testing.assert_array_equal(log.error, log.q_ref - log.q)
+    q_ref, qd_ref, _ = traj.evaluate(log.t)
+    np.testing.assert_array_equal(log.q_ref, q_ref)
+    np.testing.assert_array_equal(log.qd_ref, qd_ref)
+    # row k: the acceleration of the held torque at (q_k, qd_k)
+    for k in (0, 17, rows - 1):
+        np.testing.assert_allclose(log.qdd[k], robot.forward_dynamics(log.q[k], log.qd[k], log.tau[k]),
+                                   rtol=1e-9, atol=1e-9)
+    # the state is the last row, and RK4 with the held torque joins consecutive rows
+    q, qd = sim.state()
+    np.testing.assert_array_equal(q, log.q[-1])
+    np.testing.assert_array_equal(qd, log.qd[-1])
+    q1, qd1 = cs.rk4_step(robot, log.q[10], log.qd[10], log.tau[10], DT)
+    np.testing.assert_allclose(q1, log.q[11], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(qd1, log.qd[11], rtol=0, atol=1e-12)
+
+
+def test_log_decimation_keeps_every_nth_row_of_the_same_run():
+    full = make_sim().run(0.2, progress=False)
+    sim = make_sim(log_every=7)
+    dec = sim.run(0.2, progress=False)
+    assert len(dec) == 1000 // 7 + 1
+    np.testing.assert_array_equal(dec.t, full.t[::7])
+    for qty in QTY:
+        np.testing.assert_array_equal(getattr(dec, qty), getattr(full, qty)[::7], err_msg=qty)
+    # metrics still cover every step
+    assert sim.metrics()[0]["steps"] == 1001
+    # log_every = 0: no log, metrics only
+    sim = make_sim(log_every=0)
+    assert len(sim.run(0.2, progress=False)) == 0
+    assert sim.metrics()[0]["steps"] == 1001
+
+
+def test_controller_every_kth_step_holds_its_torque():
+    sim = make_sim(control_every=5)
+    log = sim.run(0.05, progress=False)
+    tau = log.tau
+    for k in range(len(tau)):
+        np.testing.assert_array_equal(tau[k], tau[k - k % 5])
+    assert np.any(tau[5] != tau[4])
+    # a PID's integral advances by its period, 5 dt
+    assert sim.controllers[0].integral is not None
+
+
+def test_incremental_stepping_equals_one_run():
+    a = make_sim().run(0.1, progress=False)
+    sim = make_sim()
+    t = sim.step(0)
+    assert t == 0.0 and len(sim.log) == 1  # the first row is written when the run starts
+    for n in (1, 9, 90, 400):
+        sim.step(n)
+    sim.run(0.1, progress=False)
+    assert sim.steps == 500
+    assert_logs_equal(sim.log, a)
+
+
+def test_run_to_a_time_in_the_past_is_refused_and_reset_restarts():
+    sim = make_sim()
+    sim.run(0.05, progress=False)
+    with pytest.raises(ValueError, match="t_end"):
+        sim.run(0.01, progress=False)
+    sim.reset()
+    assert sim.time == 0.0 and len(sim.log) == 0 and sim.stats is None
+    assert_logs_equal(sim.run(0.05, progress=False), make_sim().run(0.05, progress=False))
+
+
+def test_two_robots_evolve_independently():
+    r1, r2 = cs.robots.scara1(), cs.robots.scara2(base_position=(1.0, 0.0, 0.0))
+    both = cs.Simulation()
+    both.add_robot(r1, pid(r1), trajectory(r1))
+    both.add_robot(r2, cs.ComputedTorque(400.0, 40.0), trajectory(r2))
+    log = both.run(0.1, progress=False)
+    one = make_sim(r1, pid(r1)).run(0.1, progress=False)
+    two = make_sim(r2, cs.ComputedTorque(400.0, 40.0)).run(0.1, progress=False)
+    assert [r.name for r in log] == ["scara1", "scara2"]
+    with pytest.raises(AttributeError, match=r"log\[i\]"):
+        log.q
+    for qty in QTY:
+        np.testing.assert_array_equal(getattr(log[0], qty), getattr(one, qty))
+        np.testing.assert_array_equal(getattr(log[1], qty), getattr(two, qty))
+
+
+def test_set_point_and_python_references():
+    robot = cs.robots.scara1()
+    target = np.array([0.2, -0.1, 0.1, 0.3, 0.2, 0.02])
+
+    class Hold(cs.Reference):
+        dof = 6
+        t_start = 0.0
+        t_end = 0.0
+
+        def evaluate(self, t):
+            return target, np.zeros(6), np.zeros(6)
+
+    logs = []
+    for ref in (target, Hold()):
+        sim = cs.Simulation()
+        sim.add_robot(robot, pid(robot), ref, q0=np.zeros(6) + 0.01)
+        logs.append(sim.run(0.2, progress=False))
+    assert_logs_equal(*logs)
+    assert np.all(logs[0].q_ref == target)
+
+
+# ---- export ----
+
+def test_dataframe_and_csv_round_trip(tmp_path):
+    log = make_sim(log_every=3).run(0.05, progress=False)
+    df = log.to_dataframe()
+    assert df.shape == (len(log), 1 + 7 * 6)
+    assert list(df.columns[:3]) == ["t", "scara1.q1", "scara1.q2"]
+    np.testing.assert_array_equal(df["scara1.tau4"].to_numpy(), log.tau[:, 3])
+    np.testing.assert_array_equal(df["scara1.e2"].to_numpy(), log.error[:, 1])
+    path = tmp_path / "log.csv"
+    assert log.to_csv(path) == str(path)
+    back = cs.SimulationLog.read_csv(path)
+    assert_logs_equal(back, log)
+    assert back[0].name == "scara1"
+    import pandas as pd
+
+    pd.testing.assert_frame_equal(back.to_dataframe(), df, check_exact=True)
+    # written through a temporary file renamed over the target: nothing else is left
+    log.to_csv(path)
+    assert sorted(os.listdir(tmp_path)) == ["log.csv"]
+
+
+def test_excel_round_trip(tmp_path):
+    r1, r2 = cs.robots.scara1(), cs.robots.scara1(base_position=(0.8, 0, 0))
+    sim = cs.Simulation(log_every=25)
+    sim.add_robot(r1, pid(r1), trajectory(r1))
+    sim.add_robot(r2, cs.ComputedTorque(100.0, 20.0), trajectory(r2))
+    log = sim.run(0.1, progress=False)
+    path = tmp_path / "log.xlsx"
+    log.to_excel(path)
+    back = cs.SimulationLog.read_excel(path)
+    assert [r.name for r in back] == ["scara1_0", "scara1_1"]  # same names made unique
+    # the xlsx text of a float can be one unit in the last place off
+    np.testing.assert_allclose(back.t, log.t, rtol=1e-15, atol=0)
+    for a, b in zip(back, log):
+        for qty in QTY:
+            np.testing.assert_allclose(getattr(a, qty), getattr(b, qty), rtol=1e-15, atol=0, err_msg=qty)
+    import openpyxl
+
+    wb = openpyxl.load_workbook(path, read_only=True)
+    assert wb.sheetnames == ["log", "info"]
+    assert sorted(os.listdir(tmp_path)) == ["log.xlsx"]
+
+
+def test_failed_write_leaves_no_file(tmp_path):
+    log = make_sim().run(0.01, progress=False)
+    target = tmp_path / "out.csv"
+    target.write_text("old contents")
+
+    class Boom(Exception):
+        pass
+
+    def fail(*a, **k):
+        raise Boom()
+
+    import pandas as pd
+
+    orig = pd.DataFrame.to_csv
+    pd.DataFrame.to_csv = fail
+    try:
+        with pytest.raises(Boom):
+            log.to_csv(target)
+    finally:
+        pd.DataFrame.to_csv = orig
+    assert target.read_text() == "old contents"
+    assert sorted(os.listdir(tmp_path)) == ["out.csv"]
+    with pytest.raises(OSError):
+        log.to_csv(tmp_path / "missing" / "out.csv")
+
+
+def test_plot_log_draws_one_panel_per_joint_with_dashed_references():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from coopsim.plotting import plot_log
+
+    log = make_sim(log_every=10).run(0.1, progress=False)
+    fig = plot_log(log)
+    try:
+        assert len(fig.axes) == 6
+        for ax in fig.axes:
+            styles = [ln.get_linestyle() for ln in ax.get_lines()]
+            assert styles == ["-", "--"]
+        np.testing.assert_array_equal(fig.axes[2].get_lines()[0].get_ydata(), log.q[:, 2])
+        np.testing.assert_array_equal(fig.axes[2].get_lines()[1].get_ydata(), log.q_ref[:, 2])
+    finally:
+        plt.close(fig)
+    fig = log.plot(quantity="tau", joints=[0, 3])
+    try:
+        assert len(fig.axes) == 2 and len(fig.axes[1].get_lines()) == 1
+    finally:
+        plt.close(fig)
+    with pytest.raises(ValueError, match="quantity"):
+        plot_log(log, quantity="force")
+
+
+# ---- errors mid-run ----
+
+class FailsAt(cs.Controller):
+    """A PD controller that raises once at time t_fail."""
+
+    def __init__(self, t_fail):
+        super().__init__()
+        self.t_fail = t_fail
+        self.armed = True
+
+    def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+        if self.armed and t >= self.t_fail - 1e-12:
+            self.armed = False
+            raise KeyError("sensor lost")
+        return 50.0 * (q_ref - q) + 5.0 * (qd_ref - qd)
+
+
+def test_exception_mid_run_leaves_a_complete_log_up_to_that_step():
+    robot = cs.robots.scara1()
+    whole = make_sim(robot, FailsAt(1e9)).run(0.1, progress=False)
+    sim = make_sim(robot, FailsAt(0.05))
+    with pytest.raises(KeyError, match="sensor lost"):
+        sim.run(0.1, progress=False)
+    k = round(0.05 / DT)
+    log = sim.log
+    assert len(log) == k and sim.steps == k  # rows 0 .. k-1, state at step k
+    for qty in QTY:
+        np.testing.assert_array_equal(getattr(log, qty), getattr(whole, qty)[:k], err_msg=qty)
+    # the failed update is retried: the run continues as if nothing happened
+    sim.run(0.1, progress=False)
+    assert_logs_equal(sim.log, whole)
+
+
+def test_divergence_is_an_error_with_the_log_kept():
+    r = cs.robots.scara1()
+    # the same robot with unlimited actuators and absurd gains at a large step
+    free = cs.Robot.from_dh(r.dh, r.com, r.masses, r.inertias, joint_types=r.joint_types, name="free")
+    sim = cs.Simulation(dt=5e-3)
+    sim.add_robot(free, cs.PID(1e3, 0.0, 10.0, gravity_compensation=False), np.full(6, 0.1),
+                  q0=np.full(6, 0.1 + 1e-9))
+    with pytest.raises(cs.DivergenceError) as err:
+        sim.run(1.0, progress=False)
+    e = err.value
+    assert isinstance(e, RuntimeError)
+    assert e.step >= 3 and e.time == pytest.approx(e.step * 5e-3) and e.robot == 0
+    msg = str(e)
+    assert f"step {e.step}" in msg and "t = " in msg and "'free'" in msg and "q = [" in msg
+    log = sim.log
+    assert len(log) == e.step and log.t[-1] == pytest.approx((e.step - 1) * 5e-3)
+    for qty in QTY:
+        assert np.all(np.isfinite(getattr(log, qty))), qty
+    assert sim.diverged and sim.time == log.t[-1]
+    np.testing.assert_array_equal(sim.state()[0], log.q[-1])
+    with pytest.raises(RuntimeError, match="diverged"):
+        sim.step(1)
+    sim.reset()
+    assert not sim.diverged
+
+
+def test_runaway_speed_and_non_finite_torque_are_divergence():
+    robot = cs.robots.scara1()
+
+    class Spin(cs.Controller):
+        def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+            return np.array([30.0, 0, 0, 0, 0, 0])
+
+    sim = make_sim(robot, Spin(), max_speed=5.0)
+    with pytest.raises(cs.DivergenceError, match="max_speed"):
+        sim.run(5.0, progress=False)
+    assert np.all(np.abs(sim.log.qd) <= 5.0)
+
+    class NaN(cs.Controller):
+        def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+            return np.full(6, np.nan if t > 0.01 else 0.0)
+
+    sim = make_sim(robot, NaN())
+    with pytest.raises(cs.DivergenceError, match="non-finite torque"):
+        sim.run(1.0, progress=False)
+    assert np.all(np.isfinite(sim.log.tau))
+
+
+# ---- time control ----
+
+def test_paced_run_at_200_percent_takes_about_half_the_simulated_time():
+    sim = make_sim()
+    t0 = time.perf_counter()
+    stats = sim.run_paced(0.6, speed=2.0, frame_rate=100)
+    wall = time.perf_counter() - t0
+    assert sim.time == pytest.approx(0.6)
+    assert 0.2 < wall < 0.6, wall
+    assert stats.real_time_factor == pytest.approx(0.6 / stats.wall_time)
+    assert 1.4 < stats.real_time_factor < 3.0
+    assert stats.steps == 3000 and stats.step_size == DT and stats.frames > 10
+    assert stats.steps_per_second > 0
+
+
+def test_pause_holds_simulated_time_still():
+    sim = make_sim()
+    seen = []
+
+    def on_frame(s, pacer):
+        seen.append((pacer.paused, s.time, time.perf_counter()))
+        if len(seen) == 5:
+            pacer.pause()
+        elif len(seen) == 20:
+            pacer.resume()
+
+    pacer = cs.Pacer(speed=1.0, frame_rate=100)
+    stats = sim.run_paced(0.3, on_frame=on_frame, pacer=pacer)
+    paused = [(t, w) for p, t, w in seen if p]
+    assert len(paused) == 15
+    assert len({t for t, _ in paused}) == 1  # simulated time did not move
+    assert paused[-1][1] - paused[0][1] > 0.1  # while the wall clock did
+    assert sim.time == pytest.approx(0.3)
+    assert stats.wall_time > 0.3 + 0.1
+
+
+def test_pacer_speed_range_and_stop():
+    p = cs.Pacer()
+    for bad in (-0.1, 4.01, np.nan, "fast"):
+        with pytest.raises(ValueError, match="speed"):
+            p.speed = bad
+    p.speed_percent = 400
+    assert p.speed == 4.0
+    with pytest.raises(ValueError, match="frame_rate"):
+        cs.Pacer(frame_rate=0)
+    sim = make_sim()
+    with pytest.raises(ValueError, match="never finish"):
+        sim.run_paced(1.0, speed=0.0)
+    stats = sim.run_paced(1.0, speed=4.0, frame_rate=200, on_frame=lambda s, pacer: s.time < 0.05)
+    assert 0.0 < sim.time < 0.2 and stats.frames >= 1
+    # speed 0 with a wall-clock limit: frames pass, time stays
+    sim.run_paced(1.0, speed=0.0, max_wall_time=0.05)
+    assert sim.time == stats.sim_time
+
+
+def test_headless_run_statistics_and_progress_bar(capsys):
+    sim = make_sim()
+    sim.run(0.2, progress=True)
+    err = capsys.readouterr().err
+    assert "simulating" in err or "step" in err
+    s = sim.stats
+    assert s.steps == 1000 and s.sim_elapsed == pytest.approx(0.2) and s.frames == 0
+    assert s.steps_per_second == pytest.approx(1000 / s.wall_time)
+    assert s.real_time_factor == pytest.approx(0.2 / s.wall_time)
+    assert "real-time factor" in str(s)
+    sim.run(0.4, progress=False)
+    assert capsys.readouterr().err == ""
+
+
+def test_run_releases_the_gil():
+    sim = make_sim(log_every=0)
+    done = threading.Event()
+    count = 0
+
+    def work():
+        sim.run(2.0, progress=False)
+        done.set()
+
+    th = threading.Thread(target=work)
+    th.start()
+    while not done.is_set():
+        count += 1
+    th.join()
+    assert sim.time == pytest.approx(2.0)
+    # the main thread kept running Python while the loop ran in C++
+    assert count > 1000, count
+
+
+# ---- batch runs ----
+
+def gain_grid():
+    robot = cs.robots.scara1()
+    traj = trajectory(robot, 0.5)
+    sims = []
+    for kp in (100.0, 200.0, 400.0, 800.0):
+        for kd in (5.0, 10.0, 20.0, 40.0):
+            sim = cs.Simulation(log_every=5)
+            sim.add_robot(robot, cs.PID(kp, kp / 10, kd), traj)
+            sims.append(sim)
+    return sims
+
+
+def test_batch_of_16_equals_the_same_16_one_by_one():
+    batch = gain_grid()
+    logs = cs.run_batch(batch, 0.5, threads=2)
+    assert len(logs) == 16
+    singles = gain_grid()
+    for a, sim in zip(logs, singles):
+        assert_logs_equal(a, sim.run(0.5, progress=False))
+    for sim_b, sim_s in zip(batch, singles):
+        assert sim_b.time == sim_s.time
+        np.testing.assert_array_equal(sim_b.metrics()[0]["rms_error"], sim_s.metrics()[0]["rms_error"])
+    # different gains give different runs
+    assert not np.array_equal(logs[0].q, logs[15].q)
+
+
+def test_batch_metrics_errors_and_checks():
+    sims = gain_grid()[:3]
+    bad = cs.Simulation(dt=5e-3)
+    r = cs.robots.scara1()
+    free = cs.Robot.from_dh(r.dh, r.com, r.masses, r.inertias, joint_types=r.joint_types, name="free")
+    bad.add_robot(free, cs.PID(1e3, 0.0, 10.0, gravity_compensation=False), np.full(6, 0.1),
+                  q0=np.full(6, 0.1 + 1e-9))
+    out = cs.run_batch(sims + [bad], 0.2, output="metrics", errors="return")
+    assert isinstance(out[3], cs.DivergenceError)
+    for m in out[:3]:
+        assert m[0]["name"] == "scara1" and m[0]["rms_error"].shape == (6,) and m[0]["steps"] == 1001
+    with pytest.raises(RuntimeError, match="has diverged"):
+        cs.run_batch([bad], 0.3)  # refused until reset
+    with pytest.raises(cs.DivergenceError) as err:
+        cs.run_batch([pickle.loads(pickle.dumps(bad))], 0.3)
+    assert "sims[0]" in "".join(getattr(err.value, "__notes__", ["sims[0]"]))
+    shared = cs.PID(1.0, 0.0, 0.0)
+    a, b = cs.Simulation(), cs.Simulation()
+    a.add_robot(r, shared, np.zeros(6) + 0.01)
+    b.add_robot(r, shared, np.zeros(6) + 0.01)
+    with pytest.raises(ValueError, match="share a controller"):
+        cs.run_batch([a, b], 0.1)
+    with pytest.raises(ValueError, match="same simulation"):
+        cs.run_batch([a, a], 0.1)
+    with pytest.raises(ValueError, match="sims"):
+        cs.run_batch([a, "b"], 0.1)
+    with pytest.raises(ValueError, match="output"):
+        cs.run_batch([a], 0.1, output="everything")
+    with pytest.raises(ValueError, match="threads"):
+        cs.run_batch([a], 0.1, threads=-1)
+
+
+def test_simulation_description_pickles_and_runs_through_an_executor():
+    sims = gain_grid()[:4]
+    expected = [pickle.loads(pickle.dumps(s)).run(0.2, progress=False) for s in sims]
+    sims[0].run(0.1, progress=False)  # state is not part of the description
+    copy = pickle.loads(pickle.dumps(sims[0]))
+    assert copy.time == 0.0 and copy.options == sims[0].options and copy.robots[0].name == "scara1"
+    with concurrent.futures.ProcessPoolExecutor(max_workers=2) as pool:
+        got = list(pool.map(functools.partial(cs.simulate, t_end=0.2), sims))
+    for a, b in zip(got, expected):
+        assert_logs_equal(a, b)
+    metrics = cs.simulate(pickle.loads(pickle.dumps(sims[1])), 0.2, output="metrics")
+    direct = pickle.loads(pickle.dumps(sims[1]))
+    direct.run(0.2, progress=False)
+    np.testing.assert_array_equal(metrics[0]["rms_error"], direct.metrics()[0]["rms_error"])
+
+
+# ---- argument checks ----
+
+@pytest.mark.parametrize("kwargs, word", [
+    (dict(dt=0.0), "dt"), (dict(dt=-1e-3), "dt"), (dict(dt=np.nan), "dt"), (dict(dt="small"), "dt"),
+    (dict(control_every=0), "control_every"), (dict(control_every=1.5), "control_every"),
+    (dict(log_every=-1), "log_every"), (dict(max_speed=0.0), "max_speed"),
+    (dict(max_position=-1.0), "max_position"),
+])
+def test_simulation_rejects_bad_options(kwargs, word):
+    with pytest.raises(ValueError, match=word):
+        cs.Simulation(**kwargs)
+
+
+def test_add_robot_and_run_reject_bad_arguments():
+    robot = cs.robots.scara1()
+    sim = cs.Simulation()
+    with pytest.raises(ValueError, match="robot"):
+        sim.add_robot("scara1", cs.PID(1.0, 0.0, 0.0), np.zeros(6))
+    with pytest.raises(ValueError, match="controller"):
+        sim.add_robot(robot, lambda *a: np.zeros(6), np.zeros(6))
+    with pytest.raises(ValueError, match="reference"):
+        sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(5))
+    with pytest.raises(ValueError, match="reference"):
+        sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), cs.CubicTrajectory([0, 1], np.zeros((2, 5))))
+    with pytest.raises(ValueError, match="q0"):
+        sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(6), q0=np.zeros(4))
+    with pytest.raises(ValueError, match="qd0"):
+        sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(6), qd0=np.full(6, np.nan))
+    with pytest.raises(ValueError, match="no robot"):
+        sim.run(0.1)
+    pid_ = cs.PID(1.0, 0.0, 0.0)
+    sim.add_robot(robot, pid_, np.zeros(6) + 0.01)
+    with pytest.raises(ValueError, match="already driving"):
+        sim.add_robot(robot, pid_, np.zeros(6) + 0.01)
+    for bad in (np.nan, np.inf, "1 s", None):
+        with pytest.raises(ValueError, match="t_end"):
+            sim.run(bad)
+    with pytest.raises(ValueError, match="n must"):
+        sim.step(-1)
+    sim.step(3)
+    with pytest.raises(ValueError, match="before the first step"):
+        sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(6) + 0.01)
+    with pytest.raises(ValueError, match="robot"):
+        sim.state(3)
