@@ -230,3 +230,40 @@ def test_conflicting_velocity_options_rejected():
         cs.CubicTrajectory([0.0, 1.0], np.zeros((2, 1)), np.zeros((2, 1)), spline=True)
     with pytest.raises(ValueError, match="qd_start"):
         cs.CubicTrajectory([0.0, 1.0], np.zeros((2, 1)), np.zeros((2, 1)), qd_start=[0.0])
+
+
+# ---- plotting and the example ----
+
+def test_plot_trajectory(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from coopsim.plotting import plot_trajectory
+
+    tr = cs.CubicTrajectory([0.0, 1.0, 2.0], [[0.0, 0.1], [1.0, 0.2], [0.5, 0.0]])
+    fig = plot_trajectory(tr, "RP", samples=50, margin=0.2)
+    axes = fig.axes
+    assert len(axes) == 3
+    # one curve per joint and panel, plus knot markers on q and qd
+    assert len(axes[0].lines) >= 4 and len(axes[2].lines) >= 2
+    np.testing.assert_allclose(axes[0].lines[0].get_xdata()[[0, -1]], [-0.2, 2.2])
+    assert axes[0].get_legend().get_texts()[1].get_text() == "d2 (m)"
+    fig.savefig(tmp_path / "t.png")
+    plt.close(fig)
+    with pytest.raises(ValueError, match="joints"):
+        plot_trajectory(tr, joints=[2])
+
+
+def test_plan_trajectory_example_runs(tmp_path):
+    import importlib.util
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parents[1] / "examples" / "plan_trajectory.py"
+    spec = importlib.util.spec_from_file_location("plan_trajectory_example", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.main(["--out", str(tmp_path), "--points", "3"])
+    for name in ("plan_trajectory_joints.png", "plan_trajectory_path.png"):
+        assert (tmp_path / name).stat().st_size > 10_000

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_log"]
+__all__ = ["plot_log", "plot_trajectory", "plot_tool_path"]
 
 _LOG_LABELS = {
     "q": ("position", "rad | m"),
@@ -60,4 +60,100 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
     axes[-1].set_xlabel("t (s)")
     fig.suptitle(title or f"{rlog.name}: {name} ({unit})")
     fig.tight_layout()
+    return fig
+
+
+def _joint_labels(n, joint_types):
+    if joint_types is None:
+        return [f"q{j + 1}" for j in range(n)], [""] * n
+    if len(joint_types) != n:
+        raise ValueError(f"joint_types must have {n} letters, got {joint_types!r}")
+    names = [("θ" if c in "Rr" else "d") + str(j + 1) for j, c in enumerate(joint_types)]
+    return names, ["rad" if c in "Rr" else "m" for c in joint_types]
+
+
+def plot_trajectory(trajectory, robot=None, t=None, samples: int = 600, joints=None, axes=None, title=None,
+                    knots: bool = True, margin: float = 0.0):
+    """Position, velocity and acceleration of a joint trajectory against time.
+
+    trajectory: a Reference, e.g. CubicTrajectory. robot: optional Robot (or
+    a joint-type string such as 'RRPRRP') to name the joints θi / di and give
+    units. t: (N,) times (s), default `samples` evenly spaced over the
+    trajectory, extended by `margin` s on each side to show the held ends.
+    joints: indices (from 0) to draw, default all. axes: three matplotlib
+    Axes (q, qd, qdd), default a new figure. knots: mark the via-points of a
+    CubicTrajectory. Revolute joints in rad, rad/s, rad/s²; prismatic in m,
+    m/s, m/s². Returns the Figure.
+    """
+    import matplotlib.pyplot as plt
+
+    n = trajectory.dof
+    joint_types = robot if isinstance(robot, str) or robot is None else robot.joint_types
+    names, units = _joint_labels(n, joint_types)
+    joints = list(range(n)) if joints is None else [int(j) for j in joints]
+    for j in joints:
+        if not 0 <= j < n:
+            raise ValueError(f"joints must be indices in [0, {n}), got {j}")
+    if t is None:
+        if int(samples) < 2:
+            raise ValueError(f"samples must be >= 2, got {samples}")
+        t = np.linspace(trajectory.t_start - margin, trajectory.t_end + margin, int(samples))
+    t = np.asarray(t, dtype=float)
+    q, qd, qdd = trajectory.evaluate(t)
+    if axes is None:
+        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8.0, 8.0))
+    else:
+        axes = list(np.ravel(axes))
+        if len(axes) != 3:
+            raise ValueError(f"axes must hold 3 Axes (q, qd, qdd), got {len(axes)}")
+        fig = axes[0].figure
+    has_knots = knots and hasattr(trajectory, "q_points")
+    for k, (ax, data, what) in enumerate(zip(axes, (q, qd, qdd), ("position", "velocity", "acceleration"))):
+        for c, j in enumerate(joints):
+            unit = units[j] + ("" if k == 0 else "/s" if k == 1 else "/s²") if units[j] else ""
+            label = names[j] + (f" ({unit})" if unit else "")
+            ax.plot(t, data[:, j], color=f"C{c % 10}", lw=1.4, label=label)
+            if has_knots and k < 2:
+                pts = trajectory.q_points if k == 0 else trajectory.qd_points
+                ax.plot(trajectory.times, pts[:, j], "o", color=f"C{c % 10}", ms=3.5)
+        ax.set_ylabel(what)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
+    axes[-1].set_xlabel("t (s)")
+    if has_knots:
+        for ax in axes:
+            for tk in trajectory.times:
+                ax.axvline(tk, color="0.75", lw=0.6, zorder=0)
+    fig.suptitle(title or f"joint trajectory: q, q̇, q̈ ({len(t)} samples)")
+    fig.tight_layout()
+    return fig
+
+
+def plot_tool_path(robot, trajectory, poses=None, samples: int = 400, ax=None, label=None, color=None):
+    """Top view (x, y) of the tool centre point along a joint trajectory.
+
+    robot: the Robot whose fk gives the TCP; trajectory: a Reference for it.
+    poses: optional (N, 4, 4) target poses, drawn as points joined by
+    straight dashed lines (the intended path). ax: a matplotlib Axes, default
+    a new figure. Returns the Figure.
+    """
+    import matplotlib.pyplot as plt
+
+    if int(samples) < 2:
+        raise ValueError(f"samples must be >= 2, got {samples}")
+    t = np.linspace(trajectory.t_start, trajectory.t_end, int(samples))
+    q, _, _ = trajectory.evaluate(t)
+    p = np.array([robot.fk(qi)[:3, 3] for qi in q])
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(6.0, 6.0))
+    fig = ax.figure
+    ax.plot(p[:, 0], p[:, 1], "-", lw=1.5, color=color, label=label or "tool path")
+    if poses is not None:
+        P = np.asarray(poses, dtype=float)
+        ax.plot(P[:, 0, 3], P[:, 1, 3], "k--o", lw=0.8, ms=4, label="target poses")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
     return fig
