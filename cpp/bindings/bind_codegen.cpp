@@ -51,6 +51,7 @@ void load_library(const std::string& path, const std::string& name, int dof, con
   g->coriolis_matrix = symbol<decltype(g->coriolis_matrix)>(h, path, "coopsim_gen_coriolis_matrix");
   g->gravity = symbol<decltype(g->gravity)>(h, path, "coopsim_gen_gravity");
   g->dynamics = symbol<decltype(g->dynamics)>(h, path, "coopsim_gen_dynamics");
+  g->solve = symbol<decltype(g->solve)>(h, path, "coopsim_gen_solve");
   register_generated(std::move(g));
 }
 

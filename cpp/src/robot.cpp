@@ -619,7 +619,14 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
     end_stop_torques(q, qd, M, ts);
     rhs += ts;
   }
-  if (!solve_spd(M, rhs, qdd))
+  bool ok;
+  if (uses_generated() && generated_->solve) {
+    qdd = rhs;  // generated LDL^T that skips M's structural zeros
+    ok = generated_->solve(M.data(), qdd.data());
+  } else {
+    ok = solve_spd(M, rhs, qdd);
+  }
+  if (!ok)
     throw std::domain_error("forward_dynamics: mass matrix is not positive definite for this q (values out of range?)");
 }
 

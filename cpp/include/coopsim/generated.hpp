@@ -30,6 +30,9 @@ struct GeneratedDynamics {
   void (*gravity)(const double* p, const double* q, double* g) = nullptr;
   // optional: M and h = C(q, qd) qd + G(q) + K qd in one pass (shared sin/cos)
   void (*dynamics)(const double* p, const double* q, const double* qd, double* M, double* h) = nullptr;
+  // optional: x <- M^-1 x by an unrolled LDL^T that skips M's structural
+  // zeros; false if M is not positive definite (x is then undefined)
+  bool (*solve)(const double* M, double* x) = nullptr;
 };
 
 // Per link parameter block length and offsets into the parameter vector.

@@ -15,7 +15,10 @@ from sympy.printing.c import C99CodePrinter
 
 from .symbolic import SymbolicModel
 
-__all__ = ["EmittedFunction", "emit_functions", "FUNCTIONS"]
+__all__ = ["EmittedFunction", "emit_functions", "emit_solve", "FUNCTIONS", "SOLVE_SIGNATURE"]
+
+# in-place solve of M x = b, see emit_solve
+SOLVE_SIGNATURE = "bool {name}(const double* M, double* x)"
 
 # name, arguments (after p), outputs
 FUNCTIONS = (
@@ -76,27 +79,36 @@ def _numeric_constants(expr):
 
 
 def _body(model: SymbolicModel, outputs, names):
-    """Statements computing [(target, expr)] with one cse over all of them."""
+    """Statements computing [(target, expr)]: the parameter polynomials (kappa) they use, one cse
+    over those, then one cse over the outputs with kappa, sin/cos and qd as inputs."""
     exprs = [_numeric_constants(sp.sympify(e)) for _, e in outputs]
-    replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x"), order="canonical")
-    used = set()
-    for _, e in replacements:
-        used |= e.free_symbols
-    for e in reduced:
-        used |= e.free_symbols
     printer = _Printer(names)
-    lines = []
-    ops = 0
-    # sin/cos of each revolute joint once, in joint order
+    lines, ops = [], 0
+    used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+    kappas = [k for k in model.kappa if k in used]
+    if kappas:
+        # stage 1: parameter polynomials, shared products first
+        reps, red = sp.cse([model.kappa[k] for k in kappas], symbols=sp.numbered_symbols("a"),
+                           order="canonical")
+        for sym, e in reps:
+            lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
+            ops += int(sp.count_ops(e))
+        for k, e in zip(kappas, red):
+            lines.append(f"  const double {k.name} = {printer.doprint(e)};")
+            ops += int(sp.count_ops(e))
+    # stage 2: sin/cos of each revolute joint once, in joint order, then the outputs
+    trig_lines = []
     for i in range(model.n):
-        for sym, fn in ((s, s.name[0]) for s in sorted(model.trig, key=lambda s: s.name)
-                        if model.trig[s][0] == i):
+        for sym in sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name):
             if sym in used:
                 theta = model.trig[sym][1]
                 arg = f"q[{i}]" if theta == 0.0 else f"q[{i}] + {repr(theta)}"
-                lines.append(f"  const double {sym.name} = std::{'cos' if fn == 'c' else 'sin'}({arg});")
+                fn = "cos" if sym.name.startswith("c_") else "sin"
+                trig_lines.append(f"  const double {sym.name} = std::{fn}({arg});")
                 ops += 1
-    for sym, e in replacements:
+    lines = trig_lines + lines
+    reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x"), order="canonical")
+    for sym, e in reps:
         lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
     for (target, _), e in zip(outputs, reduced):
@@ -112,13 +124,18 @@ def _names(model: SymbolicModel):
         names[model.qd[i]] = f"qd[{i}]"
     for s in model.trig:
         names[s] = s.name
+    for k in model.kappa:
+        names[k] = k.name
     return names
 
 
 def emit_functions(model: SymbolicModel) -> list:
     """The five functions of GeneratedDynamics as EmittedFunction (bodies only)."""
-    n, names = model.n, _names(model)
-    M, G, C, Cm, F = model.M, model.G, model.C, model.C_matrix, model.friction
+    n = model.n
+    # fixed order of derivation keeps kappa numbering, hence the output, deterministic
+    M, G = model.M_kappa, model.G_kappa
+    C, Cm, F = model.C_kappa, model.C_matrix_kappa, model.friction
+    names = _names(model)
 
     def mat(target, A):
         return [(f"{target}[{i + n * j}]", A[i, j]) for j in range(n) for i in range(n)]
@@ -139,3 +156,51 @@ def emit_functions(model: SymbolicModel) -> list:
         body, ops = _body(model, outputs[fname], names)
         out.append(EmittedFunction(fname, sig, body, ops))
     return out
+
+
+def emit_solve(model: SymbolicModel):
+    """Body of ``bool solve(const double* M, double* x)``: x <- M^-1 x by an unrolled LDL^T
+    factorisation that skips M's structural zeros and their fill-in; returns false (x
+    undefined) when a pivot is not positive, i.e. M is not positive definite.
+    Returns (body, operation count)."""
+    n, M = model.n, model.M_kappa
+    nz = {(i, j) for i in range(n) for j in range(n) if M[i, j] != 0}
+    lines, ops = [], 0
+    # u_ij = L_ij d_j (before the division), so L_ik L_jk d_k = l_ik u_jk
+    L = {}  # (i, j), i > j -> name of L_ij when structurally nonzero
+    for j in range(n):
+        ks = [k for k in range(j) if (j, k) in L]
+        lines.append(f"  const double d_{j} = " + " - ".join([f"M[{j + n * j}]"] + [f"l_{j}_{k}*u_{j}_{k}" for k in ks])
+                     + ";")
+        lines.append(f"  if (!(d_{j} > 0.0)) return false;")
+        lines.append(f"  const double r_{j} = 1.0/d_{j};")
+        ops += 2 * len(ks) + 1
+        for i in range(j + 1, n):
+            ki = [k for k in ks if (i, k) in L]
+            if (i, j) not in nz and not ki:
+                continue
+            terms = [f"l_{i}_{k}*u_{j}_{k}" for k in ki]
+            if (i, j) in nz:
+                expr = " - ".join([f"M[{i + n * j}]"] + terms)
+            else:
+                expr = "-(" + " + ".join(terms) + ")"
+            L[i, j] = f"l_{i}_{j}"
+            lines.append(f"  const double u_{i}_{j} = {expr};")
+            lines.append(f"  const double l_{i}_{j} = u_{i}_{j}*r_{j};")
+            ops += 2 * len(ki) + 1
+    # L y = b, then x = L^-T D^-1 y, in place
+    for i in range(n):
+        ks = [k for k in range(i) if (i, k) in L]
+        if ks:
+            lines.append(f"  x[{i}] -= " + " + ".join(f"{L[i, k]}*x[{k}]" for k in ks) + ";")
+            ops += 2 * len(ks)
+    for i in range(n):
+        lines.append(f"  x[{i}] *= r_{i};")
+        ops += 1
+    for i in reversed(range(n)):
+        ks = [k for k in range(i + 1, n) if (k, i) in L]
+        if ks:
+            lines.append(f"  x[{i}] -= " + " + ".join(f"{L[k, i]}*x[{k}]" for k in ks) + ";")
+            ops += 2 * len(ks)
+    lines.append("  return true;")
+    return "\n".join(lines), ops

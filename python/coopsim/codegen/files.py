@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .emit import emit_functions
+from .emit import emit_functions, emit_solve
 from .symbolic import Structure, SymbolicModel
 
 __all__ = ["GENERATOR_VERSION", "COMMAND", "builtin_sources", "registry_source", "runtime_source",
@@ -24,8 +24,8 @@ def _angles_literal(s: Structure) -> str:
     return ", ".join(repr(float(v)) for row in s.angles for v in row)
 
 
-def _describe(s: Structure, funcs) -> str:
-    ops = ", ".join(f"{f.name} {f.operations}" for f in funcs)
+def _describe(s: Structure, funcs, solve_ops) -> str:
+    ops = ", ".join(f"{f.name} {f.operations}" for f in funcs) + f", solve {solve_ops}"
     return (f"// Closed-form Lagrange-Euler dynamics of '{s.name}' ({s.joint_types}), from its DH and\n"
             f"// centre-of-mass tables. Structural angles per link (dh theta, dh alpha, com theta,\n"
             f"// com alpha): {_angles_literal(s)}.\n"
@@ -43,13 +43,16 @@ def builtin_sources(s: Structure, model: SymbolicModel | None = None) -> dict:
     model = model or SymbolicModel(s)
     funcs = emit_functions(model)
     ops = _operation_count(funcs)
-    top = header_line(ops) + "\n" + _describe(s, funcs)
+    solve_body, solve_ops = emit_solve(model)
+    top = header_line(ops) + "\n" + _describe(s, funcs, solve_ops)
     decls = "\n".join(f"void {s.name}_{f.name}(const double* p, {f.signature});" for f in funcs)
+    decls += f"\nbool {s.name}_solve(const double* M, double* x);"
     hpp = (f"{top}#pragma once\n\n#include \"coopsim/generated.hpp\"\n\nnamespace coopsim::generated {{\n\n"
            f"{decls}\n\n// The functions above with the structure they were generated for.\n"
            f"const GeneratedDynamics& {s.name}();\n\n}}  // namespace coopsim::generated\n")
     defs = "\n\n".join(f"void {s.name}_{f.name}(const double* p, {f.signature}) {{\n{f.body}\n}}"
                        for f in funcs)
+    defs += f"\n\nbool {s.name}_solve(const double* M, double* x) {{\n{solve_body}\n}}"
     cpp = (f"{top}#include \"{s.name}_dynamics.hpp\"\n\n#include <cmath>\n\nnamespace coopsim::generated {{\n\n"
            f"{defs}\n\n"
            f"const GeneratedDynamics& {s.name}() {{\n"
@@ -62,6 +65,7 @@ def builtin_sources(s: Structure, model: SymbolicModel | None = None) -> dict:
            f"    d.generator_version = \"{GENERATOR_VERSION}\";\n"
            f"    d.operation_count = {ops};\n"
            + "".join(f"    d.{f.name} = &{s.name}_{f.name};\n" for f in funcs)
+           + f"    d.solve = &{s.name}_solve;\n"
            + "    return d;\n  }();\n  return g;\n}\n\n}  // namespace coopsim::generated\n")
     return {f"{s.name}_dynamics.hpp": hpp, f"{s.name}_dynamics.cpp": cpp}
 
@@ -85,6 +89,8 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
     ops = _operation_count(funcs)
     defs = "\n\n".join(f"void coopsim_gen_{f.name}(const double* p, {f.signature}) {{\n{f.body}\n}}"
                        for f in funcs)
-    text = (f"{header_line(ops)}\n{_describe(s, funcs)}#include <cmath>\n\nextern \"C\" {{\n\n"
+    solve_body, solve_ops = emit_solve(model)
+    defs += f"\n\nbool coopsim_gen_solve(const double* M, double* x) {{\n{solve_body}\n}}"
+    text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
             f"int coopsim_gen_dof() {{ return {s.dof}; }}\n\n{defs}\n\n}}  // extern \"C\"\n")
     return text, ops

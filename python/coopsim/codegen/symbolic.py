@@ -126,11 +126,12 @@ class _Link:
 class SymbolicModel:
     """Lagrange-Euler model of one structure with symbolic parameters.
 
-    Attributes (sympy, cos/sin of joint i written c_i, s_i unless ``trig``
-    is used): M (n, n) inertia matrix; C (n,) Coriolis/centrifugal vector
+    Attributes (sympy; cos/sin of joint i are the symbols c_i, s_i, see
+    ``in_trig``): M (n, n) inertia matrix; C (n,) Coriolis/centrifugal vector
     C(q, qd) qd; C_matrix (n, n) Christoffel form; G (n,) gravity vector;
     friction (n,) K qd; q, qd joint symbols; parameters: symbol -> index in
-    the robot's parameter vector.
+    the robot's parameter vector. The *_kappa forms name each parameter
+    polynomial once (``kappa``), as the emitted code does.
     """
 
     def __init__(self, structure: Structure):
@@ -194,7 +195,8 @@ class SymbolicModel:
 
     # ------------------------------------------------------------- dynamics
     @cached_property
-    def M(self) -> sp.Matrix:
+    def M_jacobian(self) -> sp.Matrix:
+        """M from the link Jacobians, unexpanded (the derivation's direct result)."""
         n = self.n
         M = sp.zeros(n, n)
         for i in range(1, n + 1):  # row i (1-based joint i) in DH frame i
@@ -247,50 +249,156 @@ class SymbolicModel:
             return -L.s * sp.diff(expr, L.c) + L.c * sp.diff(expr, L.s)
         return sp.diff(expr, L.q)
 
+    # ---- collected forms: polynomials in c_k, s_k (s_k of degree <= 1) and
+    # prismatic q_k whose coefficients are parameter polynomials, each named
+    # once as a symbol kappa_m (see `kappa`); this is what is emitted.
     @cached_property
-    def G(self) -> sp.Matrix:
-        V = self.potential_energy
-        return sp.Matrix([self.diff_q(V, k) for k in range(self.n)])
+    def _gens(self):
+        gens = []
+        for L in self.links:
+            gens.extend([L.c, L.s] if L.kind == "R" else [L.q])
+        return gens
+
+    @cached_property
+    def kappa(self) -> dict:
+        """kappa_m -> parameter polynomial, in order of first use."""
+        return {}
+
+    def _kappa_of(self, coeff):
+        """coeff (a parameter polynomial) as rational * kappa_m, or itself if a single product."""
+        if not coeff.is_Add:
+            return coeff
+        content, prim = coeff.as_content_primitive()
+        if prim.could_extract_minus_sign():
+            content, prim = -content, -prim
+        lookup = self.__dict__.setdefault("_kappa_lookup", {})
+        sym = lookup.get(prim)
+        if sym is None:
+            sym = sp.Symbol(f"kappa_{len(lookup)}", real=True)
+            lookup[prim] = sym
+            self.kappa[sym] = prim
+        return content * sym
+
+    def _collect(self, expr, name_coefficients=False):
+        """expr reduced with s_k^2 = 1 - c_k^2 and collected by monomial in the joint functions."""
+        gens = self._gens
+        trig_pairs = [(gens.index(L.c), gens.index(L.s)) for L in self.links if L.kind == "R"]
+        terms = {}
+        for mon, coeff in sp.Poly(sp.expand(expr), *gens).terms():
+            terms[mon] = terms.get(mon, 0) + coeff
+        for ic, is_ in trig_pairs:  # s^e -> s^(e-2) (1 - c^2), repeated
+            changed = True
+            while changed:
+                changed = False
+                for mon in sorted(terms):
+                    if mon[is_] >= 2:
+                        coeff = terms.pop(mon)
+                        low = list(mon)
+                        low[is_] -= 2
+                        high = list(low)
+                        high[ic] += 2
+                        low, high = tuple(low), tuple(high)
+                        terms[low] = terms.get(low, 0) + coeff
+                        terms[high] = terms.get(high, 0) - coeff
+                        changed = True
+        out = sp.Integer(0)
+        for mon in sorted(terms, reverse=True):
+            coeff = sp.expand(terms[mon])
+            if coeff == 0:
+                continue
+            if name_coefficients:
+                coeff = self._kappa_of(coeff)
+            out += coeff * sp.Mul(*[g ** e for g, e in zip(gens, mon)])
+        return out
+
+    @cached_property
+    def M_kappa(self) -> sp.Matrix:
+        """M collected, coefficients named by kappa."""
+        n, Mj = self.n, self.M_jacobian
+        M = sp.zeros(n, n)
+        for i in range(n):
+            for j in range(i, n):
+                M[i, j] = M[j, i] = self._collect(Mj[i, j], name_coefficients=True)
+        return M
+
+    @cached_property
+    def G_kappa(self) -> sp.Matrix:
+        self.M_kappa  # kappa numbering: M's coefficients first, always
+        V = self._collect(self.potential_energy, name_coefficients=True)
+        return sp.Matrix([self._collect(self.diff_q(V, k)) for k in range(self.n)])
 
     @cached_property
     def dM(self) -> list:
-        """[dM/dq_k for k in 0..n-1], each symmetric (n, n)."""
-        n, M = self.n, self.M
+        """[dM/dq_k for k in 0..n-1] in kappa form, each symmetric (n, n)."""
+        n, M = self.n, self.M_kappa
         out = []
         for k in range(n):
             D = sp.zeros(n, n)
             for i in range(n):
                 for j in range(i, n):
-                    D[i, j] = D[j, i] = self.diff_q(M[i, j], k)
+                    D[i, j] = D[j, i] = self._collect(self.diff_q(M[i, j], k))
             out.append(D)
         return out
 
     @cached_property
-    def C_matrix(self) -> sp.Matrix:
-        n, D, qd = self.n, self.dM, self.qd
+    def christoffel(self) -> dict:
+        """{(i, j, k): Gamma_ijk} for i <= j, kappa form; Gamma_ijk = Gamma_jik."""
+        n, D = self.n, self.dM
+        return {(i, j, k): self._collect((D[i][k, j] + D[j][k, i] - D[k][i, j]) / 2)
+                for k in range(n) for i in range(n) for j in range(i, n)}
+
+    @cached_property
+    def C_matrix_kappa(self) -> sp.Matrix:
+        n, Gm, qd = self.n, self.christoffel, self.qd
         C = sp.zeros(n, n)
         for k in range(n):
             for j in range(n):
-                C[k, j] = sum(((D[i][k, j] + D[j][k, i] - D[k][i, j]) * qd[i] for i in range(n)),
-                              sp.Integer(0)) / 2
+                C[k, j] = sum((Gm[min(i, j), max(i, j), k] * qd[i] for i in range(n)), sp.Integer(0))
         return C
 
     @cached_property
-    def C(self) -> sp.Matrix:
-        """C(q, qd) qd = Mdot qd - (1/2) [qd^T dM/dq_k qd]_k, the same as C_matrix * qd."""
-        n, D, qd = self.n, self.dM, self.qd
+    def C_kappa(self) -> sp.Matrix:
+        """C(q, qd) qd = sum_ij Gamma_ijk qd_i qd_j, each pair once."""
+        n, Gm, qd = self.n, self.christoffel, self.qd
         out = []
         for k in range(n):
             v = sp.Integer(0)
             for i in range(n):
-                for j in range(n):
-                    v += (D[i][k, j] - D[k][i, j] / 2) * qd[i] * qd[j]
+                for j in range(i, n):
+                    g = Gm[i, j, k]
+                    if g != 0:
+                        v += (g if i == j else 2 * g) * qd[i] * qd[j]
             out.append(v)
         return sp.Matrix(out)
 
     @cached_property
     def friction(self) -> sp.Matrix:
+        """K qd (n,)."""
         return sp.Matrix([L.K * L.qd for L in self.links])
+
+    def explicit(self, expr):
+        """expr with every kappa_m replaced by its parameter polynomial."""
+        return expr.xreplace(self.kappa)
+
+    @cached_property
+    def M(self) -> sp.Matrix:
+        """Inertia matrix (n, n)."""
+        return self.explicit(self.M_kappa)
+
+    @cached_property
+    def G(self) -> sp.Matrix:
+        """Gravity vector dV/dq (n,)."""
+        return self.explicit(self.G_kappa)
+
+    @cached_property
+    def C(self) -> sp.Matrix:
+        """Coriolis and centrifugal vector C(q, qd) qd (n,)."""
+        return self.explicit(self.C_kappa)
+
+    @cached_property
+    def C_matrix(self) -> sp.Matrix:
+        """Christoffel matrix (n, n): C_kj = sum_i Gamma_ijk qd_i."""
+        return self.explicit(self.C_matrix_kappa)
 
     # -------------------------------------------------------------- display
     def trig_substitutions(self) -> dict:
