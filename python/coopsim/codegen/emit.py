@@ -78,42 +78,66 @@ def _numeric_constants(expr):
     return expr.xreplace(reps) if reps else expr
 
 
-def _body(model: SymbolicModel, outputs, names):
-    """Statements computing [(target, expr)]: the parameter polynomials (kappa) they use, one cse
-    over those, then one cse over the outputs with kappa, sin/cos and qd as inputs."""
-    exprs = [_numeric_constants(sp.sympify(e)) for _, e in outputs]
+class _SharedCse:
+    """One cse over the expressions of all functions; each function then emits only the
+    temporaries its outputs need (cse once instead of once per function)."""
+
+    def __init__(self, exprs, prefix):
+        unique = list(dict.fromkeys(exprs))
+        reps, reduced = sp.cse(unique, symbols=sp.numbered_symbols(prefix), order="canonical")
+        self.reps = reps
+        self.reduced = dict(zip(unique, reduced))
+        self._defs = dict(reps)
+
+    def needed(self, exprs):
+        """Temporaries (symbol, expr) that the reduced `exprs` depend on, in definition order."""
+        need, stack = set(), [s for e in exprs for s in self.reduced[e].free_symbols if s in self._defs]
+        while stack:
+            sym = stack.pop()
+            if sym not in need:
+                need.add(sym)
+                stack.extend(s for s in self._defs[sym].free_symbols if s in self._defs)
+        return [(sym, e) for sym, e in self.reps if sym in need]
+
+
+def _body(model: SymbolicModel, outputs, names, kappa_cse, out_cse):
+    """Statements computing [(target, expr)]: sin/cos of the joints used, the parameter
+    polynomials (kappa) used, then the outputs with kappa, sin/cos and qd as inputs."""
+    exprs = [e for _, e in outputs]
     printer = _Printer(names)
     lines, ops = [], 0
-    used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
-    kappas = [k for k in model.kappa if k in used]
-    if kappas:
-        # stage 1: parameter polynomials, shared products first
-        reps, red = sp.cse([model.kappa[k] for k in kappas], symbols=sp.numbered_symbols("a"),
-                           order="canonical")
-        for sym, e in reps:
-            lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
-            ops += int(sp.count_ops(e))
-        for k, e in zip(kappas, red):
-            lines.append(f"  const double {k.name} = {printer.doprint(e)};")
-            ops += int(sp.count_ops(e))
-    # stage 2: sin/cos of each revolute joint once, in joint order, then the outputs
-    trig_lines = []
+    temps = out_cse.needed(exprs)
+    used = set()
+    for e in exprs:
+        used |= out_cse.reduced[e].free_symbols
+    for _, e in temps:
+        used |= e.free_symbols
+    # sin/cos of each revolute joint once, in joint order
     for i in range(model.n):
         for sym in sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name):
             if sym in used:
                 theta = model.trig[sym][1]
                 arg = f"q[{i}]" if theta == 0.0 else f"q[{i}] + {repr(theta)}"
                 fn = "cos" if sym.name.startswith("c_") else "sin"
-                trig_lines.append(f"  const double {sym.name} = std::{fn}({arg});")
+                lines.append(f"  const double {sym.name} = std::{fn}({arg});")
                 ops += 1
-    lines = trig_lines + lines
-    reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x"), order="canonical")
-    for sym, e in reps:
+    # parameter polynomials
+    kappas = [k for k in model.kappa if k in used]
+    kexprs = [_numeric_constants(model.kappa[k]) for k in kappas]
+    for sym, e in kappa_cse.needed(kexprs):
         lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
-    for (target, _), e in zip(outputs, reduced):
-        lines.append(f"  {target} = {printer.doprint(e)};")
+    for k, e in zip(kappas, kexprs):
+        red = kappa_cse.reduced[e]
+        lines.append(f"  const double {k.name} = {printer.doprint(red)};")
+        ops += int(sp.count_ops(red))
+    for sym, e in temps:
+        lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
+    for (target, _), e in zip(outputs, exprs):
+        red = out_cse.reduced[e]
+        lines.append(f"  {target} = {printer.doprint(red)};")
+        ops += int(sp.count_ops(red))
     return "\n".join(lines), ops
 
 
@@ -151,9 +175,12 @@ def emit_functions(model: SymbolicModel) -> list:
         "gravity": vec("g", G),
         "dynamics": mat("M", M) + vec("h", h),
     }
+    outputs = {k: [(t, _numeric_constants(sp.sympify(e))) for t, e in v] for k, v in outputs.items()}
+    out_cse = _SharedCse([e for fname, _ in FUNCTIONS for _, e in outputs[fname]], "x")
+    kappa_cse = _SharedCse([_numeric_constants(e) for e in model.kappa.values()], "a")
     out = []
     for fname, sig in FUNCTIONS:
-        body, ops = _body(model, outputs[fname], names)
+        body, ops = _body(model, outputs[fname], names, kappa_cse, out_cse)
         out.append(EmittedFunction(fname, sig, body, ops))
     return out
 

@@ -283,9 +283,20 @@ class SymbolicModel:
         """expr reduced with s_k^2 = 1 - c_k^2 and collected by monomial in the joint functions."""
         gens = self._gens
         trig_pairs = [(gens.index(L.c), gens.index(L.s)) for L in self.links if L.kind == "R"]
-        terms = {}
-        for mon, coeff in sp.Poly(sp.expand(expr), *gens).terms():
-            terms[mon] = terms.get(mon, 0) + coeff
+        index = {g: k for k, g in enumerate(gens)}
+        parts = {}  # monomial -> list of coefficient terms (summed once, at the end)
+        for term in sp.Add.make_args(sp.expand(expr)):
+            mon = [0] * len(gens)
+            rest = []
+            for f in sp.Mul.make_args(term):
+                base, e = f.as_base_exp()
+                k = index.get(base)
+                if k is None:
+                    rest.append(f)
+                else:
+                    mon[k] += int(e)
+            parts.setdefault(tuple(mon), []).append(sp.Mul(*rest))
+        terms = {mon: sp.Add(*c) for mon, c in parts.items()}
         for ic, is_ in trig_pairs:  # s^e -> s^(e-2) (1 - c^2), repeated
             changed = True
             while changed:
