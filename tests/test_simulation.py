@@ -78,6 +78,21 @@ def test_log_shapes_and_contents():
     np.testing.assert_allclose(qd1, log.qd[11], rtol=0, atol=1e-12)
 
 
+def test_log_snapshots_are_fixed_read_only_views():
+    sim = make_sim()
+    a = sim.run(0.05, progress=False)
+    q, t = a.q.copy(), a.t.copy()
+    sim.run(0.3, progress=False)  # the log outgrows its storage and moves
+    sim.reset()
+    sim.run(0.01, progress=False)  # and starts over
+    assert len(a) == 251
+    np.testing.assert_array_equal(a.q, q)
+    np.testing.assert_array_equal(a.t, t)
+    with pytest.raises(ValueError, match="read-only"):
+        a.q[0, 0] = 1.0
+    assert len(sim.log) == 51
+
+
 def test_log_decimation_keeps_every_nth_row_of_the_same_run():
     full = make_sim().run(0.2, progress=False)
     sim = make_sim(log_every=7)

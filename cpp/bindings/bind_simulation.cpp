@@ -52,21 +52,31 @@ std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
   }
 }
 
+// A read-only numpy view of the first `rows` rows of a log column, keeping
+// its memory block alive: rows once written never change in a block.
+py::array_t<double> view(const LogColumn& c, long rows, bool matrix) {
+  const py::ssize_t w = c.width();
+  if (!c.data() || rows == 0)
+    return matrix ? py::array_t<double>(std::vector<py::ssize_t>{0, w}) : py::array_t<double>(py::ssize_t(0));
+  auto* keep = new std::shared_ptr<double[]>(c.block());
+  py::capsule owner(keep, [](void* p) { delete static_cast<std::shared_ptr<double[]>*>(p); });
+  const py::ssize_t r = rows, sz = static_cast<py::ssize_t>(sizeof(double));
+  py::array_t<double> a = matrix ? py::array_t<double>({r, w}, {w * sz, sz}, c.data(), owner)
+                                 : py::array_t<double>({r}, {sz}, c.data(), owner);
+  a.attr("setflags")(py::arg("write") = false);
+  return a;
+}
+
 py::dict log_dict(const Simulation& s, int i) {
   const RobotLog& L = s.log(i);
-  const py::ssize_t rows = s.log_rows(), n = s.robot(i).dof();
+  const long rows = s.log_rows();
   py::dict d;
-  auto put = [&](const char* name, const std::vector<double>& v) {
-    py::array_t<double> a({rows, n});
-    std::copy(v.begin(), v.begin() + rows * n, a.mutable_data());
-    d[name] = a;
-  };
-  put("q", L.q);
-  put("qd", L.qd);
-  put("qdd", L.qdd);
-  put("tau", L.tau);
-  put("q_ref", L.q_ref);
-  put("qd_ref", L.qd_ref);
+  d["q"] = view(L.q, rows, true);
+  d["qd"] = view(L.qd, rows, true);
+  d["qdd"] = view(L.qdd, rows, true);
+  d["tau"] = view(L.tau, rows, true);
+  d["q_ref"] = view(L.q_ref, rows, true);
+  d["qd_ref"] = view(L.qd_ref, rows, true);
   return d;
 }
 
@@ -178,13 +188,11 @@ torques between controller updates, the log and tracking metrics.)doc")
              return py::make_tuple(to_numpy(s.initial_q(i)), to_numpy(s.initial_qd(i)));
            }, py::arg("i"))
       .def_property_readonly("log_rows", &Simulation::log_rows)
-      .def("log_t", [](const Simulation& s) {
-             py::array_t<double> a(s.log_rows());
-             std::copy(s.log_t().begin(), s.log_t().end(), a.mutable_data());
-             return a;
-           }, "Logged times (rows,), s.")
+      .def("log_t", [](const Simulation& s) { return view(s.log_t(), s.log_rows(), false); },
+           "Logged times (rows,), s: a read-only view that later steps do not change.")
       .def("log", &log_dict, py::arg("i"),
-           "Robot i's log as a dict of (rows, n) arrays: q, qd, qdd, tau, q_ref, qd_ref (copies).")
+           "Robot i's log as a dict of (rows, n) arrays: q, qd, qdd, tau, q_ref, qd_ref: read-only views "
+           "of the rows so far, which later steps and reset() do not change.")
       .def("metrics", &metrics_dict, py::arg("i"),
            "Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).");
 

@@ -80,6 +80,7 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   s.tau_max = robot.tau_max();
   s.q_ref = s.qd_ref = s.qdd_ref = s.k1 = s.q_prev = s.qd_prev = VecN::Zero(n);
   s.metrics.sum_sq_error = s.metrics.max_abs_error = s.metrics.max_abs_tau = VecN::Zero(n);
+  for (LogColumn* c : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) *c = LogColumn(n);
   slots_.push_back(std::move(s));
   return robot_count() - 1;
 }
@@ -98,7 +99,7 @@ void Simulation::reset() {
     s.tau.setZero(n);
     s.k1_valid = false;
     s.updated_at = -1;
-    s.log = RobotLog();
+    for (LogColumn* c : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) c->clear();
     s.metrics.steps = 0;
     s.metrics.sum_sq_error.setZero(n);
     s.metrics.max_abs_error.setZero(n);
@@ -116,17 +117,22 @@ long Simulation::steps_until(double t_end) const {
   return std::max(0L, static_cast<long>(std::floor(span + 1e-9)));
 }
 
+void LogColumn::reserve(long rows) {
+  if (rows <= cap_) return;
+  const long cap = std::max(rows, 2 * cap_);
+  // uninitialised: pages are first touched when rows are written
+  std::shared_ptr<double[]> b(new double[static_cast<size_t>(cap) * width_]);
+  if (rows_) std::copy(block_.get(), block_.get() + rows_ * width_, b.get());
+  block_ = std::move(b);
+  cap_ = cap;
+}
+
 void Simulation::reserve(long steps) {
   if (opt_.log_every == 0 || steps <= 0) return;
-  const size_t rows = log_t_.size() + static_cast<size_t>(steps / opt_.log_every + 2);
-  if (rows <= log_t_.capacity()) return;
-  // geometric growth keeps many small advances linear overall
-  const size_t cap = std::max(rows, 2 * log_t_.capacity());
-  log_t_.reserve(cap);
-  for (Slot& s : slots_) {
-    const size_t m = cap * static_cast<size_t>(s.robot.dof());
-    for (auto* v : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) v->reserve(m);
-  }
+  const long rows = log_t_.rows() + steps / opt_.log_every + 2;
+  log_t_.reserve(rows);
+  for (Slot& s : slots_)
+    for (LogColumn* c : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) c->reserve(rows);
 }
 
 void Simulation::start_() {
@@ -195,16 +201,15 @@ void Simulation::update_() {
     }
     s.k1_valid = true;
   }
-  log_t_.push_back(time());
+  const double now = time();
+  log_t_.push(&now);
   for (Slot& s : slots_) {
-    const int n = s.robot.dof();
-    auto put = [n](std::vector<double>& v, const VecN& x) { v.insert(v.end(), x.data(), x.data() + n); };
-    put(s.log.q, s.q);
-    put(s.log.qd, s.qd);
-    put(s.log.qdd, s.k1);
-    put(s.log.tau, s.tau);
-    put(s.log.q_ref, s.q_ref);
-    put(s.log.qd_ref, s.qd_ref);
+    s.log.q.push(s.q.data());
+    s.log.qd.push(s.qd.data());
+    s.log.qdd.push(s.k1.data());
+    s.log.tau.push(s.tau.data());
+    s.log.q_ref.push(s.q_ref.data());
+    s.log.qd_ref.push(s.qd_ref.data());
   }
   logged_at_ = k_;
 }
@@ -227,7 +232,7 @@ void Simulation::diverge_(int i, const std::string& why, bool in_step, bool stat
       << " s): robot " << i << " '" << bad.robot.name() << "': " << why << "; "
       << (state_is_result ? "state reached" : "state at the start of the step") << ": q = " << vec_str(q_bad)
       << ", qd = " << vec_str(qd_bad) << ", torque held = " << vec_str(bad.tau) << "; the log ends at t = "
-      << (log_t_.empty() ? 0.0 : log_t_.back()) << " s";
+      << (log_t_.rows() ? log_t_.back() : 0.0) << " s";
   divergence_ = msg.str();
   throw DivergenceError(divergence_, step, step * opt_.dt, i, q_bad, qd_bad);
 }

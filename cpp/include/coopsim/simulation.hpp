@@ -25,6 +25,7 @@
 // the log complete up to t_k-1; advancing again retries that update.
 #pragma once
 
+#include <algorithm>
 #include <exception>
 #include <memory>
 #include <stdexcept>
@@ -76,9 +77,41 @@ struct SimulationOptions {
   double max_position = 1e6;  // rad or m: farther counts as divergence
 };
 
-// One robot's log, row-major (rows x n) buffers.
+// Append-only rows of `width` doubles, row-major in one memory block.
+// Growing moves the rows to a new block and clear() starts a new one, so
+// rows already written never change in a block: whoever shares a block
+// (e.g. a numpy view) sees a fixed history.
+class LogColumn {
+ public:
+  explicit LogColumn(int width = 1) : width_(width) {}
+  int width() const { return width_; }
+  long rows() const { return rows_; }
+  long capacity() const { return cap_; }
+  const std::shared_ptr<double[]>& block() const { return block_; }
+  const double* data() const { return block_.get(); }
+  double back() const { return block_[(rows_ - 1) * width_ + width_ - 1]; }
+  // Room for `rows` rows in all; grows at least geometrically.
+  void reserve(long rows);
+  // Appends one row (reserve first to keep allocation out of loops).
+  void push(const double* row) {
+    if (rows_ == cap_) reserve(rows_ + 1);
+    std::copy(row, row + width_, block_.get() + rows_ * width_);
+    ++rows_;
+  }
+  void clear() {
+    block_.reset();
+    rows_ = cap_ = 0;
+  }
+
+ private:
+  std::shared_ptr<double[]> block_;
+  long rows_ = 0, cap_ = 0;
+  int width_ = 1;
+};
+
+// One robot's log: (rows x n) columns.
 struct RobotLog {
-  std::vector<double> q, qd, qdd, tau, q_ref, qd_ref;
+  LogColumn q, qd, qdd, tau, q_ref, qd_ref;
 };
 
 struct TrackingMetrics {
@@ -129,8 +162,8 @@ class Simulation {
   void advance(long n);
 
   // ---- log and metrics ----
-  long log_rows() const { return static_cast<long>(log_t_.size()); }
-  const std::vector<double>& log_t() const { return log_t_; }
+  long log_rows() const { return log_t_.rows(); }
+  const LogColumn& log_t() const { return log_t_; }
   const RobotLog& log(int i) const { return slot_(i).log; }
   const TrackingMetrics& metrics(int i) const { return slot_(i).metrics; }
 
@@ -161,7 +194,7 @@ class Simulation {
 
   SimulationOptions opt_;
   std::vector<Slot> slots_;
-  std::vector<double> log_t_;
+  LogColumn log_t_{1};
   long k_ = 0;
   long logged_at_ = -1;
   bool started_ = false;
