@@ -117,7 +117,9 @@ class RobotLog:
     t (rows,) s; q, qd, qdd (rows, n) rad, rad/s, rad/s^2 (m... for prismatic
     joints); tau (rows, n) N m or N, the torque applied from that row's time
     to the next step (held, saturated); q_ref, qd_ref (rows, n) the reference
-    at that time; error = q_ref - q.
+    at that time; error = q_ref - q. Arrays taken from a simulation are
+    read-only views of its log (later steps or a reset do not change them);
+    copy one to modify it.
     """
 
     __slots__ = ("name", "t", "q", "qd", "qdd", "tau", "q_ref", "qd_ref")
@@ -544,7 +546,7 @@ class Simulation:
 
     @property
     def log(self) -> SimulationLog:
-        """A snapshot (copies) of the log up to now."""
+        """The log up to now: read-only views, without copying, that later steps do not change."""
         t = self._core.log_t()
         robots = []
         for i, (robot, *_rest) in enumerate(self._entries):
