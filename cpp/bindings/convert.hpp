@@ -43,27 +43,23 @@ inline void check_finite(const double* p, size_t count, const char* name) {
     if (!std::isfinite(p[i])) throw py::value_error(std::string(name) + " must be finite (got NaN or inf)");
 }
 
-// A 1-D array of exactly n finite numbers.
-inline VecN vec(const py::handle& obj, int n, const char* name) {
+// A 1-D array of exactly n finite numbers, as Eigen vector type V.
+template <class V>
+V vector_arg(const py::handle& obj, py::ssize_t n, const char* name) {
   Arr a = as_array(obj, name);
   if (a.ndim() != 1 || a.shape(0) != n) {
     std::ostringstream s;
     s << "wrong shape for " << name << ": expected (" << n << ",), got " << shape_str(a);
     throw py::value_error(s.str());
   }
-  check_finite(a.data(), n, name);
-  return Eigen::Map<const VecN>(a.data(), n);
+  check_finite(a.data(), static_cast<size_t>(n), name);
+  return Eigen::Map<const V>(a.data(), n);
 }
 
+inline VecN vec(const py::handle& obj, int n, const char* name) { return vector_arg<VecN>(obj, n, name); }
+
 inline Eigen::VectorXd vecx(const py::handle& obj, py::ssize_t n, const char* name) {
-  Arr a = as_array(obj, name);
-  if (a.ndim() != 1 || a.shape(0) != n) {
-    std::ostringstream s;
-    s << "wrong shape for " << name << ": expected (" << n << ",), got " << shape_str(a);
-    throw py::value_error(s.str());
-  }
-  check_finite(a.data(), n, name);
-  return Eigen::Map<const Eigen::VectorXd>(a.data(), n);
+  return vector_arg<Eigen::VectorXd>(obj, n, name);
 }
 
 // A C-contiguous array of the given shape (-1: any extent) of finite numbers.

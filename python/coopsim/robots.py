@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from . import _core
 from ._core import Robot, Tool, box_inertia
 
 __all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS"]
@@ -95,22 +96,29 @@ def _masses(boxes, default_boxes, default_masses, masses, n):
     return default_masses * vol / vol0
 
 
-def _build(name, types, dh, com, boxes, default_boxes, default_masses, masses, friction, q_limits,
-           tau_limits, tool, base_position, base_yaw, dims, gravity):
-    """Robot from the tables; `friction` is the viscous K to use (n,)."""
-    n = len(types)
-    m = _masses(boxes, default_boxes, default_masses, masses, n)
+def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backend) -> Robot:
+    """Robot of one of the built-in specs: tables from the dimensions, boxes
+    for the mass properties, then the dynamics backend."""
+    if backend not in ("generated", "numeric"):
+        raise ValueError(f"backend must be 'generated' or 'numeric', got {backend!r}")
+    d = _check_dims(dims, spec["defaults"], spec["name"])
+    dh, com, boxes, tool = spec["geometry"](d)
+    boxes0 = spec["geometry"](spec["defaults"])[2]
+    n = len(spec["types"])
+    m = _masses(boxes, boxes0, spec["masses"], masses, n)
     if np.any(~np.isfinite(m)) or np.any(m <= 0):
         raise ValueError("masses must be finite and > 0 kg")
     inertias = np.array([box_inertia(mi, *b) for mi, b in zip(m, boxes)])
     robot = Robot.from_dh(
         dh=np.array(dh, dtype=float), com=np.array(com, dtype=float), masses=m, inertias=inertias,
-        joint_types=types,
-        friction=friction,
-        q_limits=q_limits, tau_limits=tau_limits, gravity=gravity, base_position=base_position,
-        base_yaw=base_yaw, tool=tool, name=name)
-    robot.dimensions = dict(dims)
+        joint_types=spec["types"], friction=spec["friction"] if friction is None else friction,
+        q_limits=spec["q_limits"], tau_limits=spec["tau_limits"], gravity=gravity, base_position=base_position,
+        base_yaw=base_yaw, tool=tool, name=spec["name"])
+    robot.dimensions = dict(d)
     robot.link_boxes = np.array(boxes, dtype=float)
+    if robot.name in _core.builtin_generated_names():
+        _core.attach_builtin_generated(robot, robot.name)
+    robot.set_backend(backend if robot.has_generated else "numeric")
     return robot
 
 
@@ -186,13 +194,7 @@ def scara1(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction
     the volume-scaled masses; friction (6,) the viscous K. backend selects
     'generated' closed-form dynamics when compiled in, else 'numeric'.
     """
-    d = _check_dims(dims, SCARA1_DEFAULTS, "scara1")
-    dh, com, boxes, tool = _scara1_geometry(d)
-    _, _, boxes0, _ = _scara1_geometry(SCARA1_DEFAULTS)
-    r = _build("scara1", "RRPRRP", dh, com, boxes, boxes0, _SCARA1_MASSES, masses, _SCARA1_K if friction is None else friction, _SCARA1_QLIM,
-               _SCARA1_TAU, tool, base_position, base_yaw, d, gravity)
-    _select_backend(r, backend)
-    return r
+    return _make(_SCARA1, dims, masses, friction, base_position, base_yaw, gravity, backend)
 
 
 def scara2(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction=None,
@@ -206,20 +208,10 @@ def scara2(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction
     jaw_thickness, width, height; see SCARA2_DEFAULTS. Other keywords as for
     scara1.
     """
-    d = _check_dims(dims, SCARA2_DEFAULTS, "scara2")
-    dh, com, boxes, tool = _scara2_geometry(d)
-    _, _, boxes0, _ = _scara2_geometry(SCARA2_DEFAULTS)
-    r = _build("scara2", "RRRPRP", dh, com, boxes, boxes0, _SCARA2_MASSES, masses, _SCARA2_K if friction is None else friction, _SCARA2_QLIM,
-               _SCARA2_TAU, tool, base_position, base_yaw, d, gravity)
-    _select_backend(r, backend)
-    return r
+    return _make(_SCARA2, dims, masses, friction, base_position, base_yaw, gravity, backend)
 
 
-def _select_backend(robot: Robot, backend: str) -> None:
-    from . import _core
-
-    if backend not in ("generated", "numeric"):
-        raise ValueError(f"backend must be 'generated' or 'numeric', got {backend!r}")
-    if robot.name in _core.builtin_generated_names():
-        _core.attach_builtin_generated(robot, robot.name)
-    robot.set_backend(backend if robot.has_generated else "numeric")
+_SCARA1 = dict(name="scara1", types="RRPRRP", defaults=SCARA1_DEFAULTS, geometry=_scara1_geometry,
+               masses=_SCARA1_MASSES, friction=_SCARA1_K, q_limits=_SCARA1_QLIM, tau_limits=_SCARA1_TAU)
+_SCARA2 = dict(name="scara2", types="RRRPRP", defaults=SCARA2_DEFAULTS, geometry=_scara2_geometry,
+               masses=_SCARA2_MASSES, friction=_SCARA2_K, q_limits=_SCARA2_QLIM, tau_limits=_SCARA2_TAU)
