@@ -196,7 +196,10 @@ joint limit, an orientation the structure cannot take, a singular target.)doc");
            o.q_near = &q_near;
          }
          o.opening = opening_arg(r, opening, o.q_near);
-         if (!tol.is_none()) o.tol = tol.cast<double>();
+         if (!tol.is_none()) {
+           o.tol = tol.cast<double>();
+           if (!(o.tol > 0 && std::isfinite(o.tol))) throw py::value_error("tol must be finite and > 0");
+         }
          const auto sols = analytic_ik_all(r, pose(pose_obj, "pose"), o);
          py::list out;
          for (const auto& s : sols) out.append(py::make_tuple(to_numpy(s.q), s.branch));

@@ -50,7 +50,7 @@ class PyReference : public Reference {
     py::object self = py::cast(static_cast<const Reference*>(this));
     py::object base = py::type::of<Reference>();
     bool found = py::hasattr(self, "__dict__") && self.attr("__dict__").contains(name);
-    for (auto cls : self.get_type().attr("__mro__")) {
+    for (auto cls : py::type::of(self).attr("__mro__")) {
       if (found || cls.is(base)) break;
       found = cls.attr("__dict__").contains(name);
     }
