@@ -100,6 +100,11 @@ def _cross(u, v):
     return sp.Matrix([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
 
 
+def _cse_ops(exprs) -> int:
+    reps, red = sp.cse(exprs, order="canonical")
+    return int(sum(sp.count_ops(e) for _, e in reps) + sum(sp.count_ops(e) for e in red))
+
+
 def _dot(u, v):
     return sum((u[i] * v[i] for i in range(3)), sp.Integer(0))
 
@@ -279,7 +284,7 @@ class SymbolicModel:
             self.kappa[sym] = prim
         return content * sym
 
-    def _collect(self, expr, name_coefficients=False):
+    def _collect_impl(self, expr, name_coefficients=False):
         """expr reduced with s_k^2 = 1 - c_k^2 and collected by monomial in the joint functions."""
         gens = self._gens
         trig_pairs = [(gens.index(L.c), gens.index(L.s)) for L in self.links if L.kind == "R"]
@@ -323,14 +328,40 @@ class SymbolicModel:
         return out
 
     @cached_property
-    def M_kappa(self) -> sp.Matrix:
-        """M collected, coefficients named by kappa."""
+    def form(self) -> str:
+        """'collected' or 'jacobian': the form everything is derived and emitted in.
+
+        Collecting by trig monomials pays off when the axes are mostly parallel
+        or perpendicular to few others (SCARAs: fewer operations); on general
+        arms (e.g. alpha = +-pi/2 throughout) the expanded polynomials grow
+        faster than the Jacobian products, so the smaller M after cse decides.
+        """
         n, Mj = self.n, self.M_jacobian
         M = sp.zeros(n, n)
         for i in range(n):
             for j in range(i, n):
-                M[i, j] = M[j, i] = self._collect(Mj[i, j], name_coefficients=True)
-        return M
+                M[i, j] = M[j, i] = self._collect_impl(Mj[i, j], name_coefficients=True)
+        upper = [M[i, j] for i in range(n) for j in range(i, n)]
+        collected = _cse_ops(upper) + _cse_ops(list(self.kappa.values()))
+        jacobian = _cse_ops([Mj[i, j] for i in range(n) for j in range(i, n)])
+        if collected <= jacobian:
+            self.__dict__["M_kappa"] = M
+            return "collected"
+        self.kappa.clear()
+        self.__dict__.pop("_kappa_lookup", None)
+        return "jacobian"
+
+    def _collect(self, expr, name_coefficients=False):
+        if self.form == "jacobian":
+            return expr
+        return self._collect_impl(expr, name_coefficients)
+
+    @cached_property
+    def M_kappa(self) -> sp.Matrix:
+        """M collected (coefficients named by kappa), or M_jacobian, see `form`."""
+        if self.form == "jacobian":
+            return self.M_jacobian
+        return self.__dict__["M_kappa"]
 
     @cached_property
     def G_kappa(self) -> sp.Matrix:
