@@ -3,6 +3,9 @@ import pickle
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 import coopsim as cs
 
@@ -188,6 +191,31 @@ def test_is_a_reference_and_python_subclasses_work():
     q, qd, qdd = cs.Reference.evaluate(r, np.array([0.5, 1.5]))
     np.testing.assert_array_equal(q[:, 0], [0.5, 1.5])
     assert cs.Reference.dof.fget(r) == 1 and cs.Reference.t_end.fget(r) == 2.0
+
+
+
+@settings(max_examples=150, deadline=None)
+@given(data=st.data(), N=st.integers(2, 8), n=st.integers(1, 3), rule=st.sampled_from(["heuristic", "given", "spline"]))
+def test_continuity_and_interpolation_property(data, N, n, rule):
+    steps = data.draw(hnp.arrays(float, N, elements=st.floats(0.01, 5.0)))
+    times = np.cumsum(steps) - data.draw(st.floats(-10.0, 10.0))
+    q = data.draw(hnp.arrays(float, (N, n), elements=st.floats(-10.0, 10.0)))
+    v = data.draw(hnp.arrays(float, (N, n), elements=st.floats(-10.0, 10.0)))
+    if rule == "given":
+        tr = cs.CubicTrajectory(times, q, v)
+    else:
+        tr = cs.CubicTrajectory(times, q, spline=rule == "spline", qd_start=v[0], qd_end=v[-1])
+    c, h = tr.coefficients, np.diff(times)
+    scale = 1.0 + np.abs(q).max() + np.abs(v).max()
+    np.testing.assert_allclose(tr.evaluate(times)[0], q, rtol=0, atol=1e-12 * scale)
+    for k in range(N - 2):
+        np.testing.assert_allclose(poly(c[k], h[k]), poly(c[k + 1], 0.0), rtol=0, atol=1e-12 * scale)
+        # velocity: round-off of the closed form grows like 1/h
+        np.testing.assert_allclose(poly(c[k], h[k], 1), poly(c[k + 1], 0.0, 1), rtol=0,
+                                   atol=1e-12 * scale / min(h[k], h[k + 1]))
+        if rule == "spline":
+            np.testing.assert_allclose(poly(c[k], h[k], 2), poly(c[k + 1], 0.0, 2), rtol=0,
+                                       atol=1e-11 * scale / min(h[k], h[k + 1]) ** 2)
 
 
 # ---- bad input: one test per kind ----
