@@ -1,7 +1,6 @@
 // The simulation loop. Stepping runs with the GIL released; Python
 // controllers and references take it back for their own calls only.
 #include <pybind11/pybind11.h>
-#include <pybind11/stl.h>
 
 #include <memory>
 
@@ -41,15 +40,12 @@ py::object exception_object(const std::exception_ptr& p) {
   }
 }
 
+// A Reference (C++ or Python subclass), or a set-point array held at all times.
 std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
   if (py::isinstance<Reference>(ref)) return ref.cast<std::shared_ptr<Reference>>();
   if (ref.is_none())
     throw py::value_error("reference must be a coopsim.Reference (e.g. CubicTrajectory) or a set-point (n,)");
-  try {
-    return std::make_shared<ConstantReference>(vec(ref, n, "reference"));
-  } catch (py::value_error&) {
-    throw;
-  }
+  return std::make_shared<ConstantReference>(vec(ref, n, "reference"));
 }
 
 // A read-only numpy view of the first `rows` rows of a log column, keeping
