@@ -511,7 +511,7 @@ class Simulation:
         total = self._core.steps_until(float(t_end))
         bar = None
         if progress or (progress is None and total >= _PROGRESS_MIN_STEPS):
-            from tqdm.auto import tqdm
+            from tqdm import tqdm
 
             bar = tqdm(total=total, unit="step", unit_scale=True, delay=0.0 if progress else 0.5,
                        desc="simulating", leave=False)
