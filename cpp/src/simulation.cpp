@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -117,14 +119,67 @@ long Simulation::steps_until(double t_end) const {
   return std::max(0L, static_cast<long>(std::floor(span + 1e-9)));
 }
 
+namespace {
+
+// Log blocks freed lately, kept for the next logs: writing fresh memory costs
+// a page fault per page (dear under virtualisation), reusing it does not.
+// Bounded; leaked on purpose so that blocks freed at exit find it alive.
+class BlockPool {
+ public:
+  static BlockPool& get() {
+    static BlockPool* pool = new BlockPool;
+    return *pool;
+  }
+  // A block of at least n doubles (its size in *size), reused when one of
+  // at most 2 n is free.
+  std::shared_ptr<double[]> take(size_t n, size_t* size) {
+    double* p = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      auto it = free_.lower_bound(n);
+      if (it != free_.end() && it->first <= 2 * n) {
+        p = it->second;
+        *size = it->first;
+        bytes_ -= it->first * sizeof(double);
+        free_.erase(it);
+      }
+    }
+    if (!p) {
+      p = new double[n];  // uninitialised: pages are touched when rows are written
+      *size = n;
+    }
+    const size_t sz = *size;
+    return std::shared_ptr<double[]>(p, [sz](double* q) { BlockPool::get().give(q, sz); });
+  }
+  void give(double* p, size_t n) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (bytes_ + n * sizeof(double) <= kMaxBytes) {
+        free_.emplace(n, p);
+        bytes_ += n * sizeof(double);
+        return;
+      }
+    }
+    delete[] p;
+  }
+
+ private:
+  static constexpr size_t kMaxBytes = size_t(64) << 20;
+  std::mutex mu_;
+  std::multimap<size_t, double*> free_;
+  size_t bytes_ = 0;
+};
+
+}  // namespace
+
 void LogColumn::reserve(long rows) {
   if (rows <= cap_) return;
-  const long cap = std::max(rows, 2 * cap_);
-  // uninitialised: pages are first touched when rows are written
-  std::shared_ptr<double[]> b(new double[static_cast<size_t>(cap) * width_]);
+  const long want = std::max(rows, 2 * cap_);
+  size_t size = 0;
+  std::shared_ptr<double[]> b = BlockPool::get().take(static_cast<size_t>(want) * width_, &size);
   if (rows_) std::copy(block_.get(), block_.get() + rows_ * width_, b.get());
   block_ = std::move(b);
-  cap_ = cap;
+  cap_ = static_cast<long>(size / width_);
 }
 
 void Simulation::reserve(long steps) {
