@@ -248,6 +248,24 @@ def test_numeric_ik_converges_on_random_6dof_robots():
     assert converged / total >= 0.97, f"{converged}/{total}"
 
 
+def test_numeric_ik_on_placed_robots_without_limits():
+    # the shared random robots: any alpha, negative a, random base placement, unbounded joints
+    from conftest import random_robot
+
+    rng = np.random.default_rng(0)
+    for seed in range(20):
+        robot = random_robot(seed, dof=6)
+        prismatic = np.array([c == "P" for c in robot.joint_types])
+        for _ in range(3):
+            q = rng.uniform(-math.pi, math.pi, 6)
+            q[prismatic] *= 0.1
+            T = robot.fk(q)
+            s = robot.ik(T)
+            assert max(pose_error(robot, s, T)) < 1e-9
+            # unbounded angles come back as the copy nearest the start point (0)
+            assert np.all(np.abs(s[~prismatic]) <= math.pi + 1e-12)
+
+
 def test_numeric_ik_fails_cleanly_on_unreachable_random_targets():
     rng = np.random.default_rng(9)
     robot = random_dh_robot(rng)
