@@ -80,7 +80,9 @@ struct SimulationOptions {
 // Append-only rows of `width` doubles, row-major in one memory block.
 // Growing moves the rows to a new block and clear() starts a new one, so
 // rows already written never change in a block: whoever shares a block
-// (e.g. a numpy view) sees a fixed history.
+// (e.g. a numpy view) sees a fixed history. Blocks come from, and go back
+// to, a bounded process-wide pool, so that repeated runs reuse memory whose
+// pages are already mapped.
 class LogColumn {
  public:
   explicit LogColumn(int width = 1) : width_(width) {}
