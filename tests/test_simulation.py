@@ -394,6 +394,49 @@ def test_pause_holds_simulated_time_still():
     assert stats.wall_time > 0.3 + 0.1
 
 
+class FakeClock:
+    """Wall time that moves only when the pacer sleeps."""
+
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+    def sleep(self, s):
+        assert s > 0
+        self.now += s
+
+
+def test_pacing_follows_the_speed_exactly_on_a_fake_clock():
+    clock = FakeClock()
+    pacer = cs.Pacer(speed=2.0, frame_rate=50.0, clock=clock, sleep=clock.sleep)
+    sim = make_sim()
+    seen = []
+
+    def on_frame(s, p):
+        seen.append((clock.now - 100.0, s.time))
+        if len(seen) == 10:
+            p.speed_percent = 400
+        if len(seen) == 20:
+            p.pause()
+        if len(seen) == 30:
+            p.speed = 1.0
+            p.resume()
+
+    stats = pacer.run(sim, 2.0, on_frame=on_frame)
+    w, t = np.array(seen).T
+    # frame k starts at wall k / 50 s and brings simulated time to speed x wall, to a step
+    rate = np.diff(t) / np.diff(w)
+    np.testing.assert_allclose(rate[:9], 2.0, atol=DT * 50 + 1e-12)
+    np.testing.assert_allclose(rate[10:19], 4.0, atol=DT * 50 + 1e-12)
+    np.testing.assert_array_equal(t[19:30], t[19])  # paused
+    np.testing.assert_allclose(rate[30:-1], 1.0, atol=DT * 50 + 1e-12)
+    assert sim.time == pytest.approx(2.0)
+    assert stats.frames == len(seen) and stats.sim_elapsed == pytest.approx(2.0)
+    assert stats.wall_time == pytest.approx(w[-1] + 0.02)
+
+
 def test_pacer_speed_range_and_stop():
     p = cs.Pacer()
     for bad in (-0.1, 4.01, np.nan, "fast"):
@@ -401,6 +444,8 @@ def test_pacer_speed_range_and_stop():
             p.speed = bad
     p.speed_percent = 400
     assert p.speed == 4.0
+    with pytest.raises(ValueError, match="speed_percent"):
+        p.speed_percent = "max"
     with pytest.raises(ValueError, match="frame_rate"):
         cs.Pacer(frame_rate=0)
     sim = make_sim()

@@ -437,7 +437,8 @@ class Simulation:
     def references(self) -> list:
         return [e[2] for e in self._entries]
 
-    def __len__(self) -> int:
+    @property
+    def robot_count(self) -> int:
         return len(self._entries)
 
     def __getstate__(self):
@@ -470,11 +471,11 @@ class Simulation:
 
     def state(self, robot: int = 0):
         """(q, qd) of a robot now, each (n,)."""
-        return self._core.state(_index(robot, len(self)))
+        return self._core.state(_index(robot, self.robot_count))
 
     def torque(self, robot: int = 0) -> np.ndarray:
         """The torque held on a robot now, (n,) (saturated)."""
-        return self._core.torque(_index(robot, len(self)))
+        return self._core.torque(_index(robot, self.robot_count))
 
     def reset(self) -> None:
         """Back to t = 0 and the initial states; clears the log, metrics and statistics.
@@ -619,6 +620,8 @@ class Pacer:
 
     @speed_percent.setter
     def speed_percent(self, v: float) -> None:
+        if not isinstance(v, (int, float, np.floating, np.integer)) or isinstance(v, bool):
+            raise ValueError(f"speed_percent must be a number from 0 to 400, got {v!r}")
         self.speed = v / 100.0
 
     @property
@@ -748,7 +751,7 @@ def run_batch(sims: Sequence[Simulation], t_end: float, *, threads: Optional[int
     if not isinstance(t_end, (int, float, np.floating, np.integer)) or not math.isfinite(t_end):
         raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
     for i, s in enumerate(sims):
-        if not len(s):
+        if not s.robot_count:
             raise ValueError(f"sims[{i}] has no robot")
         s._core.steps_until(float(t_end))  # t_end in the past -> ValueError now, not per thread
     marks = [(s.time, s.steps) for s in sims]
