@@ -91,6 +91,12 @@ def test_log_snapshots_are_fixed_read_only_views():
     with pytest.raises(ValueError, match="read-only"):
         a.q[0, 0] = 1.0
     assert len(sim.log) == 51
+    # freed log memory is reused by later simulations, never memory a view still holds
+    del sim
+    for _ in range(4):
+        make_sim(controller=cs.ComputedTorque(10.0, 5.0)).run(0.05, progress=False)
+    np.testing.assert_array_equal(a.q, q)
+    np.testing.assert_array_equal(a.t, t)
 
 
 def test_log_decimation_keeps_every_nth_row_of_the_same_run():
