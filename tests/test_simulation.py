@@ -525,6 +525,30 @@ def test_batch_of_16_equals_the_same_16_one_by_one():
     assert not np.array_equal(logs[0].q, logs[15].q)
 
 
+class PD(cs.Controller):
+    def __init__(self, kp):
+        super().__init__()
+        self.kp = kp
+
+    def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+        return self.kp * (q_ref - q) + 0.1 * self.kp * (qd_ref - qd)
+
+
+def test_batch_with_python_controllers_on_threads():
+    robot = cs.robots.scara1()
+    target = np.array([0.2, 0.1, 0.1, 0.1, 0.5, 0.02])
+
+    def build(k):
+        sim = cs.Simulation()
+        sim.add_robot(robot, PD(k), target)
+        return sim
+
+    gains = (10.0, 20.0, 30.0, 40.0)
+    logs = cs.run_batch([build(k) for k in gains], 0.05, threads=2)
+    for k, log in zip(gains, logs):
+        assert_logs_equal(log, build(k).run(0.05, progress=False))
+
+
 def test_batch_metrics_errors_and_checks():
     sims = gain_grid()[:3]
     bad = cs.Simulation(dt=5e-3)
