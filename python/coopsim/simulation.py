@@ -51,8 +51,10 @@ __all__ = [
 #: Logged quantities per robot, in column order.
 QUANTITIES = ("q", "qd", "qdd", "tau", "q_ref", "qd_ref", "e")
 
-# headless runs longer than this many steps show a progress bar by default
-_PROGRESS_MIN_STEPS = 100_000
+# by default a headless run of at least this many steps shows a progress bar
+# once it has lasted _PROGRESS_DELAY s of wall time
+_PROGRESS_MIN_STEPS = 10_000
+_PROGRESS_DELAY = 1.0
 # Excel's sheet size (rows include the header)
 _EXCEL_MAX_ROWS = 1_048_576
 
@@ -502,8 +504,8 @@ class Simulation:
 
         The loop is C++ with the GIL released (Python controllers or
         references take it for their own calls). progress: True shows a
-        tqdm bar, False never; None (default) shows one on runs of 100 000
-        steps or more that last over half a second. Ctrl-C stops the run
+        tqdm bar, False never; None (default) shows one on a run of 10 000
+        steps or more once it has lasted a second. Ctrl-C stops the run
         between chunks with the log kept. Statistics go to :attr:`stats`.
         """
         if not isinstance(t_end, (int, float, np.floating, np.integer)) or isinstance(t_end, bool) \
@@ -514,7 +516,7 @@ class Simulation:
         if progress or (progress is None and total >= _PROGRESS_MIN_STEPS):
             from tqdm import tqdm
 
-            bar = tqdm(total=total, unit="step", unit_scale=True, delay=0.0 if progress else 0.5,
+            bar = tqdm(total=total, unit="step", unit_scale=True, delay=0.0 if progress else _PROGRESS_DELAY,
                        desc="simulating", leave=False)
         cb = None if bar is None else (lambda done, tot: bar.update(done - bar.n))
         t0, s0, w0 = self.time, self.steps, time.perf_counter()
