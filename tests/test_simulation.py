@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import functools
+import multiprocessing
 import os
 import pickle
 import threading
@@ -599,7 +600,9 @@ def test_simulation_description_pickles_and_runs_through_an_executor():
     sims[0].run(0.1, progress=False)  # state is not part of the description
     copy = pickle.loads(pickle.dumps(sims[0]))
     assert copy.time == 0.0 and copy.options == sims[0].options and copy.robots[0].name == "scara1"
-    with concurrent.futures.ProcessPoolExecutor(max_workers=2) as pool:
+    # spawn: workers start clean, whatever threads this process runs
+    ctx = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=2, mp_context=ctx) as pool:
         got = list(pool.map(functools.partial(cs.simulate, t_end=0.2), sims))
     for a, b in zip(got, expected):
         assert_logs_equal(a, b)
