@@ -111,6 +111,19 @@ def test_generated_files_do_not_drift():
     assert diff == "", "cpp/generated differs from the generator; run `python -m coopsim.codegen`:\n" + diff
 
 
+@pytest.mark.slow
+def test_generation_independent_of_hash_seed():
+    """Byte-identical output in a fresh interpreter with another string-hash seed."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONHASHSEED="12345")
+    res = subprocess.run([sys.executable, "-m", "coopsim.codegen", "--check", "--out", str(REPO / "cpp" / "generated")],
+                         env=env, capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
+
+
 def test_command_writes_identical_files(tmp_path):
     """The documented command writes byte-identical files into another folder."""
     from coopsim.codegen.__main__ import main

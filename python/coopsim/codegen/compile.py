@@ -54,9 +54,16 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     cache: folder for built libraries (default: ``cache_dir()``); a build is
     reused when the hash of the structure, generator version, sympy version
     and compiler matches.
-    Returns the robot, now with ``robot.backend == "generated"``. Raises
-    ValueError for a robot that is not a coopsim.Robot, RuntimeError if the
-    build fails.
+    Returns the robot, now with ``robot.backend == "generated"``
+    (``robot.set_backend("numeric")`` switches back). Raises ValueError for a
+    robot that is not a coopsim.Robot, RuntimeError if the build fails.
+
+    Cost: a 6-DOF arm takes tens of seconds the first time (sympy, then g++
+    -O2), milliseconds from the cache. Closed forms win on robots with many
+    parallel or perpendicular axes (the SCARAs: about 3x the numeric path);
+    on a general 6R arm with alpha = +-pi/2 throughout the Christoffel terms
+    grow to about 10^4 operations and the numeric recursive algorithms are
+    faster: compare both backends before choosing.
     """
     from .. import _core
 
