@@ -23,7 +23,7 @@ struct GeneratedDynamics {
   // (theta of a revolute row is the offset added to q)
   std::vector<double> angles;
   std::string generator_version;
-  long operation_count = 0;
+  long operation_count = 0;  // arithmetic operations of dynamics() after cse, sin/cos counted once
   void (*mass_matrix)(const double* p, const double* q, double* M) = nullptr;
   void (*coriolis)(const double* p, const double* q, const double* qd, double* c) = nullptr;
   void (*coriolis_matrix)(const double* p, const double* q, const double* qd, double* C) = nullptr;

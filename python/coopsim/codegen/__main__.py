@@ -11,7 +11,10 @@ import sys
 import time
 from pathlib import Path
 
+import sympy as sp
+
 from .builtin import check_generated, write_generated
+from .files import SYMPY_VERSION
 
 
 def main(argv=None) -> int:
@@ -20,6 +23,9 @@ def main(argv=None) -> int:
     ap.add_argument("--check", action="store_true", help="compare with the files in --out, write nothing")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    if sp.__version__ != SYMPY_VERSION:
+        print(f"warning: sympy {sp.__version__} is not the pinned {SYMPY_VERSION}; the output will differ "
+              f"from the committed files (pip install sympy=={SYMPY_VERSION})", file=sys.stderr)
     t0 = time.perf_counter()
     if args.check:
         diff = check_generated(out)

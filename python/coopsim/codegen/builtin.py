@@ -44,8 +44,9 @@ def check_generated(folder, structures=None) -> str:
     folder = Path(folder)
     files = generate_files(structures)
     chunks = []
-    present = {p.name for p in folder.glob("*_dynamics.*")} | ({"registry.cpp"} & {p.name for p in folder.iterdir()}
-                                                               if folder.is_dir() else set())
+    present = {p.name for p in folder.glob("*_dynamics.*")}
+    if (folder / "registry.cpp").exists():
+        present.add("registry.cpp")
     for name in sorted(set(files) | present):
         path = folder / name
         old = path.read_bytes().decode("utf-8") if path.exists() else ""

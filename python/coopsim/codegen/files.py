@@ -6,13 +6,15 @@ import sympy as sp
 from .emit import emit_functions, emit_solve
 from .symbolic import Structure, SymbolicModel
 
-__all__ = ["GENERATOR_VERSION", "COMMAND", "builtin_sources", "registry_source", "runtime_source",
+__all__ = ["GENERATOR_VERSION", "COMMAND", "SYMPY_VERSION", "builtin_sources", "registry_source", "runtime_source",
            "header_line"]
 
 #: Bump when the emitted code changes for the same structure.
 GENERATOR_VERSION = "1.0.0"
 #: The documented command that regenerates cpp/generated.
 COMMAND = "python -m coopsim.codegen"
+#: The sympy version the committed files were generated with (pyproject pins it).
+SYMPY_VERSION = "1.14.0"
 
 
 def header_line(operations) -> str:
