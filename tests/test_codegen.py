@@ -192,7 +192,10 @@ def test_symbolic_model_properties_scara2():
     Mdot = sum((m.dM[k] * m.qd[k] for k in range(n)), sp.zeros(n, n))
     N = m.explicit(Mdot) - 2 * m.C_matrix
     assert (N + N.T).expand() == sp.zeros(n, n)
-    assert sp.latex(m.in_trig(m.M[1, 1]))  # displayable
+    shown = m.matrices()
+    assert set(shown) == {"M", "C", "C_matrix", "G", "friction"}
+    assert shown["M"].shape == (n, n) and shown["G"].shape == (n, 1)
+    assert "\\cos" in sp.latex(shown["M"][0, 0]) and not shown["M"].free_symbols & set(m.trig)
 
 
 # ---- run-time robots ----

@@ -88,8 +88,10 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
             if res.returncode != 0:
                 raise RuntimeError(f"building generated dynamics failed ({cxx}):\n{res.stderr[-4000:]}")
             shutil.copy(src, folder / src.name)  # kept next to the library for inspection
-            os.replace(out, lib)  # atomic: concurrent builds of one key are harmless
-        ops_file.write_text(str(ops))
+            (Path(tmp) / ops_file.name).write_text(str(ops))
+            # atomic, operation count first: concurrent builds of one key are harmless
+            os.replace(Path(tmp) / ops_file.name, ops_file)
+            os.replace(out, lib)
         if verbose:
             print(f"coopsim.codegen: generated in {t1 - t0:.1f} s, built in {time.perf_counter() - t1:.1f} s: {lib}",
                   file=sys.stderr)

@@ -455,6 +455,12 @@ class SymbolicModel:
         """expr with c_i, s_i replaced by cos/sin of the joint angles."""
         return expr.xreplace(self.trig_substitutions())
 
+    def matrices(self, trig: bool = True) -> dict:
+        """{'M', 'C', 'C_matrix', 'G', 'friction'}: sympy matrices for display (e.g. sympy.latex),
+        with cos/sin of the joint angles when `trig`, else the symbols c_i, s_i."""
+        out = dict(M=self.M, C=self.C, C_matrix=self.C_matrix, G=self.G, friction=self.friction)
+        return {k: self.in_trig(v) for k, v in out.items()} if trig else out
+
 
 def derive(structure_or_robot) -> SymbolicModel:
     """Symbolic model of a Structure or a coopsim.Robot (M, C, C_matrix, G, friction are lazy)."""
