@@ -121,6 +121,11 @@ def _body(model: SymbolicModel, outputs, names, kdefs, kappa_cse, out_cse):
                 fn = "cos" if sym.name.startswith("c_") else "sin"
                 lines.append(f"  const double {sym.name} = std::{fn}({arg});")
                 ops += 1
+    # displacement of each prismatic joint, offset included
+    for sym, (i, d) in model.slides.items():
+        if sym in used:
+            lines.append(f"  const double {sym.name} = {names[d]} + q[{i}];")
+            ops += 1
     # parameter polynomials
     kappas = [k for k in model.kappa if k in used]
     kexprs = [kdefs[k] for k in kappas]
@@ -148,7 +153,7 @@ def _names(model: SymbolicModel):
         names[model.qd[i]] = f"qd[{i}]"
     for s in model.trig:
         names[s] = s.name
-    for k in model.kappa:
+    for k in list(model.kappa) + list(model.slides):
         names[k] = k.name
     return names
 

@@ -147,6 +147,7 @@ class SymbolicModel:
         self.g = sp.Matrix(sp.symbols("g_x g_y g_z", real=True))
         self.parameters: dict[sp.Symbol, int] = {}
         self.trig: dict[sp.Symbol, tuple[int, float]] = {}  # c_i/s_i -> (joint, DH theta offset)
+        self.slides: dict[sp.Symbol, tuple] = {}  # e_i = d_i + q_i of prismatic joints -> (joint, d_i)
         base = PARAMS_PER_LINK * n
         for j, gs in enumerate(self.g):
             self.parameters[gs] = base + j
@@ -176,7 +177,10 @@ class SymbolicModel:
             dq = d
         else:
             c, s = sp.cos(th_x), sp.sin(th_x)
-            dq = d + q
+            # q enters as d + q (frames) and dc + q (the CoM) only: one symbol each
+            dq = sp.Symbol(f"e_{i + 1}", real=True)
+            self.slides[dq] = (i, d)
+            self.slides[sp.Symbol(f"ec_{i + 1}", real=True)] = (i, dc)
         ca, sa = sp.cos(al_x), sp.sin(al_x)
         # CoM frame of link i in DH frame i: constant, since q enters both
         # rows in the same slot and Rz, Tz commute with each other
@@ -214,7 +218,10 @@ class SymbolicModel:
             coms = {}
             for l in range(i, n + 1):
                 L = self.links[l - 1]
-                coms[l] = (p[l] + R[l] * L.pc, R[l] * L.Rc)
+                if l == i:  # constant in frame i
+                    coms[l] = (p[l] + R[l] * L.pc, R[l] * L.Rc)
+                else:
+                    coms[l] = self._com((R[l], p[l], R[l - 1], p[l - 1]), p, l)
             for j in range(i, n + 1):
                 total = sp.Integer(0)
                 for l in range(j, n + 1):
@@ -244,7 +251,7 @@ class SymbolicModel:
         V = sp.Integer(0)
         for l in range(1, self.n + 1):
             L = self.links[l - 1]
-            V -= L.m * _dot(self.g, p[l] + R[l] * L.pc)
+            V -= L.m * _dot(self.g, self._com((R[l], p[l], R[l - 1], p[l - 1]), p, l)[0])
         return V
 
     def diff_q(self, expr: sp.Expr, k: int) -> sp.Expr:
@@ -252,7 +259,23 @@ class SymbolicModel:
         L = self.links[k]
         if L.kind == "R":
             return -L.s * sp.diff(expr, L.c) + L.c * sp.diff(expr, L.s)
-        return sp.diff(expr, L.q)
+        return sp.diff(expr, L.d) + sp.diff(expr, self._ec(k))  # e_k = d_k + q_k, ec_k = dc_k + q_k
+
+    def _ec(self, k):
+        return sp.Symbol(f"ec_{k + 1}", real=True)
+
+    def _com(self, G_or_R, p, l):
+        """CoM of link l >= 1 in the chain's frame, from frame l (revolute) or frame l-1 (prismatic,
+        so that dc + q stays one symbol). Returns (position, rotation of the CoM frame)."""
+        L = self.links[l - 1]
+        R_l, p_l, R_prev, p_prev = G_or_R
+        if L.kind == "R":
+            return p_l + R_l * L.pc, R_l * L.Rc
+        th, _, thc, _ = (exact_angle(v) for v in self.structure.angles[l - 1])
+        ac = sp.Symbol(f"ac_{l}", real=True)
+        cd, sd = sp.cos(thc - th), sp.sin(thc - th)
+        local = _rz(sp.cos(th), sp.sin(th)) * sp.Matrix([ac * cd, ac * sd, self._ec(l - 1)])
+        return p_prev + R_prev * local, R_l * L.Rc
 
     # ---- collected forms: polynomials in c_k, s_k (s_k of degree <= 1) and
     # prismatic q_k whose coefficients are parameter polynomials, each named
@@ -261,7 +284,7 @@ class SymbolicModel:
     def _gens(self):
         gens = []
         for L in self.links:
-            gens.extend([L.c, L.s] if L.kind == "R" else [L.q])
+            gens.extend([L.c, L.s] if L.kind == "R" else [L.d, self._ec(self.links.index(L))])
         return gens
 
     @cached_property
@@ -419,8 +442,8 @@ class SymbolicModel:
         return sp.Matrix([L.K * L.qd for L in self.links])
 
     def explicit(self, expr):
-        """expr with every kappa_m replaced by its parameter polynomial."""
-        return expr.xreplace(self.kappa)
+        """expr with every kappa_m replaced by its parameter polynomial and e_k by d_k + q_k."""
+        return expr.xreplace(self.kappa).xreplace({e: d + self.q[i] for e, (i, d) in self.slides.items()})
 
     @cached_property
     def M(self) -> sp.Matrix:
