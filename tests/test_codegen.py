@@ -8,6 +8,7 @@ the symbolic difference must simplify to exactly 0.
 """
 from __future__ import annotations
 
+import difflib
 import pickle
 from pathlib import Path
 
@@ -131,7 +132,13 @@ def test_command_writes_identical_files(tmp_path):
     assert main(["--out", str(tmp_path)]) == 0
     written = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     committed = {p.name: p.read_bytes() for p in (REPO / "cpp" / "generated").iterdir()}
-    assert written == committed
+    assert set(written) == set(committed)
+    diff = "".join(
+        line for name in sorted(written) if written[name] != committed[name]
+        for line in difflib.unified_diff(committed[name].decode().splitlines(True),
+                                         written[name].decode().splitlines(True), f"committed/{name}",
+                                         f"regenerated/{name}", n=1))
+    assert diff == "", "regenerated files differ (run `python -m coopsim.codegen`):\n" + diff[:20000]
     assert set(written) == set(generate_files())
     assert main(["--out", str(tmp_path), "--check"]) == 0
     (tmp_path / "scara1_dynamics.cpp").write_bytes(written["scara1_dynamics.cpp"] + b" ")
