@@ -11,8 +11,10 @@ link i takes frame i-1 to the CoM frame of link i with q_i in the same slot;
 the inertia tensor is about the CoM in the CoM frame.
 
 Internally cos and sin of each revolute joint's DH angle theta_i + q_i are
-the symbols ``c_i`` and ``s_i``, which keeps every expression polynomial in
-them; derivatives use d c_i/dq_i = -s_i and d s_i/dq_i = c_i. Derivation
+the symbols ``c_i`` and ``s_i``, and a prismatic joint enters as e_i = d_i +
+q_i (frames) and ec_i = dc_i + q_i (its CoM), which keeps every expression
+polynomial in them; derivatives use d c_i/dq_i = -s_i, d s_i/dq_i = c_i and
+d e_i/dq_i = d ec_i/dq_i = 1. Derivation
 (tractable at 6 DOF): row i of M is assembled from the link Jacobians
 expressed in DH frame i, where joint i's axis and origin do not depend on
 q_i, so M_ij only contains q_(i+1) .. q_n and no identity c^2 + s^2 = 1 has
@@ -21,13 +23,17 @@ to be found by simplification:
     M = sum_l m_l Jv_l^T Jv_l + Jw_l^T R_l I_l R_l^T Jw_l
     Gamma_ijk = (dM_kj/dq_i + dM_ki/dq_j - dM_ij/dq_k) / 2,  C_kj = sum_i Gamma_ijk qd_i
     G = dV/dq,  V = -sum_l m_l g . c_l
+
+Emitted form (``SymbolicModel.form``): on robots like the SCARAs each entry is
+expanded, reduced with s_i^2 = 1 - c_i^2 and collected by monomial in the
+joint functions, with every parameter polynomial named once (kappa_m); on
+general arms, where that expansion grows, the Jacobian products are kept.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
-from typing import Sequence
 
 import sympy as sp
 
@@ -125,7 +131,6 @@ class _Link:
     m: sp.Symbol
     I: sp.Matrix
     K: sp.Symbol
-    params: dict = field(default_factory=dict)
 
 
 class SymbolicModel:
@@ -221,7 +226,7 @@ class SymbolicModel:
                 if l == i:  # constant in frame i
                     coms[l] = (p[l] + R[l] * L.pc, R[l] * L.Rc)
                 else:
-                    coms[l] = self._com((R[l], p[l], R[l - 1], p[l - 1]), p, l)
+                    coms[l] = self._com((R[l], p[l], R[l - 1], p[l - 1]), l)
             for j in range(i, n + 1):
                 total = sp.Integer(0)
                 for l in range(j, n + 1):
@@ -251,7 +256,7 @@ class SymbolicModel:
         V = sp.Integer(0)
         for l in range(1, self.n + 1):
             L = self.links[l - 1]
-            V -= L.m * _dot(self.g, self._com((R[l], p[l], R[l - 1], p[l - 1]), p, l)[0])
+            V -= L.m * _dot(self.g, self._com((R[l], p[l], R[l - 1], p[l - 1]), l)[0])
         return V
 
     def diff_q(self, expr: sp.Expr, k: int) -> sp.Expr:
@@ -264,11 +269,12 @@ class SymbolicModel:
     def _ec(self, k):
         return sp.Symbol(f"ec_{k + 1}", real=True)
 
-    def _com(self, G_or_R, p, l):
+    def _com(self, frames, l):
         """CoM of link l >= 1 in the chain's frame, from frame l (revolute) or frame l-1 (prismatic,
-        so that dc + q stays one symbol). Returns (position, rotation of the CoM frame)."""
+        so that dc + q stays one symbol); frames = (R_l, p_l, R_(l-1), p_(l-1)) in that frame.
+        Returns (position, rotation of the CoM frame)."""
         L = self.links[l - 1]
-        R_l, p_l, R_prev, p_prev = G_or_R
+        R_l, p_l, R_prev, p_prev = frames
         if L.kind == "R":
             return p_l + R_l * L.pc, R_l * L.Rc
         th, _, thc, _ = (exact_angle(v) for v in self.structure.angles[l - 1])
@@ -278,13 +284,13 @@ class SymbolicModel:
         return p_prev + R_prev * local, R_l * L.Rc
 
     # ---- collected forms: polynomials in c_k, s_k (s_k of degree <= 1) and
-    # prismatic q_k whose coefficients are parameter polynomials, each named
+    # prismatic e_k, ec_k whose coefficients are parameter polynomials, each named
     # once as a symbol kappa_m (see `kappa`); this is what is emitted.
     @cached_property
     def _gens(self):
         gens = []
-        for L in self.links:
-            gens.extend([L.c, L.s] if L.kind == "R" else [L.d, self._ec(self.links.index(L))])
+        for k, L in enumerate(self.links):
+            gens.extend([L.c, L.s] if L.kind == "R" else [L.d, self._ec(k)])
         return gens
 
     @cached_property
