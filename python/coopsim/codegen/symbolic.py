@@ -106,6 +106,25 @@ def _cross(u, v):
     return sp.Matrix([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
 
 
+# terms after expansion (upper bound) above which the collected form is not tried:
+# the SCARAs need about 5e3, a PUMA-like arm 5e4, arms with general angles 1e5 and more
+_EXPAND_LIMIT = 20000
+
+
+def _expanded_terms(e) -> int:
+    """Upper bound of the number of terms of sympy.expand(e), without expanding."""
+    if e.is_Add:
+        return sum(_expanded_terms(a) for a in e.args)
+    if e.is_Mul:
+        out = 1
+        for a in e.args:
+            out *= _expanded_terms(a)
+        return out
+    if e.is_Pow and e.exp.is_Integer and e.exp > 0:
+        return _expanded_terms(e.base) ** int(e.exp)
+    return 1
+
+
 def _cse_ops(exprs) -> int:
     reps, red = sp.cse(exprs, order="canonical")
     return int(sum(sp.count_ops(e) for _, e in reps) + sum(sp.count_ops(e) for e in red))
@@ -366,6 +385,9 @@ class SymbolicModel:
         faster than the Jacobian products, so the smaller M after cse decides.
         """
         n, Mj = self.n, self.M_jacobian
+        # expanding is only tried when its size, bounded without expanding, stays moderate
+        if sum(_expanded_terms(Mj[i, j]) for i in range(n) for j in range(i, n)) > _EXPAND_LIMIT:
+            return "jacobian"
         M = sp.zeros(n, n)
         for i in range(n):
             for j in range(i, n):
