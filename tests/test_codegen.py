@@ -3,8 +3,10 @@ models, and the committed files.
 
 Tolerances: generated vs numeric 1e-10 relative, per state and quantity, in
 the max norm: |generated - numeric|_inf <= 1e-10 * |numeric|_inf (plus 1e-12
-absolute for quantities that vanish, e.g. C at qd = 0). Textbook models:
-the symbolic difference must simplify to exactly 0.
+absolute for quantities that vanish, e.g. C at qd = 0). RK4 trajectories
+over 1 s: 1e-9 (positions) and 1e-8 (velocities) relative, round-off grown
+over 5000 steps. Textbook models: the symbolic difference must simplify to
+exactly 0.
 """
 from __future__ import annotations
 
@@ -74,6 +76,21 @@ def test_builtin_generated_equals_numeric(name, changed):
     gen, num = factory(**kw), factory(backend="numeric", **kw)
     assert gen.has_generated and cs._core.generated_info(gen)["name"] == name
     _compare(gen, num)
+
+
+@pytest.mark.parametrize("name", ["scara1", "scara2"])
+def test_integration_generated_equals_numeric(name):
+    """One second of RK4 (0.2 ms steps, end stops on) gives the same trajectory on both backends."""
+    factory = getattr(cs.robots, name)
+    gen, num = factory(), factory(backend="numeric")
+    q0 = np.array([0.3, -0.5, 0.1, 0.4, 0.2, 0.02]) if name == "scara1" else \
+        np.array([0.3, -0.5, 0.4, 0.1, 0.2, 0.02])
+    qd0 = np.array([0.5, -0.3, 0.0, 1.0, -0.5, 0.0])
+    tau = np.array([0.5, -0.2, 1.0, 0.01, 0.02, 0.1])
+    _, Qg, QDg = cs.integrate(gen, q0, qd0, tau, dt=2e-4, steps=5000, record_every=500)
+    _, Qn, QDn = cs.integrate(num, q0, qd0, tau, dt=2e-4, steps=5000, record_every=500)
+    assert np.max(np.abs(Qg - Qn)) <= 1e-9 * np.max(np.abs(Qn))
+    assert np.max(np.abs(QDg - QDn)) <= 1e-8 * np.max(np.abs(QDn))
 
 
 def test_backend_default_report_and_switch():
