@@ -164,6 +164,8 @@ def emit_functions(model: SymbolicModel) -> list:
     # fixed order of derivation keeps kappa numbering, hence the output, deterministic
     M, G = model.M_kappa, model.G_kappa
     C, Cm, F = model.C_kappa, model.C_matrix_kappa, model.friction
+    if model.form == "jacobian":
+        C = model.C_links  # same vector, about half the operations of the Christoffel sums
     names = _names(model)
 
     def mat(target, A):

@@ -465,6 +465,41 @@ class SymbolicModel:
         return sp.Matrix(out)
 
     @cached_property
+    def C_links(self) -> sp.Matrix:
+        """C(q, qd) qd link by link, the same Lagrangian terms without Christoffel symbols:
+
+            sum_l m_l Jv_l^T (dJv_l/dt qd) + Jw_l^T (I_l (dJw_l/dt qd) + w_l x I_l w_l)
+
+        (dM/dt qd - dT/dq with M = sum_l m_l Jv_l^T Jv_l + Jw_l^T I_l Jw_l), in the base
+        frame, where time derivatives of components are inertial; I_l in the CoM frame.
+        Emitted for C in the Jacobian form, where it takes about half the operations."""
+        n, qd = self.n, self.qd
+        R, p = self._chain(0)
+        axes = [(R[k][:, 2], p[k]) for k in range(n)]  # joint k + 1: z_k, o_k
+        out = [sp.Integer(0)] * n
+        for l in range(1, n + 1):
+            L = self.links[l - 1]
+            cl, Rc = self._com((R[l], p[l], R[l - 1], p[l - 1]), l)
+            Jv, Jw = [], []
+            for k in range(l):
+                z, o = axes[k]
+                revolute = self.links[k].kind == "R"
+                Jv.append(_cross(z, cl - o) if revolute else z)
+                Jw.append(z if revolute else None)
+            v = sum((Jv[k] * qd[k] for k in range(l)), sp.zeros(3, 1))
+            w = sum((Jw[k] * qd[k] for k in range(l) if Jw[k] is not None), sp.zeros(3, 1))
+            a = sum((v.applyfunc(lambda e, k=k: self.diff_q(e, k)) * qd[k] for k in range(l)), sp.zeros(3, 1))
+            wd = sum((w.applyfunc(lambda e, k=k: self.diff_q(e, k)) * qd[k] for k in range(l)), sp.zeros(3, 1))
+            wc, wdc = Rc.T * w, Rc.T * wd
+            nc = L.I * wdc + _cross(wc, L.I * wc)  # moment about the CoM, CoM frame
+            for j in range(l):
+                t = L.m * _dot(Jv[j], a)
+                if Jw[j] is not None:
+                    t += _dot(Rc.T * Jw[j], nc)
+                out[j] += t
+        return sp.Matrix(out)
+
+    @cached_property
     def friction(self) -> sp.Matrix:
         """K qd (n,)."""
         return sp.Matrix([L.K * L.qd for L in self.links])
