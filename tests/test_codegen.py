@@ -11,7 +11,10 @@ exactly 0.
 from __future__ import annotations
 
 import difflib
+import os
 import pickle
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -132,10 +135,6 @@ def test_generated_files_do_not_drift():
 @pytest.mark.slow
 def test_generation_independent_of_hash_seed():
     """Byte-identical output in a fresh interpreter with another string-hash seed."""
-    import os
-    import subprocess
-    import sys
-
     env = dict(os.environ, PYTHONHASHSEED="12345")
     res = subprocess.run([sys.executable, "-m", "coopsim.codegen", "--check", "--out", str(REPO / "cpp" / "generated")],
                          env=env, capture_output=True, text=True)
@@ -255,11 +254,23 @@ def test_compile_runtime_robot(tmp_path):
     r2 = codegen.compile(_runtime_robot(scale=1.3), cache=tmp_path)
     assert sorted(tmp_path.glob("*.so")) == libs and libs[0].stat().st_mtime_ns == mtime
     _compare(r2, _runtime_robot(scale=1.3), n_states=200, seed=1)
-    # a pickled copy finds the loaded code again
+    # a pickled copy finds the loaded code again, in this process and in a
+    # fresh one that looks in the same cache
     r3 = pickle.loads(pickle.dumps(r2))
     assert r3.backend == "generated"
     q = np.array([0.1, 0.05, -0.3, 0.7])
     assert _close(r3.mass_matrix(q), r2.mass_matrix(q))
+    (tmp_path / "robot.pkl").write_bytes(pickle.dumps(r2))
+    code = ("import pickle, sys, numpy as np, coopsim\n"
+            "r = pickle.loads(open(sys.argv[1], 'rb').read())\n"
+            "print(r.backend, *r.mass_matrix(np.array([0.1, 0.05, -0.3, 0.7])).ravel())\n")
+    env = dict(os.environ, COOPSIM_CACHE_DIR=str(tmp_path))
+    res = subprocess.run([sys.executable, "-c", code, str(tmp_path / "robot.pkl")], env=env, capture_output=True,
+                         text=True)
+    assert res.returncode == 0, res.stderr[-2000:]
+    backend, *values = res.stdout.split()
+    assert backend == "generated"
+    assert _close(np.array(values, dtype=float), r2.mass_matrix(q).ravel())
 
 
 def test_compile_bad_input(tmp_path):
@@ -270,7 +281,7 @@ def test_compile_bad_input(tmp_path):
     with pytest.raises(ValueError, match="angles"):
         codegen.Structure("x", "RR", [(0, 0, 0, 0)])
     with pytest.raises(ValueError, match="path"):
-        cs._core.load_generated_library(str(tmp_path / "missing.so"), "x", 1, "R", [0.0] * 4, "1", 1)
+        cs._core.load_generated_library(str(tmp_path / "missing.so"))
 
 
 def test_structure_mismatch_is_refused():

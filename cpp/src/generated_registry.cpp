@@ -1,6 +1,7 @@
 // Looks up generated dynamics by name: the robots compiled into the engine
 // (listed explicitly by the generated cpp/generated/registry.cpp, so a static
-// link keeps them) and code registered at run time from shared libraries.
+// link keeps them), code registered at run time from shared libraries, and
+// libraries of the build cache found by name (generated_loader.cpp).
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -27,9 +28,17 @@ const GeneratedDynamics* builtin_generated(const std::string& name) {
   static const std::vector<const GeneratedDynamics*> compiled = compiled_generated();
   for (const GeneratedDynamics* g : compiled)
     if (g->name == name) return g;
+  {
+    std::lock_guard<std::mutex> lock(runtime_mutex());
+    auto it = runtime_table().find(name);
+    if (it != runtime_table().end()) return it->second.get();
+  }
+  auto g = find_cached_generated(name);
+  if (!g) return nullptr;
   std::lock_guard<std::mutex> lock(runtime_mutex());
-  auto it = runtime_table().find(name);
-  return it == runtime_table().end() ? nullptr : it->second.get();
+  auto& slot = runtime_table()[name];
+  if (!slot) slot = std::move(g);  // another thread may have loaded it meanwhile
+  return slot.get();
 }
 
 std::vector<std::string> builtin_generated_names() {

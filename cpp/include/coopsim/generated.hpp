@@ -55,4 +55,13 @@ void register_generated(std::shared_ptr<const GeneratedDynamics> gen);
 // The list emitted by the generator in cpp/generated/registry.cpp.
 std::vector<const GeneratedDynamics*> compiled_generated();
 
+// Shared libraries built by coopsim.codegen.compile: the library describes
+// its structure itself. Throws std::invalid_argument when it cannot be
+// loaded. builtin_generated() also finds a library gen_<key> of the build
+// cache ($COOPSIM_CACHE_DIR, else $XDG_CACHE_HOME/coopsim, else
+// ~/.cache/coopsim) by name, so pickled robots find their code again.
+std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::string& path);
+std::shared_ptr<const GeneratedDynamics> find_cached_generated(const std::string& name);
+std::string generated_cache_dir();
+
 }  // namespace coopsim

@@ -22,12 +22,14 @@ _FLAGS = ["-O2", "-std=c++17", "-shared", "-fPIC", "-fno-math-errno"]
 
 
 def cache_dir() -> Path:
-    """Build cache: $COOPSIM_CACHE_DIR, else $XDG_CACHE_HOME/coopsim, else ~/.cache/coopsim."""
-    env = os.environ.get("COOPSIM_CACHE_DIR")
-    if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "coopsim"
+    """Build cache: $COOPSIM_CACHE_DIR, else $XDG_CACHE_HOME/coopsim, else ~/.cache/coopsim.
+
+    Libraries there are also found by name when a compiled robot is unpickled
+    in another process (e.g. a worker of a process pool)."""
+    from .. import _core
+
+    d = _core.generated_cache_dir()
+    return Path(d) if d else Path.home() / ".cache" / "coopsim"
 
 
 def structure_key(s: Structure, compiler: str) -> str:
@@ -53,7 +55,9 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     that differ only in those share one build.
     cache: folder for built libraries (default: ``cache_dir()``); a build is
     reused when the hash of the structure, generator version, sympy version
-    and compiler matches.
+    and compiler matches. A robot pickled after compile() unpickles with its
+    generated code in any process that finds the library in ``cache_dir()``
+    (another `cache` folder: set COOPSIM_CACHE_DIR to it in that process).
     Returns the robot, now with ``robot.backend == "generated"``
     (``robot.set_backend("numeric")`` switches back). Raises ValueError for a
     robot that is not a coopsim.Robot, RuntimeError if the build fails.
@@ -74,35 +78,24 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     s = structure_of(robot, name=f"gen_{key}")
     folder = Path(cache) if cache is not None else cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    lib = folder / f"coopsim_gen_{key}.so"
-    t0 = time.perf_counter()
-    ops_file = folder / f"coopsim_gen_{key}.ops"
-    if not lib.exists() or not ops_file.exists():
-        text, ops = runtime_source(s, SymbolicModel(s))
+    lib = folder / f"coopsim_{s.name}.so"
+    if not lib.exists():
+        t0 = time.perf_counter()
+        text, _ = runtime_source(s, SymbolicModel(s))
         t1 = time.perf_counter()
         with tempfile.TemporaryDirectory(dir=folder) as tmp:
-            src = Path(tmp) / f"coopsim_gen_{key}.cpp"
+            src = Path(tmp) / f"coopsim_{s.name}.cpp"
             src.write_text(text, encoding="utf-8")
             out = Path(tmp) / lib.name
             res = subprocess.run([cxx, *_FLAGS, "-o", str(out), str(src)], capture_output=True, text=True)
             if res.returncode != 0:
                 raise RuntimeError(f"building generated dynamics failed ({cxx}):\n{res.stderr[-4000:]}")
             shutil.copy(src, folder / src.name)  # kept next to the library for inspection
-            (Path(tmp) / ops_file.name).write_text(str(ops))
-            # atomic, operation count first: concurrent builds of one key are harmless
-            os.replace(Path(tmp) / ops_file.name, ops_file)
-            os.replace(out, lib)
+            os.replace(out, lib)  # atomic: concurrent builds of one key are harmless
         if verbose:
             print(f"coopsim.codegen: generated in {t1 - t0:.1f} s, built in {time.perf_counter() - t1:.1f} s: {lib}",
                   file=sys.stderr)
-    ops = int(ops_file.read_text())
-    if _core.generated_info(robot) is None or _core.generated_info(robot)["name"] != s.name:
-        name = s.name
-        try:
-            _core.attach_builtin_generated(robot, name)
-        except ValueError:
-            angles = [v for row in s.angles for v in row]
-            _core.load_generated_library(str(lib), name, s.dof, s.joint_types, angles, GENERATOR_VERSION, ops)
-            _core.attach_builtin_generated(robot, name)
+    name = _core.load_generated_library(str(lib))
+    _core.attach_builtin_generated(robot, name)
     robot.set_backend("generated")
     return robot

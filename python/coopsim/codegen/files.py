@@ -93,6 +93,13 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
                        for f in funcs)
     solve_body, solve_ops = emit_solve(model)
     defs += f"\n\nbool coopsim_gen_solve(const double* M, double* x) {{\n{solve_body}\n}}"
+    meta = (f"const char* coopsim_gen_name() {{ return \"{s.name}\"; }}\n"
+            f"int coopsim_gen_dof() {{ return {s.dof}; }}\n"
+            f"const char* coopsim_gen_joint_types() {{ return \"{s.joint_types}\"; }}\n"
+            f"const double* coopsim_gen_angles() {{\n  static const double a[] = {{{_angles_literal(s)}}};\n"
+            f"  return a;\n}}\n"
+            f"const char* coopsim_gen_version() {{ return \"{GENERATOR_VERSION}\"; }}\n"
+            f"long coopsim_gen_operation_count() {{ return {ops}; }}\n")
     text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
-            f"int coopsim_gen_dof() {{ return {s.dof}; }}\n\n{defs}\n\n}}  // extern \"C\"\n")
+            f"{meta}\n{defs}\n\n}}  // extern \"C\"\n")
     return text, ops

@@ -1,0 +1,79 @@
+// Generated dynamics in shared libraries built by coopsim.codegen.compile:
+// loading one by path, and finding one by name in the build cache, so that a
+// pickled robot gets its code back in another process.
+#include <dlfcn.h>
+#include <sys/stat.h>
+
+#include <cstdlib>
+#include <stdexcept>
+
+#include "coopsim/generated.hpp"
+#include "coopsim/robot.hpp"
+
+namespace coopsim {
+
+namespace {
+
+template <class F>
+F library_symbol(void* handle, const std::string& path, const char* name) {
+  void* s = dlsym(handle, name);
+  if (!s) throw std::invalid_argument(path + " lacks the symbol " + name + " (not built by coopsim.codegen?)");
+  return reinterpret_cast<F>(s);
+}
+
+bool is_file(const std::string& path) {
+  struct stat st;
+  return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+}  // namespace
+
+std::string generated_cache_dir() {
+  if (const char* d = std::getenv("COOPSIM_CACHE_DIR"); d && *d) return d;
+  if (const char* d = std::getenv("XDG_CACHE_HOME"); d && *d) return std::string(d) + "/coopsim";
+  if (const char* d = std::getenv("HOME"); d && *d) return std::string(d) + "/.cache/coopsim";
+  return "";
+}
+
+std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::string& path) {
+  // kept open for the process lifetime: robots may hold its functions
+  void* h = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!h) {
+    const char* err = dlerror();
+    throw std::invalid_argument("cannot load " + path + ": " + (err ? err : "unknown error"));
+  }
+  auto g = std::make_shared<GeneratedDynamics>();
+  g->name = library_symbol<const char* (*)()>(h, path, "coopsim_gen_name")();
+  g->dof = library_symbol<int (*)()>(h, path, "coopsim_gen_dof")();
+  g->joint_types = library_symbol<const char* (*)()>(h, path, "coopsim_gen_joint_types")();
+  if (g->dof < 1 || g->dof > kMaxDof || static_cast<int>(g->joint_types.size()) != g->dof)
+    throw std::invalid_argument(path + " describes a malformed structure");
+  const double* angles = library_symbol<const double* (*)()>(h, path, "coopsim_gen_angles")();
+  g->angles.assign(angles, angles + 4 * g->dof);
+  g->generator_version = library_symbol<const char* (*)()>(h, path, "coopsim_gen_version")();
+  g->operation_count = library_symbol<long (*)()>(h, path, "coopsim_gen_operation_count")();
+  g->mass_matrix = library_symbol<decltype(g->mass_matrix)>(h, path, "coopsim_gen_mass_matrix");
+  g->coriolis = library_symbol<decltype(g->coriolis)>(h, path, "coopsim_gen_coriolis");
+  g->coriolis_matrix = library_symbol<decltype(g->coriolis_matrix)>(h, path, "coopsim_gen_coriolis_matrix");
+  g->gravity = library_symbol<decltype(g->gravity)>(h, path, "coopsim_gen_gravity");
+  g->dynamics = library_symbol<decltype(g->dynamics)>(h, path, "coopsim_gen_dynamics");
+  g->solve = library_symbol<decltype(g->solve)>(h, path, "coopsim_gen_solve");
+  return g;
+}
+
+std::shared_ptr<const GeneratedDynamics> find_cached_generated(const std::string& name) {
+  // names of run-time builds are gen_<key>, their libraries coopsim_gen_<key>.so
+  if (name.rfind("gen_", 0) != 0 || name.find('/') != std::string::npos) return nullptr;
+  const std::string dir = generated_cache_dir();
+  if (dir.empty()) return nullptr;
+  const std::string path = dir + "/coopsim_" + name + ".so";
+  if (!is_file(path)) return nullptr;
+  try {
+    auto g = load_generated_library(path);
+    return g->name == name ? g : nullptr;
+  } catch (const std::invalid_argument&) {
+    return nullptr;
+  }
+}
+
+}  // namespace coopsim
