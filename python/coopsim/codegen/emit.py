@@ -165,7 +165,8 @@ def emit_functions(model: SymbolicModel) -> list:
     M, G = model.M_kappa, model.G_kappa
     C, Cm, F = model.C_kappa, model.C_matrix_kappa, model.friction
     if model.form == "jacobian":
-        C = model.C_links  # same vector, about half the operations of the Christoffel sums
+        # the same vectors, sharing the base-frame Jacobians: about half the operations
+        C, G = model.C_links, model.G_links
     names = _names(model)
 
     def mat(target, A):

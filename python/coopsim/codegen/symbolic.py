@@ -465,6 +465,22 @@ class SymbolicModel:
         return sp.Matrix(out)
 
     @cached_property
+    def G_links(self) -> sp.Matrix:
+        """G = dV/dq = -sum_l m_l Jv_l^T g through the CoM Jacobians (dc_l/dq = Jv_l), in the
+        base frame; shares its terms with C_links. Emitted for G in the Jacobian form."""
+        n = self.n
+        R, p = self._chain(0)
+        out = [sp.Integer(0)] * n
+        for l in range(1, n + 1):
+            L = self.links[l - 1]
+            cl, _ = self._com((R[l], p[l], R[l - 1], p[l - 1]), l)
+            for k in range(l):
+                z, o = R[k][:, 2], p[k]
+                Jv = _cross(z, cl - o) if self.links[k].kind == "R" else z
+                out[k] -= L.m * _dot(Jv, self.g)
+        return sp.Matrix(out)
+
+    @cached_property
     def C_links(self) -> sp.Matrix:
         """C(q, qd) qd link by link, the same Lagrangian terms without Christoffel symbols:
 
