@@ -66,8 +66,8 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     -O2), milliseconds from the cache. Closed forms win on robots with many
     parallel or perpendicular axes (the SCARAs: about 3x the numeric path);
     on a general 6R arm with alpha = +-pi/2 throughout, M, C and G take about
-    6000 operations and the numeric recursive algorithms are faster (about
-    1.5x on a PUMA-like arm): compare both backends before choosing.
+    3000 operations and both backends run about as fast: compare them before
+    choosing.
     """
     from .. import _core
 
