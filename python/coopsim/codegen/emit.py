@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from .symbolic import SymbolicModel
+from .symbolic import SymbolicModel, _cse_ops
 
 __all__ = ["EmittedFunction", "emit_functions", "emit_solve", "FUNCTIONS", "SOLVE_SIGNATURE"]
 
@@ -164,8 +164,10 @@ def emit_functions(model: SymbolicModel) -> list:
     # fixed order of derivation keeps kappa numbering, hence the output, deterministic
     M, G = model.M_kappa, model.G_kappa
     C, Cm, F = model.C_kappa, model.C_matrix_kappa, model.friction
-    if model.form == "jacobian":
-        # the same vectors, sharing the base-frame Jacobians: about half the operations
+    # C and G link by link (base-frame Jacobians, shared) are the same vectors;
+    # they always win in the Jacobian form and on some collected robots
+    links = [model.C_links[k] + model.G_links[k] for k in range(n)]
+    if model.form == "jacobian" or _cse_ops(links) < _cse_ops([C[k] + G[k] for k in range(n)]):
         C, G = model.C_links, model.G_links
     names = _names(model)
 
