@@ -169,6 +169,8 @@ def emit_functions(model: SymbolicModel) -> list:
     links = [model.C_links[k] + model.G_links[k] for k in range(n)]
     if model.form == "jacobian" or _cse_ops(links) < _cse_ops([C[k] + G[k] for k in range(n)]):
         C, G = model.C_links, model.G_links
+    if model.form == "jacobian":
+        M = model.M_links
     names = _names(model)
 
     def mat(target, A):

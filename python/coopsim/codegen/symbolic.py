@@ -465,6 +465,34 @@ class SymbolicModel:
         return sp.Matrix(out)
 
     @cached_property
+    def M_links(self) -> sp.Matrix:
+        """M = sum_l m_l Jv_l^T Jv_l + Jw_l^T I_l Jw_l with every Jacobian in the base frame
+        (Jw projected on the CoM frame); shares its terms with C_links and G_links. Emitted for
+        M in the Jacobian form (general arms: up to half the operations of M_jacobian there)."""
+        n = self.n
+        R, p = self._chain(0)
+        M = sp.zeros(n, n)
+        for l in range(1, n + 1):
+            L = self.links[l - 1]
+            cl, Rc = self._com((R[l], p[l], R[l - 1], p[l - 1]), l)
+            Jv, Jw = [], []
+            for k in range(l):
+                z, o = R[k][:, 2], p[k]
+                revolute = self.links[k].kind == "R"
+                Jv.append(_cross(z, cl - o) if revolute else z)
+                Jw.append(Rc.T * z if revolute else None)
+            for i in range(l):
+                for j in range(i, l):
+                    t = L.m * _dot(Jv[i], Jv[j])
+                    if Jw[i] is not None and Jw[j] is not None:
+                        t += _dot(Jw[i], L.I * Jw[j])
+                    M[i, j] += t
+        for i in range(n):
+            for j in range(i):
+                M[i, j] = M[j, i]
+        return M
+
+    @cached_property
     def G_links(self) -> sp.Matrix:
         """G = dV/dq = -sum_l m_l Jv_l^T g through the CoM Jacobians (dc_l/dq = Jv_l), in the
         base frame; shares its terms with C_links. Emitted for G in the Jacobian form."""
