@@ -65,9 +65,10 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     Cost: a 6-DOF arm takes tens of seconds the first time (sympy, then g++
     -O2), milliseconds from the cache. Closed forms win on robots with many
     parallel or perpendicular axes (the SCARAs: about 3x the numeric path);
-    on a general 6R arm with alpha = +-pi/2 throughout, M, C and G take about
-    3000 operations and both backends run about as fast: compare them before
-    choosing.
+    on general arms the margin is small (a PUMA-like 6R arm: about 2600
+    operations for M and h, forward dynamics about 1.2x the numeric path's
+    speed; arms with arbitrary angles can be slower than numeric): compare
+    both backends before choosing.
     """
     from .. import _core
 
