@@ -71,13 +71,6 @@ class EmittedFunction:
     operations: int  # arithmetic operations after cse (sympy count_ops), plus one per sin/cos
 
 
-def _numeric_constants(expr):
-    """Irrational constants (sqrt(3)/2 of 30 degree angles) as 17-digit floats."""
-    reps = {a: sp.Float(a.evalf(20), 17) for a in expr.atoms(sp.Pow, sp.Function, sp.NumberSymbol)
-            if a.is_number and not a.is_Rational}
-    return expr.xreplace(reps) if reps else expr
-
-
 class _SharedCse:
     """One cse over the expressions of all functions; each function then emits only the
     temporaries its outputs need (cse once instead of once per function)."""
@@ -187,10 +180,10 @@ def emit_functions(model: SymbolicModel) -> list:
         "gravity": vec("g", G),
         "dynamics": mat("M", M) + vec("h", h),
     }
-    outputs = {k: [(t, _numeric_constants(sp.sympify(e))) for t, e in v] for k, v in outputs.items()}
+    outputs = {k: [(t, sp.sympify(e)) for t, e in v] for k, v in outputs.items()}
     out_cse = _SharedCse([e for fname, _ in FUNCTIONS for _, e in outputs[fname]], "x")
     # parameter polynomials in Horner form: about 40 % fewer operations on the SCARAs
-    kdefs = {k: _numeric_constants(sp.horner(e)) for k, e in model.kappa.items()}
+    kdefs = {k: sp.horner(e) for k, e in model.kappa.items()}
     kappa_cse = _SharedCse(list(kdefs.values()), "a")
     out = []
     for fname, sig in FUNCTIONS:

@@ -94,6 +94,13 @@ def structure_of(robot, name: str | None = None) -> Structure:
     return Structure(name or robot.name, robot.joint_types, angles)
 
 
+def _trig_const(fn, angle):
+    """cos or sin of a structural angle: exact when rational (0, +-1), else a 17-digit float
+    (sqrt(3)/2 of 30 degrees), so that expressions hold no irrational constants."""
+    v = fn(angle)
+    return v if v.is_Rational else sp.Float(v.evalf(20), 17)
+
+
 def _rz(c, s):
     return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
@@ -200,18 +207,18 @@ class SymbolicModel:
             self.trig[s] = (i, th)
             dq = d
         else:
-            c, s = sp.cos(th_x), sp.sin(th_x)
+            c, s = _trig_const(sp.cos, th_x), _trig_const(sp.sin, th_x)
             # q enters as d + q (frames) and dc + q (the CoM) only: one symbol each
             dq = sp.Symbol(f"e_{i + 1}", real=True)
             self.slides[dq] = (i, d)
             self.slides[sp.Symbol(f"ec_{i + 1}", real=True)] = (i, dc)
-        ca, sa = sp.cos(al_x), sp.sin(al_x)
+        ca, sa = _trig_const(sp.cos, al_x), _trig_const(sp.sin, al_x)
         # CoM frame of link i in DH frame i: constant, since q enters both
         # rows in the same slot and Rz, Tz commute with each other
         dth = thc_x - th_x
-        cd, sd = sp.cos(dth), sp.sin(dth)
+        cd, sd = _trig_const(sp.cos, dth), _trig_const(sp.sin, dth)
         rx_t = _rx(ca, sa).T
-        Rc = rx_t * _rz(cd, sd) * _rx(sp.cos(alc_x), sp.sin(alc_x))
+        Rc = rx_t * _rz(cd, sd) * _rx(_trig_const(sp.cos, alc_x), _trig_const(sp.sin, alc_x))
         pc = rx_t * sp.Matrix([ac * cd - a, ac * sd, dc - d])
         return _Link(kind, q, qd, c, s, ca, sa, dq, a, Rc, pc, m, I, K)
 
@@ -298,8 +305,8 @@ class SymbolicModel:
             return p_l + R_l * L.pc, R_l * L.Rc
         th, _, thc, _ = (exact_angle(v) for v in self.structure.angles[l - 1])
         ac = sp.Symbol(f"ac_{l}", real=True)
-        cd, sd = sp.cos(thc - th), sp.sin(thc - th)
-        local = _rz(sp.cos(th), sp.sin(th)) * sp.Matrix([ac * cd, ac * sd, self._ec(l - 1)])
+        cd, sd = _trig_const(sp.cos, thc - th), _trig_const(sp.sin, thc - th)
+        local = _rz(_trig_const(sp.cos, th), _trig_const(sp.sin, th)) * sp.Matrix([ac * cd, ac * sd, self._ec(l - 1)])
         return p_prev + R_prev * local, R_l * L.Rc
 
     # ---- collected forms: polynomials in c_k, s_k (s_k of degree <= 1) and
