@@ -15,10 +15,7 @@ from sympy.printing.c import C99CodePrinter
 
 from .symbolic import SymbolicModel, _cse_ops
 
-__all__ = ["EmittedFunction", "emit_functions", "emit_solve", "FUNCTIONS", "SOLVE_SIGNATURE"]
-
-# in-place solve of M x = b, see emit_solve
-SOLVE_SIGNATURE = "bool {name}(const double* M, double* x)"
+__all__ = ["EmittedFunction", "emit_functions", "emit_solve", "FUNCTIONS"]
 
 # name, arguments (after p), outputs
 FUNCTIONS = (
