@@ -365,9 +365,22 @@ class WrongShape(cs.Controller):
         return np.zeros(3)
 
 
+class Returns(cs.Controller):
+    def __init__(self, value):
+        super().__init__()
+        self.value = value
+
+    def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+        return self.value
+
+
 def test_python_controller_errors_are_clear():
     robot = cs.robots.scara1()
-    for ctrl, exc, word in ((NoCompute(), TypeError, "compute"), (WrongShape(), ValueError, "tau returned by compute")):
+    cases = [(NoCompute(), TypeError, "compute"), (WrongShape(), ValueError, "tau returned by compute"),
+             (Returns(np.zeros(6, dtype=complex)), ValueError, "tau returned by compute must be .*real.*complex"),
+             (Returns([0.0] * 5 + [None]), ValueError, "tau returned by compute must be .*real"),
+             (Returns("zeros"), ValueError, "tau returned by compute must be .*real")]
+    for ctrl, exc, word in cases:
         sim = cs.Simulation()
         sim.add_robot(robot, ctrl, np.zeros(6) + 0.01)
         with pytest.raises(exc, match=word):

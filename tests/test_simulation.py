@@ -117,14 +117,17 @@ def test_log_decimation_keeps_every_nth_row_of_the_same_run():
 
 
 def test_controller_every_kth_step_holds_its_torque():
-    sim = make_sim(control_every=5)
+    robot = cs.robots.scara1()
+    sim = make_sim(robot, pid(robot, w=15.0), control_every=5)
     log = sim.run(0.05, progress=False)
     tau = log.tau
     for k in range(len(tau)):
         np.testing.assert_array_equal(tau[k], tau[k - k % 5])
     assert np.any(tau[5] != tau[4])
-    # a PID's integral advances by its period, 5 dt
-    assert sim.controllers[0].integral is not None
+    # a PID's integral advances by its period, 5 dt, at each update (steps 0, 5, .., 250)
+    assert np.all(np.abs(tau) < sim.robots[0].tau_limits)  # no anti-windup hold in this run
+    expected = (log.error[::5] * 5 * DT).sum(axis=0)
+    np.testing.assert_allclose(sim.controllers[0].integral, expected, rtol=1e-12, atol=1e-18)
 
 
 def test_incremental_stepping_equals_one_run():
@@ -491,23 +494,45 @@ def test_headless_run_statistics_and_progress_bar(capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_run_releases_the_gil():
+def test_progress_bar_by_default_only_on_long_runs(capsys, monkeypatch):
+    from coopsim import simulation
+
+    monkeypatch.setattr(simulation, "_PROGRESS_DELAY", 0.0)  # show it at once rather than after a second
     sim = make_sim(log_every=0)
-    done = threading.Event()
-    count = 0
+    sim.run((simulation._PROGRESS_MIN_STEPS - 1) * DT)
+    assert capsys.readouterr().err == ""
+    sim.run(sim.time + simulation._PROGRESS_MIN_STEPS * DT)
+    assert "simulating" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("how", ["run", "step"])
+def test_run_releases_the_gil(how):
+    # while the C++ loop runs in a worker thread, this thread keeps running
+    # Python: its pauses add up to a small part of the call (a held GIL would
+    # stop it for the whole call, or for every 4096-step chunk of run)
+    sim = make_sim(log_every=0)
+    window = []
 
     def work():
-        sim.run(2.0, progress=False)
-        done.set()
+        t0 = time.perf_counter()
+        sim.run(20.0, progress=False) if how == "run" else sim.step(100_000)
+        window.extend([t0, time.perf_counter()])
 
+    pauses = []  # (end, length) of every pause over 0.5 ms in this thread
     th = threading.Thread(target=work)
+    last = time.perf_counter()
     th.start()
-    while not done.is_set():
-        count += 1
+    while th.is_alive():
+        now = time.perf_counter()
+        if now - last > 5e-4:
+            pauses.append((now, now - last))
+        last = now
     th.join()
-    assert sim.time == pytest.approx(2.0)
-    # the main thread kept running Python while the loop ran in C++
-    assert count > 1000, count
+    assert sim.time == pytest.approx(20.0)
+    t0, t1 = window
+    assert t1 - t0 > 0.05, "the call is too short to tell"
+    paused = sum(min(end, t1) - max(end - d, t0) for end, d in pauses if end > t0 and end - d < t1)
+    assert paused < 0.3 * (t1 - t0), (paused, t1 - t0)
 
 
 # ---- batch runs ----
@@ -617,6 +642,7 @@ def test_simulation_description_pickles_and_runs_through_an_executor():
 @pytest.mark.parametrize("kwargs, word", [
     (dict(dt=0.0), "dt"), (dict(dt=-1e-3), "dt"), (dict(dt=np.nan), "dt"), (dict(dt="small"), "dt"),
     (dict(control_every=0), "control_every"), (dict(control_every=1.5), "control_every"),
+    (dict(control_every=2**40), "control_every"), (dict(log_every=2**31), "log_every"),
     (dict(log_every=-1), "log_every"), (dict(max_speed=0.0), "max_speed"),
     (dict(max_position=-1.0), "max_position"),
 ])
@@ -649,8 +675,12 @@ def test_add_robot_and_run_reject_bad_arguments():
     for bad in (np.nan, np.inf, "1 s", None):
         with pytest.raises(ValueError, match="t_end"):
             sim.run(bad)
-    with pytest.raises(ValueError, match="n must"):
-        sim.step(-1)
+    for bad in (-1, 10**19, 2.0, True):
+        with pytest.raises(ValueError, match="n must"):
+            sim.step(bad)
+    for bad in (True, np.nan, "1 s"):
+        with pytest.raises(ValueError, match="t_end"):
+            sim.run_paced(bad)
     sim.step(3)
     with pytest.raises(ValueError, match="before the first step"):
         sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(6) + 0.01)

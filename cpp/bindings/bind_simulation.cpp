@@ -143,7 +143,16 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def("run", [](Simulation& s, double t_end, const py::object& callback, long chunk) {
              if (chunk < 1) throw py::value_error("chunk must be >= 1");
              const long total = s.steps_until(t_end);
-             s.reserve(total);
+             try {
+               s.reserve(total);
+             } catch (const std::bad_alloc&) {
+               const long rows = s.options().log_every > 0 ? total / s.options().log_every : 0;
+               PyErr_SetString(PyExc_MemoryError,
+                               ("no memory for a log of " + std::to_string(rows) + " rows (" +
+                                std::to_string(total) + " steps); log fewer rows with log_every")
+                                   .c_str());
+               throw py::error_already_set();
+             }
              long done = 0;
              do {
                const long c = std::min(chunk, total - done);

@@ -19,9 +19,17 @@ using Arr = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 inline Arr as_array(const py::handle& obj, const char* name) {
   if (obj.is_none()) throw py::value_error(std::string(name) + " must be an array of numbers, got None");
-  // ensure() returns a null handle (with a Python error set) when numpy
-  // cannot make float64 of obj
-  Arr a = Arr::ensure(obj);
+  // real numbers only: forcecast would drop imaginary parts (with a mere
+  // warning) and call float() on arbitrary objects. ensure() returns a null
+  // handle (with a Python error set) when numpy cannot make an array of obj
+  py::array raw = py::array::ensure(obj);
+  const char kind = raw.ptr() ? raw.dtype().kind() : 'O';
+  if (!raw.ptr()) PyErr_Clear();
+  if (kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b') {
+    std::string got = kind == 'c' ? "complex" : raw.ptr() ? std::string(py::str(raw.dtype())) : "not an array";
+    throw py::value_error(std::string(name) + " must be an array of real numbers, got " + got);
+  }
+  Arr a = Arr::ensure(raw);
   if (!a.ptr()) {
     PyErr_Clear();
     throw py::value_error(std::string(name) + " must be an array of real numbers");

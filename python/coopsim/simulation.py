@@ -55,6 +55,8 @@ QUANTITIES = ("q", "qd", "qdd", "tau", "q_ref", "qd_ref", "e")
 # once it has lasted _PROGRESS_DELAY s of wall time
 _PROGRESS_MIN_STEPS = 10_000
 _PROGRESS_DELAY = 1.0
+_INT_MAX = 2**31 - 1  # the engine's int and long counters
+_LONG_MAX = 2**63 - 1
 # Excel's sheet size (rows include the header)
 _EXCEL_MAX_ROWS = 1_048_576
 
@@ -377,8 +379,8 @@ class Simulation:
             if not math.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
         for name, v, lo in (("control_every", control_every, 1), ("log_every", log_every, 0)):
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
-                raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or not lo <= v <= _INT_MAX:
+                raise ValueError(f"{name} must be an integer in {lo} .. {_INT_MAX}, got {v!r}")
         self._options = dict(dt=float(dt), control_every=int(control_every), log_every=int(log_every),
                              end_stops=bool(end_stops), max_speed=float(max_speed),
                              max_position=float(max_position))
@@ -489,8 +491,8 @@ class Simulation:
 
     def step(self, n: int = 1) -> float:
         """Advances n steps (GIL released); returns the new time (s)."""
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 0:
-            raise ValueError(f"n must be an integer >= 0, got {n!r}")
+        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or not 0 <= n <= _LONG_MAX:
+            raise ValueError(f"n must be an integer in 0 .. {_LONG_MAX}, got {n!r}")
         t0, s0, w0 = self.time, self.steps, time.perf_counter()
         try:
             self._core.advance(int(n))
@@ -665,7 +667,8 @@ class Pacer:
         """Runs `sim` up to t_end (s) paced to the wall clock; returns the statistics."""
         if not isinstance(sim, Simulation):
             raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
-        if not isinstance(t_end, (int, float, np.floating, np.integer)) or not math.isfinite(t_end):
+        if not isinstance(t_end, (int, float, np.floating, np.integer)) or isinstance(t_end, bool) \
+                or not math.isfinite(t_end):
             raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
         if max_wall_time is not None and not (math.isfinite(max_wall_time) and max_wall_time > 0):
             raise ValueError(f"max_wall_time must be > 0 s, got {max_wall_time!r}")
