@@ -686,3 +686,12 @@ def test_add_robot_and_run_reject_bad_arguments():
         sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(6) + 0.01)
     with pytest.raises(ValueError, match="robot"):
         sim.state(3)
+
+
+def test_a_log_too_large_for_memory_is_a_clear_error():
+    sim = make_sim()
+    with pytest.raises(MemoryError, match="log_every"):
+        sim.run(1e12)  # 5e15 rows
+    assert sim.steps == 0
+    log = sim.run(0.01, progress=False)  # nothing was lost or half-made
+    assert len(log) == 51
