@@ -70,7 +70,7 @@ def test_round_trip_1000_configurations_both_branches(name):
         q = random_config(robot, rng)
         T = robot.fk(q)
         sols = robot.ik_solutions(T, opening=q[5])
-        found = False
+        found = None
         for s, b in sols:
             pos, ang = pose_error(robot, s, T)
             worst = max(worst, pos, ang)
@@ -79,13 +79,11 @@ def test_round_trip_1000_configurations_both_branches(name):
             if name == "scara2":
                 assert s[1] == s[2]
             per_branch[b] = per_branch.get(b, 0) + 1
-            found = found or config_distance(robot, s, q) < 1e-9
-        assert found, f"the generating configuration {q} is not among the solutions"
+            if config_distance(robot, s, q) < 1e-9:
+                found = b
+        assert found is not None, f"the generating configuration {q} is not among the solutions"
         # explicit branch: the generating one is returned when asked for its branch
-        b = int(np.sign(q[elbow]))
-        qb = robot.ik(T, opening=q[5], branch=b, q_near=q) if name == "scara1" else None
-        if qb is not None:
-            assert config_distance(robot, qb, q) < 1e-9
+        assert config_distance(robot, robot.ik(T, opening=q[5], branch=found, q_near=q), q) < 1e-9
         # nearest to a given configuration: the generating one
         assert config_distance(robot, robot.ik(T, q_near=q), q) < 1e-9
     assert worst < 1e-9
@@ -153,8 +151,32 @@ def test_out_of_reach(name):
     T = cs.clamp_pose(robot, [2.0, 0.0, 0.3])
     with pytest.raises(cs.IKError, match="out of reach.*arm reaches"):
         robot.ik(T)
-    with pytest.raises(cs.IKError, match="unreachable"):
+    with pytest.raises(cs.IKError, match="out of reach: it is 2.0.* m from the robot's base.* no point of the robot"):
         robot.ik(T, method="numeric", restarts=3)
+    # absurdly far targets too, without overflow into a wrong reason
+    T[:2, 3] = 1e200
+    for method in ("auto", "numeric"):
+        with pytest.raises(cs.IKError, match=r"out of reach.* 1\.41421e\+200 m"):
+            robot.ik(T, method=method)
+
+
+def test_scara2_beyond_the_theta2_equal_theta3_rule():
+    # the free arm reaches near the base where theta2 = theta3 cannot:
+    # the closed form says so, 'auto' goes on with the numeric solver
+    robot = cs.robots.scara2()
+    q = np.array([0.3, 2.2, 1.8, 0.1, 0.2, 0.01])  # wrist point 0.028 m from the axis; theta2 = theta3 reaches from 0.043 m
+    T = robot.fk(q)
+    with pytest.raises(cs.IKError, match="with theta2 = theta3"):
+        robot.ik(T, method="analytic")
+    with pytest.raises(cs.IKError, match="with theta2 = theta3"):
+        robot.ik(T, branch=1)  # a branch is a closed-form notion: no fallback
+    s, info = robot.ik(T, opening=q[5], info=True)
+    assert info["method"] == "numeric" and s[1] != s[2]
+    assert max(pose_error(robot, s, T)) < 1e-9 and within_limits(robot, s)
+    # and a plan through such poses
+    q2 = q + 0.01
+    traj = cs.plan_cartesian(robot, [T, robot.fk(q2)], [0.0, 1.0], opening=[q[5], q2[5]])
+    assert max(pose_error(robot, traj.evaluate(1.0)[0], robot.fk(q2))) < 1e-9
 
 
 @pytest.mark.parametrize("name", ["scara1", "scara2"])
@@ -226,12 +248,12 @@ def test_numeric_ik_converges_on_scaras(name):
         s, info = robot.ik(T, opening=q[5], method="numeric", info=True)
         assert max(pose_error(robot, s, T)) < 1e-9
         assert within_limits(robot, s) and s[5] == q[5]  # the jaw is held
-        assert info["attempts"] <= 11
+        assert 1 <= info["attempts"] <= 11
 
 
 def test_numeric_ik_converges_on_random_6dof_robots():
     rng = np.random.default_rng(8)
-    converged, total = 0, 0
+    converged, total, restarted = 0, 0, 0
     for _ in range(25):
         robot = random_dh_robot(rng)
         assert robot.ik_kind is None
@@ -240,12 +262,18 @@ def test_numeric_ik_converges_on_random_6dof_robots():
             T = robot.fk(q)
             total += 1
             try:
-                s = robot.ik(T)
+                s, info = robot.ik(T, info=True)
             except cs.IKError:
                 continue
             converged += 1
             assert max(pose_error(robot, s, T)) < 1e-9 and within_limits(robot, s)
+            if info["attempts"] > 1:
+                # the restarts matter: the first attempt alone gets stuck here
+                restarted += 1
+                with pytest.raises(cs.IKError, match="after 1 attempts"):
+                    robot.ik(T, restarts=0)
     assert converged / total >= 0.97, f"{converged}/{total}"
+    assert restarted >= 10, restarted
 
 
 def test_numeric_ik_on_placed_robots_without_limits():
@@ -269,11 +297,20 @@ def test_numeric_ik_on_placed_robots_without_limits():
 def test_numeric_ik_fails_cleanly_on_unreachable_random_targets():
     rng = np.random.default_rng(9)
     robot = random_dh_robot(rng)
-    reach = np.abs(robot.dh[:, 1]).sum() + robot.dh[:, 2].sum() + 0.6
+    # beyond any point the robot can reach: |a| + |d| + stroke per link
+    reach = np.abs(robot.dh[:, 1:3]).sum() + sum(np.abs(robot.q_limits[i]).max()
+                                                 for i, c in enumerate(robot.joint_types) if c == "P")
     T = np.eye(4)
     T[:3, 3] = [reach + 0.5, 0.0, 0.0]
-    with pytest.raises(cs.IKError, match=r"best residual .* m, .* rad .* unreachable"):
+    with pytest.raises(cs.IKError, match="out of reach"):
         robot.ik(T, restarts=4)
+    # within that bound but off the plane of a planar arm: the solver tries, then says how close it came
+    planar = cs.Robot.from_dh(dh=[[0, 0, 1.0, 0], [0, 0, 1.0, 0]], com=[[0, 0, 0.5, 0], [0, 0, 0.5, 0]],
+                              masses=[1.0, 1.0], inertias=np.tile(np.eye(3) * 1e-2, (2, 1, 1)), joint_types="RR")
+    T = np.eye(4)
+    T[:3, 3] = [0.5, 0.5, 0.5]
+    with pytest.raises(cs.IKError, match=r"after 5 attempts: best residual 0\.5 m, .* rad .* unreachable"):
+        planar.ik(T, restarts=4, weights="position")
 
 
 def test_numeric_subset_and_locked_joints():

@@ -295,3 +295,11 @@ def test_plan_trajectory_example_runs(tmp_path):
     module.main(["--out", str(tmp_path), "--points", "3"])
     for name in ("plan_trajectory_joints.png", "plan_trajectory_path.png"):
         assert (tmp_path / name).stat().st_size > 10_000
+
+
+def test_overflowing_segments_rejected():
+    # finite knots whose cubics would overflow: refused when built, never NaN when evaluated
+    with pytest.raises(ValueError, match="segment 0 of joint 0 .* overflows"):
+        cs.CubicTrajectory([0.0, 1.0, 2.0], [[0.0], [1e308], [-1e308]])
+    with pytest.raises(ValueError, match="overflows"):
+        cs.CubicTrajectory([0.0, 1e-300, 1.0], [[0.0], [1.0], [0.0]])

@@ -99,7 +99,20 @@ py::object ik(const Robot& r, const py::object& pose_obj, const py::object& open
     o.q_near = has_near ? &q_near : nullptr;
     o.opening = opening_arg(r, opening, o.q_near);
     if (t > 0) o.tol = t;
-    const IKSolution s = analytic_ik(r, target, o);
+    IKSolution s;
+    try {
+      s = analytic_ik(r, target, o);
+    } catch (const IKError& e) {
+      // SCARA #2's theta2 = theta3 rule in the way: 'auto' asks the numeric
+      // solver for the free arm; if that fails too, the closed form's reason stands
+      if (!(e.redundancy && method == "auto" && branch.is_none())) throw;
+      try {
+        return ik(r, pose_obj, py::float_(o.opening), py::none(), q_near_obj, "numeric", py::none(), py::none(), tol,
+                  restarts, max_iterations, seed, info);
+      } catch (const IKError&) {
+        throw IKError(std::string(e.what()) + "; numeric IK with theta2 != theta3 found none either");
+      }
+    }
     if (!info) return to_numpy(s.q);
     py::dict d;
     d["method"] = kind_name(kind);
@@ -131,7 +144,8 @@ py::object ik(const Robot& r, const py::object& pose_obj, const py::object& open
     q0[5] = opening_arg(r, opening, has_near ? &q_near : nullptr);
     const Link& jaw = r.links()[5];
     if (q0[5] < jaw.q_min || q0[5] > jaw.q_max)
-      throw IKError("jaw opening d6 = " + std::to_string(q0[5]) + " m is outside its limits");
+      throw IKError("jaw opening d6 = " + std::to_string(q0[5]) + " m is outside its limits [" +
+                    std::to_string(jaw.q_min) + ", " + std::to_string(jaw.q_max) + "] m");
     o.locked.push_back(5);
   }
   NumericIKResult res;
@@ -165,7 +179,10 @@ void bind_ik(py::module_& m) {
 
 pose: (4, 4) target TCP pose in the world (as fk returns).
 method: 'auto' (closed form for the SCARA structures, see ik_kind, else
-    numeric), 'analytic' or 'numeric'.
+    numeric), 'analytic' or 'numeric'. SCARA #2's closed form keeps
+    theta2 = theta3; where that rule alone stands in the way (reach or a
+    joint limit) and no branch is asked for, 'auto' goes on with the
+    numeric solver, whose solution has theta2 != theta3.
 opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
     determine; default q_near's, else 0. The numeric solver holds it fixed.
 branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for

@@ -161,7 +161,7 @@ std::vector<Candidate> scara1_candidates(const Robot& r, const Eigen::Isometry3d
 
 // SCARA #2 through the homogeneous transforms, theta2 = theta3 = beta.
 std::vector<Candidate> scara2_candidates(const Robot& r, const Eigen::Isometry3d& T5, const VecN* q_near,
-                                         std::string& why) {
+                                         std::string& why, bool& redundancy) {
   const auto& L = r.links();
   const Eigen::Matrix3d R5 = T5.linear();
   const Eigen::Vector3d o4 = T5.translation() - R5 * back_offset(L[4]);
@@ -169,18 +169,34 @@ std::vector<Candidate> scara2_candidates(const Robot& r, const Eigen::Isometry3d
   const double c3a = std::cos(L[2].dh.alpha) > 0 ? 1.0 : -1.0;
   const double d4 = (o4.z() - (L[0].dh.d + L[1].dh.d + L[2].dh.d)) * c3a - L[3].dh.d;
   const double a1 = L[0].dh.a, a2 = L[1].dh.a, a3 = L[2].dh.a;
-  const double x = o4.x(), y = o4.y(), r2 = x * x + y * y, rr = std::sqrt(r2);
+  const double x = o4.x(), y = o4.y(), rr = std::hypot(x, y);
+  const double reach_hi = a1 + a2 + a3;
+  // the free arm (theta2 != theta3) reaches free_lo .. reach_hi
+  const double free_lo = std::max({0.0, a1 - a2 - a3, a2 - a1 - a3, a3 - a1 - a2});
+  // (checked first: r^2 below must not overflow)
+  if (!(rr <= reach_hi * (1.0 + 1e-12))) {
+    planar_error(rr, free_lo, reach_hi, "wrist point", why);
+    return {};
+  }
+  const double r2 = rr * rr;
   // |a1 + a2 e^{i b} + a3 e^{2 i b}|^2 = r^2 is quadratic in c = cos b:
   //   4 a1 a3 c^2 + 2 a2 (a1 + a3) c + (a1 - a3)^2 + a2^2 - r^2 = 0
   const double A = 4.0 * a1 * a3, B = 2.0 * a2 * (a1 + a3), C = (a1 - a3) * (a1 - a3) + a2 * a2 - r2;
   const double disc = B * B - 4.0 * A * C;
-  const double reach_hi = a1 + a2 + a3;
   // smallest reach: the parabola's vertex if inside [-1, 1], else c = -1
   const double cv = -B / (2.0 * A);
   const double reach_lo =
       cv > -1.0 ? std::sqrt(std::max(0.0, C + r2 - B * B / (4.0 * A))) : std::abs(a1 - a2 + a3);
+  // inside the free arm's reach but not with theta2 = theta3
+  auto rule_error = [&] {
+    why = "target out of reach with theta2 = theta3 (the closed form's redundancy rule): the wrist point is " +
+          num(rr) + " m from the axis of joint 1, the arm so constrained reaches " + num(reach_lo) + " .. " +
+          num(reach_hi) + " m; the free arm reaches from " + num(free_lo) +
+          " m (method='numeric' or 'auto' without a branch solves it with theta2 != theta3)";
+    redundancy = rr >= free_lo;
+  };
   if (disc < -1e-12 * B * B) {
-    planar_error(rr, reach_lo, reach_hi, "wrist point", why);
+    rule_error();
     return {};
   }
   const double sq = std::sqrt(std::max(0.0, disc));
@@ -220,7 +236,7 @@ std::vector<Candidate> scara2_candidates(const Robot& r, const Eigen::Isometry3d
       out.push_back({q, sign * (family + 1)});
     }
   }
-  if (out.empty()) planar_error(rr, reach_lo, reach_hi, "wrist point", why);
+  if (out.empty()) rule_error();
   return out;
 }
 
@@ -283,9 +299,11 @@ std::vector<IKSolution> analytic_ik_all(const Robot& robot, const Eigen::Isometr
   // frame-5 target in the base frame
   const Eigen::Isometry3d T0 = robot.base().inverse() * target;
   const Eigen::Isometry3d T5 = T0 * clamp_tool(robot, opening).inverse();
-  std::vector<Candidate> cands = kind == AnalyticKind::Scara1 ? scara1_candidates(robot, T5, opt.q_near, why)
-                                                               : scara2_candidates(robot, T5, opt.q_near, why);
-  if (cands.empty()) throw IKError(why);
+  bool redundancy = false;
+  std::vector<Candidate> cands = kind == AnalyticKind::Scara1
+                                     ? scara1_candidates(robot, T5, opt.q_near, why)
+                                     : scara2_candidates(robot, T5, opt.q_near, why, redundancy);
+  if (cands.empty()) throw IKError(why, redundancy);
 
   std::vector<IKSolution> sols;
   std::vector<std::string> failures;
@@ -294,10 +312,13 @@ std::vector<IKSolution> analytic_ik_all(const Robot& robot, const Eigen::Isometr
     if (opt.branch != 0 && c.branch != opt.branch) continue;
     c.q[5] = opening;
     std::string err;
-    for (int i = 0; i < 6 && err.empty(); ++i) err = fit_joint(robot, i, c.q[i], opt.q_near ? (*opt.q_near)[i] : 0.0);
+    int i = 0;
+    for (; i < 6 && err.empty(); ++i) err = fit_joint(robot, i, c.q[i], opt.q_near ? (*opt.q_near)[i] : 0.0);
     const std::string tag = "branch " + std::string(c.branch > 0 ? "+" : "") + std::to_string(c.branch) + ": ";
     if (!err.empty()) {
       failures.push_back(tag + err);
+      // SCARA #2: the angles 1, 2, 3 and 5 depend on the theta2 = theta3 rule
+      if (kind == AnalyticKind::Scara2 && i - 1 != 3 && i - 1 != 5) redundancy = true;
       continue;
     }
     robot.kinematics(c.q.data(), ws);
@@ -323,7 +344,8 @@ std::vector<IKSolution> analytic_ik_all(const Robot& robot, const Eigen::Isometr
                     (kind == AnalyticKind::Scara1 ? "SCARA #1 has branches +1, -1" : "SCARA #2 has branches +-1, +-2 (folded, near the base)") + ")");
     std::string msg = "no inverse kinematics solution within the limits: ";
     for (size_t i = 0; i < failures.size(); ++i) msg += (i ? "; " : "") + failures[i];
-    throw IKError(msg);
+    if (redundancy) msg += " (with theta2 = theta3; method='numeric' may find one with theta2 != theta3)";
+    throw IKError(msg, redundancy);
   }
   if (opt.q_near) {
     std::stable_sort(sols.begin(), sols.end(), [&](const IKSolution& a, const IKSolution& b) {
@@ -360,6 +382,20 @@ NumericIKResult numeric_ik(const Robot& robot, const Eigen::Isometry3d& target, 
   for (int k = 0; k < 6; ++k) W[k] = w[k] * (k < 3 ? 1.0 : opt.length);
 
   const VecN qmin = robot.q_min(), qmax = robot.q_max();
+  if (w[0] > 0 && w[1] > 0 && w[2] > 0) {
+    // no point of the robot gets further from its base than the sum of its
+    // links' offsets and strokes plus the tool's offset
+    double reach = std::max(robot.tool().offset.translation().norm(), robot.tool().second_point.norm());
+    for (int i = 0; i < n; ++i) {
+      const Link& L = robot.links()[i];
+      reach += std::abs(L.dh.a) + std::abs(L.dh.d);
+      if (L.type == JointType::Prismatic) reach += std::max(std::abs(L.q_min), std::abs(L.q_max));
+    }
+    const double dist = (robot.base().inverse() * target).translation().stableNorm();
+    if (dist > reach * (1.0 + 1e-9) + 1e-12)
+      throw IKError("target out of reach: it is " + num(dist) + " m from the robot's base, and no point of the "
+                    "robot gets further than " + num(reach) + " m (sum of link offsets, strokes and the tool)");
+  }
   // into the limits: a revolute joint first tries the same angle 2 pi k away
   // (a +-180 deg limit is no wall), then clamps
   auto project = [&](VecN& q) {
@@ -447,7 +483,7 @@ NumericIKResult numeric_ik(const Robot& robot, const Eigen::Isometry3d& target, 
       if (!improved) break;  // stuck: a local minimum or a limit
     }
     const double cost = e.squaredNorm();
-    if (cost < best_cost) {
+    if (cost < best_cost || attempt == 0) {
       best_cost = cost;
       best.q = q;
       best.position_error = pe;

@@ -108,6 +108,18 @@ void CubicTrajectory::build_() {
       c[1] = v0;
       c[2] = (3.0 * s - 2.0 * v0 - v1) / h;
       c[3] = (v0 + v1 - 2.0 * s) / (h * h);
+      // bounds of |q|, |qd|, |qdd| over the segment: finite bounds mean no
+      // evaluation can overflow into inf or NaN
+      const double a0 = std::abs(c[0]), a1 = std::abs(c[1]) * h, a2 = std::abs(c[2]) * h * h,
+                   a3 = std::abs(c[3]) * h * h * h;
+      const double bound = std::max({a0 + a1 + a2 + a3, (a1 + 2 * a2 + 3 * a3) / h, (2 * a2 + 6 * a3) / (h * h)});
+      if (!(bound < 1e300)) {
+        std::ostringstream msg;
+        msg << "segment " << k << " of joint " << j << " (t = " << times_[k] << " .. " << times_[k + 1]
+            << " s) overflows: its positions, velocities or accelerations exceed 1e300 (q_points, qd_points "
+               "or time steps out of range)";
+        fail(msg.str());
+      }
     }
   }
 }

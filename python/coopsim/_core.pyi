@@ -137,7 +137,10 @@ class Robot:
         
         pose: (4, 4) target TCP pose in the world (as fk returns).
         method: 'auto' (closed form for the SCARA structures, see ik_kind, else
-            numeric), 'analytic' or 'numeric'.
+            numeric), 'analytic' or 'numeric'. SCARA #2's closed form keeps
+            theta2 = theta3; where that rule alone stands in the way (reach or a
+            joint limit) and no branch is asked for, 'auto' goes on with the
+            numeric solver, whose solution has theta2 != theta3.
         opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
             determine; default q_near's, else 0. The numeric solver holds it fixed.
         branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for

@@ -242,7 +242,7 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
         if analytic:
             q, d = res
             if i == 0 and first_branch is None:
-                first_branch = d["branch"]
+                first_branch = d.get("branch")  # None when SCARA #2's closed form gave way to the numeric IK
         else:
             q = res
         Q[i] = q

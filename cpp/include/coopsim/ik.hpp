@@ -22,9 +22,13 @@
 namespace coopsim {
 
 // The target cannot be reached within the limits; what() says why.
+// `redundancy` is set when only a closed form's redundancy rule (SCARA #2's
+// theta2 = theta3) stands in the way: the free arm may still reach the target.
 class IKError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit IKError(const std::string& what, bool redundancy = false)
+      : std::runtime_error(what), redundancy(redundancy) {}
+  bool redundancy;
 };
 
 // Which closed-form solver fits a robot.
