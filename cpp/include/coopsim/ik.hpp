@@ -39,8 +39,13 @@ class IKError : public std::runtime_error {
 //    orientation -> theta4, theta5.
 //  Scara2: joints RRRPRP, alpha1 = alpha2 = 0, alpha3 in {0, pi}, zero theta
 //    offsets on joints 2 and 3, a4 = 0, alpha4 in {0, pi}, jaw joint 6;
-//    solved through the homogeneous transforms with the redundancy resolved
-//    by theta2 = theta3 (joint variables).
+//    solved through the homogeneous transforms (the paper's eq. 5) with the
+//    redundancy resolved by theta2 = theta3 = beta (joint variables): the
+//    target times the inverse tool and link-5 transforms gives the wrist
+//    point, whose distance from axis 1 is |a1 + a2 e^{i beta} + a3 e^{2 i beta}|,
+//    a quadratic in cos beta (two roots: the unfolded family +-1 and the
+//    folded one +-2); theta1 from its direction, d4 from its height, theta5
+//    from (A1 A2 A3 A4)^-1 times the target's rotation.
 //  Both need the tool on links 5 and 6 (clamp body and moving jaw).
 enum class AnalyticKind { None, Scara1, Scara2 };
 // The solver kind for this robot; when None, `why` (if given) says which
