@@ -33,7 +33,9 @@ def cache_dir() -> Path:
 
 
 def structure_key(s: Structure, compiler: str) -> str:
-    """Hash of everything the built library depends on: structure, generator, sympy, compiler, flags."""
+    """The cache key: a hash of the structure (joint types and the angle columns of the DH and CoM
+    tables), generator version, sympy version, compiler, flags and platform. Lengths, masses,
+    inertias, friction, gravity, base and name are not in it: the library reads them at run time."""
     text = repr((s.joint_types, s.angles, GENERATOR_VERSION, sp.__version__, compiler, _FLAGS,
                  sysconfig.get_platform()))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -53,22 +55,29 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     the joint types and the angle columns of its DH and CoM tables; lengths,
     masses, inertias, friction and gravity are read at run time, so robots
     that differ only in those share one build.
-    cache: folder for built libraries (default: ``cache_dir()``); a build is
-    reused when the hash of the structure, generator version, sympy version
-    and compiler matches. A robot pickled after compile() unpickles with its
+    cache: folder for built libraries (default: ``cache_dir()``). The cache
+    key is the structure (``structure_key``): a hash of the joint types and
+    the angle columns, with the generator version, sympy version, compiler
+    (the $CXX or g++ path), flags and platform, never the lengths, masses or
+    other run-time values. A robot with the key of an existing build reuses
+    that library (``coopsim_gen_<key>.so``); another joint type or angle
+    builds a new one. A robot pickled after compile() unpickles with its
     generated code in any process that finds the library in ``cache_dir()``
     (another `cache` folder: set COOPSIM_CACHE_DIR to it in that process).
     Returns the robot, now with ``robot.backend == "generated"``
     (``robot.set_backend("numeric")`` switches back). Raises ValueError for a
     robot that is not a coopsim.Robot, RuntimeError if the build fails.
 
-    Cost: a 6-DOF arm takes tens of seconds the first time (sympy, then g++
-    -O2), milliseconds from the cache. Closed forms win on robots with many
-    parallel or perpendicular axes (the SCARAs: about 3x the numeric path);
-    on general arms the margin is small (a PUMA-like 6R arm: about 2600
-    operations for M and h, forward dynamics about 1.2x the numeric path's
-    speed; arms with arbitrary angles can be slower than numeric): compare
-    both backends before choosing.
+    Cost of the first build of a structure, measured on a 2-core machine
+    (sympy dominates; g++ -O2 takes 2-5 s, about 20 s for general angles): a
+    6-DOF R/P arm with alpha in {0, +-pi/2, pi} 10-20 s, a PUMA-like 6R arm
+    (benchmarks/bench_codegen.py) about 19 s, 6-DOF arms with general angles
+    1.5-2 min; a cached build loads in under a millisecond. Closed forms win
+    on robots with many parallel or perpendicular axes (the SCARAs: about 3x
+    the numeric path); on general arms the margin is small (a PUMA-like 6R
+    arm: about 2600 operations for M and h, forward dynamics about 1.2x the
+    numeric path's speed; arms with arbitrary angles can be slower than
+    numeric): compare both backends before choosing.
     """
     from .. import _core
 
