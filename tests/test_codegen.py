@@ -409,6 +409,34 @@ def test_compile_cache_key_is_the_structure(tmp_path):
     _compare(r, _arm2(scale=1.3), n_states=200)
 
 
+def test_compile_rebuilds_a_damaged_cache_and_keys_the_compiler_version(tmp_path, monkeypatch):
+    import importlib
+
+    compile_module = importlib.import_module("coopsim.codegen.compile")  # the module, not the function
+
+    cxx = compile_module._compiler()
+    ident = compile_module._compiler_id(cxx)
+    key = structure_key(codegen.structure_of(_arm2(), name="robot"), ident)
+    lib = tmp_path / f"coopsim_gen_{key}.so"
+    lib.write_bytes(b"")  # a library left truncated, as by a full disk
+    r = codegen.compile(_arm2(), cache=tmp_path)
+    assert lib.stat().st_size > 0 and cs._core.generated_info(r)["name"] == f"gen_{key}"
+    _compare(r, _arm2(), n_states=50)
+    # the key holds the compiler's version line, not only its path
+    assert ident.startswith(cxx) and len(ident) > len(cxx) + 3
+    with monkeypatch.context() as m:
+        m.setattr(compile_module, "_compiler_id", lambda c: c + " 99.0")
+        s = codegen.structure_of(_arm2(), name="robot")
+        assert structure_key(s, compile_module._compiler_id(cxx)) != structure_key(s, ident)
+
+
+def test_derive_takes_any_robot_name():
+    robot = cs.Robot.from_dh(_arm2().dh, _arm2().com, _arm2().masses, _arm2().inertias, joint_types="RR",
+                             name="my-arm 2")
+    model = codegen.derive(robot)
+    assert model.M.shape == (2, 2)
+
+
 def test_friction_check_detects_wrong_friction(tmp_path):
     """The friction comparison of _compare fails on generated code whose h drops or doubles K qd
     (mutated builds of a small robot); M, C and G stay equal to the numeric ones."""

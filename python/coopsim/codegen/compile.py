@@ -48,6 +48,34 @@ def _compiler() -> str:
     return cxx
 
 
+def _compiler_id(cxx: str) -> str:
+    """The compiler's path and version line: an upgraded compiler builds anew."""
+    try:
+        res = subprocess.run([cxx, "--version"], capture_output=True, text=True, timeout=30)
+        version = res.stdout.splitlines()[0] if res.stdout else ""
+    except (OSError, subprocess.SubprocessError):
+        version = ""
+    return f"{cxx} {version}".strip()
+
+
+def _build(s: Structure, cxx: str, folder: Path, lib: Path, verbose: bool) -> None:
+    t0 = time.perf_counter()
+    text, _ = runtime_source(s, SymbolicModel(s))
+    t1 = time.perf_counter()
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
+        src = Path(tmp) / f"coopsim_{s.name}.cpp"
+        src.write_text(text, encoding="utf-8")
+        out = Path(tmp) / lib.name
+        res = subprocess.run([cxx, *_FLAGS, "-o", str(out), str(src)], capture_output=True, text=True)
+        if res.returncode != 0:
+            raise RuntimeError(f"building generated dynamics failed ({cxx}):\n{res.stderr[-4000:]}")
+        shutil.copy(src, folder / src.name)  # kept next to the library for inspection
+        os.replace(out, lib)  # atomic: concurrent builds of one key are harmless
+    if verbose:
+        print(f"coopsim.codegen: generated in {t1 - t0:.1f} s, built in {time.perf_counter() - t1:.1f} s: {lib}",
+              file=sys.stderr)
+
+
 def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = False):  # noqa: A001
     """Generates closed-form dynamics for `robot`, builds them into a shared library and attaches them.
 
@@ -58,7 +86,7 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     cache: folder for built libraries (default: ``cache_dir()``). The cache
     key is the structure (``structure_key``): a hash of the joint types and
     the angle columns, with the generator version, sympy version, compiler
-    (the $CXX or g++ path), flags and platform, never the lengths, masses or
+    (the $CXX or g++ path and its version), flags and platform, never the lengths, masses or
     other run-time values. A robot with the key of an existing build reuses
     that library (``coopsim_gen_<key>.so``); another joint type or angle
     builds a new one. A robot pickled after compile() unpickles with its
@@ -66,7 +94,8 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     (another `cache` folder: set COOPSIM_CACHE_DIR to it in that process).
     Returns the robot, now with ``robot.backend == "generated"``
     (``robot.set_backend("numeric")`` switches back). Raises ValueError for a
-    robot that is not a coopsim.Robot, RuntimeError if the build fails.
+    robot that is not a coopsim.Robot, RuntimeError if the build fails. A
+    cached library that no longer loads is built again.
 
     Cost of the first build of a structure, measured on a 2-core machine
     (sympy dominates; g++ -O2 takes 2-5 s, about 20 s for general angles): a
@@ -84,28 +113,19 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     if not isinstance(robot, _core.Robot):
         raise ValueError(f"robot must be a coopsim.Robot, got {type(robot).__name__}")
     cxx = _compiler()
-    key = structure_key(structure_of(robot, name="robot"), cxx)
+    key = structure_key(structure_of(robot, name="robot"), _compiler_id(cxx))
     s = structure_of(robot, name=f"gen_{key}")
     folder = Path(cache) if cache is not None else cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
     lib = folder / f"coopsim_{s.name}.so"
     if not lib.exists():
-        t0 = time.perf_counter()
-        text, _ = runtime_source(s, SymbolicModel(s))
-        t1 = time.perf_counter()
-        with tempfile.TemporaryDirectory(dir=folder) as tmp:
-            src = Path(tmp) / f"coopsim_{s.name}.cpp"
-            src.write_text(text, encoding="utf-8")
-            out = Path(tmp) / lib.name
-            res = subprocess.run([cxx, *_FLAGS, "-o", str(out), str(src)], capture_output=True, text=True)
-            if res.returncode != 0:
-                raise RuntimeError(f"building generated dynamics failed ({cxx}):\n{res.stderr[-4000:]}")
-            shutil.copy(src, folder / src.name)  # kept next to the library for inspection
-            os.replace(out, lib)  # atomic: concurrent builds of one key are harmless
-        if verbose:
-            print(f"coopsim.codegen: generated in {t1 - t0:.1f} s, built in {time.perf_counter() - t1:.1f} s: {lib}",
-                  file=sys.stderr)
-    name = _core.load_generated_library(str(lib))
+        _build(s, cxx, folder, lib, verbose)
+    try:
+        name = _core.load_generated_library(str(lib))
+    except ValueError:
+        # a damaged cached library (e.g. truncated by a full disk): build it again, once
+        _build(s, cxx, folder, lib, verbose)
+        name = _core.load_generated_library(str(lib))
     _core.attach_builtin_generated(robot, name)
     robot.set_backend("generated")
     return robot

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
+from sympy.printing.precedence import precedence
 
 from .symbolic import SymbolicModel, _cse_ops
 
@@ -49,6 +50,14 @@ class _Printer(C99CodePrinter):
         if e == sp.S.Half:
             return f"std::sqrt({self._print(b)})"
         raise ValueError(f"unexpected power in generated code: {expr}")
+
+    def _print_Mul(self, expr):
+        # a coefficient of exactly +-1.0 (from a float structural constant) is no multiplication
+        c, rest = expr.as_coeff_Mul()
+        if c.is_Float and abs(float(c)) == 1.0 and rest != 1:
+            body = self.parenthesize(rest, precedence(expr))
+            return body if float(c) > 0 else f"-{body}"
+        return super()._print_Mul(expr)
 
     def _print_Rational(self, expr):
         return repr(float(expr))
@@ -129,8 +138,14 @@ def _body(model: SymbolicModel, outputs, names, kdefs, kappa_cse, out_cse):
     for sym, e in temps:
         lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
+    # an output equal to an earlier one (M's mirror entries) is copied from it
+    first = {}
     for (target, _), e in zip(outputs, exprs):
         red = out_cse.reduced[e]
+        if not red.is_Number and red in first:
+            lines.append(f"  {target} = {first[red]};")
+            continue
+        first.setdefault(red, target)
         lines.append(f"  {target} = {printer.doprint(red)};")
         ops += int(sp.count_ops(red))
     return "\n".join(lines), ops

@@ -32,6 +32,7 @@ general arms, where that expansion grows, the Jacobian products are kept.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -607,5 +608,7 @@ def derive(structure_or_robot) -> SymbolicModel:
     """Symbolic model of a Structure or a coopsim.Robot (M, C, C_matrix, G, friction are lazy)."""
     s = structure_or_robot
     if not isinstance(s, Structure):
-        s = structure_of(s)
+        # no C++ is written here: any robot name will do
+        name = re.sub(r"\W", "_", s.name, flags=re.ASCII) or "robot"
+        s = structure_of(s, name=name if not name[0].isdigit() else "_" + name)
     return SymbolicModel(s)
