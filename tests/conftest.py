@@ -20,12 +20,26 @@ def random_inertia(rng: np.random.Generator, mass: float) -> np.ndarray:
     return 0.5 * (I + I.T)
 
 
-def random_robot(seed: int, dof: int | None = None, friction: bool = True, **kw) -> cs.Robot:
-    """A random serial robot: mixed R/P joints, random DH and CoM rows,
-    masses in [0.2, 5] kg, random valid inertias, random base placement."""
+def random_robot(seed: int, dof: int | None = None, friction: bool = True, mixed: bool = False,
+                 **kw) -> cs.Robot:
+    """A random serial robot: R/P joints drawn 0.7/0.3, random DH and CoM rows,
+    masses in [0.2, 5] kg, random valid inertias, random base placement.
+    mixed=True: 2 to 7 joints (unless dof is given, >= 2) with at least one
+    R and one P joint; mixed=False keeps the robots other tests rely on."""
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(1, 8)) if dof is None else dof
-    types = "".join(rng.choice(["R", "P"], size=n, p=[0.7, 0.3]))
+    if mixed:
+        n = int(rng.integers(2, 8)) if dof is None else dof
+        if n < 2:
+            raise ValueError("a mixed R/P robot needs dof >= 2")
+        types = list(rng.choice(["R", "P"], size=n, p=[0.7, 0.3]))
+        # an all-R or all-P draw gets one joint of the other kind, at a random place
+        if len(set(types)) == 1:
+            i = int(rng.integers(n))
+            types[i] = "P" if types[i] == "R" else "R"
+        types = "".join(types)
+    else:
+        n = int(rng.integers(1, 8)) if dof is None else dof
+        types = "".join(rng.choice(["R", "P"], size=n, p=[0.7, 0.3]))
     dh = np.column_stack([rng.uniform(-np.pi, np.pi, n), rng.uniform(-0.3, 0.3, n),
                           rng.uniform(-0.4, 0.4, n), rng.uniform(-np.pi, np.pi, n)])
     com = np.column_stack([rng.uniform(-np.pi, np.pi, n), rng.uniform(-0.2, 0.2, n),
@@ -36,6 +50,15 @@ def random_robot(seed: int, dof: int | None = None, friction: bool = True, **kw)
     return cs.Robot.from_dh(dh, com, masses, inertias, joint_types=types, friction=K,
                             base_position=rng.uniform(-1, 1, 3), base_yaw=float(rng.uniform(-3, 3)),
                             name=f"random{seed}", **kw)
+
+
+#: the random fleet of the dynamics and energy tests: each robot has 2 to 7
+#: joints, both R and P
+FLEET_SEEDS = range(60)
+
+
+def random_fleet(**kw) -> list[cs.Robot]:
+    return [random_robot(s, mixed=True, **kw) for s in FLEET_SEEDS]
 
 
 def random_state(robot: cs.Robot, rng: np.random.Generator):

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import coopsim as cs
+from conftest import random_robot
 
 R1 = cs.robots.scara1(backend="numeric")
 Q = np.zeros(6)
@@ -186,6 +187,43 @@ def test_fuzz_robot_methods(method, robot, args):
     check_output(out)
 
 
+def step_overflows(robot, q, qd, tau, dt, method):
+    """Whether a step from valid arguments overflows: the RK4 or semi-implicit
+    Euler step (end stops included) computed here from forward_dynamics meets
+    a value that is not finite. rk4_step and euler_step return such a state
+    with NaN or inf instead of raising (e.g. euler_step with qd = 1e154,
+    rk4_step with a friction K = 1e80): those inputs are left out for them."""
+    try:
+        q, qd, tau = (np.asarray(v, dtype=float) for v in (q, qd, tau))
+        dt = float(dt)
+    except (TypeError, ValueError):
+        return False
+    if any(v.shape != (robot.dof,) or not np.all(np.isfinite(v)) for v in (q, qd, tau)) or not 0 < dt < np.inf:
+        return False
+
+    def f(x, v):
+        return robot.forward_dynamics(x, v, tau + robot.end_stop_torques(x, v))
+
+    try:
+        with np.errstate(over="raise", invalid="raise"):
+            if method == "euler":
+                qd1 = qd + dt * f(q, qd)
+                q1 = q + dt * qd1
+            else:
+                k1 = f(q, qd)
+                k2 = f(q + 0.5 * dt * qd, qd + 0.5 * dt * k1)
+                v2 = qd + 0.5 * dt * k1
+                k3 = f(q + 0.5 * dt * v2, qd + 0.5 * dt * k2)
+                v3 = qd + 0.5 * dt * k2
+                k4 = f(q + dt * v3, qd + dt * k3)
+                v4 = qd + dt * k3
+                q1 = q + dt / 6 * (qd + 2 * v2 + 2 * v3 + v4)
+                qd1 = qd + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    except (ValueError, FloatingPointError):
+        return True
+    return not (np.all(np.isfinite(q1)) and np.all(np.isfinite(qd1)))
+
+
 good_vec = hnp.arrays(np.float64, 6, elements=st.floats(-1e3, 1e3))
 maybe_bad = st.one_of(good_vec, anything)
 
@@ -195,9 +233,12 @@ maybe_bad = st.one_of(good_vec, anything)
        dt=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(2e-4)),
        link=st.integers(-10, 10), point=maybe_bad)
 def test_fuzz_steps_and_jacobians(robot, q, qd, tau, dt, link, point):
-    for call in (lambda: cs.rk4_step(robot, q, qd, tau, dt), lambda: cs.euler_step(robot, q, qd, tau, dt),
-                 lambda: robot.jacobian(q, link, point),
-                 lambda: cs.integrate(robot, q, qd, tau, dt=dt, steps=3)):
+    calls = [lambda: robot.jacobian(q, link, point), lambda: cs.integrate(robot, q, qd, tau, dt=dt, steps=3)]
+    if not step_overflows(robot, q, qd, tau, dt, "rk4"):
+        calls.append(lambda: cs.rk4_step(robot, q, qd, tau, dt))
+    if not step_overflows(robot, q, qd, tau, dt, "euler"):
+        calls.append(lambda: cs.euler_step(robot, q, qd, tau, dt))
+    for call in calls:
         try:
             out = call()
         except (ValueError, TypeError):
@@ -221,3 +262,309 @@ def test_fuzz_robot_construction(dh, com, masses, inertias, types):
         check_output(r.mass_matrix(q))
     except ValueError:
         pass
+
+
+# ---- fuzzing of the remaining entry points: a valid, finite result or a -----
+# ValueError (IKError is one), nothing else. Each example takes valid
+# arguments and spoils up to two of them: array arguments with anything
+# (NaN, inf, huge, wrong shapes, wrong types), scalars with any value of
+# their own Python type (any float, any C int, any text). With nothing
+# spoiled the call must succeed.
+
+def valid_or_value_error(call):
+    """The call's result, or None when it raised ValueError; any other
+    exception fails the test."""
+    try:
+        return call()
+    except ValueError:
+        return None
+
+
+def draw_arguments(data, good, bad, max_spoiled=2):
+    """Keyword arguments from the `good` strategies, except up to
+    `max_spoiled` of them drawn from `bad`; returns (arguments, spoiled names)."""
+    spoiled = data.draw(st.sets(st.sampled_from(sorted(bad)), max_size=max_spoiled), label="spoiled")
+    return {k: data.draw(bad[k] if k in spoiled else good[k], label=k) for k in good}, spoiled
+
+
+any_float = st.floats(allow_nan=True, allow_infinity=True, width=64)
+c_int = st.integers(-2**31, 2**31 - 1)
+# names without the characters XML 1.0 cannot hold (control characters, lone
+# surrogates): to_urdf writes those into invalid XML
+xml_text = st.text(st.characters(blacklist_categories=("Cc", "Cs")) | st.sampled_from("\t\n\r"), max_size=8)
+
+
+def finite_floats(lo, hi):
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def rigid_poses(draw):
+    """A valid (4, 4) rigid transform: rotation from a random quaternion."""
+    v = draw(hnp.arrays(np.float64, 4, elements=finite_floats(-1, 1)).filter(lambda v: np.linalg.norm(v) > 0.1))
+    w, x, y, z = v / np.linalg.norm(v)
+    T = np.eye(4)
+    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                 [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                 [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+    T[:3, 3] = draw(hnp.arrays(np.float64, 3, elements=finite_floats(-2, 2)))
+    return T
+
+
+def vectors(n, lo=-10.0, hi=10.0):
+    return hnp.arrays(np.float64, n, elements=finite_floats(lo, hi))
+
+
+poses = st.one_of(rigid_poses(), anything)
+vec3 = st.one_of(vectors(3), anything)
+# sizes up to 1e300 m: two spheres whose radii add up beyond the largest
+# double give a contact of depth -inf
+sizes = st.one_of(finite_floats(-1e300, 1e300), st.sampled_from([np.nan, np.inf, -np.inf]))
+
+
+@settings(max_examples=100, deadline=None)
+@given(robot=st.sampled_from(ROBOTS), rows=st.integers(0, 5), data=st.data())
+def test_fuzz_forward_dynamics_batch(robot, rows, data):
+    good = {k: vectors((rows, robot.dof)) for k in ("q", "qd", "tau")}
+    good["threads"] = st.integers(0, 4)
+    bad = {k: anything for k in ("q", "qd", "tau")}
+    bad["threads"] = c_int
+    args, spoiled = draw_arguments(data, good, bad)
+    out = valid_or_value_error(lambda: cs.forward_dynamics_batch(robot, **args))
+    assert out is not None or spoiled - {"threads"}
+    if out is not None:
+        # every row is the single-state forward dynamics
+        check_output(out)
+        assert out.shape == (len(args["q"]), robot.dof)
+        for row, (q, qd, tau) in enumerate(zip(args["q"], args["qd"], args["tau"])):
+            np.testing.assert_array_equal(out[row], robot.forward_dynamics(q, qd, tau))
+
+
+@settings(max_examples=100, deadline=None)
+@given(kinds=st.lists(st.sampled_from(["box", "sphere", "set_pose", "read"]), max_size=6), data=st.data())
+def test_fuzz_collision_world(kinds, data):
+    world = cs.CollisionWorld()
+    shapes = []  # (kind, size, pose, name) of the shapes added
+    for kind in kinds:
+        some_id = st.integers(0, max(len(shapes) - 1, 0))
+        if kind in ("box", "sphere"):
+            size = vectors(3, 0.01, 2) if kind == "box" else finite_floats(0.01, 2)
+            bad_size = st.one_of(hnp.arrays(np.float64, 3, elements=sizes), anything) if kind == "box" else sizes
+            args, spoiled = draw_arguments(data, {"size": size, "pose": rigid_poses(), "name": xml_text},
+                                           {"size": bad_size, "pose": anything}, max_spoiled=1)
+            add = world.add_box if kind == "box" else world.add_sphere
+            i = valid_or_value_error(lambda: add(args["size"], args["pose"], args["name"]))
+            assert i is not None or spoiled
+            if i is not None:
+                assert i == len(shapes) and len(world) == len(shapes) + 1
+                # unnamed shapes are named by their id
+                shapes.append((kind, args["size"], args["pose"], args["name"] or f"shape{i}"))
+                np.testing.assert_array_equal(world.pose(i), args["pose"])
+        elif kind == "set_pose":
+            args, spoiled = draw_arguments(data, {"id": some_id, "pose": rigid_poses()},
+                                           {"id": c_int, "pose": anything}, max_spoiled=1)
+            if valid_or_value_error(lambda: world.set_pose(args["id"], args["pose"]) or True):
+                np.testing.assert_array_equal(world.pose(args["id"]), args["pose"])
+                shapes[args["id"]] = shapes[args["id"]][:2] + (args["pose"],) + shapes[args["id"]][3:]
+            else:
+                assert spoiled or not shapes
+        else:
+            i = data.draw(st.one_of(some_id, c_int), label="id")
+            name = valid_or_value_error(lambda: world.name(i))
+            assert (name is not None) == (0 <= i < len(shapes))
+            if name is not None:
+                assert name == shapes[i][3]
+        assert len(world) == len(shapes)
+    contacts = world.contacts()
+    for c in contacts:
+        assert 0 <= c.a < len(shapes) and 0 <= c.b < len(shapes) and c.a != c.b
+        check_output((c.depth, c.normal, c.point_a, c.point_b))
+    # between spheres the depth is the centres' distance less the radii, and
+    # every pair that overlaps is reported
+    found = {frozenset((c.a, c.b)): c for c in contacts}
+    spheres = [i for i, sh in enumerate(shapes) if sh[0] == "sphere"]
+    for k, i in enumerate(spheres):
+        for j in spheres[k + 1:]:
+            distance = np.linalg.norm(shapes[i][2][:3, 3] - shapes[j][2][:3, 3])
+            depth = distance - shapes[i][1] - shapes[j][1]
+            scale = max(1.0, distance + shapes[i][1] + shapes[j][1])  # round-off of the sizes
+            if depth < -1e-6 * scale:
+                assert frozenset((i, j)) in found
+            if frozenset((i, j)) in found:
+                assert found[frozenset((i, j))].depth == pytest.approx(depth, abs=1e-9 * scale)
+
+
+@settings(max_examples=100, deadline=None)
+@given(robot=st.sampled_from(ROBOTS), data=st.data())
+def test_fuzz_with_base(robot, data):
+    args, spoiled = draw_arguments(data, {"position": vectors(3), "yaw": finite_floats(-10, 10)},
+                                   {"position": anything, "yaw": any_float})
+    moved = valid_or_value_error(lambda: robot.with_base(**args))
+    assert moved is not None or spoiled
+    if moved is None:
+        return
+    position, yaw = args["position"], args["yaw"]
+    np.testing.assert_array_equal(moved.base_position, position)
+    assert moved.base_yaw == yaw
+    # the same robot placed elsewhere: its TCP pose is the placement times the unplaced one
+    T = valid_or_value_error(lambda: moved.fk(np.zeros(6)))
+    assert T is not None or spoiled
+    if T is not None:
+        check_output(T)
+        B = np.eye(4)
+        B[:3, :3] = [[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]]
+        B[:3, 3] = position
+        unplaced = robot.with_base(np.zeros(3), 0.0).fk(np.zeros(6))
+        np.testing.assert_allclose(T, B @ unplaced, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(position).max()))
+
+
+def check_urdf(robot, name=None):
+    """to_urdf's text parses as XML and carries the name and the masses."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(cs.to_urdf(robot, name))
+    assert root.get("name") == (name or robot.name)
+    got = [float(m.get("value")) for m in root.iter("mass")]
+    np.testing.assert_array_equal(got, robot.masses)
+
+
+@settings(max_examples=100, deadline=None)
+@given(robot=st.sampled_from(ROBOTS), name=st.one_of(st.none(), xml_text))
+def test_fuzz_to_urdf_names(robot, name):
+    check_urdf(robot, name)
+
+
+@settings(max_examples=150, deadline=None)
+@given(make=st.sampled_from([cs.robots.scara1, cs.robots.scara2]), data=st.data())
+def test_fuzz_scara_keywords(make, data):
+    defaults = cs.robots.SCARA1_DEFAULTS if make is cs.robots.scara1 else cs.robots.SCARA2_DEFAULTS
+    keys = data.draw(st.sets(st.sampled_from(sorted(defaults)), max_size=4), label="dimensions")
+    good = {k: finite_floats(0.005, 1.0) for k in keys}
+    bad = {k: st.one_of(any_float, st.text(max_size=4), arrays, st.none(), st.lists(any_float, max_size=2))
+           for k in keys}
+    good |= dict(masses=st.one_of(st.none(), vectors(6, 0.01, 10)), friction=st.one_of(st.none(), vectors(6, 0, 5)),
+                 base_position=vectors(3), base_yaw=finite_floats(-10, 10), gravity=vectors(3),
+                 backend=st.sampled_from(["generated", "numeric"]))
+    bad |= dict(masses=anything, friction=anything, base_position=anything, base_yaw=any_float, gravity=anything,
+                backend=st.one_of(st.text(max_size=4), st.none()))
+    args, spoiled = draw_arguments(data, good, bad)
+    r = valid_or_value_error(lambda: make(**args))
+    assert r is not None or spoiled
+    if r is None:
+        return
+    for key in keys:
+        assert r.dimensions[key] == float(args[key]) and np.isfinite(r.dimensions[key]) and r.dimensions[key] > 0
+    assert np.all(np.isfinite(r.masses)) and np.all(r.masses > 0)
+    q = np.array([0.1, 0.2, 0.1, 0.3, 0.4, 0.01])
+    for call in (lambda: r.fk(q), lambda: r.mass_matrix(q), lambda: r.gravity(q),
+                 lambda: r.forward_dynamics(q, np.ones(6), np.zeros(6))):
+        out = valid_or_value_error(call)
+        if out is not None:
+            check_output(out)
+
+
+@st.composite
+def limit_pairs(draw, n):
+    lo = draw(vectors(n, -5, 4.9))
+    return np.column_stack([lo, lo + draw(vectors(n, 0.01, 5))])
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.data())
+def test_fuzz_robot_construction_arguments(data):
+    good = dict(friction=st.one_of(st.none(), vectors(2, 0, 5)), q_limits=st.one_of(st.none(), limit_pairs(2)),
+                tau_limits=st.one_of(st.none(), vectors(2, 0.1, 100)), gravity=vectors(3), base_position=vectors(3),
+                base_yaw=finite_floats(-10, 10),
+                tool=st.one_of(st.none(), rigid_poses(),
+                               st.tuples(st.sampled_from([1, 2, -1, -2]), rigid_poses(), st.sampled_from([-1, 1, 2]),
+                                         vectors(3, -1, 1))),
+                name=xml_text, end_stop_frequency=finite_floats(0, 1e3), end_stop_damping_ratio=finite_floats(0, 5))
+    bad = dict(friction=anything, q_limits=st.one_of(anything, hnp.arrays(np.float64, (2, 2), elements=any_float)),
+               tau_limits=anything, gravity=anything, base_position=anything, base_yaw=any_float,
+               tool=st.one_of(anything, st.tuples(c_int, poses, c_int, vec3)), end_stop_frequency=any_float,
+               end_stop_damping_ratio=any_float)
+    args, spoiled = draw_arguments(data, good, bad)
+    if isinstance(args["tool"], tuple):  # a Tool(link, offset, second_link, second_point)
+        tool = valid_or_value_error(lambda: cs.Tool(*args["tool"]))
+        assert tool is not None or "tool" in spoiled
+        if tool is None:
+            return
+        args["tool"] = tool
+    r = valid_or_value_error(lambda: cs.Robot.from_dh(**good_tables(), **args))
+    assert r is not None or spoiled
+    if r is None:
+        return
+    assert r.name == args["name"] and r.base_yaw == args["base_yaw"]
+    assert np.all(r.friction_coefficients >= 0) and np.all(r.tau_limits > 0)
+    assert np.all(r.q_limits[:, 0] < r.q_limits[:, 1])
+    check_urdf(r)
+    q = np.array([0.2, 0.1])
+    calls = [lambda: r.fk(q), lambda: r.tool_jacobian(q), lambda: r.gravity(q),
+             lambda: r.inverse_dynamics(q, np.ones(2), np.ones(2))]
+    # a step from beyond a limit, with the end stops
+    beyond = np.minimum(r.q_limits[:, 1] + 0.01, 1e3)
+    if not step_overflows(r, beyond, np.ones(2), np.zeros(2), 2e-4, "rk4"):
+        calls.append(lambda: cs.rk4_step(r, beyond, np.ones(2), np.zeros(2), 2e-4))
+    for call in calls:
+        out = valid_or_value_error(call)
+        assert out is not None or spoiled
+        if out is not None:
+            check_output(out)
+
+
+def rotation_angle(R):
+    return np.arccos(np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0))
+
+
+IK_ROBOTS = ROBOTS + [random_robot(3, dof=6)]
+
+
+@settings(max_examples=150, deadline=None)
+@given(robot=st.sampled_from(IK_ROBOTS), data=st.data())
+def test_fuzz_ik(robot, data):
+    n, lim = robot.dof, robot.q_limits
+    lo, hi = np.maximum(lim[:, 0], -3), np.minimum(lim[:, 1], 3)
+    inside = vectors(n, 0, 1).map(lambda u: lo + u * (hi - lo))
+    scara = robot.ik_kind is not None
+    # mostly reachable targets: the pose of a configuration within the limits
+    good = dict(pose=st.one_of(inside.map(robot.fk), rigid_poses()),
+                opening=st.one_of(st.none(), finite_floats(0, 0.05)) if scara else st.none(),
+                branch=st.sampled_from([None, 1, -1] + ([2, -2] if robot.ik_kind == "scara2" else []))
+                if scara else st.none(),
+                q_near=st.one_of(st.none(), inside),
+                method=st.sampled_from(["auto", "analytic", "numeric"] if scara else ["auto", "numeric"]),
+                tol=st.one_of(st.none(), finite_floats(1e-12, 1e-3)),
+                restarts=st.integers(0, 2), max_iterations=st.integers(1, 40), seed=st.integers(0, 2**32 - 1),
+                info=st.booleans())
+    # counts above the good range are valid but only make a failing search long
+    bad = dict(pose=anything, opening=any_float, branch=st.one_of(c_int, any_float, st.text(max_size=2)),
+               q_near=anything, method=st.text(max_size=3), weights=st.one_of(anything, st.text(max_size=3)),
+               locked=st.lists(st.integers(-8, 8), max_size=3), tol=any_float,
+               restarts=st.integers(-2**31, 2), max_iterations=st.integers(-2**31, 40))
+    good["weights"] = st.just(None)
+    good["locked"] = st.just(None)
+    args, spoiled = draw_arguments(data, good, bad)
+    if args["method"] == "numeric" or (args["method"] == "auto" and not scara):
+        # the numeric solver's own options, valid ones unless spoiled
+        if "weights" not in spoiled:
+            args["weights"] = data.draw(st.one_of(st.none(), st.sampled_from(["pose", "position"]),
+                                                  vectors(6, 0, 2).filter(lambda w: w.max() > 0.1)))
+        if "locked" not in spoiled:
+            args["locked"] = data.draw(st.one_of(st.none(), st.lists(st.integers(0, n - 1), max_size=2)))
+    out = valid_or_value_error(lambda: robot.ik(**args))
+    if out is None:
+        return
+    q, details = out if args["info"] else (out, {})
+    assert q.shape == (n,) and isinstance(details, dict)
+    check_output(q)
+    # a returned configuration lies within the limits and reaches the target
+    # to the accepted residual (the weighted components)
+    assert np.all(q >= lim[:, 0]) and np.all(q <= lim[:, 1])
+    weights = args["weights"]
+    if weights is None or isinstance(weights, str):
+        accepted = 10 * (args["tol"] if args["tol"] is not None else 1e-9)
+        T, pose = robot.fk(q), args["pose"]
+        assert np.linalg.norm(T[:3, 3] - pose[:3, 3]) <= accepted
+        if weights != "position":
+            # arccos loses half the digits near 0
+            assert rotation_angle(T[:3, :3].T @ pose[:3, :3]) <= max(accepted, 1e-7)

@@ -12,11 +12,10 @@ import numpy as np
 import pytest
 
 import coopsim as cs
-from conftest import random_robot, random_state
+from conftest import FLEET_SEEDS, random_fleet, random_robot, random_state
 
 H = 1e-6
 FD_TOL = 1e-7
-RANDOM_SEEDS = range(60)
 
 
 def pendulum(m=1.3, L=0.7, lc=0.4, Izz=0.05, g=9.81):
@@ -87,14 +86,25 @@ def test_planar_two_link_arm_matches_textbook(rng):
 def all_robots():
     yield cs.robots.scara1(backend="numeric")
     yield cs.robots.scara2(backend="numeric")
-    for s in RANDOM_SEEDS:
-        yield random_robot(s)
-    yield random_robot(1000, dof=6)
-    yield random_robot(1001, dof=12)
+    yield from random_fleet()
+    yield random_robot(1000, dof=6, mixed=True)
+    yield random_robot(1001, dof=12, mixed=True)
 
 
 ROBOTS = list(all_robots())
 IDS = [r.name for r in ROBOTS]
+
+
+def test_random_fleet_has_fifty_mixed_robots():
+    """Every invariant below runs on at least 50 random robots, each with
+    both revolute and prismatic joints (2 to 7 of them)."""
+    fleet = [r for r in ROBOTS if r.name in {f"random{s}" for s in FLEET_SEEDS}]
+    assert len(fleet) >= 50
+    for r in fleet:
+        assert 2 <= r.dof <= 7 and "R" in r.joint_types and "P" in r.joint_types, r.name
+    # and they are different robots: DH tables and joint strings vary
+    assert len({r.dh.tobytes() for r in fleet}) == len(fleet)
+    assert len({r.joint_types for r in fleet}) >= 20
 
 
 @pytest.fixture(params=range(len(ROBOTS)), ids=IDS)
@@ -209,18 +219,54 @@ def test_jacobians_equal_finite_differences(robot, rng):
         np.testing.assert_allclose(Jt[3:, j], rotation_rate(Tp[:3, :3], Tm[:3, :3], T[:3, :3]), atol=FD_TOL)
 
 
+def rotation_log(R):
+    """Rotation vector (axis times angle, angle < pi) of the rotation matrix R."""
+    v = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s, c = np.linalg.norm(v), 0.5 * (np.trace(R) - 1.0)
+    return v if s == 0.0 else v * (np.arctan2(s, c) / s)
+
+
+def tool_displacement(robot, q_plus, q_minus):
+    """TCP motion from pose q_minus to q_plus: position change and rotation
+    vector (world frame), from forward kinematics alone."""
+    Tp, Tm = robot.fk(q_plus), robot.fk(q_minus)
+    return np.concatenate([Tp[:3, 3] - Tm[:3, 3], rotation_log(Tp[:3, :3] @ Tm[:3, :3].T)])
+
+
+def tool_jacobian_fd(robot, q):
+    """Tool Jacobian (6, n) by central differences of fk, independent of the
+    engine's Jacobians."""
+    return np.column_stack([tool_displacement(robot, q + H * e, q - H * e) / (2 * H) for e in np.eye(robot.dof)])
+
+
 def test_tool_wrench_balanced_at_rest(robot, rng):
-    """With tau = G - J^T F the robot stays at rest under the wrench F."""
+    """With tau = G - J^T F, J from finite differences of the TCP pose, the
+    robot stays at rest under the TCP wrench F; and F does on the TCP the
+    virtual work the engine's joint torques J^T F do on the joints.
+
+    Tolerance: J_fd has truncation error ~h^2 and round-off ~eps |x| / h,
+    ~1e-9 relative here, so 1e-6 of the size of the terms that cancel."""
     q, _, _ = random_state(robot, rng)
-    zero = np.zeros(robot.dof)
+    n = robot.dof
+    zero = np.zeros(n)
     F = rng.normal(size=6) * 3
-    J = robot.tool_jacobian(q)
-    np.testing.assert_allclose(robot.external_torques(q, F), J.T @ F, rtol=0, atol=1e-13)
+    J = tool_jacobian_fd(robot, q)
     tau = robot.gravity(q) - J.T @ F
     qdd = robot.forward_dynamics(q, zero, tau, f_ext=F)
-    assert np.abs(qdd).max() <= 1e-10 * max(1.0, np.abs(tau).max())
-    np.testing.assert_allclose(robot.inverse_dynamics(q, zero, zero, f_ext=F), tau, rtol=0,
-                               atol=1e-12 * max(1.0, np.abs(tau).max()))
+    # the torque left unbalanced, M qdd = (J - J_fd)^T F
+    residual = robot.mass_matrix(q) @ qdd
+    scale = (np.abs(J.T) @ np.abs(F)).max()
+    assert np.abs(residual).max() <= 1e-6 * scale
+    back = robot.inverse_dynamics(q, zero, zero, f_ext=F)
+    assert np.abs(back - tau).max() <= 1e-6 * scale
+    # virtual work over a small joint displacement 2 dq (central), in which
+    # the TCP moves by dx: F . dx = (J^T F) . 2 dq up to O(|dq|^3)
+    for _ in range(3):
+        dq = rng.normal(size=n) * 1e-6
+        dx = tool_displacement(robot, q + dq, q - dq)
+        work = F @ dx
+        joint_work = robot.external_torques(q, F) @ (2 * dq)
+        assert abs(work - joint_work) <= 1e-6 * (np.abs(F) @ (np.abs(J) @ np.abs(2 * dq)))
 
 
 def test_wrench_at_any_point_of_any_link(robot, rng):

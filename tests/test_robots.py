@@ -67,6 +67,124 @@ def test_dimensions_change_tables_and_mass_properties(make):
     np.testing.assert_array_equal(r2.masses, np.full(6, 0.5))
 
 
+# ---- every dimension keyword, against the documented box model ------------
+
+# link i is a uniform box of its length along its own axis x robot width x
+# link height (x, y, z edges in its CoM frame); the jaw a jaw_length x width x
+# jaw_thickness plate (robots.md, the robots module's docstring)
+BOXES = {
+    "scara1": [("L1", "width", "height"), ("L2", "width", "height"), ("width", "height", "quill_length"),
+               ("width", "height", "L4"), ("L5", "width", "height"), ("jaw_length", "width", "jaw_thickness")],
+    "scara2": [("L1", "width", "height"), ("L2", "width", "height"), ("L3", "width", "height"),
+               ("width", "height", "quill_length"), ("width", "height", "L5"),
+               ("jaw_length", "width", "jaw_thickness")],
+}
+# table entries (table, row, column, factor) that equal factor * keyword; DH
+# columns are [theta, d, a, alpha]; a CoM sits halfway along its link, the
+# quill's CoM half its length above the tip, the jaw's at half its length and
+# half its thickness
+TABLE_ENTRIES = {
+    "scara1": {"L_base": [("dh", 0, 1, 1.0), ("com", 0, 1, 1.0)], "L1": [("dh", 0, 2, 1.0), ("com", 0, 2, 0.5)],
+               "L2": [("dh", 1, 2, 1.0), ("com", 1, 2, 0.5)], "L4": [("dh", 3, 1, 1.0), ("com", 3, 1, 0.5)],
+               "L5": [("dh", 4, 2, 1.0), ("com", 4, 2, 0.5)], "quill_length": [("com", 2, 1, -0.5)],
+               "jaw_length": [("com", 5, 2, 0.5)], "jaw_thickness": [("com", 5, 1, 0.5)],
+               "width": [], "height": []},
+    "scara2": {"L_base": [("dh", 0, 1, 1.0), ("com", 0, 1, 1.0)], "L1": [("dh", 0, 2, 1.0), ("com", 0, 2, 0.5)],
+               "L2": [("dh", 1, 2, 1.0), ("com", 1, 2, 0.5)], "L3": [("dh", 2, 2, 1.0), ("com", 2, 2, 0.5)],
+               "L5": [("dh", 4, 1, 1.0), ("com", 4, 1, 0.5)], "quill_length": [("com", 3, 1, -0.5)],
+               "jaw_length": [("com", 5, 2, 0.5)], "jaw_thickness": [("com", 5, 1, 0.5)],
+               "width": [], "height": []},
+}
+# the TCP is halfway along the jaws: (frame, axis) along which the jaws extend
+JAW_DIRECTION = {"scara1": (5, 0), "scara2": (5, 1)}
+KEYWORD_CASES = [(name, key) for name in ("scara1", "scara2") for key in TABLE_ENTRIES[name]]
+
+
+def solid_box_inertia(m, lx, ly, lz):
+    return m / 12.0 * np.diag([ly**2 + lz**2, lx**2 + lz**2, lx**2 + ly**2])
+
+
+def translated(frames, shifts):
+    out = frames.copy()
+    out[:, :3, 3] += shifts
+    return out
+
+
+def test_keyword_table_covers_every_dimension():
+    # a new keyword must be added to the model above
+    assert set(TABLE_ENTRIES["scara1"]) == set(cs.robots.SCARA1_DEFAULTS)
+    assert set(TABLE_ENTRIES["scara2"]) == set(cs.robots.SCARA2_DEFAULTS)
+    for name, defaults in (("scara1", cs.robots.SCARA1_DEFAULTS), ("scara2", cs.robots.SCARA2_DEFAULTS)):
+        assert {k for box in BOXES[name] for k in box} <= set(defaults)
+
+
+@pytest.mark.parametrize("name,key", KEYWORD_CASES, ids=[f"{n}-{k}" for n, k in KEYWORD_CASES])
+def test_each_dimension_keyword_changes_tables_mass_properties_and_geometry(name, key):
+    make = getattr(cs.robots, name)
+    r0 = make(backend="numeric")
+    v0 = r0.dimensions[key]
+    v = 1.3 * v0
+    r = make(backend="numeric", **{key: v})
+    assert r.dimensions == {**r0.dimensions, key: v}
+    # tables: the listed entries follow the keyword, nothing else moves
+    dh, com = r0.dh.copy(), r0.com.copy()
+    for table, i, j, factor in TABLE_ENTRIES[name][key]:
+        (dh if table == "dh" else com)[i, j] = factor * v
+    np.testing.assert_allclose(r.dh, dh, rtol=1e-14, atol=0)
+    np.testing.assert_allclose(r.com, com, rtol=1e-14, atol=0)
+    # boxes, masses at constant density, box inertias about the CoM
+    boxes = np.array([[r.dimensions[k] for k in box] for box in BOXES[name]])
+    boxes0 = np.array([[r0.dimensions[k] for k in box] for box in BOXES[name]])
+    np.testing.assert_array_equal(r.link_boxes, boxes)
+    masses = r0.masses * boxes.prod(axis=1) / boxes0.prod(axis=1)
+    np.testing.assert_allclose(r.masses, masses, rtol=1e-14, atol=0)
+    for i in range(6):
+        np.testing.assert_allclose(r.inertias[i], solid_box_inertia(masses[i], *boxes[i]), rtol=1e-14, atol=0)
+        # links whose box does not hold the keyword keep mass and inertia exactly
+        if key not in BOXES[name][i]:
+            assert r.masses[i] == r0.masses[i]
+            np.testing.assert_array_equal(r.inertias[i], r0.inertias[i])
+        else:
+            assert r.masses[i] != r0.masses[i]
+    # limits, actuators and friction do not depend on the dimensions
+    np.testing.assert_array_equal(r.q_limits, r0.q_limits)
+    np.testing.assert_array_equal(r.tau_limits, r0.tau_limits)
+    np.testing.assert_array_equal(r.friction_coefficients, r0.friction_coefficients)
+    # geometry at random poses: a d of DH row i moves frames i+1.. by the change
+    # along z_i, an a along x_{i+1}; a CoM row moves its CoM frame the same
+    # way; the jaw length moves the TCP by half the change along the jaws
+    rng = np.random.default_rng(4)
+    delta = v - v0
+    for _ in range(5):
+        q = rng.uniform(r0.q_limits[:, 0], r0.q_limits[:, 1])
+        F0, C0, T0 = r0.frames(q), r0.com_frames(q), r0.fk(q)
+        shift = np.zeros((7, 3))
+        com_shift = np.zeros((6, 3))
+        for table, i, j, factor in TABLE_ENTRIES[name][key]:
+            if table == "dh":
+                axis = F0[i, :3, 2] if j == 1 else F0[i + 1, :3, 0]
+                shift[i + 1:] += factor * delta * axis
+            else:
+                axis = F0[i, :3, 2] if j == 1 else C0[i, :3, 0]
+                com_shift[i] += factor * delta * axis
+        com_shift += shift[:6]
+        tcp_shift = shift[6].copy()
+        if key == "jaw_length":
+            frame, axis = JAW_DIRECTION[name]
+            tcp_shift += 0.5 * delta * F0[frame, :3, axis]
+        # round-off of positions of order 1 m
+        np.testing.assert_allclose(r.frames(q), translated(F0, shift), rtol=0, atol=1e-14)
+        np.testing.assert_allclose(r.com_frames(q), translated(C0, com_shift), rtol=0, atol=1e-14)
+        np.testing.assert_allclose(r.fk(q), translated(T0[None], tcp_shift)[0], rtol=0, atol=1e-14)
+    # the dynamics see it, except a base height: a vertical shift changes neither M nor G
+    q = np.array([0.3, -0.4, 0.1, 0.2, 0.5, 0.02])
+    if key == "L_base":
+        np.testing.assert_allclose(r.mass_matrix(q), r0.mass_matrix(q), rtol=1e-14, atol=1e-15)
+        np.testing.assert_allclose(r.gravity(q), r0.gravity(q), rtol=1e-14, atol=1e-14)
+    else:
+        assert not np.allclose(r.mass_matrix(q), r0.mass_matrix(q), rtol=1e-9, atol=0)
+
+
 def test_base_height_keyword_moves_the_arm():
     r = cs.robots.scara1(L_base=0.5, backend="numeric")
     assert r.fk(np.zeros(6))[2, 3] == pytest.approx(0.5 - 0.05)

@@ -87,7 +87,10 @@ def test_urdf_carries_same_parameters(robot):
 
 @pytest.mark.parametrize("robot", ROBOTS, ids=[r.name for r in ROBOTS])
 def test_urdf_chain_reproduces_frames_and_coms(robot):
-    root = ET.fromstring(robot.to_urdf())
+    assert_chain_reproduces(robot, ET.fromstring(robot.to_urdf()))
+
+
+def assert_chain_reproduces(robot, root):
     rng = np.random.default_rng(1)
     for _ in range(5):
         lim = robot.q_limits
@@ -115,6 +118,68 @@ def test_dimension_keyword_changes_urdf():
     x0 = float(base.find("joint[@name='joint2']/origin").get("xyz").split()[0])
     x1 = float(longer.find("joint[@name='joint2']/origin").get("xyz").split()[0])
     assert (x0, x1) == (pytest.approx(0.30), pytest.approx(0.40))
+
+
+def urdf_inertial(root, i):
+    inertial = root.find(f"link[@name='link{i}']/inertial")
+    I = inertial.find("inertia")
+    tensor = np.array([[float(I.get("ixx")), float(I.get("ixy")), float(I.get("ixz"))],
+                       [float(I.get("ixy")), float(I.get("iyy")), float(I.get("iyz"))],
+                       [float(I.get("ixz")), float(I.get("iyz")), float(I.get("izz"))]])
+    return float(inertial.find("mass").get("value")), tensor, origin(inertial)
+
+
+def urdf_joint(root, name):
+    j = root.find(f"joint[@name='{name}']")
+    lim = j.find("limit")
+    limits = None if lim is None else tuple(float(lim.get(k)) for k in ("lower", "upper", "effort"))
+    return origin(j), limits, float(j.find("dynamics").get("damping")) if j.find("dynamics") is not None else None
+
+
+URDF_KEYWORD_CASES = [("scara1", k) for k in ("L_base", "L1", "L2", "L4", "L5", "quill_length", "jaw_thickness",
+                                             "width")] + \
+                     [("scara2", k) for k in ("L1", "L3", "L5", "quill_length", "jaw_length", "height")]
+
+
+@pytest.mark.parametrize("name,key", URDF_KEYWORD_CASES, ids=[f"{n}-{k}" for n, k in URDF_KEYWORD_CASES])
+def test_dimension_keywords_reach_every_urdf_element(name, key):
+    """The URDF of a robot with one dimension changed carries that robot's
+    masses, inertias, joint origins and limits, which differ from the default
+    robot's exactly where the box model and the DH/CoM tables say."""
+    from test_robots import BOXES, TABLE_ENTRIES
+
+    make = getattr(cs.robots, name)
+    r0 = make()
+    r = make(**{key: 1.3 * r0.dimensions[key]})
+    root, root0 = ET.fromstring(r.to_urdf()), ET.fromstring(r0.to_urdf())
+    # with zero theta offsets and d = 0 on the P rows, link i's frame at q = 0
+    # is DH frame i-1, so joint i's origin is frame i-2 -> frame i-1
+    assert np.all(r.dh[:, 0] == 0) and np.all(r.dh[[c == "P" for c in r.joint_types], 1] == 0)
+    F = r.frames(np.zeros(6))
+    dh_rows = {i for table, i, _, _ in TABLE_ENTRIES[name][key] if table == "dh"}
+    com_rows = {i for table, i, _, _ in TABLE_ENTRIES[name][key] if table == "com"}
+    for i in range(1, 7):
+        m, I, C = urdf_inertial(root, i)
+        m0, I0, C0 = urdf_inertial(root0, i)
+        assert m == r.masses[i - 1]
+        np.testing.assert_array_equal(I, r.inertias[i - 1])
+        # constant density: mass and inertia change iff the link's box holds the keyword
+        in_box = key in BOXES[name][i - 1]
+        assert (m != m0, not np.array_equal(I, I0)) == (in_box, in_box)
+        # the CoM (inertial origin, in the link frame) moves iff its CoM row does
+        assert (not np.allclose(C, C0, rtol=0, atol=1e-12)) == (i - 1 in com_rows)
+        T, limits, damping = urdf_joint(root, f"joint{i}")
+        T0, limits0, damping0 = urdf_joint(root0, f"joint{i}")
+        expected = np.eye(4) if i == 1 else np.linalg.inv(F[i - 2]) @ F[i - 1]
+        np.testing.assert_allclose(T, expected, rtol=0, atol=1e-14)   # rpy round trip of order-1 values
+        # joint i's origin holds the constant part of DH row i-1
+        assert (not np.allclose(T, T0, rtol=0, atol=1e-12)) == (i - 2 in dh_rows)
+        # limits, efforts and damping do not depend on the dimensions
+        assert limits == (*r.q_limits[i - 1], r.tau_limits[i - 1]) == limits0
+        assert damping == r.friction_coefficients[i - 1] == damping0
+    T, _, _ = urdf_joint(root, "flange_fixed")
+    np.testing.assert_allclose(T, np.linalg.inv(F[5]) @ F[6], rtol=0, atol=1e-14)
+    assert_chain_reproduces(r, root)
 
 
 def test_rpy_round_trip():
