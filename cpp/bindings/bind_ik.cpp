@@ -51,9 +51,7 @@ int branch_arg(const py::object& b, AnalyticKind kind) {
 // The jaw opening the analytic solvers (and the numeric one on a SCARA) use.
 double opening_arg(const Robot& r, const py::object& opening, const VecN* q_near) {
   if (!opening.is_none()) {
-    const double o = opening.cast<double>();
-    if (!std::isfinite(o)) throw py::value_error("opening must be finite");
-    return o;
+    return scalar_arg(opening, "opening");
   }
   if (q_near) return (*q_near)[5];
   const Link& jaw = r.links()[5];
@@ -87,8 +85,8 @@ py::object ik(const Robot& r, const py::object& pose_obj, const py::object& open
     throw py::value_error("no closed-form IK for this robot: " + why + " (use method='numeric')");
   if (kind == AnalyticKind::None && !opening.is_none())
     throw py::value_error("opening applies to the SCARA clamps only (joint 6 of RRPRRP / RRRPRP robots)");
-  const double t = tol.is_none() ? -1.0 : tol.cast<double>();
-  if (!tol.is_none() && !(t > 0 && std::isfinite(t))) throw py::value_error("tol must be finite and > 0");
+  const double t = tol.is_none() ? -1.0 : scalar_arg(tol, "tol");
+  if (!tol.is_none() && !(t > 0)) throw py::value_error("tol must be > 0");
 
   const bool analytic = method == "analytic" || (method == "auto" && kind != AnalyticKind::None);
   if (analytic) {
@@ -131,11 +129,11 @@ py::object ik(const Robot& r, const py::object& pose_obj, const py::object& open
   if (restarts < 0) throw py::value_error("restarts must be >= 0");
   if (max_iterations < 1) throw py::value_error("max_iterations must be >= 1");
   if (!locked.is_none()) {
+    if (py::isinstance<py::str>(locked) || !py::isinstance<py::iterable>(locked))
+      throw py::value_error("locked must be a sequence of joint indices");
     for (auto item : locked) {
-      const int i = item.cast<int>();
-      if (i < -n || i >= n)
-        throw py::value_error("locked joint index " + std::to_string(i) + " out of range for " + std::to_string(n) + " joints");
-      o.locked.push_back(i < 0 ? i + n : i);
+      const long i = index_arg(item, "locked joint index", -n, n - 1);
+      o.locked.push_back(static_cast<int>(i < 0 ? i + n : i));
     }
   }
   VecN q0 = has_near ? q_near : default_start(r);
@@ -214,8 +212,8 @@ joint limit, an orientation the structure cannot take, a singular target.)doc");
          }
          o.opening = opening_arg(r, opening, o.q_near);
          if (!tol.is_none()) {
-           o.tol = tol.cast<double>();
-           if (!(o.tol > 0 && std::isfinite(o.tol))) throw py::value_error("tol must be finite and > 0");
+           o.tol = scalar_arg(tol, "tol");
+           if (!(o.tol > 0)) throw py::value_error("tol must be > 0");
          }
          const auto sols = analytic_ik_all(r, pose(pose_obj, "pose"), o);
          py::list out;

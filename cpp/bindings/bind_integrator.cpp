@@ -29,7 +29,8 @@ py::tuple step(const Robot& r, const py::object& q, const py::object& qd, const 
   Workspace ws;
   if (method == Method::RK4) rk4_step(r, ws, qv, qdv, tv.data(), tep, dt, end_stops);
   else euler_step(r, ws, qv, qdv, tv.data(), tep, dt, end_stops);
-  return py::make_tuple(to_numpy(qv), to_numpy(qdv));
+  const char* what = method == Method::RK4 ? "rk4_step" : "euler_step";
+  return py::make_tuple(checked(qv, what), checked(qdv, what));
 }
 
 Method method_of(const std::string& s) {
@@ -91,7 +92,8 @@ Returns (t (m,), q (m, n), qd (m, n)) with every record_every-th state, the
 first and the last included. Raises RuntimeError naming the step if the state
 stops being finite.)doc");
   m.def("forward_dynamics_batch", [](const Robot& r, const py::object& Q, const py::object& QD,
-                                     const py::object& TAU, int threads) {
+                                     const py::object& TAU, const py::object& threads_obj) {
+         const int threads = static_cast<int>(index_arg(threads_obj, "threads", 0, 4096));
          const int n = r.dof();
          Arr q = array(Q, {-1, n}, "q");
          const py::ssize_t N = q.shape(0);

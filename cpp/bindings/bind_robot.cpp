@@ -15,6 +15,9 @@ namespace {
 JointType joint_type(char c, int k) {
   if (c == 'R' || c == 'r') return JointType::Revolute;
   if (c == 'P' || c == 'p') return JointType::Prismatic;
+  if (static_cast<unsigned char>(c) >= 128)
+    throw py::value_error("joint_types must be letters 'R' or 'P' only (a non-ASCII character at byte " +
+                          std::to_string(k) + ")");
   throw py::value_error("joint_types[" + std::to_string(k) + "] must be 'R' or 'P', got '" + std::string(1, c) +
                         "'");
 }
@@ -39,6 +42,7 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
   const int n = static_cast<int>(D.shape(0));
   if (n < 1 || n > kMaxDof)
     throw py::value_error("dh must have 1 to " + std::to_string(kMaxDof) + " rows, got " + std::to_string(n));
+  for (size_t k = 0; k < joint_types.size(); ++k) joint_type(joint_types[k], static_cast<int>(k));  // letters first
   if (static_cast<int>(joint_types.size()) != n)
     throw py::value_error("joint_types must have one letter per DH row: expected " + std::to_string(n) +
                           ", got " + std::to_string(joint_types.size()));

@@ -37,6 +37,35 @@ inline Arr as_array(const py::handle& obj, const char* name) {
   return a;
 }
 
+// One finite real number (a Python or numpy scalar, or a 0-d array).
+inline double scalar_arg(const py::handle& obj, const char* name) {
+  if (obj.is_none() || py::isinstance<py::str>(obj))
+    throw py::value_error(std::string(name) + " must be a real number");
+  py::array raw = py::array::ensure(obj);
+  if (!raw.ptr()) PyErr_Clear();
+  if (!raw.ptr() || raw.ndim() != 0) throw py::value_error(std::string(name) + " must be a real number");
+  const char kind = raw.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b')
+    throw py::value_error(std::string(name) + " must be a real number, got " + std::string(py::str(raw.dtype())));
+  const double v = Arr::ensure(raw).data()[0];
+  if (!std::isfinite(v)) throw py::value_error(std::string(name) + " must be finite (got NaN or inf)");
+  return v;
+}
+
+// An integer (Python int or numpy integer) in [lo, hi].
+inline long index_arg(const py::handle& obj, const char* name, long lo, long hi) {
+  const std::string range = " in " + std::to_string(lo) + " .. " + std::to_string(hi);
+  if (PyBool_Check(obj.ptr()) || !PyIndex_Check(obj.ptr()))
+    throw py::value_error(std::string(name) + " must be an integer" + range);
+  int overflow = 0;
+  py::object idx = py::reinterpret_steal<py::object>(PyNumber_Index(obj.ptr()));
+  if (!idx) throw py::error_already_set();
+  const long v = PyLong_AsLongAndOverflow(idx.ptr(), &overflow);
+  if (overflow || v < lo || v > hi)
+    throw py::value_error(std::string(name) + " must be an integer" + range + ", got " + std::string(py::repr(obj)));
+  return v;
+}
+
 inline std::string shape_str(const Arr& a) {
   std::ostringstream s;
   s << "(";

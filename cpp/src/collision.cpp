@@ -9,6 +9,9 @@ namespace coopsim {
 
 namespace {
 
+constexpr double kMinSize = 1e-4, kMaxSize = 1e4;  // m: shape sizes Bullet handles well
+constexpr double kMaxDistance = 1e6;               // m: positions from the world origin
+
 btTransform to_bt(const Eigen::Isometry3d& T) {
   const Eigen::Matrix3d& R = T.linear();
   btMatrix3x3 b(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2));
@@ -28,6 +31,7 @@ Eigen::Vector3d from_bt(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(
 
 void check_pose(const Eigen::Isometry3d& T) {
   if (!T.matrix().allFinite()) throw std::invalid_argument("pose must be finite");
+  if (T.translation().norm() > kMaxDistance) throw std::invalid_argument("pose must lie within 1e6 m of the origin");
   const Eigen::Matrix3d R = T.linear();
   if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || R.determinant() <= 0)
     throw std::invalid_argument("pose must be a rigid transform (orthonormal rotation)");
@@ -74,15 +78,18 @@ void CollisionWorld::check_id_(int id) const {
 
 int CollisionWorld::add_box(const Eigen::Vector3d& half_extents, const Eigen::Isometry3d& pose,
                             const std::string& name) {
-  if (!half_extents.allFinite() || (half_extents.array() <= 0).any())
-    throw std::invalid_argument("half_extents must be finite and > 0 m");
+  // Bullet's collision margins and tolerances are absolute: sizes far from
+  // a metre lose contacts or report wrong depths
+  if (!half_extents.allFinite() || (half_extents.array() < kMinSize).any() || (half_extents.array() > kMaxSize).any())
+    throw std::invalid_argument("half_extents must be in 1e-4 .. 1e4 m");
   auto shape = std::make_unique<btBoxShape>(btVector3(half_extents.x(), half_extents.y(), half_extents.z()));
   shape->setMargin(0.0);
   return impl_->add(std::move(shape), pose, name);
 }
 
 int CollisionWorld::add_sphere(double radius, const Eigen::Isometry3d& pose, const std::string& name) {
-  if (!std::isfinite(radius) || radius <= 0) throw std::invalid_argument("radius must be finite and > 0 m");
+  if (!std::isfinite(radius) || radius < kMinSize || radius > kMaxSize)
+    throw std::invalid_argument("radius must be in 1e-4 .. 1e4 m");
   return impl_->add(std::make_unique<btSphereShape>(radius), pose, name);
 }
 

@@ -626,8 +626,12 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
   } else {
     ok = solve_spd(M, rhs, qdd);
   }
-  if (!ok)
+  if (!ok) {
+    if (!M.allFinite() || !rhs.allFinite())
+      throw std::domain_error("forward_dynamics: the mass matrix or the forces overflow for this state (values out "
+                              "of range?)");
     throw std::domain_error("forward_dynamics: mass matrix is not positive definite for this q (values out of range?)");
+  }
 }
 
 namespace {

@@ -682,7 +682,7 @@ def euler_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt:
     """
     One semi-implicit Euler step (qd first, then q with the new qd). Returns (q, qd).
     """
-def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> numpy.typing.NDArray[numpy.float64]:
+def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float64]:
     """
     Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n); GIL released, split over `threads` threads (0: all cores).
     """

@@ -75,8 +75,10 @@ def _check_dims(dims: dict, defaults: dict, name: str) -> dict:
     out = dict(defaults)
     for key, value in dims.items():
         try:
+            if isinstance(value, (bool, complex)) or np.iscomplexobj(value):
+                raise TypeError
             v = float(value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ValueError(f"{key} must be a number in metres, got {value!r}") from None
         if not math.isfinite(v) or v <= 0:
             raise ValueError(f"{key} must be finite and > 0 m, got {value!r}")
@@ -87,7 +89,13 @@ def _check_dims(dims: dict, defaults: dict, name: str) -> dict:
 def _masses(boxes, default_boxes, default_masses, masses, n):
     """Masses at constant density (volume ratio), or the given ones."""
     if masses is not None:
-        m = np.asarray(masses, dtype=float)
+        try:
+            raw = np.asarray(masses)
+            if raw.dtype.kind not in "biuf":
+                raise TypeError
+            m = raw.astype(float)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"masses must be an array of {n} real numbers in kg, got {masses!r}") from None
         if m.shape != (n,):
             raise ValueError(f"wrong shape for masses: expected ({n},), got {m.shape}")
         return m
@@ -102,6 +110,8 @@ def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backen
     if backend not in ("generated", "numeric"):
         raise ValueError(f"backend must be 'generated' or 'numeric', got {backend!r}")
     d = _check_dims(dims, spec["defaults"], spec["name"])
+    if isinstance(base_yaw, (bool, str, complex)) or np.ndim(base_yaw) != 0:
+        raise ValueError(f"base_yaw must be a number in radians, got {base_yaw!r}")
     dh, com, boxes, tool = spec["geometry"](d)
     boxes0 = spec["geometry"](spec["defaults"])[2]
     n = len(spec["types"])

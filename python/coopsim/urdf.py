@@ -4,17 +4,22 @@ Layout: a fixed ``world`` link; ``base_link`` (DH frame 0) fixed to it at the
 robot's base placement; then for each joint i a link ``link<i>`` whose frame
 is DH frame i-1 moved by joint i alone (Rz(q_i) or Tz(q_i)), so the joint
 axis is z in every joint frame. The constant part of DH row i-1 becomes the
-origin of joint i. The last DH row and the tool centre point (at q = 0 of the
-jaw) appear as fixed frames ``flange`` and ``tool0``.
+origin of joint i. The last DH row appears as the fixed frame ``flange``.
+The tool centre point has no URDF frame: on the SCARAs it lies midway
+between two jaws on two links, so no single link carries it.
 """
 from __future__ import annotations
 
 import math
+import re
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 __all__ = ["to_urdf", "rpy_from_matrix"]
+
+# characters XML 1.0 does not allow (control characters, surrogates, U+FFFE/F)
+_XML_ILLEGAL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 
 
 def rpy_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
@@ -61,7 +66,9 @@ def to_urdf(robot, name: str | None = None) -> str:
     dh, com, masses, inertias = robot.dh, robot.com, robot.masses, robot.inertias
     types = robot.joint_types
     qlim, taulim, K = robot.q_limits, robot.tau_limits, robot.friction_coefficients
-    rname = name or robot.name
+    rname = name if name is not None and name != "" else robot.name
+    if not isinstance(rname, str) or _XML_ILLEGAL.search(rname):
+        raise ValueError(f"name must be a string of characters allowed in XML, got {rname!r}")
     out = ['<?xml version="1.0"?>', f"<robot name={quoteattr(rname)}>", '  <link name="world"/>',
            '  <link name="base_link"/>',
            '  <joint name="base_fixed" type="fixed">', '    <parent link="world"/>',
