@@ -1,6 +1,9 @@
 """Shared fixtures: the built-in robots and random serial robots."""
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -85,3 +88,31 @@ def scara(request) -> cs.Robot:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+def python_paused_during(call):
+    """Runs call() in a worker thread while this thread keeps running Python.
+    Returns (length of the call, time this thread stood still during it), in
+    s. A call that holds the GIL stops this thread for about its whole length;
+    one that releases it, for a small part (the GIL hand-overs)."""
+    window = []
+
+    def work():
+        t0 = time.perf_counter()
+        call()
+        window.extend([t0, time.perf_counter()])
+
+    pauses = []  # (end, length) of every pause over 0.5 ms in this thread
+    th = threading.Thread(target=work)
+    last = time.perf_counter()
+    th.start()
+    while th.is_alive():
+        now = time.perf_counter()
+        if now - last > 5e-4:
+            pauses.append((now, now - last))
+        last = now
+    th.join()
+    assert window, "the call raised"
+    t0, t1 = window
+    paused = sum(min(end, t1) - max(end - d, t0) for end, d in pauses if end > t0 and end - d < t1)
+    return t1 - t0, paused

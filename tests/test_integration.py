@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import coopsim as cs
-from conftest import FLEET_SEEDS, random_robot
+from conftest import FLEET_SEEDS, python_paused_during, random_robot
 
 DT = 2e-4
 
@@ -223,3 +223,14 @@ def test_divergence_is_reported_with_the_step():
         cs.integrate(cs.Robot.from_dh(r.dh, r.com, r.masses, r.inertias, r.joint_types, q_limits=r.q_limits,
                                       end_stop_frequency=1e5), q0, np.zeros(6), np.zeros(6), dt=0.05,
                      steps=200)
+
+
+def test_batch_forward_dynamics_releases_the_gil():
+    robot = cs.robots.scara1()
+    rng = np.random.default_rng(2)
+    N = 400_000
+    Q = rng.uniform(robot.q_limits[:, 0], robot.q_limits[:, 1], (N, 6))
+    QD, TAU = rng.normal(size=(N, 6)), rng.normal(size=(N, 6))
+    length, paused = python_paused_during(lambda: cs.forward_dynamics_batch(robot, Q, QD, TAU, threads=1))
+    assert length > 0.05, "the call is too short to tell"
+    assert paused < 0.3 * length, (paused, length)

@@ -7,13 +7,13 @@ import functools
 import multiprocessing
 import os
 import pickle
-import threading
 import time
 
 import numpy as np
 import pytest
 
 import coopsim as cs
+from conftest import python_paused_during
 
 DT = 2e-4
 
@@ -507,32 +507,13 @@ def test_progress_bar_by_default_only_on_long_runs(capsys, monkeypatch):
 
 @pytest.mark.parametrize("how", ["run", "step"])
 def test_run_releases_the_gil(how):
-    # while the C++ loop runs in a worker thread, this thread keeps running
-    # Python: its pauses add up to a small part of the call (a held GIL would
-    # stop it for the whole call, or for every 4096-step chunk of run)
+    # while the C++ loop runs, another thread keeps running Python (a held GIL
+    # would stop it for the whole call, or for every 4096-step chunk of run)
     sim = make_sim(log_every=0)
-    window = []
-
-    def work():
-        t0 = time.perf_counter()
-        sim.run(20.0, progress=False) if how == "run" else sim.step(100_000)
-        window.extend([t0, time.perf_counter()])
-
-    pauses = []  # (end, length) of every pause over 0.5 ms in this thread
-    th = threading.Thread(target=work)
-    last = time.perf_counter()
-    th.start()
-    while th.is_alive():
-        now = time.perf_counter()
-        if now - last > 5e-4:
-            pauses.append((now, now - last))
-        last = now
-    th.join()
+    length, paused = python_paused_during(lambda: sim.run(20.0, progress=False) if how == "run" else sim.step(100_000))
     assert sim.time == pytest.approx(20.0)
-    t0, t1 = window
-    assert t1 - t0 > 0.05, "the call is too short to tell"
-    paused = sum(min(end, t1) - max(end - d, t0) for end, d in pauses if end > t0 and end - d < t1)
-    assert paused < 0.3 * (t1 - t0), (paused, t1 - t0)
+    assert length > 0.05, "the call is too short to tell"
+    assert paused < 0.3 * length, (paused, length)
 
 
 # ---- batch runs ----
