@@ -194,8 +194,9 @@ locked: numeric only: joint indices held at their start value.
 tol: accepted residual (m and rad): closed form 1e-9, numeric 1e-10.
 restarts, max_iterations, seed: numeric Levenberg-Marquardt from q_near
     (or mid-limits), then from `restarts` random points within the limits.
-info: also return a dict (method, branch, position_error m,
-    orientation_error rad, iterations, attempts).
+info: also return a dict: method ('scara1' or 'scara2' for the closed
+    forms, 'numeric'), branch (closed forms), position_error (m),
+    orientation_error (rad), iterations and attempts (numeric).
 Every result is checked by forward kinematics and lies within the joint
 limits; otherwise IKError (a ValueError) says why: out of reach, which
 joint limit, an orientation the structure cannot take, a singular target.)doc");

@@ -205,14 +205,20 @@ torques between controller updates, the log and tracking metrics.)doc")
          std::vector<Simulation*> ptrs;
          for (py::handle h : sims) ptrs.push_back(h.cast<Simulation*>());
          std::vector<std::exception_ptr> errs;
+         std::vector<double> seconds;
          {
            py::gil_scoped_release nogil;
-           errs = run_batch(ptrs, t_end, threads);
+           errs = run_batch(ptrs, t_end, threads, &seconds);
          }
          py::list out;
-         for (auto& e : errs) out.append(e ? exception_object(e) : py::none());
-         return out;
+         py::list secs;
+         for (size_t i = 0; i < errs.size(); ++i) {
+           out.append(errs[i] ? exception_object(errs[i]) : py::none());
+           secs.append(seconds[i]);
+         }
+         return py::make_tuple(out, secs);
        }, py::arg("sims"), py::arg("t_end"), py::arg("threads") = 0,
        "Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. "
-       "Returns one entry per simulation: None, or the exception that stopped it.");
+       "Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time "
+       "(s) its run took.");
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -356,7 +357,8 @@ void Simulation::advance(long n) {
   }
 }
 
-std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads) {
+std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads,
+                                          std::vector<double>* seconds) {
   const int N = static_cast<int>(sims.size());
   for (int i = 0; i < N; ++i) {
     if (!sims[i]) throw std::invalid_argument("sims must not contain None");
@@ -373,16 +375,19 @@ std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, 
   }
   if (!std::isfinite(t_end)) throw std::invalid_argument("t_end must be finite");
   std::vector<std::exception_ptr> errors(N);
+  if (seconds) seconds->assign(N, 0.0);
   if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = std::max(1, std::min(threads, N));
   std::atomic<int> next{0};
   auto work = [&]() {
     for (int i = next++; i < N; i = next++) {
+      const auto start = std::chrono::steady_clock::now();
       try {
         sims[i]->advance(sims[i]->steps_until(t_end));
       } catch (...) {
         errors[i] = std::current_exception();
       }
+      if (seconds) (*seconds)[i] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
   };
   if (threads == 1) {

@@ -154,8 +154,9 @@ class Robot:
         tol: accepted residual (m and rad): closed form 1e-9, numeric 1e-10.
         restarts, max_iterations, seed: numeric Levenberg-Marquardt from q_near
             (or mid-limits), then from `restarts` random points within the limits.
-        info: also return a dict (method, branch, position_error m,
-            orientation_error rad, iterations, attempts).
+        info: also return a dict: method ('scara1' or 'scara2' for the closed
+            forms, 'numeric'), branch (closed forms), position_error (m),
+            orientation_error (rad), iterations and attempts (numeric).
         Every result is checked by forward kinematics and lies within the joint
         limits; otherwise IKError (a ValueError) says why: out of reach, which
         joint limit, an orientation the structure cannot take, a singular target.
@@ -712,8 +713,8 @@ def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: t
     """
     One classic RK4 step of dt seconds (default 0.2 ms) under joint torques tau (n,) held constant, plus optional external joint torques tau_ext (n,). Returns (q, qd), each (n,).
     """
-def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> list:
+def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[list, list]:
     """
-    Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. Returns one entry per simulation: None, or the exception that stopped it.
+    Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time (s) its run took.
     """
 build_optimised: bool = True

@@ -208,6 +208,7 @@ class Simulation {
 // (0: hardware concurrency). Simulations must be distinct and must not share
 // controller instances. Returns one exception per simulation (null when it
 // finished), so that one failed run does not stop the others.
-std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads);
+std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads,
+                                          std::vector<double>* seconds = nullptr);
 
 }  // namespace coopsim
