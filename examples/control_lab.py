@@ -69,7 +69,8 @@ def main():
               f"{sim.stats.real_time_factor:>11.0f}")
 
     pid_log = sims["PID + gravity compensation"].log
-    fig = plot_log(pid_log, title="SCARA #1 under PID: joints (solid) and reference (dashed)")
+    fig = plot_log(pid_log, title="SCARA #1 under PID: joints (solid) and reference (dashed)",
+                   joint_types=robot.joint_types)
     fig.savefig(os.path.join(args.out, "control_lab_pid.png"), dpi=90)
     plt.close(fig)
 

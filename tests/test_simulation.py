@@ -283,6 +283,13 @@ def test_plot_log_draws_one_panel_per_joint_with_dashed_references():
         assert len(fig.axes) == 2 and len(fig.axes[1].get_lines()) == 1
     finally:
         plt.close(fig)
+    # with the joint types, each panel names its joint and unit
+    for quantity, labels in (("q", ["θ1 (rad)", "d3 (m)"]), ("tau", ["tau θ1 (N m)", "tau d3 (N)"])):
+        fig = log.plot(quantity=quantity, joints=[0, 2], joint_types="RRPRRP")
+        try:
+            assert [ax.get_ylabel() for ax in fig.axes] == labels
+        finally:
+            plt.close(fig)
     with pytest.raises(ValueError, match="quantity"):
         plot_log(log, quantity="force")
 

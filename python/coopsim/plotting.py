@@ -18,14 +18,16 @@ _LOG_LABELS = {
 }
 
 
-def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, title=None):
+def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, title=None, joint_types=None):
     """Joints of one robot against time, one panel per joint.
 
     log: a SimulationLog (or one robot's RobotLog). quantity: 'q', 'qd'
     (drawn with the reference dashed), 'qdd', 'tau' or 'error'. joints:
     indices (from 0) to draw, default all. axes: a sequence of as many
     matplotlib Axes, default a new figure with one column of panels sharing
-    the time axis. Revolute joints are in rad, prismatic ones in m.
+    the time axis. Revolute joints are in rad, prismatic ones in m;
+    joint_types (e.g. robot.joint_types, "RRPRRP") labels each panel with
+    its joint's name and unit (θ1 (rad), d3 (m), ...).
     """
     import matplotlib.pyplot as plt
 
@@ -50,11 +52,16 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
             raise ValueError(f"axes must hold {len(joints)} Axes, one per joint, got {len(axes)}")
         fig = axes[0].figure
     name, unit = _LOG_LABELS[quantity]
+    names, units = _joint_labels(n, joint_types)
     for ax, j in zip(axes, joints):
         ax.plot(t, data[:, j], "-", color="C0", lw=1.4, label=f"{quantity}{j + 1}")
         if ref is not None:
             ax.plot(t, ref[:, j], "--", color="C1", lw=1.2, label="reference")
-        ax.set_ylabel(f"{quantity}{j + 1}")
+        if joint_types is None:
+            ax.set_ylabel(f"{quantity}{j + 1}")
+        else:
+            ax.set_ylabel(f"{'' if quantity == 'q' else quantity + ' '}{names[j]} "
+                          f"({unit.split(' | ')[0 if units[j] == 'rad' else 1]})")
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="upper right", fontsize="small")
     axes[-1].set_xlabel("t (s)")
