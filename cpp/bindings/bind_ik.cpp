@@ -33,6 +33,14 @@ std::array<double, 6> weights_arg(const py::object& w) {
   return out;
 }
 
+// The accepted residual (m and rad), or -1 for the solver's default when None.
+double tol_arg(const py::object& tol) {
+  if (tol.is_none()) return -1.0;
+  const double t = scalar_arg(tol, "tol");
+  if (!(t > 0)) throw py::value_error("tol must be > 0");
+  return t;
+}
+
 int branch_arg(const py::object& b, AnalyticKind kind) {
   if (b.is_none()) return 0;
   int v;
@@ -85,8 +93,7 @@ py::object ik(const Robot& r, const py::object& pose_obj, const py::object& open
     throw py::value_error("no closed-form IK for this robot: " + why + " (use method='numeric')");
   if (kind == AnalyticKind::None && !opening.is_none())
     throw py::value_error("opening applies to the SCARA clamps only (joint 6 of RRPRRP / RRRPRP robots)");
-  const double t = tol.is_none() ? -1.0 : scalar_arg(tol, "tol");
-  if (!tol.is_none() && !(t > 0)) throw py::value_error("tol must be > 0");
+  const double t = tol_arg(tol);
 
   const bool analytic = method == "analytic" || (method == "auto" && kind != AnalyticKind::None);
   if (analytic) {
@@ -212,10 +219,7 @@ joint limit, an orientation the structure cannot take, a singular target.)doc");
            o.q_near = &q_near;
          }
          o.opening = opening_arg(r, opening, o.q_near);
-         if (!tol.is_none()) {
-           o.tol = scalar_arg(tol, "tol");
-           if (!(o.tol > 0)) throw py::value_error("tol must be > 0");
-         }
+         if (!tol.is_none()) o.tol = tol_arg(tol);
          const auto sols = analytic_ik_all(r, pose(pose_obj, "pose"), o);
          py::list out;
          for (const auto& s : sols) out.append(py::make_tuple(to_numpy(s.q), s.branch));
