@@ -42,7 +42,7 @@ def write_tables(robots, path):
                        *r.q_limits[i], r.tau_limits[i]]
                 f.write(" ".join(repr(float(v)) for v in row) + "\n")
             t = r.tool
-            f.write(" ".join(repr(float(v)) for v in [*r.gravity_vector, *r.base_position, r.base_yaw]) + "\n")
+            f.write(" ".join(repr(float(v)) for v in [*r.gravity_acceleration, *r.base_position, r.base_yaw]) + "\n")
             f.write(f"{t.link} " + " ".join(repr(float(v)) for v in t.offset.ravel()) +
                     f" {t.second_link} " + " ".join(repr(float(v)) for v in t.second_point) + "\n")
 
@@ -140,7 +140,7 @@ def main(argv=None):
     what = ["mass_matrix", "coriolis_plus_gravity", "forward_dynamics", "inverse_dynamics", "rk4_step"]
     print(f"\n{'robot':8} {'what':24} {'from':7} {'numeric ns':>11} {'generated ns':>13} {'num/gen':>8}")
     for r in robots:
-        gen = r.name in cs._core.builtin_generated_names()
+        gen = r.name in cs._core.compiled_generated_names()
         py = {"numeric": python_rows(r, calls // 4, repeats)}
         if gen:
             rg = getattr(cs.robots, r.name)(backend="generated")

@@ -142,9 +142,11 @@ def test_bad_link_and_tool():
 def test_unknown_backend_and_missing_generated_code():
     r = cs.Robot.from_dh(**good_tables())
     with pytest.raises(ValueError, match="backend must be 'generated' or 'numeric'"):
-        r.set_backend("magic")
+        r.with_backend("magic")
     with pytest.raises(ValueError, match="no generated code attached"):
-        r.set_backend("generated")
+        r.with_backend("generated")
+    with pytest.raises(ValueError, match="no generated dynamics named 'nothing'"):
+        r.with_generated("nothing")
 
 
 def test_out_of_range_values_give_an_error_not_a_wrong_answer():

@@ -194,7 +194,7 @@ def test_set_point_and_python_references():
 def test_dataframe_and_csv_round_trip(tmp_path):
     log = make_sim(log_every=3).run(0.05, progress=False)
     df = log.to_dataframe()
-    assert df.shape == (len(log), 1 + 7 * 6)
+    assert df.shape == (len(log), 1 + 8 * 6)  # t, then per joint q qd qdd tau tau_ext q_ref qd_ref e
     assert list(df.columns[:3]) == ["t", "scara1.q1", "scara1.q2"]
     np.testing.assert_array_equal(df["scara1.tau4"].to_numpy(), log.tau[:, 3])
     np.testing.assert_array_equal(df["scara1.e2"].to_numpy(), log.error[:, 1])
@@ -255,8 +255,10 @@ def test_failed_write_leaves_no_file(tmp_path):
         pd.DataFrame.to_csv = orig
     assert target.read_text() == "old contents"
     assert sorted(os.listdir(tmp_path)) == ["out.csv"]
-    with pytest.raises(OSError):
-        log.to_csv(tmp_path / "missing" / "out.csv")
+    # a fresh output folder is made; a parent that is a file is an OSError naming it
+    assert os.path.exists(log.to_csv(tmp_path / "new" / "out.csv"))
+    with pytest.raises(OSError, match="out.csv"):
+        log.to_csv(tmp_path / "out.csv" / "x.csv")
 
 
 def test_plot_log_draws_one_panel_per_joint_with_dashed_references():
@@ -634,15 +636,27 @@ def test_simulation_description_pickles_and_runs_through_an_executor():
 # ---- argument checks ----
 
 @pytest.mark.parametrize("kwargs, word", [
-    (dict(dt=0.0), "dt"), (dict(dt=-1e-3), "dt"), (dict(dt=np.nan), "dt"), (dict(dt="small"), "dt"),
-    (dict(control_every=0), "control_every"), (dict(control_every=1.5), "control_every"),
-    (dict(control_every=2**40), "control_every"), (dict(log_every=2**31), "log_every"),
-    (dict(log_every=-1), "log_every"), (dict(max_speed=0.0), "max_speed"),
-    (dict(max_position=-1.0), "max_position"),
+    (dict(dt=0.0), "dt"), (dict(dt=-1e-3), "dt"), (dict(dt=np.nan), "dt"),
+    (dict(control_every=0), "control_every"), (dict(log_every=-1), "log_every"),
+    (dict(max_speed=0.0), "max_speed"), (dict(max_position=-1.0), "max_position"),
+    (dict(integrator="midpoint"), "integrator"),
 ])
 def test_simulation_rejects_bad_options(kwargs, word):
     with pytest.raises(ValueError, match=word):
         cs.Simulation(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [dict(dt="small"), dict(control_every=1.5), dict(log_every="2"),
+                                    dict(integrator=None), dict(max_speed=[1.0])])
+def test_simulation_rejects_wrong_types_as_type_errors(kwargs):
+    # wrong types are TypeErrors naming the accepted signature, here as in integrate() and rk4_step()
+    with pytest.raises(TypeError, match="dt: "):
+        cs.Simulation(**kwargs)
+    robot = cs.robots.scara1()
+    for call in (lambda: cs.integrate(robot, np.zeros(6), np.zeros(6), np.zeros(6), dt="small"),
+                 lambda: cs.rk4_step(robot, np.zeros(6), np.zeros(6), np.zeros(6), dt="small")):
+        with pytest.raises(TypeError, match="dt: "):
+            call()
 
 
 def test_add_robot_and_run_reject_bad_arguments():
@@ -666,15 +680,21 @@ def test_add_robot_and_run_reject_bad_arguments():
     sim.add_robot(robot, pid_, np.zeros(6) + 0.01)
     with pytest.raises(ValueError, match="already driving"):
         sim.add_robot(robot, pid_, np.zeros(6) + 0.01)
-    for bad in (np.nan, np.inf, "1 s", None):
+    for bad in (np.nan, np.inf):
         with pytest.raises(ValueError, match="t_end"):
             sim.run(bad)
-    for bad in (-1, 10**19, 2.0, True):
-        with pytest.raises(ValueError, match="n must"):
+    for bad in ("1 s", None):
+        with pytest.raises(TypeError, match="t_end"):
+            sim.run(bad)
+    with pytest.raises(ValueError, match="n must"):
+        sim.step(-1)
+    for bad in (10**19, 2.0, "3"):
+        with pytest.raises(TypeError, match="n: "):
             sim.step(bad)
-    for bad in (True, np.nan, "1 s"):
-        with pytest.raises(ValueError, match="t_end"):
-            sim.run_paced(bad)
+    with pytest.raises(ValueError, match="t_end"):
+        sim.run_paced(np.nan)
+    with pytest.raises(ValueError, match="t_end"):
+        sim.run_paced("1 s")
     sim.step(3)
     with pytest.raises(ValueError, match="before the first step"):
         sim.add_robot(robot, cs.PID(1.0, 0.0, 0.0), np.zeros(6) + 0.01)

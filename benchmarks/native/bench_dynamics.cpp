@@ -130,9 +130,9 @@ int main(int argc, char** argv) {
   for (int r = 0; r < count; ++r) {
     Robot robot = read_robot(in);
     bench(robot, "numeric", calls, repeats);
-    if (const GeneratedDynamics* g = builtin_generated(robot.name())) {
-      robot.attach_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));
-      bench(robot, "generated", calls, repeats);
+    if (const GeneratedDynamics* g = find_generated(robot.name())) {
+      const Robot gen = robot.with_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));
+      bench(gen, "generated", calls, repeats);
     }
   }
   return 0;

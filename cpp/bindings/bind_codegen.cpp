@@ -20,7 +20,7 @@ std::string load_library(const std::string& path) {
   } catch (const std::invalid_argument& e) {
     throw py::value_error(std::string("path: ") + e.what());
   }
-  if (!builtin_generated(g->name)) register_generated(g);
+  if (!find_generated(g->name)) register_generated(g);
   return g->name;
 }
 
@@ -29,7 +29,7 @@ std::string load_library(const std::string& path) {
 void bind_codegen(py::module_& m) {
   m.def("load_generated_library", &load_library, py::arg("path"),
         "Loads a shared library built by coopsim.codegen.compile, registers its generated dynamics under the "
-        "name it carries (attach with attach_builtin_generated) and returns that name.");
+        "name it carries (attach with Robot.with_generated) and returns that name.");
   m.def("generated_cache_dir", &generated_cache_dir,
         "Folder where libraries of coopsim.codegen.compile are looked up by name (e.g. when unpickling): "
         "$COOPSIM_CACHE_DIR, else $XDG_CACHE_HOME/coopsim, else ~/.cache/coopsim.");

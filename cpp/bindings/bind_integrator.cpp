@@ -10,16 +10,12 @@ using namespace coopsim::py_convert;
 
 namespace {
 
-void check_dt(double dt) {
-  if (!std::isfinite(dt) || dt <= 0) throw py::value_error("dt must be finite and > 0 s, got " + std::to_string(dt));
-}
-
 py::tuple step(const Robot& r, const py::object& q, const py::object& qd, const py::object& tau, double dt,
                const py::object& f_ext, bool end_stops, Method method) {
   const int n = r.dof();
   VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd");
   const VecN tv = vec(tau, n, "tau");
-  check_dt(dt);
+  check_step_size(dt);
   VecN te;
   const double* tep = nullptr;
   if (!f_ext.is_none()) {
@@ -31,12 +27,6 @@ py::tuple step(const Robot& r, const py::object& q, const py::object& qd, const 
   else euler_step(r, ws, qv, qdv, tv.data(), tep, dt, end_stops);
   const char* what = method == Method::RK4 ? "rk4_step" : "euler_step";
   return py::make_tuple(checked(qv, what), checked(qdv, what));
-}
-
-Method method_of(const std::string& s) {
-  if (s == "rk4") return Method::RK4;
-  if (s == "euler") return Method::SemiImplicitEuler;
-  throw py::value_error("method must be 'rk4' or 'euler', got '" + s + "'");
 }
 
 }  // namespace
@@ -59,9 +49,7 @@ void bind_integrator(py::module_& m) {
                         double dt, long steps, const std::string& method, bool end_stops, long record_every) {
          const int n = r.dof();
          const VecN qv = vec(q0, n, "q0"), qdv = vec(qd0, n, "qd0");
-         check_dt(dt);
          if (steps < 0 || steps > 2000000000L) throw py::value_error("steps must be in [0, 2e9]");
-         if (record_every < 1) throw py::value_error("record_every must be >= 1");
          Arr T = as_array(tau, "tau");
          int rows = 1;
          if (T.ndim() == 1) {
@@ -70,7 +58,7 @@ void bind_integrator(py::module_& m) {
            T = array(tau, {steps, n}, "tau");
            rows = static_cast<int>(steps);
          }
-         const Method meth = method_of(method);
+         const Method meth = method_from_name(method);
          IntegrationResult res;
          {
            py::gil_scoped_release nogil;
@@ -89,8 +77,8 @@ void bind_integrator(py::module_& m) {
 tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold).
 method: 'rk4' (default) or 'euler' (semi-implicit).
 Returns (t (m,), q (m, n), qd (m, n)) with every record_every-th state, the
-first and the last included. Raises RuntimeError naming the step if the state
-stops being finite.)doc");
+first and the last included. Raises DivergenceError (a RuntimeError) naming the
+step if the state stops being finite.)doc");
   m.def("forward_dynamics_batch", [](const Robot& r, const py::object& Q, const py::object& QD,
                                      const py::object& TAU, const py::object& threads_obj) {
          const int threads = static_cast<int>(index_arg(threads_obj, "threads", 0, 4096));

@@ -33,11 +33,42 @@ Tool make_tool(const py::object& tool, int n) {
   return t;
 }
 
+std::vector<LinkBox> boxes_arg(const py::object& obj) {
+  std::vector<LinkBox> out;
+  if (obj.is_none()) return out;
+  if (!py::isinstance<py::list>(obj) && !py::isinstance<py::tuple>(obj))
+    throw py::value_error("boxes must be a list of coopsim.LinkBox");
+  for (py::handle h : obj) {
+    if (!py::isinstance<LinkBox>(h)) throw py::value_error("boxes must hold coopsim.LinkBox objects only");
+    out.push_back(h.cast<LinkBox>());
+  }
+  if (out.empty()) throw py::value_error("boxes must not be empty (None gives the default boxes)");
+  return out;
+}
+
+Clamp clamp_arg(const py::object& obj) {
+  if (obj.is_none()) return Clamp();
+  if (!py::isinstance<Clamp>(obj)) throw py::value_error("clamp must be a coopsim.Clamp or None");
+  return obj.cast<Clamp>();
+}
+
+const GeneratedDynamics* generated_by_name(const std::string& name) {
+  const GeneratedDynamics* g = find_generated(name);
+  if (!g) throw py::value_error("no generated dynamics named '" + name + "' in this build or the build cache");
+  return g;
+}
+
+Robot with_generated_name(const Robot& r, const std::string& name) {
+  return r.with_generated(std::shared_ptr<const GeneratedDynamics>(generated_by_name(name),
+                                                                   [](const GeneratedDynamics*) {}));
+}
+
 Robot make_robot(const py::object& dh, const py::object& com, const py::object& masses,
                  const py::object& inertias, const std::string& joint_types, const py::object& friction,
                  const py::object& q_limits, const py::object& tau_limits, const py::object& gravity,
                  const py::object& base_position, double base_yaw, const py::object& tool,
-                 const std::string& name, double end_stop_frequency, double end_stop_damping_ratio) {
+                 const std::string& name, double end_stop_frequency, double end_stop_damping_ratio,
+                 const py::object& boxes, const py::object& clamp, const py::object& dimensions) {
   Arr D = array(dh, {-1, 4}, "dh");
   const int n = static_cast<int>(D.shape(0));
   if (n < 1 || n > kMaxDof)
@@ -82,7 +113,10 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
   const Eigen::Vector3d bp = vecx(base_position, 3, "base_position");
   if (!std::isfinite(base_yaw)) throw py::value_error("base_yaw must be finite");
   EndStop es{end_stop_frequency, end_stop_damping_ratio};
-  return Robot(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es);
+  Robot r(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es);
+  if (!boxes.is_none() || !clamp.is_none()) r = r.with_geometry(boxes_arg(boxes), clamp_arg(clamp));
+  if (!dimensions.is_none()) r = r.with_dimensions(dimensions.cast<std::map<std::string, double>>());
+  return r;
 }
 
 // Joint torques of f_ext, with the robot's kinematics already in ws:
@@ -196,10 +230,86 @@ void bind_robot(py::module_& m) {
       .def_property_readonly("point", [](const ExternalWrench& w) { return to_numpy(w.point); })
       .def_property_readonly("wrench", [](const ExternalWrench& w) { return to_numpy(w.wrench); });
 
-  py::class_<Robot> R(m, "Robot", py::dynamic_attr(),
-                      "A serial robot: standard DH table, centre-of-mass table, mass properties, friction "
-                      "and limits, placed in the world. Immutable except for its dynamics backend; build "
-                      "one with Robot.from_dh or coopsim.robots.");
+  py::class_<LinkBox>(m, "LinkBox", R"doc(A box fixed to a link: the shape the world collides and the views draw.
+
+link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
+and axes in the DH frame of `link`. half_extents: (3,) m, > 0, along the
+box's own x, y, z. name: a label (e.g. "link1", "fixed_jaw").)doc")
+      .def(py::init([](int link, const py::object& half_extents, const py::object& pose_obj, const std::string& name) {
+             LinkBox b;
+             b.link = link;
+             b.half_extents = vecx(half_extents, 3, "half_extents");
+             b.pose = pose(pose_obj, "pose");
+             b.name = name;
+             return b;
+           }),
+           py::arg("link"), py::arg("half_extents"), py::arg("pose") = py::module_::import("numpy").attr("eye")(4),
+           py::arg("name") = "")
+      .def_readonly("link", &LinkBox::link)
+      .def_property_readonly("half_extents", [](const LinkBox& b) { return to_numpy(b.half_extents); })
+      .def_property_readonly("pose", [](const LinkBox& b) { return to_numpy(b.pose); })
+      .def_readonly("name", &LinkBox::name)
+      .def("__repr__", [](const LinkBox& b) {
+         std::ostringstream s;
+         s << "LinkBox(link=" << b.link << ", half_extents=[" << b.half_extents.transpose() << "], name='" << b.name
+           << "')";
+         return s.str();
+       })
+      .def(py::pickle([](const LinkBox& b) { return py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name); },
+                      [](py::tuple t) {
+                        LinkBox b;
+                        b.link = t[0].cast<int>();
+                        b.half_extents = vecx(t[1], 3, "half_extents");
+                        b.pose = pose(t[2], "pose");
+                        b.name = t[3].cast<std::string>();
+                        return b;
+                      }));
+
+  py::class_<Clamp>(m, "Clamp", R"doc(A parallel-jaw clamp.
+
+fixed_link: the link (1..n-1) carrying the fixed jaw. fixed_face: (4, 4) the
+fixed jaw's inner face in that link's DH frame: origin at the face's centre,
+z along the jaw axis towards the moving jaw (the moving joint's axis), x
+along the jaw towards its tip. moving_joint: the prismatic joint
+fixed_link + 1 whose variable is the opening between the inner faces (m);
+the moving face is the fixed one moved by the opening along z, facing back.
+jaw_length (along x) and pad_width (along y): the pads' size, m.)doc")
+      .def(py::init([](int fixed_link, const py::object& fixed_face, int moving_joint, double jaw_length,
+                       double pad_width) {
+             Clamp c;
+             c.fixed_link = fixed_link;
+             c.fixed_face = pose(fixed_face, "fixed_face");
+             c.moving_joint = moving_joint;
+             c.jaw_length = jaw_length;
+             c.pad_width = pad_width;
+             if (c.fixed_link < 1) throw py::value_error("fixed_link must be >= 1");
+             return c;
+           }),
+           py::arg("fixed_link"), py::arg("fixed_face"), py::arg("moving_joint"), py::arg("jaw_length"),
+           py::arg("pad_width"))
+      .def_readonly("fixed_link", &Clamp::fixed_link)
+      .def_property_readonly("fixed_face", [](const Clamp& c) { return to_numpy(c.fixed_face); })
+      .def_readonly("moving_joint", &Clamp::moving_joint)
+      .def_readonly("jaw_length", &Clamp::jaw_length)
+      .def_readonly("pad_width", &Clamp::pad_width)
+      .def(py::pickle([](const Clamp& c) {
+                        return py::make_tuple(c.fixed_link, to_numpy(c.fixed_face), c.moving_joint, c.jaw_length,
+                                              c.pad_width);
+                      },
+                      [](py::tuple t) {
+                        Clamp c;
+                        c.fixed_link = t[0].cast<int>();
+                        c.fixed_face = pose(t[1], "fixed_face");
+                        c.moving_joint = t[2].cast<int>();
+                        c.jaw_length = t[3].cast<double>();
+                        c.pad_width = t[4].cast<double>();
+                        return c;
+                      }));
+
+  py::class_<Robot> R(m, "Robot",
+                      "A serial robot: standard DH table, centre-of-mass table, mass properties, friction, "
+                      "limits and link shapes, placed in the world. Immutable: with_base, with_backend, ... "
+                      "make changed copies. Build one with Robot.from_dh or coopsim.robots.");
   R.def_static("from_dh", &make_robot, py::arg("dh"), py::arg("com"), py::arg("masses"), py::arg("inertias"),
                py::arg("joint_types"), py::arg("friction") = py::none(), py::arg("q_limits") = py::none(),
                py::arg("tau_limits") = py::none(),
@@ -207,7 +317,8 @@ void bind_robot(py::module_& m) {
                py::arg("base_position") = py::make_tuple(0.0, 0.0, 0.0), py::arg("base_yaw") = 0.0,
                py::arg("tool") = py::none(), py::arg("name") = "robot",
                py::arg("end_stop_frequency") = EndStop().frequency,
-               py::arg("end_stop_damping_ratio") = EndStop().damping_ratio,
+               py::arg("end_stop_damping_ratio") = EndStop().damping_ratio, py::arg("boxes") = py::none(),
+               py::arg("clamp") = py::none(), py::arg("dimensions") = py::none(),
                R"doc(Defines a serial robot from tables.
 
 dh: (n, 4) standard DH rows [theta, d, a, alpha] (rad, m, m, rad); q_i is added
@@ -226,7 +337,11 @@ gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad.
 tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
 end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
     used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
-    + 2 zeta w qd), pushing only; keep w dt below about 2.5.)doc");
+    + 2 zeta w qd), pushing only; keep w dt below about 2.5.
+boxes: list of LinkBox, the shapes fixed to the links (link 0: the base);
+    None: thin default boxes along the links (see Robot.default_boxes).
+clamp: a Clamp, or None for a robot without one.
+dimensions: {name: metres} the robot was built from, kept for reference.)doc");
   R.def_property_readonly("dof", &Robot::dof, "Number of joints n.")
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("joint_types", &Robot::joint_types, "e.g. 'RRPRRP'.")
@@ -240,8 +355,17 @@ end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
       .def_property_readonly("q_limits", [](const Robot& r) { return py::object(robot_state(r)[6]); },
                              "(n, 2) [q_min, q_max].")
       .def_property_readonly("tau_limits", [](const Robot& r) { return py::object(robot_state(r)[7]); }, "(n,) N m or N.")
-      .def_property_readonly("gravity_vector", [](const Robot& r) { return to_numpy(r.gravity()); },
-                             "(3,) m/s^2, world frame.")
+      .def_property_readonly("gravity_acceleration", [](const Robot& r) { return to_numpy(r.gravity_acceleration()); },
+                             "The world's gravitational acceleration (3,) m/s^2 (G(q) is gravity(q)).")
+      .def_property_readonly("boxes", &Robot::boxes, "The LinkBox shapes fixed to the links, [LinkBox].")
+      .def_property_readonly("clamp", [](const Robot& r) { return r.clamp().present() ? py::cast(r.clamp()) : py::none(); },
+                             "The Clamp, or None.")
+      .def_property_readonly("dimensions", &Robot::dimensions, "{name: metres} the robot was built from (may be empty).")
+      .def("default_boxes", &Robot::default_boxes,
+           "Thin boxes along the links, used when a robot is given none: for link i the segment between the foot "
+           "of the common normal on joint axis i and frame i's origin (or, for a revolute joint with |d_i| > "
+           "|a_i|, from frame i-1's origin to that foot), square section 0.02 m; a base above the floor stands "
+           "on a column from z = 0 to frame 0.")
       .def_property_readonly("base_position", [](const Robot& r) { return to_numpy(r.base_position()); })
       .def_property_readonly("base_yaw", &Robot::base_yaw)
       .def_property_readonly("base", [](const Robot& r) { return to_numpy(r.base()); },
@@ -258,8 +382,15 @@ end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
                              "com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K], then gravity in frame 0.")
       .def_property_readonly("backend", &Robot::backend, "'generated' or 'numeric'.")
       .def_property_readonly("has_generated", &Robot::has_generated)
-      .def("set_backend", &Robot::set_backend, py::arg("backend"),
-           "Selects 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).")
+      .def("with_backend", &Robot::with_backend, py::arg("backend"),
+           "A copy using 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).")
+      .def("with_generated", &with_generated_name, py::arg("name"),
+           "A copy with the generated dynamics `name` attached (structure checked) and selected: code compiled "
+           "into the engine (compiled_generated_names()) or built by coopsim.codegen.compile.")
+      .def("with_geometry", [](const Robot& r, const py::object& boxes, const py::object& clamp) {
+             return r.with_geometry(boxes_arg(boxes), clamp_arg(clamp));
+           }, py::arg("boxes") = py::none(), py::arg("clamp") = py::none(),
+           "A copy with other link boxes (None: the default boxes) and clamp (None: none).")
       .def("with_base", [](const Robot& r, const py::object& position, double yaw) {
              if (!std::isfinite(yaw)) throw py::value_error("yaw must be finite");
              return r.with_base(vecx(position, 3, "position"), yaw);
@@ -303,6 +434,29 @@ end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
        }, py::arg("q"), py::arg("link") = -1, py::arg("point") = py::none(),
        "Geometric Jacobian (6, n), linear rows first, of `point` (3,) m given in the DH frame of `link` "
        "(1..n, negative from the last; 0 is the base); world coordinates.")
+      .def("shapes", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         std::vector<Eigen::Isometry3d> T;
+         r.box_poses(ws, T);
+         const py::ssize_t k = static_cast<py::ssize_t>(T.size());
+         py::array_t<double> he({k, py::ssize_t(3)});
+         for (py::ssize_t b = 0; b < k; ++b)
+           Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * b) = r.boxes()[b].half_extents.transpose();
+         return py::make_tuple(poses(T), he);
+       }, py::arg("q"),
+       "World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,).")
+      .def("clamp_faces", [](const Robot& r, const py::object& q) {
+         const VecN qv = vec(q, r.dof(), "q");
+         Workspace ws;
+         r.kinematics(qv.data(), ws);
+         Eigen::Isometry3d a, b;
+         r.clamp_faces(ws, qv.data(), a, b);
+         return poses({a, b});
+       }, py::arg("q"),
+       "World poses (2, 4, 4) of the clamp's fixed and moving inner faces at q: origin at the face's centre, z "
+       "the face normal pointing to the other jaw, x along the jaw towards its tip.")
       .def("tool_jacobian", [](const Robot& r, const py::object& q) {
          const VecN qv = vec(q, r.dof(), "q");
          Workspace ws;
@@ -324,7 +478,7 @@ end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
          const VecN qv = vec(q, r.dof(), "q");
          Workspace ws;
          VecN g;
-         r.gravity_vector(qv.data(), ws, g);
+         r.gravity(qv.data(), ws, g);
          return checked(g, "gravity");
        }, py::arg("q"), "Gravity vector G(q) (n,) in N m or N.")
       .def("coriolis", [](const Robot& r, const py::object& q, const py::object& qd) {
@@ -422,35 +576,33 @@ end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
                 " dof, backend=" + r.backend() + ">";
        })
       .def(py::pickle(
-          [](py::object self) {
-            const Robot& r = self.cast<const Robot&>();
-            py::tuple s = robot_state(r);
-            py::dict d = self.attr("__dict__");
-            return py::make_tuple(s, to_numpy(r.gravity()), to_numpy(r.base_position()), r.base_yaw(),
-                                  py::cast(r.tool()), r.name(), r.end_stop().frequency,
+          [](const Robot& r) {
+            // geometry as given: an empty list stands for the default boxes
+            py::list boxes;
+            if (!r.has_default_boxes())
+              for (const LinkBox& b : r.boxes()) boxes.append(py::cast(b));
+            return py::make_tuple(robot_state(r), to_numpy(r.gravity_acceleration()), to_numpy(r.base_position()),
+                                  r.base_yaw(), py::cast(r.tool()), r.name(), r.end_stop().frequency,
                                   r.end_stop().damping_ratio, r.backend(),
-                                  r.has_generated() ? r.generated()->name : std::string(), d);
+                                  r.has_generated() ? r.generated()->name : std::string(), boxes,
+                                  r.clamp().present() ? py::cast(r.clamp()) : py::none(), r.dimensions());
           },
           [](py::tuple t) {
             py::tuple s = t[0];
+            py::list boxes = t[10];
             Robot r = make_robot(s[0], s[1], s[2], s[3], s[4].cast<std::string>(), s[5], s[6], s[7], t[1], t[2],
                                  t[3].cast<double>(), t[4], t[5].cast<std::string>(), t[6].cast<double>(),
-                                 t[7].cast<double>());
+                                 t[7].cast<double>(), py::len(boxes) ? py::object(boxes) : py::object(py::none()),
+                                 t[11], t[12]);
             const std::string gen = t[9].cast<std::string>();
             if (!gen.empty()) {
-              const GeneratedDynamics* g = builtin_generated(gen);
-              if (!g) throw py::value_error("cannot unpickle: generated dynamics '" + gen + "' not in this build");
-              r.attach_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));
-              r.set_backend(t[8].cast<std::string>());
+              if (!find_generated(gen))
+                throw py::value_error("cannot unpickle: generated dynamics '" + gen + "' not in this build");
+              r = with_generated_name(r, gen).with_backend(t[8].cast<std::string>());
             }
-            return std::make_pair(r, t[10].cast<py::dict>());
+            return r;
           }));
 
-  m.def("builtin_generated_names", &builtin_generated_names, "Names of robots whose generated dynamics are compiled into this build.");
-  m.def("attach_builtin_generated", [](Robot& r, const std::string& name) {
-    const GeneratedDynamics* g = builtin_generated(name);
-    if (!g) throw py::value_error("no generated dynamics named '" + name + "' in this build");
-    r.attach_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));
-  }, py::arg("robot"), py::arg("name"),
-  "Attaches the compiled-in generated dynamics `name` to `robot` (structure checked) and selects it.");
+  m.def("compiled_generated_names", &compiled_generated_names,
+        "Names of the robots whose generated dynamics are compiled into this build.");
 }

@@ -41,6 +41,19 @@ py::object exception_object(const std::exception_ptr& p) {
 }
 
 // A Reference (C++ or Python subclass), or a set-point array held at all times.
+// A list (or tuple) of Wrench, or one Wrench.
+std::vector<ExternalWrench> wrenches_arg(const py::object& obj) {
+  if (py::isinstance<ExternalWrench>(obj)) return {obj.cast<ExternalWrench>()};
+  if (!py::isinstance<py::list>(obj) && !py::isinstance<py::tuple>(obj))
+    throw py::value_error("wrenches must be a coopsim.Wrench or a list of them");
+  std::vector<ExternalWrench> out;
+  for (py::handle h : obj) {
+    if (!py::isinstance<ExternalWrench>(h)) throw py::value_error("wrenches must hold coopsim.Wrench objects only");
+    out.push_back(h.cast<ExternalWrench>());
+  }
+  return out;
+}
+
 std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
   if (py::isinstance<Reference>(ref)) return ref.cast<std::shared_ptr<Reference>>();
   if (ref.is_none())
@@ -67,12 +80,7 @@ py::dict log_dict(const Simulation& s, int i) {
   const RobotLog& L = s.log(i);
   const long rows = s.log_rows();
   py::dict d;
-  d["q"] = view(L.q, rows, true);
-  d["qd"] = view(L.qd, rows, true);
-  d["qdd"] = view(L.qdd, rows, true);
-  d["tau"] = view(L.tau, rows, true);
-  d["q_ref"] = view(L.q_ref, rows, true);
-  d["qd_ref"] = view(L.qd_ref, rows, true);
+  for (int k = 0; k < kLogQuantities; ++k) d[log_schema()[k].name] = view(L[k], rows, true);
   return d;
 }
 
@@ -80,9 +88,7 @@ py::dict metrics_dict(const Simulation& s, int i) {
   const TrackingMetrics& m = s.metrics(i);
   py::dict d;
   d["steps"] = m.steps;
-  const VecN rms = m.steps ? VecN((m.sum_sq_error / static_cast<double>(m.steps)).cwiseSqrt())
-                           : VecN(VecN::Zero(s.robot(i).dof()));
-  d["rms_error"] = to_numpy(rms);
+  d["rms_error"] = to_numpy(m.rms_error());
   d["max_abs_error"] = to_numpy(m.max_abs_error);
   d["max_abs_tau"] = to_numpy(m.max_abs_tau);
   return d;
@@ -111,7 +117,7 @@ The C++ simulation loop behind coopsim.Simulation (use that class): robots
 with controllers and references, RK4 at a fixed dt, zero-order hold of the
 torques between controller updates, the log and tracking metrics.)doc")
       .def(py::init([](double dt, int control_every, int log_every, bool end_stops, double max_speed,
-                       double max_position) {
+                       double max_position, const std::string& integrator) {
              SimulationOptions o;
              o.dt = dt;
              o.control_every = control_every;
@@ -119,10 +125,11 @@ torques between controller updates, the log and tracking metrics.)doc")
              o.end_stops = end_stops;
              o.max_speed = max_speed;
              o.max_position = max_position;
+             o.integrator = method_from_name(integrator, "integrator");
              return Simulation(o);
            }),
            py::arg("dt") = 2e-4, py::arg("control_every") = 1, py::arg("log_every") = 1, py::arg("end_stops") = true,
-           py::arg("max_speed") = 1e4, py::arg("max_position") = 1e6)
+           py::arg("max_speed") = 1e4, py::arg("max_position") = 1e6, py::arg("integrator") = "rk4")
       .def("add_robot", [](Simulation& s, const Robot& robot, std::shared_ptr<Controller> controller,
                            const py::object& reference, const py::object& q0, const py::object& qd0) {
              const int n = robot.dof();
@@ -141,9 +148,9 @@ torques between controller updates, the log and tracking metrics.)doc")
              s.advance(n);
            }, py::arg("n"), "Advances n steps with the GIL released.")
       .def("run", [](Simulation& s, double t_end, const py::object& callback, long chunk) {
-             if (chunk < 1) throw py::value_error("chunk must be >= 1");
-             const long total = s.steps_until(t_end);
+             long total = 0;
              try {
+               total = s.steps_until(t_end);
                s.reserve(total);
              } catch (const std::bad_alloc&) {
                const long rows = s.options().log_every > 0 ? total / s.options().log_every : 0;
@@ -153,19 +160,15 @@ torques between controller updates, the log and tracking metrics.)doc")
                                    .c_str());
                throw py::error_already_set();
              }
-             long done = 0;
-             do {
-               const long c = std::min(chunk, total - done);
-               {
-                 py::gil_scoped_release nogil;
-                 s.advance(c);
-               }
-               done += c;
-               // Ctrl-C stops a long run between chunks, the log kept
+             // between chunks: Ctrl-C stops the run with the log kept, then the progress callback
+             auto between = [&callback](long done, long all) {
+               py::gil_scoped_acquire gil;
                if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-               if (!callback.is_none()) callback(done, total);
-             } while (done < total);
-             return total;
+               if (!callback.is_none()) callback(done, all);
+               return true;
+             };
+             py::gil_scoped_release nogil;
+             return s.run(t_end, chunk, between);
            },
            py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096,
            "Advances to time t_end (s) in chunks of `chunk` steps with the GIL released, calling "
@@ -184,7 +187,23 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def_property_readonly("robot_count", &Simulation::robot_count)
       .def_property_readonly("started", &Simulation::started)
       .def_property_readonly("diverged", &Simulation::diverged)
-      .def("robot", [](const Simulation& s, int i) { return s.robot(i); }, py::arg("i"), "A copy of robot i.")
+      .def_property_readonly("integrator", [](const Simulation& s) { return method_name(s.options().integrator); })
+      .def("robot", [](const Simulation& s, int i) { return s.robot(i); }, py::arg("i"),
+           "Robot i as simulated (robots are immutable: this equals the robot added).")
+      .def("controller", [](const Simulation& s, int i) { return s.controller(i); }, py::arg("i"))
+      .def("reference", [](const Simulation& s, int i) { return std::const_pointer_cast<Reference>(s.reference(i)); },
+           py::arg("i"))
+      .def("set_applied", [](Simulation& s, int i, const py::object& forces, const py::object& wrenches) {
+             const int n = s.robot(i).dof();
+             if (!forces.is_none()) s.set_applied_forces(i, vec(forces, n, "forces"));
+             if (!wrenches.is_none()) s.set_applied_wrenches(i, wrenches_arg(wrenches));
+           }, py::arg("i"), py::arg("forces") = py::none(), py::arg("wrenches") = py::none(),
+           "Sets robot i's applied joint forces (n,) and/or link wrenches (a list of Wrench); None keeps one.")
+      .def("applied", [](const Simulation& s, int i) {
+             return py::make_tuple(to_numpy(s.applied_forces(i)), s.applied_wrenches(i));
+           }, py::arg("i"), "(forces (n,), wrenches [Wrench]) applied to robot i now.")
+      .def("tau_ext", [](const Simulation& s, int i) { return to_numpy(s.tau_ext(i)); }, py::arg("i"),
+           "The external joint torque of robot i's applied inputs, held over the next step, (n,).")
       .def("state", [](const Simulation& s, int i) { return py::make_tuple(to_numpy(s.q(i)), to_numpy(s.qd(i))); },
            py::arg("i"), "(q, qd) of robot i now, each (n,).")
       .def("torque", [](const Simulation& s, int i) { return to_numpy(s.tau(i)); }, py::arg("i"),
@@ -196,10 +215,16 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def("log_t", [](const Simulation& s) { return view(s.log_t(), s.log_rows(), false); },
            "Logged times (rows,), s: a read-only view that later steps do not change.")
       .def("log", &log_dict, py::arg("i"),
-           "Robot i's log as a dict of (rows, n) arrays: q, qd, qdd, tau, q_ref, qd_ref: read-only views "
+           "Robot i's log as a dict of (rows, n) arrays, one per quantity of log_schema(): read-only views "
            "of the rows so far, which later steps and reset() do not change.")
       .def("metrics", &metrics_dict, py::arg("i"),
            "Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).");
+
+  m.def("log_schema", []() {
+    py::list out;
+    for (const LogQuantityInfo& q : log_schema()) out.append(py::make_tuple(q.name, q.doc));
+    return out;
+  }, "The quantities a simulation logs per robot, in column order: [(name, description)], one column per joint.");
 
   m.def("run_batch", [](const py::list& sims, double t_end, int threads) {
          std::vector<Simulation*> ptrs;

@@ -243,4 +243,21 @@ qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.)doc")
             return std::make_shared<CubicTrajectory>(std::vector<double>(ta.data(), ta.data() + ta.shape(0)), Q, V,
                                                      static_cast<KnotVelocities>(s[3].cast<int>()));
           }));
+
+  py::class_<ConstantReference, Reference, std::shared_ptr<ConstantReference>>(
+      m, "SetPoint", "A constant reference: q_ref = q (n,) at all times, qd_ref = qdd_ref = 0.")
+      .def(py::init([](const py::object& q) {
+             Arr a = array(q, {-1}, "q");
+             if (a.shape(0) < 1 || a.shape(0) > kMaxDof)
+               throw py::value_error("q must have 1 to " + std::to_string(kMaxDof) + " entries");
+             return std::make_shared<ConstantReference>(vec(q, static_cast<int>(a.shape(0)), "q"));
+           }),
+           py::arg("q"))
+      .def_property_readonly("q", [](const ConstantReference& r) { return to_numpy(r.point()); }, "(n,) rad or m.")
+      .def("__repr__", [](const ConstantReference& r) { return "SetPoint(dof=" + std::to_string(r.dof()) + ")"; })
+      .def(py::pickle([](const ConstantReference& r) { return py::make_tuple(to_numpy(r.point())); },
+                      [](py::tuple s) {
+                        Arr a = array(s[0], {-1}, "q");
+                        return std::make_shared<ConstantReference>(vec(s[0], static_cast<int>(a.shape(0)), "q"));
+                      }));
 }

@@ -99,7 +99,7 @@ void PID::compute(const ControlInput& in, double* tau) {
     for (int i = 0; i < n; ++i) v_[i] = a * v_[i] + (1.0 - a) * ((in.q[i] - q_prev_[i]) / h_);
   }
   for (int i = 0; i < n; ++i) q_prev_[i] = in.q[i];
-  if (gmodel_) gmodel_->gravity_vector(in.q, ws_, g_);
+  if (gmodel_) gmodel_->gravity(in.q, ws_, g_);
   for (int i = 0; i < n; ++i) {
     const double e = in.q_ref[i] - in.q[i];
     double u0 = Kp_[i] * e + Kd_[i] * (in.qd_ref[i] - v_[i]);

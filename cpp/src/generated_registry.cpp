@@ -24,7 +24,7 @@ std::map<std::string, std::shared_ptr<const GeneratedDynamics>>& runtime_table()
 
 }  // namespace
 
-const GeneratedDynamics* builtin_generated(const std::string& name) {
+const GeneratedDynamics* find_generated(const std::string& name) {
   static const std::vector<const GeneratedDynamics*> compiled = compiled_generated();
   for (const GeneratedDynamics* g : compiled)
     if (g->name == name) return g;
@@ -41,7 +41,7 @@ const GeneratedDynamics* builtin_generated(const std::string& name) {
   return slot.get();
 }
 
-std::vector<std::string> builtin_generated_names() {
+std::vector<std::string> compiled_generated_names() {
   std::vector<std::string> out;
   for (const GeneratedDynamics* g : compiled_generated()) out.push_back(g->name);
   return out;

@@ -1,19 +1,44 @@
 #include "coopsim/integrator.hpp"
 
 #include <algorithm>
-#include <string>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 #include <thread>
 
 namespace coopsim {
 
-void rk4_step(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const double* tau, const double* tau_ext,
-              double dt, bool end_stops) {
+Method method_from_name(const std::string& name, const char* what) {
+  if (name == "rk4") return Method::RK4;
+  if (name == "euler") return Method::SemiImplicitEuler;
+  throw std::invalid_argument(std::string(what) + " must be 'rk4' or 'euler', got '" + name + "'");
+}
+
+const char* method_name(Method m) { return m == Method::RK4 ? "rk4" : "euler"; }
+
+void check_step_size(double dt) {
+  if (!(dt > 0) || !std::isfinite(dt)) {
+    std::ostringstream s;
+    s << "dt must be finite and > 0 s, got " << dt;
+    throw std::invalid_argument(s.str());
+  }
+}
+
+void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, const double* tau,
+          const double* tau_ext, double dt, bool end_stops, const VecN* qdd0) {
+  VecN k1v;
+  if (qdd0) k1v = *qdd0;
+  else robot.forward_dynamics(q.data(), qd.data(), tau, tau_ext, ws, k1v, end_stops);
+  if (method == Method::SemiImplicitEuler) {
+    qd += dt * k1v;
+    q += dt * qd;
+    return;
+  }
+  // classic RK4 on x = [q; qd]; q and qd change only once every stage succeeded
   const int n = robot.dof();
-  VecN k1q = qd, k1v, k2q, k2v, k3q, k3v, k4q, k4v, qs(n), vs(n);
-  robot.forward_dynamics(q.data(), qd.data(), tau, tau_ext, ws, k1v, end_stops);
-  qs = q + 0.5 * dt * k1q;
+  VecN k2v, k3v, k4v, qs(n), vs(n), k2q, k3q, k4q;
+  qs = q + 0.5 * dt * qd;
   vs = qd + 0.5 * dt * k1v;
   k2q = vs;
   robot.forward_dynamics(qs.data(), vs.data(), tau, tau_ext, ws, k2v, end_stops);
@@ -25,23 +50,47 @@ void rk4_step(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const double
   vs = qd + dt * k3v;
   k4q = vs;
   robot.forward_dynamics(qs.data(), vs.data(), tau, tau_ext, ws, k4v, end_stops);
-  q += (dt / 6.0) * (k1q + 2.0 * k2q + 2.0 * k3q + k4q);
+  q += (dt / 6.0) * (qd + 2.0 * k2q + 2.0 * k3q + k4q);
   qd += (dt / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+}
+
+void rk4_step(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const double* tau, const double* tau_ext,
+              double dt, bool end_stops) {
+  step(robot, ws, Method::RK4, q, qd, tau, tau_ext, dt, end_stops);
 }
 
 void euler_step(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const double* tau, const double* tau_ext,
                 double dt, bool end_stops) {
-  VecN qdd;
-  robot.forward_dynamics(q.data(), qd.data(), tau, tau_ext, ws, qdd, end_stops);
-  qd += dt * qdd;
-  q += dt * qd;
+  step(robot, ws, Method::SemiImplicitEuler, q, qd, tau, tau_ext, dt, end_stops);
+}
+
+namespace {
+
+std::string num(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+}  // namespace
+
+std::string divergence_reason(const VecN& q, const VecN& qd, const DivergenceLimits& limits) {
+  bool fast = false, far = false;
+  for (int j = 0; j < q.size(); ++j) {
+    if (!std::isfinite(q[j]) || !std::isfinite(qd[j])) return "state is no longer finite";
+    if (std::abs(qd[j]) > limits.max_speed) fast = true;
+    else if (std::abs(q[j]) > limits.max_position) far = true;
+  }
+  if (fast) return "a joint speed exceeds max_speed = " + num(limits.max_speed);
+  if (far) return "a joint position exceeds max_position = " + num(limits.max_position);
+  return std::string();
 }
 
 IntegrationResult integrate(const Robot& robot, const double* q0, const double* qd0, const double* tau,
-                            int tau_rows, double dt, int steps, Method method, bool end_stops,
-                            int record_every) {
+                            int tau_rows, double dt, int steps, Method method, bool end_stops, int record_every,
+                            const DivergenceLimits& limits) {
   const int n = robot.dof();
-  if (!(dt > 0) || !std::isfinite(dt)) throw std::invalid_argument("dt must be finite and > 0 s");
+  check_step_size(dt);
   if (steps < 0) throw std::invalid_argument("steps must be >= 0");
   if (record_every < 1) throw std::invalid_argument("record_every must be >= 1");
   if (tau_rows != 1 && tau_rows != steps)
@@ -53,34 +102,31 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
   out.qd.reserve(static_cast<size_t>(m) * n);
   Workspace ws;
   VecN q = Eigen::Map<const VecN>(q0, n), qd = Eigen::Map<const VecN>(qd0, n);
-  auto record = [&](int step) {
-    out.t.push_back(step * dt);
+  auto record = [&](int k) {
+    out.t.push_back(k * dt);
     out.q.insert(out.q.end(), q.data(), q.data() + n);
     out.qd.insert(out.qd.end(), qd.data(), qd.data() + n);
     ++out.rows;
   };
   record(0);
-  auto fail = [&](int step, const std::string& why) {
-    std::ostringstream msg;
-    msg << "integration diverged at step " << step << " (t = " << step * dt << " s): " << why
-        << "; last finite state q = [" << q.transpose() << "], qd = [" << qd.transpose() << "]";
-    throw std::runtime_error(msg.str());
-  };
   for (int s = 0; s < steps; ++s) {
     const double* u = tau + (tau_rows == 1 ? 0 : static_cast<size_t>(s) * n);
     const VecN q_prev = q, qd_prev = qd;
+    std::string why;
     try {
-      if (method == Method::RK4) rk4_step(robot, ws, q, qd, u, nullptr, dt, end_stops);
-      else euler_step(robot, ws, q, qd, u, nullptr, dt, end_stops);
+      step(robot, ws, method, q, qd, u, nullptr, dt, end_stops);
+      why = divergence_reason(q, qd, limits);
     } catch (const std::domain_error& e) {
-      q = q_prev;
-      qd = qd_prev;
-      fail(s + 1, e.what());
+      why = std::string("the dynamics failed (") + e.what() + ")";
     }
-    if (!q.allFinite() || !qd.allFinite()) {
+    if (!why.empty()) {
+      const VecN q_bad = q, qd_bad = qd;
       q = q_prev;
       qd = qd_prev;
-      fail(s + 1, "state is no longer finite");
+      std::ostringstream msg;
+      msg << "integration diverged at step " << s + 1 << " (t = " << (s + 1) * dt << " s, dt = " << dt
+          << " s): " << why << "; last good state q = [" << q.transpose() << "], qd = [" << qd.transpose() << "]";
+      throw DivergenceError(msg.str(), s + 1, (s + 1) * dt, 0, q_bad, qd_bad);
     }
     if ((s + 1) % record_every == 0 || s + 1 == steps) record(s + 1);
   }

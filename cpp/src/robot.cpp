@@ -153,6 +153,7 @@ void Robot::build_() {
   params_[kParamsPerLink * n_ + 0] = g0.x();
   params_[kParamsPerLink * n_ + 1] = g0.y();
   params_[kParamsPerLink * n_ + 2] = g0.z();
+  build_geometry_();
 }
 
 int Robot::link_index_(int link, const char* what) const {
@@ -207,7 +208,7 @@ Robot Robot::with_gravity(const Eigen::Vector3d& gravity) const {
   return r;
 }
 
-void Robot::attach_generated(std::shared_ptr<const GeneratedDynamics> gen) {
+void Robot::attach_generated_(std::shared_ptr<const GeneratedDynamics> gen) {
   require(static_cast<bool>(gen), "attach_generated: no generated dynamics given");
   require(gen->dof == n_, "generated dynamics '" + gen->name + "' has " + std::to_string(gen->dof) +
                               " joints, robot has " + std::to_string(n_));
@@ -235,16 +236,41 @@ void Robot::attach_generated(std::shared_ptr<const GeneratedDynamics> gen) {
   use_generated_ = true;
 }
 
-void Robot::set_backend(const std::string& backend) {
+Robot Robot::with_generated(std::shared_ptr<const GeneratedDynamics> gen) const {
+  Robot r = *this;
+  r.attach_generated_(std::move(gen));
+  return r;
+}
+
+Robot Robot::with_backend(const std::string& backend) const {
+  Robot r = *this;
   if (backend == "numeric") {
-    use_generated_ = false;
+    r.use_generated_ = false;
   } else if (backend == "generated") {
     require(static_cast<bool>(generated_),
             "backend 'generated' is not available for robot '" + name_ + "': no generated code attached");
-    use_generated_ = true;
+    r.use_generated_ = true;
   } else {
     throw std::invalid_argument("backend must be 'generated' or 'numeric', got '" + backend + "'");
   }
+  return r;
+}
+
+Robot Robot::with_geometry(std::vector<LinkBox> boxes, Clamp clamp) const {
+  Robot r = *this;
+  r.default_boxes_ = boxes.empty();
+  r.boxes_ = std::move(boxes);
+  r.clamp_ = clamp;
+  r.build_geometry_();
+  return r;
+}
+
+Robot Robot::with_dimensions(std::map<std::string, double> dimensions) const {
+  for (const auto& [key, value] : dimensions)
+    require(std::isfinite(value), "dimension '" + key + "' must be finite");
+  Robot r = *this;
+  r.dimensions_ = std::move(dimensions);
+  return r;
 }
 
 void Robot::check_vector(const Eigen::Ref<const Eigen::VectorXd>& v, const char* name) const {
@@ -457,7 +483,7 @@ void Robot::rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& 
   }
 }
 
-void Robot::gravity_vector(const double* q, Workspace& ws, VecN& g) const {
+void Robot::gravity(const double* q, Workspace& ws, VecN& g) const {
   g.resize(n_);
   if (uses_generated()) {
     generated_->gravity(params_.data(), q, g.data());

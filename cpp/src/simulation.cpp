@@ -22,17 +22,28 @@ std::string vec_str(const VecN& v) {
   return s.str();
 }
 
-std::string num(double x) {
-  std::ostringstream s;
-  s << x;
-  return s.str();
-}
-
 }  // namespace
 
+const std::array<LogQuantityInfo, kLogQuantities>& log_schema() {
+  static const std::array<LogQuantityInfo, kLogQuantities> schema = {{
+      {"q", "joint positions at t (rad or m)"},
+      {"qd", "joint velocities at t (rad/s or m/s)"},
+      {"qdd", "joint accelerations at t under the held torques (rad/s^2 or m/s^2)"},
+      {"tau", "torque applied over [t, t + dt), held and saturated (N m or N)"},
+      {"tau_ext", "joint torque of the applied forces and wrenches over [t, t + dt), held (N m or N)"},
+      {"q_ref", "reference positions at t (rad or m)"},
+      {"qd_ref", "reference velocities at t (rad/s or m/s)"},
+  }};
+  return schema;
+}
+
+VecN TrackingMetrics::rms_error() const {
+  if (steps == 0) return VecN::Zero(sum_sq_error.size());
+  return (sum_sq_error / static_cast<double>(steps)).cwiseSqrt();
+}
+
 Simulation::Simulation(SimulationOptions options) : opt_(options) {
-  if (!std::isfinite(opt_.dt) || opt_.dt <= 0)
-    throw std::invalid_argument("dt must be finite and > 0 s, got " + std::to_string(opt_.dt));
+  check_step_size(opt_.dt);
   if (opt_.control_every < 1)
     throw std::invalid_argument("control_every must be >= 1, got " + std::to_string(opt_.control_every));
   if (opt_.log_every < 0)
@@ -82,8 +93,9 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   s.tau = VecN::Zero(n);
   s.tau_max = robot.tau_max();
   s.q_ref = s.qd_ref = s.qdd_ref = s.k1 = s.q_prev = s.qd_prev = VecN::Zero(n);
+  s.applied_forces = s.tau_ext = VecN::Zero(n);
   s.metrics.sum_sq_error = s.metrics.max_abs_error = s.metrics.max_abs_tau = VecN::Zero(n);
-  for (LogColumn* c : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) *c = LogColumn(n);
+  for (LogColumn& c : s.log.columns) c = LogColumn(n);
   slots_.push_back(std::move(s));
   return robot_count() - 1;
 }
@@ -100,9 +112,13 @@ void Simulation::reset() {
     s.q = s.q0;
     s.qd = s.qd0;
     s.tau.setZero(n);
+    s.applied_forces.setZero(n);
+    s.tau_ext.setZero(n);
+    s.applied_wrenches.clear();
+    s.has_applied = false;
     s.k1_valid = false;
     s.updated_at = -1;
-    for (LogColumn* c : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) c->clear();
+    for (LogColumn& c : s.log.columns) c.clear();
     s.metrics.steps = 0;
     s.metrics.sum_sq_error.setZero(n);
     s.metrics.max_abs_error.setZero(n);
@@ -188,7 +204,7 @@ void Simulation::reserve(long steps) {
   const long rows = log_t_.rows() + steps / opt_.log_every + 2;
   log_t_.reserve(rows);
   for (Slot& s : slots_)
-    for (LogColumn* c : {&s.log.q, &s.log.qd, &s.log.qdd, &s.log.tau, &s.log.q_ref, &s.log.qd_ref}) c->reserve(rows);
+    for (LogColumn& c : s.log.columns) c.reserve(rows);
 }
 
 void Simulation::start_() {
@@ -202,7 +218,59 @@ void Simulation::start_() {
 }
 
 void Simulation::qdd_(Slot& s, VecN& out) {
-  s.robot.forward_dynamics(s.q.data(), s.qd.data(), s.tau.data(), nullptr, s.ws, out, opt_.end_stops);
+  s.robot.forward_dynamics(s.q.data(), s.qd.data(), s.tau.data(), s.has_applied ? s.tau_ext.data() : nullptr, s.ws,
+                           out, opt_.end_stops);
+}
+
+void Simulation::set_applied_forces(int i, const VecN& forces) {
+  Slot& s = slot_(i);
+  const int n = s.robot.dof();
+  if (forces.size() != n)
+    throw std::invalid_argument("wrong size for applied joint forces: expected " + std::to_string(n) + ", got " +
+                                std::to_string(forces.size()));
+  if (!forces.allFinite()) throw std::invalid_argument("applied joint forces must be finite");
+  s.applied_forces = forces;
+  s.has_applied = !s.applied_wrenches.empty() || (forces.array() != 0.0).any();
+  applied_changed_(s);
+}
+
+void Simulation::set_applied_wrenches(int i, std::vector<ExternalWrench> wrenches) {
+  Slot& s = slot_(i);
+  const int n = s.robot.dof();
+  for (size_t k = 0; k < wrenches.size(); ++k) {
+    const ExternalWrench& w = wrenches[k];
+    if (w.link < -n || w.link > n || w.link == 0)
+      throw std::invalid_argument("wrenches[" + std::to_string(k) + "]: link must be 1.." + std::to_string(n) +
+                                  " (or negative from the last), got " + std::to_string(w.link));
+    if (!w.point.allFinite() || !w.wrench.allFinite())
+      throw std::invalid_argument("wrenches[" + std::to_string(k) + "]: point and wrench must be finite");
+  }
+  s.applied_wrenches = std::move(wrenches);
+  s.has_applied = !s.applied_wrenches.empty() || (s.applied_forces.array() != 0.0).any();
+  applied_changed_(s);
+}
+
+void Simulation::applied_changed_(Slot& s) {
+  // the new inputs hold from now on, over the next step
+  external_(s);
+  s.k1_valid = false;
+  // a row already logged at this time shows the inputs before the change:
+  // the next advance logs a second row at this time with the new ones
+  if (logged_at_ == k_) logged_at_ = -1;
+}
+
+void Simulation::external_(Slot& s) {
+  if (!s.has_applied) {
+    s.tau_ext.setZero();
+    return;
+  }
+  s.tau_ext = s.applied_forces;
+  if (!s.applied_wrenches.empty()) {
+    VecN t;
+    s.robot.kinematics(s.q.data(), s.ws);
+    s.robot.external_torques(s.applied_wrenches, s.ws, t);
+    s.tau_ext += t;
+  }
 }
 
 void Simulation::update_() {
@@ -237,6 +305,10 @@ void Simulation::update_() {
       s.tau = u;
       s.k1_valid = false;
     }
+    if (s.has_applied) {
+      external_(s);
+      s.k1_valid = false;
+    }
     TrackingMetrics& m = s.metrics;
     for (int i = 0; i < n; ++i) {
       const double e = s.q_ref[i] - s.q[i];
@@ -260,12 +332,14 @@ void Simulation::update_() {
   const double now = time();
   log_t_.push(&now);
   for (Slot& s : slots_) {
-    s.log.q.push(s.q.data());
-    s.log.qd.push(s.qd.data());
-    s.log.qdd.push(s.k1.data());
-    s.log.tau.push(s.tau.data());
-    s.log.q_ref.push(s.q_ref.data());
-    s.log.qd_ref.push(s.qd_ref.data());
+    auto& c = s.log.columns;
+    c[kLogQ].push(s.q.data());
+    c[kLogQd].push(s.qd.data());
+    c[kLogQdd].push(s.k1.data());
+    c[kLogTau].push(s.tau.data());
+    c[kLogTauExt].push(s.tau_ext.data());
+    c[kLogQRef].push(s.q_ref.data());
+    c[kLogQdRef].push(s.qd_ref.data());
   }
   logged_at_ = k_;
 }
@@ -294,52 +368,24 @@ void Simulation::diverge_(int i, const std::string& why, bool in_step, bool stat
 }
 
 void Simulation::step_() {
-  const double h = opt_.dt;
   for (Slot& s : slots_) {
     s.q_prev = s.q;
     s.qd_prev = s.qd;
   }
   for (size_t i = 0; i < slots_.size(); ++i) {
     Slot& s = slots_[i];
-    const int n = s.robot.dof();
-    const double* u = s.tau.data();
-    Workspace& ws = s.ws;
-    const Robot& r = s.robot;
-    const bool es = opt_.end_stops;
     try {
-      // classic RK4 on x = [q; qd], torque held; k1 reused from the log row
-      if (!s.k1_valid) qdd_(s, s.k1);
-      VecN k2v, k3v, k4v, qs(n), vs(n);
-      const VecN& q = s.q_prev;
-      const VecN& v = s.qd_prev;
-      qs = q + 0.5 * h * v;
-      vs = v + 0.5 * h * s.k1;
-      const VecN k2q = vs;
-      r.forward_dynamics(qs.data(), vs.data(), u, nullptr, ws, k2v, es);
-      qs = q + 0.5 * h * k2q;
-      vs = v + 0.5 * h * k2v;
-      const VecN k3q = vs;
-      r.forward_dynamics(qs.data(), vs.data(), u, nullptr, ws, k3v, es);
-      qs = q + h * k3q;
-      vs = v + h * k3v;
-      const VecN k4q = vs;
-      r.forward_dynamics(qs.data(), vs.data(), u, nullptr, ws, k4v, es);
-      s.q = q + (h / 6.0) * (v + 2.0 * k2q + 2.0 * k3q + k4q);
-      s.qd = v + (h / 6.0) * (s.k1 + 2.0 * k2v + 2.0 * k3v + k4v);
+      // the first stage was computed for the log row at this state and torque
+      step(s.robot, s.ws, opt_.integrator, s.q, s.qd, s.tau.data(), s.has_applied ? s.tau_ext.data() : nullptr,
+           opt_.dt, opt_.end_stops, s.k1_valid ? &s.k1 : nullptr);
     } catch (const std::exception& e) {
-      diverge_(static_cast<int>(i), std::string("the dynamics failed in an RK4 stage (") + e.what() + ")", true, false);
+      diverge_(static_cast<int>(i),
+               std::string("the dynamics failed in a ") + method_name(opt_.integrator) + " stage (" + e.what() + ")",
+               true, false);
     }
     s.k1_valid = false;
-    bool finite = true, fast = false, far = false;
-    for (int j = 0; j < n; ++j) {
-      if (!std::isfinite(s.q[j]) || !std::isfinite(s.qd[j])) finite = false;
-      else if (std::abs(s.qd[j]) > opt_.max_speed) fast = true;
-      else if (std::abs(s.q[j]) > opt_.max_position) far = true;
-    }
-    if (!finite) diverge_(static_cast<int>(i), "state is no longer finite", true, true);
-    if (fast) diverge_(static_cast<int>(i), "a joint speed exceeds max_speed = " + num(opt_.max_speed), true, true);
-    if (far)
-      diverge_(static_cast<int>(i), "a joint position exceeds max_position = " + num(opt_.max_position), true, true);
+    const std::string why = divergence_reason(s.q, s.qd, DivergenceLimits{opt_.max_speed, opt_.max_position});
+    if (!why.empty()) diverge_(static_cast<int>(i), why, true, true);
   }
   ++k_;
 }
@@ -355,6 +401,20 @@ void Simulation::advance(long n) {
     step_();
     update_();
   }
+}
+
+long Simulation::run(double t_end, long chunk, const std::function<bool(long, long)>& progress) {
+  if (chunk < 1) throw std::invalid_argument("chunk must be >= 1, got " + std::to_string(chunk));
+  const long total = steps_until(t_end);
+  reserve(total);
+  long done = 0;
+  do {
+    const long c = std::min(chunk, total - done);
+    advance(c);
+    done += c;
+    if (progress && !progress(done, total)) break;
+  } while (done < total);
+  return done;
 }
 
 std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads,

@@ -7,12 +7,15 @@ float64.
 """
 from . import _core
 from ._core import (
+    Clamp,
     CollisionWorld,
     Contact,
     CubicTrajectory,
     IKError,
+    LinkBox,
     Reference,
     Robot,
+    SetPoint,
     Tool,
     Wrench,
     box_inertia,
@@ -25,19 +28,25 @@ from ._core import (
 from . import robots
 from .urdf import to_urdf
 from .planning import clamp_pose, plan_cartesian
-from .simulation import ComputedTorque, Controller, DivergenceError, PID, Pacer, RobotLog, RunStats, Simulation, SimulationLog, run_batch, simulate  # noqa: E501
+from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
+from .log import RobotLog, SimulationLog
+from .pacing import Pacer, RunStats
+from .batch import run_batch, simulate
 
 Robot.to_urdf = to_urdf
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "Clamp",
     "CollisionWorld",
     "Contact",
     "CubicTrajectory",
     "IKError",
+    "LinkBox",
     "Reference",
     "Robot",
+    "SetPoint",
     "Tool",
     "Wrench",
     "box_inertia",

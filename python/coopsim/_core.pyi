@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'PID', 'Reference', 'Robot', 'SimulationCore', 'Tool', 'Wrench', 'attach_builtin_generated', 'box_inertia', 'build_optimised', 'builtin_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'Wrench', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -44,12 +44,73 @@ class Wrench:
     @property
     def wrench(self) -> numpy.typing.NDArray[numpy.float64]:
         ...
+class LinkBox:
+    """
+    A box fixed to a link: the shape the world collides and the views draw.
+    
+    link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
+    and axes in the DH frame of `link`. half_extents: (3,) m, > 0, along the
+    box's own x, y, z. name: a label (e.g. "link1", "fixed_jaw").
+    """
+    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str]:
+        ...
+    def __init__(self, link: typing.SupportsInt | typing.SupportsIndex, half_extents: typing.Any, pose: typing.Any = ..., name: str = '') -> None:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def half_extents(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def link(self) -> int:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def pose(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+class Clamp:
+    """
+    A parallel-jaw clamp.
+    
+    fixed_link: the link (1..n-1) carrying the fixed jaw. fixed_face: (4, 4) the
+    fixed jaw's inner face in that link's DH frame: origin at the face's centre,
+    z along the jaw axis towards the moving jaw (the moving joint's axis), x
+    along the jaw towards its tip. moving_joint: the prismatic joint
+    fixed_link + 1 whose variable is the opening between the inner faces (m);
+    the moving face is the fixed one moved by the opening along z, facing back.
+    jaw_length (along x) and pad_width (along y): the pads' size, m.
+    """
+    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], int, float, float]:
+        ...
+    def __init__(self, fixed_link: typing.SupportsInt | typing.SupportsIndex, fixed_face: typing.Any, moving_joint: typing.SupportsInt | typing.SupportsIndex, jaw_length: typing.SupportsFloat | typing.SupportsIndex, pad_width: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def fixed_face(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def fixed_link(self) -> int:
+        ...
+    @property
+    def jaw_length(self) -> float:
+        ...
+    @property
+    def moving_joint(self) -> int:
+        ...
+    @property
+    def pad_width(self) -> float:
+        ...
 class Robot:
     """
-    A serial robot: standard DH table, centre-of-mass table, mass properties, friction and limits, placed in the world. Immutable except for its dynamics backend; build one with Robot.from_dh or coopsim.robots.
+    A serial robot: standard DH table, centre-of-mass table, mass properties, friction, limits and link shapes, placed in the world. Immutable: with_base, with_backend, ... make changed copies. Build one with Robot.from_dh or coopsim.robots.
     """
     @staticmethod
-    def from_dh(dh: typing.Any, com: typing.Any, masses: typing.Any, inertias: typing.Any, joint_types: str, friction: typing.Any = None, q_limits: typing.Any = None, tau_limits: typing.Any = None, gravity: typing.Any = (0.0, 0.0, -9.81), base_position: typing.Any = (0.0, 0.0, 0.0), base_yaw: typing.SupportsFloat | typing.SupportsIndex = 0.0, tool: typing.Any = None, name: str = 'robot', end_stop_frequency: typing.SupportsFloat | typing.SupportsIndex = 500.0, end_stop_damping_ratio: typing.SupportsFloat | typing.SupportsIndex = 1.0) -> Robot:
+    def from_dh(dh: typing.Any, com: typing.Any, masses: typing.Any, inertias: typing.Any, joint_types: str, friction: typing.Any = None, q_limits: typing.Any = None, tau_limits: typing.Any = None, gravity: typing.Any = (0.0, 0.0, -9.81), base_position: typing.Any = (0.0, 0.0, 0.0), base_yaw: typing.SupportsFloat | typing.SupportsIndex = 0.0, tool: typing.Any = None, name: str = 'robot', end_stop_frequency: typing.SupportsFloat | typing.SupportsIndex = 500.0, end_stop_damping_ratio: typing.SupportsFloat | typing.SupportsIndex = 1.0, boxes: typing.Any = None, clamp: typing.Any = None, dimensions: typing.Any = None) -> Robot:
         """
         Defines a serial robot from tables.
         
@@ -70,6 +131,10 @@ class Robot:
         end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
             used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
             + 2 zeta w qd), pushing only; keep w dt below about 2.5.
+        boxes: list of LinkBox, the shapes fixed to the links (link 0: the base);
+            None: thin default boxes along the links (see Robot.default_boxes).
+        clamp: a Clamp, or None for a robot without one.
+        dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
     def to_urdf(robot, name: str | None = None) -> str:
@@ -81,12 +146,16 @@ class Robot:
             to a large number. Friction K is written as the joint ``damping``.
             
         """
-    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, dict]:
+    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float]]:
         ...
     def __repr__(self) -> str:
         ...
     def __setstate__(self, arg0: tuple) -> None:
         ...
+    def clamp_faces(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        World poses (2, 4, 4) of the clamp's fixed and moving inner faces at q: origin at the face's centre, z the face normal pointing to the other jaw, x along the jaw towards its tip.
+        """
     def com_frames(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
         World poses (n, 4, 4) of the CoM frames of links 1..n.
@@ -98,6 +167,10 @@ class Robot:
     def coriolis_matrix(self, q: typing.Any, qd: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
         Coriolis matrix (n, n) in Christoffel form; Mdot - 2 C is skew.
+        """
+    def default_boxes(self) -> list[LinkBox]:
+        """
+        Thin boxes along the links, used when a robot is given none: for link i the segment between the foot of the common normal on joint axis i and frame i's origin (or, for a revolute joint with |d_i| > |a_i|, from frame i-1's origin to that foot), square section 0.02 m; a base above the floor stands on a column from z = 0 to frame 0.
         """
     def end_stop_torques(self, q: typing.Any, qd: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -185,17 +258,29 @@ class Robot:
         """
         dM/dq (n, n, n); [k] is the derivative with respect to q_k.
         """
-    def set_backend(self, backend: str) -> None:
+    def shapes(self, q: typing.Any) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
-        Selects 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).
+        World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,).
         """
     def tool_jacobian(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
         Jacobian (6, n) of the tool centre point, linear rows first.
         """
+    def with_backend(self, backend: str) -> Robot:
+        """
+        A copy using 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).
+        """
     def with_base(self, position: typing.Any, yaw: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> Robot:
         """
         A copy placed at `position` (3,) m with `yaw` rad.
+        """
+    def with_generated(self, name: str) -> Robot:
+        """
+        A copy with the generated dynamics `name` attached (structure checked) and selected: code compiled into the engine (compiled_generated_names()) or built by coopsim.codegen.compile.
+        """
+    def with_geometry(self, boxes: typing.Any = None, clamp: typing.Any = None) -> Robot:
+        """
+        A copy with other link boxes (None: the default boxes) and clamp (None: none).
         """
     def with_gravity(self, gravity: typing.Any) -> Robot:
         """
@@ -218,6 +303,16 @@ class Robot:
     def base_yaw(self) -> float:
         ...
     @property
+    def boxes(self) -> list[LinkBox]:
+        """
+        The LinkBox shapes fixed to the links, [LinkBox].
+        """
+    @property
+    def clamp(self) -> typing.Any:
+        """
+        The Clamp, or None.
+        """
+    @property
     def com(self) -> typing.Any:
         """
         (n, 4) CoM rows.
@@ -226,6 +321,11 @@ class Robot:
     def dh(self) -> typing.Any:
         """
         (n, 4) [theta, d, a, alpha].
+        """
+    @property
+    def dimensions(self) -> dict[str, float]:
+        """
+        {name: metres} the robot was built from (may be empty).
         """
     @property
     def dof(self) -> int:
@@ -244,9 +344,9 @@ class Robot:
         (n,) viscous K.
         """
     @property
-    def gravity_vector(self) -> numpy.typing.NDArray[numpy.float64]:
+    def gravity_acceleration(self) -> numpy.typing.NDArray[numpy.float64]:
         """
-        (3,) m/s^2, world frame.
+        The world's gravitational acceleration (3,) m/s^2 (G(q) is gravity(q)).
         """
     @property
     def has_generated(self) -> bool:
@@ -432,6 +532,23 @@ class CubicTrajectory(Reference):
         """
         'given', 'heuristic' or 'spline'.
         """
+class SetPoint(Reference):
+    """
+    A constant reference: q_ref = q (n,) at all times, qd_ref = qdd_ref = 0.
+    """
+    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64]]:
+        ...
+    def __init__(self, q: typing.Any) -> None:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def q(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,) rad or m.
+        """
 class IKError(ValueError):
     """
     No joint configuration within the limits reaches the IK target; the message says why. A ValueError.
@@ -573,7 +690,7 @@ class SimulationCore:
     with controllers and references, RK4 at a fixed dt, zero-order hold of the
     torques between controller updates, the log and tracking metrics.
     """
-    def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0) -> None:
+    def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4') -> None:
         ...
     def add_robot(self, robot: Robot, controller: Controller, reference: typing.Any, q0: typing.Any = None, qd0: typing.Any = None) -> int:
         """
@@ -583,11 +700,17 @@ class SimulationCore:
         """
         Advances n steps with the GIL released.
         """
+    def applied(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], ..., ...]:
+        """
+        (forces (n,), wrenches [Wrench]) applied to robot i now.
+        """
+    def controller(self, i: typing.SupportsInt | typing.SupportsIndex) -> Controller:
+        ...
     def initial_state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         ...
     def log(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
         """
-        Robot i's log as a dict of (rows, n) arrays: q, qd, qdd, tau, q_ref, qd_ref: read-only views of the rows so far, which later steps and reset() do not change.
+        Robot i's log as a dict of (rows, n) arrays, one per quantity of log_schema(): read-only views of the rows so far, which later steps and reset() do not change.
         """
     def log_t(self) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -597,17 +720,23 @@ class SimulationCore:
         """
         Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).
         """
+    def reference(self, i: typing.SupportsInt | typing.SupportsIndex) -> Reference:
+        ...
     def reset(self) -> None:
         """
         Back to t = 0 and the initial states; clears log and metrics.
         """
     def robot(self, i: typing.SupportsInt | typing.SupportsIndex) -> Robot:
         """
-        A copy of robot i.
+        Robot i as simulated (robots are immutable: this equals the robot added).
         """
     def run(self, t_end: typing.SupportsFloat | typing.SupportsIndex, callback: typing.Any = None, chunk: typing.SupportsInt | typing.SupportsIndex = 4096) -> int:
         """
         Advances to time t_end (s) in chunks of `chunk` steps with the GIL released, calling callback(done, total) after each chunk. Returns the number of steps.
+        """
+    def set_applied(self, i: typing.SupportsInt | typing.SupportsIndex, forces: typing.Any = None, wrenches: typing.Any = None) -> None:
+        """
+        Sets robot i's applied joint forces (n,) and/or link wrenches (a list of Wrench); None keeps one.
         """
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
@@ -616,6 +745,10 @@ class SimulationCore:
     def steps_until(self, t_end: typing.SupportsFloat | typing.SupportsIndex) -> int:
         """
         Steps from now to t_end (s), rounded down.
+        """
+    def tau_ext(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        The external joint torque of robot i's applied inputs, held over the next step, (n,).
         """
     def torque(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -634,6 +767,9 @@ class SimulationCore:
         """
     @property
     def end_stops(self) -> bool:
+        ...
+    @property
+    def integrator(self) -> str:
         ...
     @property
     def log_every(self) -> int:
@@ -663,17 +799,13 @@ class SimulationCore:
         """
         Simulated time, s.
         """
-def attach_builtin_generated(robot: Robot, name: str) -> None:
-    """
-    Attaches the compiled-in generated dynamics `name` to `robot` (structure checked) and selects it.
-    """
 def box_inertia(mass: typing.SupportsFloat | typing.SupportsIndex, lx: typing.SupportsFloat | typing.SupportsIndex, ly: typing.SupportsFloat | typing.SupportsIndex, lz: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
     Inertia tensor (3, 3) in kg m^2 of a solid box of `mass` kg and edges lx, ly, lz (m) along x, y, z, about its centre.
     """
-def builtin_generated_names() -> list[str]:
+def compiled_generated_names() -> list[str]:
     """
-    Names of robots whose generated dynamics are compiled into this build.
+    Names of the robots whose generated dynamics are compiled into this build.
     """
 def dh_transform(theta: typing.SupportsFloat | typing.SupportsIndex, d: typing.SupportsFloat | typing.SupportsIndex, a: typing.SupportsFloat | typing.SupportsIndex, alpha: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
@@ -702,12 +834,16 @@ def integrate(robot: Robot, q0: typing.Any, qd0: typing.Any, tau: typing.Any, dt
     tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold).
     method: 'rk4' (default) or 'euler' (semi-implicit).
     Returns (t (m,), q (m, n), qd (m, n)) with every record_every-th state, the
-    first and the last included. Raises RuntimeError naming the step if the state
-    stops being finite.
+    first and the last included. Raises DivergenceError (a RuntimeError) naming the
+    step if the state stops being finite.
     """
 def load_generated_library(path: str) -> str:
     """
-    Loads a shared library built by coopsim.codegen.compile, registers its generated dynamics under the name it carries (attach with attach_builtin_generated) and returns that name.
+    Loads a shared library built by coopsim.codegen.compile, registers its generated dynamics under the name it carries (attach with Robot.with_generated) and returns that name.
+    """
+def log_schema() -> list:
+    """
+    The quantities a simulation logs per robot, in column order: [(name, description)], one column per joint.
     """
 def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, tau_ext: typing.Any = None, end_stops: bool = True) -> tuple:
     """

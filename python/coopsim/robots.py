@@ -14,6 +14,20 @@ jaws' inner faces. Jaws are plates of ``jaw_length`` x ``width`` x
 inner faces, halfway along the jaws; the tool frame has z along the approach
 (out of the clamp), y along the jaw axis (fixed jaw towards moving jaw).
 
+Shapes (``robot.boxes``, ``robot.shapes(q)``): each link's box is the uniform
+box of its mass properties, centred on its centre of mass with the axes of
+its CoM frame (named ``link1`` ... ``link6``; ``link6`` is the moving jaw);
+the fixed jaw is a second box on link 5 (``fixed_jaw``), the mirror of the
+moving one across the fixed jaw's inner face; the base is a column
+(``base``) of square section 2 ``width`` standing on the floor of frame 0
+(z = 0) up to the underside of link 1 (``L_base - height / 2``).
+``robot.clamp`` describes the jaws (``coopsim.Clamp``). Boxes that touch
+at every pose: each link with the next (they meet at their joint), the
+base column with link 1, and on both robots the fixed jaw with the clamp
+body (its own link) and with the moving jaw when the clamp is closed
+(d6 = 0, faces in contact); the world's collision filter leaves adjacent
+links out (``tests/test_robots.py::test_scara_boxes_overlap_only_where_they_touch``).
+
 Units: m, kg, rad, N, N m.
 """
 from __future__ import annotations
@@ -23,7 +37,7 @@ import math
 import numpy as np
 
 from . import _core
-from ._core import Robot, Tool, box_inertia
+from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, dh_transform
 
 __all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS"]
 
@@ -112,7 +126,7 @@ def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backen
     d = _check_dims(dims, spec["defaults"], spec["name"])
     if isinstance(base_yaw, (bool, str, complex)) or np.ndim(base_yaw) != 0:
         raise ValueError(f"base_yaw must be a number in radians, got {base_yaw!r}")
-    dh, com, boxes, tool = spec["geometry"](d)
+    dh, com, boxes, tool, jaw = spec["geometry"](d)
     boxes0 = spec["geometry"](spec["defaults"])[2]
     n = len(spec["types"])
     m = _masses(boxes, boxes0, spec["masses"], masses, n)
@@ -123,13 +137,39 @@ def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backen
         dh=np.array(dh, dtype=float), com=np.array(com, dtype=float), masses=m, inertias=inertias,
         joint_types=spec["types"], friction=spec["friction"] if friction is None else friction,
         q_limits=spec["q_limits"], tau_limits=spec["tau_limits"], gravity=gravity, base_position=base_position,
-        base_yaw=base_yaw, tool=tool, name=spec["name"])
-    robot.dimensions = dict(d)
-    robot.link_boxes = np.array(boxes, dtype=float)
-    if robot.name in _core.builtin_generated_names():
-        _core.attach_builtin_generated(robot, robot.name)
-    robot.set_backend(backend if robot.has_generated else "numeric")
-    return robot
+        base_yaw=base_yaw, tool=tool, name=spec["name"], boxes=_shapes(dh, com, boxes, jaw, d),
+        clamp=_clamp(jaw, d), dimensions=d)
+    if robot.name in _core.compiled_generated_names():
+        robot = robot.with_generated(robot.name)
+    return robot.with_backend(backend if robot.has_generated else "numeric")
+
+
+def _shapes(dh, com, boxes, face, d):
+    """LinkBox list: each link's mass box on its CoM frame, the fixed jaw, the base column."""
+    w, h = d["width"], d["height"]
+    col = d["L_base"] - h / 2
+    # no column when link 1 reaches down to the floor
+    out = [LinkBox(0, [w, w, col / 2], _translation([0.0, 0.0, col / 2]), "base")] if col > 1e-4 else []
+    for i, (row, crow, box) in enumerate(zip(dh, com, boxes)):
+        # CoM frame in the link's DH frame: constant, q enters both rows in the same slot
+        pose = np.linalg.solve(dh_transform(*row), dh_transform(*crow))
+        pose[3] = [0.0, 0.0, 0.0, 1.0]
+        out.append(LinkBox(i + 1, np.array(box) / 2, pose, f"link{i + 1}"))
+    Lj, tj = d["jaw_length"], d["jaw_thickness"]
+    centre = face[:3, 3] - face[:3, 2] * tj / 2  # behind the inner face, away from the moving jaw
+    half = np.abs(face[:3, :3]) @ [Lj / 2, w / 2, tj / 2]  # face axes (along, across, normal) in frame 5
+    out.append(LinkBox(5, half, _translation(centre), "fixed_jaw"))
+    return out
+
+
+def _clamp(face, d):
+    return Clamp(fixed_link=5, fixed_face=face, moving_joint=6, jaw_length=d["jaw_length"], pad_width=d["width"])
+
+
+def _translation(p):
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
 
 
 def _scara1_geometry(d):
@@ -158,7 +198,9 @@ def _scara1_geometry(d):
     T[:3, :3] = R
     T[:3, 3] = [Lj / 2, 0.0, 0.0]
     tool = Tool(link=5, offset=T, second_link=6, second_point=[Lj / 2, 0.0, 0.0])
-    return dh, com, boxes, tool
+    # fixed jaw's inner face in frame 5: centre on the jaw axis z5, x5 along the jaw
+    face = _translation([Lj / 2, 0.0, 0.0])
+    return dh, com, boxes, tool, face
 
 
 def _scara2_geometry(d):
@@ -187,7 +229,10 @@ def _scara2_geometry(d):
     T[:3, :3] = R
     T[:3, 3] = [0.0, Lj / 2, 0.0]
     tool = Tool(link=5, offset=T, second_link=6, second_point=[0.0, Lj / 2, 0.0])
-    return dh, com, boxes, tool
+    # fixed jaw's inner face in frame 5: x along y5 (down the jaw), z = z5, y = -x5
+    face = _translation([0.0, Lj / 2, 0.0])
+    face[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    return dh, com, boxes, tool, face
 
 
 def scara1(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction=None,

@@ -45,10 +45,12 @@ enum ParamOffset : int {
 };
 // Gravity (gx, gy, gz) in frame 0 follows the n link blocks.
 
-// Generated code compiled into the engine or registered at run time, looked
-// up by name; null if none. The names are those compiled into the engine.
-const GeneratedDynamics* builtin_generated(const std::string& name);
-std::vector<std::string> builtin_generated_names();
+// Generated code by name, null if none: compiled into the engine, registered
+// at run time (register_generated), or a library of the build cache
+// (find_cached_generated).
+const GeneratedDynamics* find_generated(const std::string& name);
+// The names of the generated code compiled into the engine.
+std::vector<std::string> compiled_generated_names();
 // Keeps `gen` for the process lifetime and makes it findable by name (code
 // loaded from a shared library, e.g. by coopsim.codegen.compile).
 void register_generated(std::shared_ptr<const GeneratedDynamics> gen);
@@ -57,7 +59,7 @@ std::vector<const GeneratedDynamics*> compiled_generated();
 
 // Shared libraries built by coopsim.codegen.compile: the library describes
 // its structure itself. Throws std::invalid_argument when it cannot be
-// loaded. builtin_generated() also finds a library gen_<key> of the build
+// loaded. find_generated() also finds a library gen_<key> of the build
 // cache ($COOPSIM_CACHE_DIR, else $XDG_CACHE_HOME/coopsim, else
 // ~/.cache/coopsim) by name, so pickled robots find their code again.
 std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::string& path);

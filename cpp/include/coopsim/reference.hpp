@@ -3,6 +3,8 @@
 // may be evaluated from several threads at once.
 #pragma once
 
+#include "coopsim/robot.hpp"
+
 namespace coopsim {
 
 class Reference {
@@ -14,6 +16,26 @@ class Reference {
   // Writes n values each to q (rad or m), qd (per s) and qdd (per s^2); qd or
   // qdd may be null when not wanted.
   virtual void evaluate(double t, double* q, double* qd, double* qdd) const = 0;
+};
+
+// A constant set-point: q_ref = q, qd_ref = qdd_ref = 0 at all times.
+class ConstantReference : public Reference {
+ public:
+  explicit ConstantReference(VecN q) : q_(std::move(q)) {}
+  int dof() const override { return static_cast<int>(q_.size()); }
+  double t_start() const override { return 0.0; }
+  double t_end() const override { return 0.0; }
+  void evaluate(double, double* q, double* qd, double* qdd) const override {
+    for (int i = 0; i < q_.size(); ++i) {
+      if (q) q[i] = q_[i];
+      if (qd) qd[i] = 0.0;
+      if (qdd) qdd[i] = 0.0;
+    }
+  }
+  const VecN& point() const { return q_; }
+
+ private:
+  VecN q_;
 };
 
 }  // namespace coopsim

@@ -95,6 +95,39 @@ struct EndStop {
 
 struct GeneratedDynamics;  // see generated.hpp
 
+// A box fixed to a link: the shape the world collides and the views draw.
+// `pose` places the box's centre and axes in the DH frame of `link` (frame i
+// for link i = 1..n; frame 0, the base frame, for link 0, the base); the box
+// spans +-half_extents along its own x, y, z axes.
+struct LinkBox {
+  int link = 0;                                               // 0..n
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();     // in the DH frame of `link`
+  Eigen::Vector3d half_extents = Eigen::Vector3d::Zero();     // m, each > 0
+  std::string name;                                           // e.g. "link1", "base", "fixed_jaw"
+};
+
+// A parallel-jaw clamp: a fixed jaw on `fixed_link` and a moving jaw carried
+// by the prismatic joint `moving_joint` = fixed_link + 1, whose variable is
+// the opening between the jaws' inner faces (m). The fixed jaw's inner face
+// is the frame `fixed_face` in the DH frame of fixed_link: origin at the
+// face's centre, z along the jaw axis towards the moving jaw (the moving
+// joint's axis), x along the jaw towards its tip, y across the jaw. The
+// moving jaw's inner face is that frame moved by the opening along z, turned
+// to face back (Rx(pi)). Each pad is jaw_length (along x) by pad_width
+// (along y). The tool centre point is the robot's Tool.
+struct Clamp {
+  int fixed_link = 0;                                         // 1..n; 0: the robot has no clamp
+  Eigen::Isometry3d fixed_face = Eigen::Isometry3d::Identity();
+  int moving_joint = 0;                                       // 1..n, prismatic, = fixed_link + 1
+  double jaw_length = 0.0;                                    // m, > 0
+  double pad_width = 0.0;                                     // m, > 0
+  bool present() const { return fixed_link > 0; }
+};
+
+// Thickness (m) of the default link boxes of a robot given none (see
+// Robot::default_boxes).
+constexpr double kDefaultLinkThickness = 0.02;
+
 // Fixed-size scratch memory for evaluating a robot: kinematics of every frame
 // and CoM, and recursion buffers. One per thread; reused across calls.
 struct Workspace {
@@ -121,7 +154,8 @@ class Robot {
   const std::string& name() const { return name_; }
   std::string joint_types() const;
   const std::vector<Link>& links() const { return links_; }
-  const Eigen::Vector3d& gravity() const { return gravity_; }
+  // The world's gravitational acceleration (3), m/s^2 (G(q) is gravity()).
+  const Eigen::Vector3d& gravity_acceleration() const { return gravity_; }
   const Eigen::Vector3d& base_position() const { return base_p_; }
   double base_yaw() const { return base_yaw_; }
   const Eigen::Isometry3d& base() const { return base_; }
@@ -132,20 +166,50 @@ class Robot {
   VecN tau_max() const;
   VecN friction_coefficients() const;
 
-  // A copy with another base placement, gravity or name (all else equal).
+  // A robot is immutable once built; these make changed copies (all else
+  // equal): another base placement, gravity, shapes and clamp, dimensions
+  // record, generated code (attached, checked against this robot's
+  // structure, and selected; std::invalid_argument when the structure
+  // differs) or backend ("generated", if attached, or "numeric").
   Robot with_base(const Eigen::Vector3d& position, double yaw) const;
   Robot with_gravity(const Eigen::Vector3d& gravity) const;
+  Robot with_geometry(std::vector<LinkBox> boxes, Clamp clamp) const;
+  Robot with_dimensions(std::map<std::string, double> dimensions) const;
+  Robot with_generated(std::shared_ptr<const GeneratedDynamics> gen) const;
+  Robot with_backend(const std::string& backend) const;
 
   // Dynamics backend: the numeric recursive algorithms (always available) or
   // generated closed-form code for this robot's structure.
   bool has_generated() const { return static_cast<bool>(generated_); }
   bool uses_generated() const { return use_generated_ && generated_; }
   std::string backend() const { return uses_generated() ? "generated" : "numeric"; }
-  // Attaches generated code (checked against this robot's structure) and
-  // selects it; throws std::invalid_argument when the structure differs.
-  void attach_generated(std::shared_ptr<const GeneratedDynamics> gen);
-  void set_backend(const std::string& backend);  // "generated" or "numeric"
   const std::shared_ptr<const GeneratedDynamics>& generated() const { return generated_; }
+
+  // ---- geometry ----
+  // Boxes fixed to the links (any number per link, link 0 = the base), and
+  // the clamp. Built from the tables unless given (with_geometry).
+  const std::vector<LinkBox>& boxes() const { return boxes_; }
+  const Clamp& clamp() const { return clamp_; }
+  bool has_default_boxes() const { return default_boxes_; }
+  // Named dimensions (m) the robot was built from, for reference (the
+  // built-in SCARAs record theirs); empty for a robot defined by tables.
+  const std::map<std::string, double>& dimensions() const { return dimensions_; }
+  // Thin boxes along the links, for a robot given no shapes: for link i the
+  // segment between the two points its DH row fixes in it, the foot of the
+  // common normal on joint axis i, (-a_i, 0, 0) in frame i, and the origin of
+  // frame i (along x_i, length |a_i|); for a revolute joint with |d_i| >
+  // |a_i|, the segment from frame i-1's origin to that foot along z_{i-1}
+  // instead. Square section kDefaultLinkThickness, at least that long. A
+  // base placed above the floor stands on a column of that section from
+  // the floor (z = 0) to the base frame's origin.
+  std::vector<LinkBox> default_boxes() const;
+  // World poses of every box, in the order of boxes(), for the kinematics
+  // in ws (see kinematics()).
+  void box_poses(const Workspace& ws, std::vector<Eigen::Isometry3d>& out) const;
+  // World poses of the clamp's fixed and moving inner faces (see Clamp)
+  // for the kinematics of q in ws; throws when the robot has no clamp.
+  void clamp_faces(const Workspace& ws, const double* q, Eigen::Isometry3d& fixed,
+                   Eigen::Isometry3d& moving) const;
   // Parameter vector read by generated code: per link [theta d a alpha,
   // com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K] then gravity in frame 0.
   const std::vector<double>& parameter_vector() const { return params_; }
@@ -168,7 +232,8 @@ class Robot {
   // scaled by gravity_scale (0 to leave it out).
   void rnea(const double* q, const double* qd, const double* qdd, Workspace& ws, VecN& tau,
             double gravity_scale, bool with_friction) const;
-  void gravity_vector(const double* q, Workspace& ws, VecN& g) const;
+  // G(q), the joint torques of gravity (N m or N).
+  void gravity(const double* q, Workspace& ws, VecN& g) const;
   void coriolis_vector(const double* q, const double* qd, Workspace& ws, VecN& c) const;
   // C in Christoffel form: C_kj = sum_i Gamma_ijk qd_i, Gamma from dM/dq.
   void coriolis_matrix(const double* q, const double* qd, Workspace& ws, MatN& C) const;
@@ -194,6 +259,8 @@ class Robot {
 
  private:
   void build_();
+  void build_geometry_();
+  void attach_generated_(std::shared_ptr<const GeneratedDynamics> gen);
   void mass_matrix_kin_(Workspace& ws, MatN& M) const;
   void rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,
                  bool with_friction) const;
@@ -211,6 +278,10 @@ class Robot {
   std::shared_ptr<const GeneratedDynamics> generated_;
   bool use_generated_ = false;
   std::vector<double> params_;
+  std::vector<LinkBox> boxes_;
+  bool default_boxes_ = true;  // boxes_ are default_boxes() (re-made with the base)
+  Clamp clamp_;
+  std::map<std::string, double> dimensions_;
   // precomputed constants per link: fixed part of the DH transform and the
   // transform from DH frame i to the CoM frame of link i
   struct Pre {

@@ -1,24 +1,37 @@
 // The simulation loop: one or more robots, each driven by a controller
-// towards a reference, integrated by fixed-step RK4, with a data log (the
-// paper's DataManager) and tracking metrics.
+// towards a reference, integrated at a fixed step by RK4 (or semi-implicit
+// Euler) through coopsim::step, with a data log (the paper's DataManager)
+// and tracking metrics. The simulation is the one place that holds the
+// state: robots (immutable copies), q, qd, held torques, applied inputs, log.
 //
 // Time: step k is at t_k = k dt. The controller of every robot runs at the
 // steps k that are multiples of control_every, with period control_every * dt;
 // its torque, saturated at the actuator limits, is held constant until the
 // next update (zero-order hold), also inside the RK4 stages.
 //
+// Applied inputs (MuJoCo's qfrc_applied / xfrc_applied): each robot carries
+// applied joint forces (n) and applied link wrenches (ExternalWrench: world
+// force and moment at a point of a link), set between steps and kept until
+// changed. At every step their joint torques tau_ext = f + sum J^T w are
+// evaluated at q(t_k) and held over [t_k, t_k+1) like the torque: they enter
+// eq. (2) as tau + tau_ext. A change takes effect at once, for the next
+// step; if the row of this time is already logged, the next advance logs a
+// second row at the same time with the new inputs, so the log always shows
+// what acted over each step.
+//
 // Log: a row is written at every step k that is a multiple of log_every
-// (log_every = 0: no log), including k = 0. Row k holds t_k, q and qd at t_k,
-// the torque applied over [t_k, t_k+1) (the held one), the acceleration that
-// torque gives at t_k, and the reference q_ref, qd_ref at t_k. Log storage is
-// reserved before each advance, so the stepping loop does not allocate.
+// (log_every = 0: no log), including k = 0. Its columns are log_schema():
+// t_k, then per robot q and qd at t_k, the acceleration at t_k, the torque
+// and the external torque applied over [t_k, t_k+1) (held), and the
+// reference q_ref, qd_ref at t_k. Log storage is reserved before each
+// advance, so the stepping loop does not allocate.
 //
 // Metrics (every step, whatever log_every): per joint, the sum of squared
 // and the largest absolute tracking error e = q_ref - q and the largest
 // absolute applied torque.
 //
 // Divergence: after each step every robot's q and qd must be finite with
-// |qd_i| <= max_speed and |q_i| <= max_position. If not, the simulation goes
+// |qd_i| <= max_speed and |q_i| <= max_position (divergence_reason). If not, the simulation goes
 // back to the last good state (whose row, when due, is already logged),
 // marks itself diverged and throws DivergenceError naming the step, time,
 // robot and state. A controller that throws leaves the state at t_k with
@@ -32,47 +45,22 @@
 #include <string>
 #include <vector>
 
+#include <array>
+#include <functional>
+
 #include "coopsim/controller.hpp"
+#include "coopsim/integrator.hpp"
 #include "coopsim/reference.hpp"
 #include "coopsim/robot.hpp"
 
 namespace coopsim {
-
-class DivergenceError : public std::runtime_error {
- public:
-  DivergenceError(const std::string& what, long step, double time, int robot, VecN q, VecN qd)
-      : std::runtime_error(what), step(step), time(time), robot(robot), q(std::move(q)), qd(std::move(qd)) {}
-  long step;    // the step whose result was rejected (1-based count of steps)
-  double time;  // s, t at the end of that step
-  int robot;    // index of the robot that diverged
-  VecN q, qd;   // its rejected state
-};
-
-// A constant set-point: q_ref = q, qd_ref = qdd_ref = 0 at all times.
-class ConstantReference : public Reference {
- public:
-  explicit ConstantReference(VecN q) : q_(std::move(q)) {}
-  int dof() const override { return static_cast<int>(q_.size()); }
-  double t_start() const override { return 0.0; }
-  double t_end() const override { return 0.0; }
-  void evaluate(double, double* q, double* qd, double* qdd) const override {
-    for (int i = 0; i < q_.size(); ++i) {
-      if (q) q[i] = q_[i];
-      if (qd) qd[i] = 0.0;
-      if (qdd) qdd[i] = 0.0;
-    }
-  }
-  const VecN& point() const { return q_; }
-
- private:
-  VecN q_;
-};
 
 struct SimulationOptions {
   double dt = 2e-4;           // s, > 0
   int control_every = 1;      // controller update every k-th step, >= 1
   int log_every = 1;          // log row every n-th step; 0: no log
   bool end_stops = true;      // robot's spring-damper end stops beyond q_limits
+  Method integrator = Method::RK4;
   double max_speed = 1e4;     // rad/s or m/s: faster counts as divergence
   double max_position = 1e6;  // rad or m: farther counts as divergence
 };
@@ -111,9 +99,20 @@ class LogColumn {
   int width_ = 1;
 };
 
-// One robot's log: (rows x n) columns.
+// The log's schema: the quantities logged per robot, in column order, each
+// one column per joint. Units per joint type: rad or m, rad/s or m/s,
+// rad/s^2 or m/s^2, N m or N.
+enum LogQuantity : int { kLogQ, kLogQd, kLogQdd, kLogTau, kLogTauExt, kLogQRef, kLogQdRef, kLogQuantities };
+struct LogQuantityInfo {
+  const char* name;  // column prefix, e.g. "tau_ext"
+  const char* doc;   // what a row holds
+};
+const std::array<LogQuantityInfo, kLogQuantities>& log_schema();
+
+// One robot's log: one (rows x n) column per quantity of log_schema().
 struct RobotLog {
-  LogColumn q, qd, qdd, tau, q_ref, qd_ref;
+  std::array<LogColumn, kLogQuantities> columns;
+  const LogColumn& operator[](int quantity) const { return columns[quantity]; }
 };
 
 struct TrackingMetrics {
@@ -121,6 +120,8 @@ struct TrackingMetrics {
   VecN sum_sq_error;   // sum of e_i^2
   VecN max_abs_error;  // max |e_i|
   VecN max_abs_tau;    // max |tau_i| applied
+  // Root-mean-square tracking error per joint over the samples (zeros before any).
+  VecN rms_error() const;
 };
 
 class Simulation {
@@ -149,6 +150,17 @@ class Simulation {
   const VecN& q(int i) const { return slot_(i).q; }
   const VecN& qd(int i) const { return slot_(i).qd; }
   const VecN& tau(int i) const { return slot_(i).tau; }  // held torque
+  const VecN& tau_ext(int i) const { return slot_(i).tau_ext; }  // held external torque of the applied inputs
+
+  // ---- applied inputs (kept until changed; cleared by reset()) ----
+  // Joint forces (n) N m or N, added to the torque; link wrenches, world
+  // force and moment at a point of a link (see ExternalWrench). Throws
+  // std::invalid_argument on a wrong size, a non-finite value or a link
+  // out of range.
+  void set_applied_forces(int i, const VecN& forces);
+  void set_applied_wrenches(int i, std::vector<ExternalWrench> wrenches);
+  const VecN& applied_forces(int i) const { return slot_(i).applied_forces; }
+  const std::vector<ExternalWrench>& applied_wrenches(int i) const { return slot_(i).applied_wrenches; }
   const VecN& initial_q(int i) const { return slot_(i).q0; }
   const VecN& initial_qd(int i) const { return slot_(i).qd0; }
 
@@ -162,6 +174,11 @@ class Simulation {
   void reserve(long steps);
   // Advances n >= 0 steps (see the header comment for errors).
   void advance(long n);
+  // Advances to time t_end (steps_until) in chunks of `chunk` steps,
+  // calling progress(done, total) after each; progress returning false, or
+  // throwing, stops the run there (the state and log stay consistent).
+  // Returns the steps taken.
+  long run(double t_end, long chunk = 4096, const std::function<bool(long, long)>& progress = nullptr);
 
   // ---- log and metrics ----
   long log_rows() const { return log_t_.rows(); }
@@ -176,6 +193,9 @@ class Simulation {
     std::shared_ptr<Controller> controller;
     std::shared_ptr<const Reference> reference;
     VecN q0, qd0, q, qd, tau, tau_max;
+    VecN applied_forces, tau_ext;  // applied joint forces; their total with the wrenches' J^T w, held
+    std::vector<ExternalWrench> applied_wrenches;
+    bool has_applied = false;
     VecN q_ref, qd_ref, qdd_ref;
     VecN k1;  // qdd at (q, qd, tau), valid when k1_valid
     VecN q_prev, qd_prev;
@@ -193,6 +213,8 @@ class Simulation {
   void step_();
   [[noreturn]] void diverge_(int i, const std::string& why, bool in_step, bool state_is_result);
   void qdd_(Slot& s, VecN& out);
+  void external_(Slot& s);
+  void applied_changed_(Slot& s);
 
   SimulationOptions opt_;
   std::vector<Slot> slots_;

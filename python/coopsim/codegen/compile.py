@@ -92,8 +92,9 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     builds a new one. A robot pickled after compile() unpickles with its
     generated code in any process that finds the library in ``cache_dir()``
     (another `cache` folder: set COOPSIM_CACHE_DIR to it in that process).
-    Returns the robot, now with ``robot.backend == "generated"``
-    (``robot.set_backend("numeric")`` switches back). Raises ValueError for a
+    Returns a copy of the robot with the generated code attached and
+    selected, ``backend == "generated"`` (robots are immutable: the one
+    given is unchanged; ``with_backend("numeric")`` makes a numeric copy). Raises ValueError for a
     robot that is not a coopsim.Robot, RuntimeError if the build fails. A
     cached library that no longer loads is built again.
 
@@ -126,6 +127,4 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
         # a damaged cached library (e.g. truncated by a full disk): build it again, once
         _build(s, cxx, folder, lib, verbose)
         name = _core.load_generated_library(str(lib))
-    _core.attach_builtin_generated(robot, name)
-    robot.set_backend("generated")
-    return robot
+    return robot.with_generated(name)
