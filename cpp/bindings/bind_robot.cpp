@@ -226,9 +226,36 @@ void bind_robot(py::module_& m) {
              return w;
            }),
            py::arg("link"), py::arg("point"), py::arg("wrench"))
+      .def_static("at_tool", [](const py::object& wrench) {
+             ExternalWrench w;
+             w.at_tool = true;
+             w.wrench = vecx(wrench, 6, "wrench");
+             return w;
+           }, py::arg("wrench"),
+           "A wrench [fx, fy, fz, mx, my, mz] (world, N and N m) at the tool centre point, as a (6,) f_ext.")
       .def_readonly("link", &ExternalWrench::link)
+      .def_readonly("at_tool_point", &ExternalWrench::at_tool, "True for a wrench at the tool centre point.")
       .def_property_readonly("point", [](const ExternalWrench& w) { return to_numpy(w.point); })
-      .def_property_readonly("wrench", [](const ExternalWrench& w) { return to_numpy(w.wrench); });
+      .def_property_readonly("wrench", [](const ExternalWrench& w) { return to_numpy(w.wrench); })
+      .def("__repr__", [](const ExternalWrench& w) {
+         std::ostringstream s;
+         s << "Wrench(";
+         if (w.at_tool) s << "at_tool";
+         else s << "link=" << w.link << ", point=[" << w.point.transpose() << "]";
+         s << ", wrench=[" << w.wrench.transpose() << "])";
+         return s.str();
+       })
+      .def(py::pickle([](const ExternalWrench& w) {
+                        return py::make_tuple(w.link, to_numpy(w.point), to_numpy(w.wrench), w.at_tool);
+                      },
+                      [](py::tuple t) {
+                        ExternalWrench w;
+                        w.link = t[0].cast<int>();
+                        w.point = vecx(t[1], 3, "point");
+                        w.wrench = vecx(t[2], 6, "wrench");
+                        w.at_tool = t[3].cast<bool>();
+                        return w;
+                      }));
 
   py::class_<LinkBox>(m, "LinkBox", R"doc(A box fixed to a link: the shape the world collides and the views draw.
 

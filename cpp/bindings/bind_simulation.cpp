@@ -1,6 +1,7 @@
 // The simulation loop. Stepping runs with the GIL released; Python
 // controllers and references take it back for their own calls only.
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
 
 #include <memory>
 

@@ -582,8 +582,12 @@ void Robot::external_torques(const std::vector<ExternalWrench>& wrenches, Worksp
   Mat6N J;
   for (const ExternalWrench& w : wrenches) {
     require(w.point.allFinite() && w.wrench.allFinite(), "external wrench must be finite");
-    const int l = link_index_(w.link, "external wrench link");
-    jacobian(ws, l, w.point, J);
+    if (w.at_tool) {
+      tool_jacobian(ws, J);
+    } else {
+      const int l = link_index_(w.link, "external wrench link");
+      jacobian(ws, l, w.point, J);
+    }
     tau.noalias() += J.transpose() * w.wrench;
   }
 }

@@ -239,7 +239,7 @@ void Simulation::set_applied_wrenches(int i, std::vector<ExternalWrench> wrenche
   const int n = s.robot.dof();
   for (size_t k = 0; k < wrenches.size(); ++k) {
     const ExternalWrench& w = wrenches[k];
-    if (w.link < -n || w.link > n || w.link == 0)
+    if (!w.at_tool && (w.link < -n || w.link > n || w.link == 0))
       throw std::invalid_argument("wrenches[" + std::to_string(k) + "]: link must be 1.." + std::to_string(n) +
                                   " (or negative from the last), got " + std::to_string(w.link));
     if (!w.point.allFinite() || !w.wrench.allFinite())

@@ -33,8 +33,24 @@ class Wrench:
     """
     External wrench on a link: force (N) and moment (N m) in world coordinates, [fx, fy, fz, mx, my, mz], applied at `point` given in the DH frame of `link` (1..n, negative counts from the last).
     """
+    @staticmethod
+    def at_tool(wrench: typing.Any) -> Wrench:
+        """
+        A wrench [fx, fy, fz, mx, my, mz] (world, N and N m) at the tool centre point, as a (6,) f_ext.
+        """
+    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], bool]:
+        ...
     def __init__(self, link: typing.SupportsInt | typing.SupportsIndex, point: typing.Any, wrench: typing.Any) -> None:
         ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def at_tool_point(self) -> bool:
+        """
+        True for a wrench at the tool centre point.
+        """
     @property
     def link(self) -> int:
         ...
@@ -700,7 +716,7 @@ class SimulationCore:
         """
         Advances n steps with the GIL released.
         """
-    def applied(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], ..., ...]:
+    def applied(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], list[Wrench]]:
         """
         (forces (n,), wrenches [Wrench]) applied to robot i now.
         """

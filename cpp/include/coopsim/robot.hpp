@@ -72,11 +72,14 @@ struct Tool {
 };
 
 // A wrench applied to a link: force (N) and moment (N m), both in world
-// coordinates, acting at `point` given in the DH frame of `link` (1..n).
+// coordinates, acting at `point` given in the DH frame of `link` (1..n); or,
+// with at_tool, at the tool centre point (link and point unused), mapped by
+// the tool Jacobian as a (6,) f_ext is.
 struct ExternalWrench {
   int link = -1;
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
   Vec6 wrench = Vec6::Zero();  // [fx, fy, fz, mx, my, mz]
+  bool at_tool = false;
 };
 
 // End stops: beyond a joint limit a spring-damper scaled by the joint's own
