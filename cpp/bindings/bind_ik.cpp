@@ -11,161 +11,101 @@ using namespace coopsim::py_convert;
 
 namespace {
 
-const char* kind_name(AnalyticKind k) {
-  return k == AnalyticKind::Scara1 ? "scara1" : k == AnalyticKind::Scara2 ? "scara2" : nullptr;
+// ---- the Python arguments as IKOptions: each converted and checked for its
+// type and shape here, once; what the values mean is coopsim::ik's business
+
+std::optional<double> opening_arg(const py::object& opening) {
+  if (opening.is_none()) return std::nullopt;
+  return scalar_arg(opening, "opening");
 }
 
-std::array<double, 6> weights_arg(const py::object& w) {
-  std::array<double, 6> out{1, 1, 1, 1, 1, 1};
-  if (w.is_none()) return out;
-  if (py::isinstance<py::str>(w)) {
-    const std::string s = w.cast<std::string>();
-    if (s == "pose") return out;
-    if (s == "position") return {1, 1, 1, 0, 0, 0};
-    throw py::value_error("weights must be 'pose', 'position' or (6,) numbers, got '" + s + "'");
-  }
-  const Eigen::VectorXd v = vecx(w, 6, "weights");
-  for (int k = 0; k < 6; ++k) {
-    if (v[k] < 0) throw py::value_error("weights must be >= 0");
-    out[k] = v[k];
-  }
-  if (v.maxCoeff() <= 0) throw py::value_error("weights must not all be 0");
-  return out;
-}
-
-// The accepted residual (m and rad), or -1 for the solver's default when None.
-double tol_arg(const py::object& tol) {
-  if (tol.is_none()) return -1.0;
-  const double t = scalar_arg(tol, "tol");
-  if (!(t > 0)) throw py::value_error("tol must be > 0");
-  return t;
-}
-
-int branch_arg(const py::object& b, AnalyticKind kind) {
-  if (b.is_none()) return 0;
-  int v;
+std::optional<int> branch_arg(const py::object& branch) {
+  if (branch.is_none()) return std::nullopt;
   try {
-    v = b.cast<int>();
+    return branch.cast<int>();
   } catch (py::cast_error&) {
     throw py::value_error("branch must be +1, -1 (or +-2 for SCARA #2) or None");
   }
-  const bool ok = v == 1 || v == -1 || (kind == AnalyticKind::Scara2 && (v == 2 || v == -2));
-  if (!ok)
-    throw py::value_error("branch must be +1 or -1" + std::string(kind == AnalyticKind::Scara2 ? " (or +-2, folded)" : "") +
-                          ", got " + std::to_string(v));
-  return v;
 }
 
-// The jaw opening the analytic solvers (and the numeric one on a SCARA) use.
-double opening_arg(const Robot& r, const py::object& opening, const VecN* q_near) {
-  if (!opening.is_none()) {
-    return scalar_arg(opening, "opening");
-  }
-  if (q_near) return (*q_near)[5];
-  const Link& jaw = r.links()[5];
-  return std::clamp(0.0, jaw.q_min, jaw.q_max);
+std::optional<VecN> q_near_arg(const Robot& r, const py::object& q_near) {
+  if (q_near.is_none()) return std::nullopt;
+  return vec(q_near, r.dof(), "q_near");
 }
 
-VecN default_start(const Robot& r) {
-  VecN q = VecN::Zero(r.dof());
-  for (int i = 0; i < r.dof(); ++i) {
-    const Link& L = r.links()[i];
-    if (std::isfinite(L.q_min) && std::isfinite(L.q_max)) q[i] = 0.5 * (L.q_min + L.q_max);
-    else q[i] = std::clamp(0.0, L.q_min, L.q_max);
-  }
-  return q;
+// a name ('pose', 'position') or (6,) numbers
+std::optional<IKWeights> weights_arg(const py::object& w) {
+  if (w.is_none()) return std::nullopt;
+  if (py::isinstance<py::str>(w)) return IKWeights(w.cast<std::string>());
+  const Eigen::VectorXd v = vecx(w, 6, "weights");
+  std::array<double, 6> out;
+  for (int k = 0; k < 6; ++k) out[k] = v[k];
+  return IKWeights(out);
 }
 
-py::object ik(const Robot& r, const py::object& pose_obj, const py::object& opening, const py::object& branch,
-              const py::object& q_near_obj, const std::string& method, const py::object& weights,
-              const py::object& locked, const py::object& tol, int restarts, int max_iterations, unsigned long seed,
-              bool info) {
-  const Eigen::Isometry3d target = pose(pose_obj, "pose");
+// joint indices, negative ones counted from the end as in Python
+std::optional<std::vector<int>> locked_arg(const Robot& r, const py::object& locked) {
+  if (locked.is_none()) return std::nullopt;
+  if (py::isinstance<py::str>(locked) || !py::isinstance<py::iterable>(locked))
+    throw py::value_error("locked must be a sequence of joint indices");
   const int n = r.dof();
-  VecN q_near;
-  const bool has_near = !q_near_obj.is_none();
-  if (has_near) q_near = vec(q_near_obj, n, "q_near");
-  if (method != "auto" && method != "analytic" && method != "numeric")
-    throw py::value_error("method must be 'auto', 'analytic' or 'numeric', got '" + method + "'");
-  std::string why;
-  const AnalyticKind kind = analytic_kind(r, &why);
-  if (method == "analytic" && kind == AnalyticKind::None)
-    throw py::value_error("no closed-form IK for this robot: " + why + " (use method='numeric')");
-  if (kind == AnalyticKind::None && !opening.is_none())
-    throw py::value_error("opening applies to the SCARA clamps only (joint 6 of RRPRRP / RRRPRP robots)");
-  const double t = tol_arg(tol);
-
-  const bool analytic = method == "analytic" || (method == "auto" && kind != AnalyticKind::None);
-  if (analytic) {
-    if (!weights.is_none() || !locked.is_none())
-      throw py::value_error("weights and locked apply to method='numeric' only");
-    AnalyticIKOptions o;
-    o.branch = branch_arg(branch, kind);
-    o.q_near = has_near ? &q_near : nullptr;
-    o.opening = opening_arg(r, opening, o.q_near);
-    if (t > 0) o.tol = t;
-    IKSolution s;
-    try {
-      s = analytic_ik(r, target, o);
-    } catch (const IKError& e) {
-      // SCARA #2's theta2 = theta3 rule in the way: 'auto' asks the numeric
-      // solver for the free arm; if that fails too, the closed form's reason stands
-      if (!(e.redundancy && method == "auto" && branch.is_none())) throw;
-      try {
-        return ik(r, pose_obj, py::float_(o.opening), py::none(), q_near_obj, "numeric", py::none(), py::none(), tol,
-                  restarts, max_iterations, seed, info);
-      } catch (const IKError&) {
-        throw IKError(std::string(e.what()) + "; numeric IK with theta2 != theta3 found none either");
-      }
-    }
-    if (!info) return to_numpy(s.q);
-    py::dict d;
-    d["method"] = kind_name(kind);
-    d["branch"] = s.branch;
-    d["position_error"] = s.position_error;
-    d["orientation_error"] = s.orientation_error;
-    return py::make_tuple(to_numpy(s.q), d);
+  std::vector<int> out;
+  for (auto item : locked) {
+    const long i = index_arg(item, "locked joint index", -n, n - 1);
+    out.push_back(static_cast<int>(i < 0 ? i + n : i));
   }
-  if (!branch.is_none()) throw py::value_error("branch applies to the closed-form solvers only");
-  NumericIKOptions o;
+  return out;
+}
+
+std::optional<double> tol_arg(const py::object& tol) {
+  if (tol.is_none()) return std::nullopt;
+  return scalar_arg(tol, "tol");
+}
+
+py::object py_ik(const Robot& r, const py::object& pose_obj, const py::object& opening, const py::object& branch,
+                 const py::object& q_near, const std::string& method, const py::object& weights,
+                 const py::object& locked, const py::object& tol, int restarts, int max_iterations,
+                 unsigned long seed, bool info) {
+  const Eigen::Isometry3d target = pose(pose_obj, "pose");
+  IKOptions o;
+  o.q_near = q_near_arg(r, q_near);
+  o.method = ik_method(method);
+  o.tol = tol_arg(tol);
+  o.branch = branch_arg(branch);
+  o.opening = opening_arg(opening);
   o.weights = weights_arg(weights);
-  if (t > 0) o.tol = t;
+  o.locked = locked_arg(r, locked);
   o.restarts = restarts;
   o.max_iterations = max_iterations;
   o.seed = seed;
-  if (restarts < 0) throw py::value_error("restarts must be >= 0");
-  if (max_iterations < 1) throw py::value_error("max_iterations must be >= 1");
-  if (!locked.is_none()) {
-    if (py::isinstance<py::str>(locked) || !py::isinstance<py::iterable>(locked))
-      throw py::value_error("locked must be a sequence of joint indices");
-    for (auto item : locked) {
-      const long i = index_arg(item, "locked joint index", -n, n - 1);
-      o.locked.push_back(static_cast<int>(i < 0 ? i + n : i));
-    }
-  }
-  VecN q0 = has_near ? q_near : default_start(r);
-  if (kind != AnalyticKind::None) {
-    // the pose does not fix the jaw opening: hold it
-    q0[5] = opening_arg(r, opening, has_near ? &q_near : nullptr);
-    const Link& jaw = r.links()[5];
-    if (q0[5] < jaw.q_min || q0[5] > jaw.q_max)
-      throw IKError("jaw opening d6 = " + std::to_string(q0[5]) + " m is outside its limits [" +
-                    std::to_string(jaw.q_min) + ", " + std::to_string(jaw.q_max) + "] m");
-    o.locked.push_back(5);
-  }
-  NumericIKResult res;
+  IKResult res;
   {
     py::gil_scoped_release nogil;
-    res = numeric_ik(r, target, q0, o);
+    res = coopsim::ik(r, target, o);
   }
   if (!info) return to_numpy(res.q);
   py::dict d;
-  d["method"] = "numeric";
+  d["method"] = res.method;
+  if (res.method != "numeric") d["branch"] = res.branch;
   d["position_error"] = res.position_error;
   d["orientation_error"] = res.orientation_error;
-  d["iterations"] = res.iterations;
-  d["attempts"] = res.attempts;
+  if (res.method == "numeric") {
+    d["iterations"] = res.iterations;
+    d["attempts"] = res.attempts;
+  }
   return py::make_tuple(to_numpy(res.q), d);
+}
+
+py::list py_ik_solutions(const Robot& r, const py::object& pose_obj, const py::object& opening,
+                         const py::object& q_near, const py::object& tol) {
+  const Eigen::Isometry3d target = pose(pose_obj, "pose");
+  IKOptions o;
+  o.q_near = q_near_arg(r, q_near);
+  o.opening = opening_arg(opening);
+  o.tol = tol_arg(tol);
+  py::list out;
+  for (const auto& s : coopsim::ik_solutions(r, target, o)) out.append(py::make_tuple(to_numpy(s.q), s.branch));
+  return out;
 }
 
 }  // namespace
@@ -176,7 +116,7 @@ void bind_ik(py::module_& m) {
       "No joint configuration within the limits reaches the IK target; the message says why. A ValueError.";
 
   auto R = py::reinterpret_borrow<py::class_<Robot>>(m.attr("Robot"));
-  R.def("ik", &ik, py::arg("pose"), py::kw_only(), py::arg("opening") = py::none(), py::arg("branch") = py::none(),
+  R.def("ik", &py_ik, py::arg("pose"), py::kw_only(), py::arg("opening") = py::none(), py::arg("branch") = py::none(),
         py::arg("q_near") = py::none(), py::arg("method") = "auto", py::arg("weights") = py::none(),
         py::arg("locked") = py::none(), py::arg("tol") = py::none(), py::arg("restarts") = 10,
         py::arg("max_iterations") = 100, py::arg("seed") = 0, py::arg("info") = false,
@@ -207,29 +147,12 @@ info: also return a dict: method ('scara1' or 'scara2' for the closed
 Every result is checked by forward kinematics and lies within the joint
 limits; otherwise IKError (a ValueError) says why: out of reach, which
 joint limit, an orientation the structure cannot take, a singular target.)doc");
-  R.def("ik_solutions", [](const Robot& r, const py::object& pose_obj, const py::object& opening,
-                           const py::object& q_near_obj, const py::object& tol) {
-         std::string why;
-         const AnalyticKind kind = analytic_kind(r, &why);
-         if (kind == AnalyticKind::None) throw py::value_error("no closed-form IK for this robot: " + why);
-         AnalyticIKOptions o;
-         VecN q_near;
-         if (!q_near_obj.is_none()) {
-           q_near = vec(q_near_obj, r.dof(), "q_near");
-           o.q_near = &q_near;
-         }
-         o.opening = opening_arg(r, opening, o.q_near);
-         if (!tol.is_none()) o.tol = tol_arg(tol);
-         const auto sols = analytic_ik_all(r, pose(pose_obj, "pose"), o);
-         py::list out;
-         for (const auto& s : sols) out.append(py::make_tuple(to_numpy(s.q), s.branch));
-         return out;
-       }, py::arg("pose"), py::kw_only(), py::arg("opening") = py::none(), py::arg("q_near") = py::none(),
-       py::arg("tol") = py::none(),
-       "Every closed-form solution within the limits as a list of (q (n,), branch), nearest q_near first "
-       "(else +1 first). Raises IKError when there is none.");
+  R.def("ik_solutions", &py_ik_solutions, py::arg("pose"), py::kw_only(), py::arg("opening") = py::none(),
+        py::arg("q_near") = py::none(), py::arg("tol") = py::none(),
+        "Every closed-form solution within the limits as a list of (q (n,), branch), nearest q_near first "
+        "(else +1 first). Raises IKError when there is none.");
   R.def_property_readonly("ik_kind", [](const Robot& r) -> py::object {
-         const char* k = kind_name(analytic_kind(r));
+         const char* k = analytic_kind_name(analytic_kind(r));
          return k ? py::object(py::str(k)) : py::object(py::none());
        }, "'scara1' or 'scara2' when the closed-form IK fits this robot's structure, else None.");
   R.def("ik_kind_reason", [](const Robot& r) {

@@ -13,8 +13,10 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "coopsim/robot.hpp"
@@ -51,6 +53,8 @@ enum class AnalyticKind { None, Scara1, Scara2 };
 // The solver kind for this robot; when None, `why` (if given) says which
 // structural condition failed.
 AnalyticKind analytic_kind(const Robot& robot, std::string* why = nullptr);
+// "scara1" or "scara2"; nullptr for AnalyticKind::None.
+const char* analytic_kind_name(AnalyticKind kind);
 
 struct IKSolution {
   VecN q;
@@ -107,6 +111,80 @@ struct NumericIKResult {
 // when none converges.
 NumericIKResult numeric_ik(const Robot& robot, const Eigen::Isometry3d& target, const VecN& q0,
                            const NumericIKOptions& options);
+
+// ---- ik(): one entry point that picks the solver and fills in the defaults ----
+
+// Which solver ik() uses.
+enum class IKMethod {
+  Auto,      // the closed form when one fits the robot (analytic_kind), else numeric
+  Analytic,  // the closed form; std::invalid_argument when none fits
+  Numeric,   // numeric_ik, also on the SCARAs
+};
+// The method named "auto", "analytic" or "numeric"; std::invalid_argument otherwise.
+IKMethod ik_method(const std::string& name);
+
+// Weights of the numeric solver's pose error: a name, "pose" (all six
+// components) or "position" ({1, 1, 1, 0, 0, 0}), or the six weights
+// [x, y, z, rx, ry, rz] (world frame; each >= 0, not all 0).
+using IKWeights = std::variant<std::string, std::array<double, 6>>;
+
+// Options of ik(); an option left empty takes its default. Given where they
+// do not apply, opening, branch, weights and locked are refused
+// (std::invalid_argument); restarts, max_iterations and seed are then unused.
+struct IKOptions {
+  IKMethod method = IKMethod::Auto;
+  // jaw opening d6 (m) of the SCARA clamps (robots with a closed form only),
+  // which the pose does not determine; default q_near[5], else 0 clamped into
+  // the jaw's limits. The numeric solver holds it fixed.
+  std::optional<double> opening;
+  // closed form only: +1 / -1 = sign of the elbow angle, +-2 = SCARA #2's
+  // folded family (see IKSolution); empty = any (the solution nearest q_near
+  // when given, else +1 first)
+  std::optional<int> branch;
+  // (n,) configuration to stay near: picks the closed form's branch and
+  // shifts angles by 2 pi k (within the limits) to be nearest it; the numeric
+  // solver's start point (default: mid-limits; 0, clamped into the limits,
+  // where a limit is infinite)
+  std::optional<VecN> q_near;
+  // numeric only: weights of the pose error (default all 1)
+  std::optional<IKWeights> weights;
+  // numeric only: joint indices (0-based) held at their start value
+  std::optional<std::vector<int>> locked;
+  // m and rad: largest accepted residual, > 0; default 1e-9 for the closed
+  // form, 1e-10 for the numeric solver
+  std::optional<double> tol;
+  // numeric solver: random restarts (>= 0) after the first attempt, iterations
+  // per attempt (>= 1), seed of the restarts
+  int restarts = 10;
+  int max_iterations = 100;
+  unsigned long seed = 0;
+};
+
+struct IKResult {
+  VecN q;  // (n,) rad or m
+  // the solver that found q: "scara1" or "scara2" (closed forms), "numeric"
+  std::string method;
+  int branch = 0;                  // closed forms: q's elbow branch (see IKSolution); 0 from the numeric solver
+  double position_error = 0.0;     // m, by forward kinematics
+  double orientation_error = 0.0;  // rad
+  int iterations = 0;              // numeric: total over attempts
+  int attempts = 0;                // numeric
+};
+
+// Inverse kinematics of the TCP pose `target` (world frame) by the method of
+// the options: analytic_ik for the SCARA structures, numeric_ik for any robot.
+// With IKMethod::Auto, where SCARA #2's theta2 = theta3 rule alone stands in
+// the way (IKError::redundancy) and no branch is asked for, the numeric
+// solver goes on to find a solution with theta2 != theta3. Throws IKError
+// when no configuration within the limits reaches the target, and
+// std::invalid_argument for options that are invalid or do not apply.
+IKResult ik(const Robot& robot, const Eigen::Isometry3d& target, const IKOptions& options);
+
+// Every closed-form solution within the limits (analytic_ik_all), with the
+// opening, q_near, tol and branch of the options and their defaults as in
+// ik(); the numeric solver's options are not used. std::invalid_argument when
+// no closed form fits the robot.
+std::vector<IKSolution> ik_solutions(const Robot& robot, const Eigen::Isometry3d& target, const IKOptions& options);
 
 // Pose residual between a TCP pose and a target: position (m) and rotation
 // angle (rad).
