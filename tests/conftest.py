@@ -1,8 +1,9 @@
 """Shared fixtures: the built-in robots and random serial robots."""
 from __future__ import annotations
 
+import gc
+import sys
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -90,29 +91,45 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
 
 
-def python_paused_during(call):
-    """Runs call() in a worker thread while this thread keeps running Python.
-    Returns (length of the call, time this thread stood still during it), in
-    s. A call that holds the GIL stops this thread for about its whole length;
-    one that releases it, for a small part (the GIL hand-overs)."""
-    window = []
+def python_ran_during(call, attempts: int = 20) -> int:
+    """Whether call() releases the GIL: calls it (up to `attempts` times)
+    while another Python thread waits to run. Returns how many calls it took
+    until that thread ran during one (1 unless the machine is busy), or 0 if it
+    never did: call() holds the GIL throughout.
 
-    def work():
-        t0 = time.perf_counter()
-        call()
-        window.extend([t0, time.perf_counter()])
+    The switch interval is raised far beyond the calls' length meanwhile, so
+    the interpreter never takes the GIL from this thread to hand it over: the
+    other thread can only run when this one releases the GIL, which the Python
+    code here does not do between setting `go` and reading `ran`. So a call
+    that holds the GIL gives 0 whatever the timing, and no amount of load can
+    make it look released. One that releases it lets the other thread run as
+    soon as the OS schedules it; on a loaded machine that may come only after
+    the call has taken the GIL back, so the call is repeated, each time a new
+    chance. There is no wall-time limit to miss."""
+    if not getattr(sys, "_is_gil_enabled", lambda: True)():
+        pytest.skip("no GIL in this interpreter")
+    go, ran, stop = threading.Event(), threading.Event(), threading.Event()
 
-    pauses = []  # (end, length) of every pause over 0.5 ms in this thread
-    th = threading.Thread(target=work)
-    last = time.perf_counter()
-    th.start()
-    while th.is_alive():
-        now = time.perf_counter()
-        if now - last > 5e-4:
-            pauses.append((now, now - last))
-        last = now
-    th.join()
-    assert window, "the call raised"
-    t0, t1 = window
-    paused = sum(min(end, t1) - max(end - d, t0) for end, d in pauses if end > t0 and end - d < t1)
-    return t1 - t0, paused
+    def other():
+        go.wait()
+        ran.set()
+        stop.wait()  # blocks, so hands the GIL back
+
+    interval, gc_was_enabled = sys.getswitchinterval(), gc.isenabled()
+    gc.disable()  # a finalizer run by the collector may release the GIL
+    sys.setswitchinterval(100.0)
+    th = threading.Thread(target=other)
+    try:
+        th.start()
+        go.set()
+        for calls in range(1, attempts + 1):
+            call()
+            if ran.is_set():
+                return calls
+        return 0
+    finally:
+        sys.setswitchinterval(interval)
+        if gc_was_enabled:
+            gc.enable()
+        stop.set()
+        th.join()

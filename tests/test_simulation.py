@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import coopsim as cs
-from conftest import python_paused_during
+from conftest import python_ran_during
 
 DT = 2e-4
 
@@ -516,13 +516,30 @@ def test_progress_bar_by_default_only_on_long_runs(capsys, monkeypatch):
 
 @pytest.mark.parametrize("how", ["run", "step"])
 def test_run_releases_the_gil(how):
-    # while the C++ loop runs, another thread keeps running Python (a held GIL
-    # would stop it for the whole call, or for every 4096-step chunk of run)
+    # while the C++ loop runs, another Python thread gets to run: a held GIL
+    # would keep it out (see python_ran_during)
     sim = make_sim(log_every=0)
-    length, paused = python_paused_during(lambda: sim.run(20.0, progress=False) if how == "run" else sim.step(100_000))
-    assert sim.time == pytest.approx(20.0)
-    assert length > 0.05, "the call is too short to tell"
-    assert paused < 0.3 * length, (paused, length)
+
+    def call():
+        if how == "run":
+            sim.run(sim.time + 20.0, progress=False)
+        else:
+            sim.step(100_000)
+
+    calls = python_ran_during(call)
+    assert calls > 0, "no other Python thread ran during the loop: it holds the GIL"
+    assert sim.time == pytest.approx(20.0 * calls)
+
+
+def test_gil_check_fails_for_calls_that_hold_the_gil():
+    # the check above fails for a call that holds the GIL however long it
+    # takes: compiled code (numpy on Python objects) or Python code (which the
+    # interpreter would otherwise interrupt every switch interval); it passes
+    # for one that releases the GIL
+    objects = np.ones(4_000_000, dtype=object)
+    assert python_ran_during(lambda: objects.sum(), attempts=3) == 0
+    assert python_ran_during(lambda: sum(i * i for i in range(1_000_000)), attempts=3) == 0
+    assert python_ran_during(lambda: time.sleep(0.01)) > 0
 
 
 # ---- batch runs ----
