@@ -59,7 +59,11 @@ inline long index_arg(const py::handle& obj, const char* name, long lo, long hi)
     throw py::value_error(std::string(name) + " must be an integer" + range);
   int overflow = 0;
   py::object idx = py::reinterpret_steal<py::object>(PyNumber_Index(obj.ptr()));
-  if (!idx) throw py::error_already_set();
+  if (!idx) {
+    // e.g. an array that cannot be one integer: a bad value, like the others here
+    PyErr_Clear();
+    throw py::value_error(std::string(name) + " must be an integer" + range + ", got " + std::string(py::repr(obj)));
+  }
   const long v = PyLong_AsLongAndOverflow(idx.ptr(), &overflow);
   if (overflow || v < lo || v > hi)
     throw py::value_error(std::string(name) + " must be an integer" + range + ", got " + std::string(py::repr(obj)));
