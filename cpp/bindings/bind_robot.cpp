@@ -119,26 +119,26 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
   return r;
 }
 
-// Joint torques of f_ext, with the robot's kinematics already in ws:
-// None, a (6,) wrench at the tool centre point, or a list of Wrench.
-bool external(const Robot& r, Workspace& ws, const py::object& f_ext, VecN& tau) {
-  if (f_ext.is_none()) return false;
-  if (py::isinstance<ExternalWrench>(f_ext)) {
-    r.external_torques({f_ext.cast<ExternalWrench>()}, ws, tau);
-    return true;
+// q converted for robot r, with a workspace holding its kinematics (when kin).
+struct At {
+  VecN q;
+  Workspace ws;
+  At(const Robot& r, const py::object& q_obj, bool kin = true) : q(vec(q_obj, r.dof(), "q")) {
+    if (kin) r.kinematics(q.data(), ws);
   }
-  if (py::isinstance<py::list>(f_ext) || py::isinstance<py::tuple>(f_ext)) {
-    py::sequence s = f_ext;
-    bool all_wrenches = py::len(s) > 0;
-    for (auto item : s) all_wrenches = all_wrenches && py::isinstance<ExternalWrench>(item);
-    if (all_wrenches) {
-      r.external_torques(f_ext.cast<std::vector<ExternalWrench>>(), ws, tau);
-      return true;
-    }
+  // joint torques of f_ext (zeros for None), leaving the kinematics of q in ws
+  VecN external(const Robot& r, const py::object& f_ext) {
+    VecN t = VecN::Zero(r.dof());
+    if (f_ext.is_none()) return t;
+    r.kinematics(q.data(), ws);
+    r.external_torques(wrenches_arg(f_ext, "f_ext"), ws, t);
+    return t;
   }
-  Arr w = array(f_ext, {6}, "f_ext");
-  r.tool_wrench_torques(Eigen::Map<const Vec6>(w.data()), ws, tau);
-  return true;
+};
+
+py::array_t<double> checked_pose(const Eigen::Isometry3d& T, const char* what) {
+  checked(T.matrix(), what);
+  return to_numpy(T);
 }
 
 py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
@@ -426,174 +426,127 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
            py::arg("gravity"), "A copy with another gravity vector (3,) m/s^2.");
 
   // kinematics
-  R.def("fk", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
-         const Eigen::Isometry3d T = r.tool_pose(ws);
-         checked(T.matrix(), "fk");
-         return to_numpy(T);
-       }, py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,).")
+  R.def("fk", [](const Robot& r, const py::object& q) { return checked_pose(r.tool_pose(At(r, q).ws), "fk"); },
+        py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,).")
       .def("frames", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
+         const At at(r, q);
          std::vector<Eigen::Isometry3d> T;
-         for (int i = 0; i <= r.dof(); ++i) T.push_back(r.frame(ws, i));
+         for (int i = 0; i <= r.dof(); ++i) T.push_back(r.frame(at.ws, i));
          return poses(T);
        }, py::arg("q"), "World poses (n + 1, 4, 4) of DH frames 0..n.")
       .def("com_frames", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
+         const At at(r, q);
          std::vector<Eigen::Isometry3d> T;
-         for (int i = 1; i <= r.dof(); ++i) T.push_back(r.com_frame(ws, i));
+         for (int i = 1; i <= r.dof(); ++i) T.push_back(r.com_frame(at.ws, i));
          return poses(T);
        }, py::arg("q"), "World poses (n, 4, 4) of the CoM frames of links 1..n.")
       .def("jacobian", [](const Robot& r, const py::object& q, int link, const py::object& point) {
-         const VecN qv = vec(q, r.dof(), "q");
          const Eigen::Vector3d p = point.is_none() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(vecx(point, 3, "point"));
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
          Mat6N J;
-         r.jacobian(ws, link, p, J);
+         r.jacobian(At(r, q).ws, link, p, J);
          return checked(J, "jacobian");
        }, py::arg("q"), py::arg("link") = -1, py::arg("point") = py::none(),
        "Geometric Jacobian (6, n), linear rows first, of `point` (3,) m given in the DH frame of `link` "
        "(1..n, negative from the last; 0 is the base); world coordinates.")
       .def("shapes", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
          std::vector<Eigen::Isometry3d> T;
-         r.box_poses(ws, T);
-         const py::ssize_t k = static_cast<py::ssize_t>(T.size());
-         py::array_t<double> he({k, py::ssize_t(3)});
-         for (py::ssize_t b = 0; b < k; ++b)
+         r.box_poses(At(r, q).ws, T);
+         py::array_t<double> he({static_cast<py::ssize_t>(T.size()), py::ssize_t(3)});
+         for (size_t b = 0; b < T.size(); ++b)
            Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * b) = r.boxes()[b].half_extents.transpose();
          return py::make_tuple(poses(T), he);
        }, py::arg("q"),
        "World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,).")
       .def("clamp_faces", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
+         const At at(r, q);
          Eigen::Isometry3d a, b;
-         r.clamp_faces(ws, qv.data(), a, b);
+         r.clamp_faces(at.ws, at.q.data(), a, b);
          return poses({a, b});
        }, py::arg("q"),
        "World poses (2, 4, 4) of the clamp's fixed and moving inner faces at q: origin at the face's centre, z "
        "the face normal pointing to the other jaw, x along the jaw towards its tip.")
       .def("tool_jacobian", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
          Mat6N J;
-         r.tool_jacobian(ws, J);
+         r.tool_jacobian(At(r, q).ws, J);
          return checked(J, "tool_jacobian");
        }, py::arg("q"), "Jacobian (6, n) of the tool centre point, linear rows first.");
 
   // dynamics
   R.def("mass_matrix", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
+         At at(r, q, false);
          MatN M;
-         r.mass_matrix(qv.data(), ws, M);
+         r.mass_matrix(at.q.data(), at.ws, M);
          return checked(M, "mass_matrix");
        }, py::arg("q"), "Inertia matrix M(q) (n, n).")
       .def("gravity", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
+         At at(r, q, false);
          VecN g;
-         r.gravity(qv.data(), ws, g);
+         r.gravity(at.q.data(), at.ws, g);
          return checked(g, "gravity");
        }, py::arg("q"), "Gravity vector G(q) (n,) in N m or N.")
       .def("coriolis", [](const Robot& r, const py::object& q, const py::object& qd) {
-         const VecN qv = vec(q, r.dof(), "q"), qdv = vec(qd, r.dof(), "qd");
-         Workspace ws;
+         At at(r, q, false);
          VecN c;
-         r.coriolis_vector(qv.data(), qdv.data(), ws, c);
+         r.coriolis_vector(at.q.data(), vec(qd, r.dof(), "qd").data(), at.ws, c);
          return checked(c, "coriolis");
        }, py::arg("q"), py::arg("qd"), "Coriolis and centrifugal vector C(q, qd) (n,) = coriolis_matrix @ qd.")
       .def("coriolis_matrix", [](const Robot& r, const py::object& q, const py::object& qd) {
-         const VecN qv = vec(q, r.dof(), "q"), qdv = vec(qd, r.dof(), "qd");
-         Workspace ws;
+         At at(r, q, false);
          MatN C;
-         r.coriolis_matrix(qv.data(), qdv.data(), ws, C);
+         r.coriolis_matrix(at.q.data(), vec(qd, r.dof(), "qd").data(), at.ws, C);
          return checked(C, "coriolis_matrix");
        }, py::arg("q"), py::arg("qd"), "Coriolis matrix (n, n) in Christoffel form; Mdot - 2 C is skew.")
       .def("mass_matrix_derivatives", [](const Robot& r, const py::object& q) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
+         At at(r, q, false);
          std::vector<MatN> dM;
-         r.mass_matrix_derivatives(qv.data(), ws, dM);
+         r.mass_matrix_derivatives(at.q.data(), at.ws, dM);
          const int n = r.dof();
          py::array_t<double> out({n, n, n});
          for (int k = 0; k < n; ++k)
-           for (int i = 0; i < n; ++i)
-             for (int j = 0; j < n; ++j) out.mutable_data()[(k * n + i) * n + j] = dM[k](i, j);
+           Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data() + k * n * n, n, n) = dM[k];
          return out;
        }, py::arg("q"), "dM/dq (n, n, n); [k] is the derivative with respect to q_k.")
       .def("friction", [](const Robot& r, const py::object& qd) {
-         const VecN v = vec(qd, r.dof(), "qd");
-         return checked(VecN(r.friction_coefficients().cwiseProduct(v)), "friction");
+         return checked(VecN(r.friction_coefficients().cwiseProduct(vec(qd, r.dof(), "qd"))), "friction");
        }, py::arg("qd"), "Viscous friction torques K qd (n,).")
       .def("external_torques", [](const Robot& r, const py::object& q, const py::object& f_ext) {
-         const VecN qv = vec(q, r.dof(), "q");
-         Workspace ws;
-         r.kinematics(qv.data(), ws);
-         VecN t = VecN::Zero(r.dof());
-         external(r, ws, f_ext, t);
+         At at(r, q);
+         VecN t;
+         r.external_torques(wrenches_arg(f_ext, "f_ext"), at.ws, t);
          return checked(t, "external_torques");
        }, py::arg("q"), py::arg("f_ext"),
        "Joint torques J^T F (n,) of f_ext: a (6,) wrench [f; m] (world, N and N m) at the tool centre point, "
        "or a Wrench or list of Wrench on any point of any link.")
       .def("inverse_dynamics", [](const Robot& r, const py::object& q, const py::object& qd, const py::object& qdd,
                                   const py::object& f_ext) {
-         const int n = r.dof();
-         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), qddv = vec(qdd, n, "qdd");
-         Workspace ws;
-         VecN te = VecN::Zero(n), tau;
-         bool has_ext = false;
-         if (!f_ext.is_none()) {
-           r.kinematics(qv.data(), ws);
-           has_ext = external(r, ws, f_ext, te);
-         }
-         r.inverse_dynamics(qv.data(), qdv.data(), qddv.data(), has_ext ? te.data() : nullptr, ws, tau);
+         At at(r, q, false);
+         const VecN te = at.external(r, f_ext), qdv = vec(qd, r.dof(), "qd"), qddv = vec(qdd, r.dof(), "qdd");
+         VecN tau;
+         r.inverse_dynamics(at.q.data(), qdv.data(), qddv.data(), f_ext.is_none() ? nullptr : te.data(), at.ws, tau);
          return checked(tau, "inverse_dynamics");
        }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(),
        "Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + K qd.")
       .def("forward_dynamics", [](const Robot& r, const py::object& q, const py::object& qd, const py::object& tau,
                                   const py::object& f_ext) {
-         const int n = r.dof();
-         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), tv = vec(tau, n, "tau");
-         Workspace ws;
-         VecN te = VecN::Zero(n), qdd;
-         bool has_ext = false;
-         if (!f_ext.is_none()) {
-           r.kinematics(qv.data(), ws);
-           has_ext = external(r, ws, f_ext, te);
-         }
-         r.forward_dynamics(qv.data(), qdv.data(), tv.data(), has_ext ? te.data() : nullptr, ws, qdd);
+         At at(r, q, false);
+         const VecN te = at.external(r, f_ext), qdv = vec(qd, r.dof(), "qd"), tv = vec(tau, r.dof(), "tau");
+         VecN qdd;
+         r.forward_dynamics(at.q.data(), qdv.data(), tv.data(), f_ext.is_none() ? nullptr : te.data(), at.ws, qdd);
          return checked(qdd, "forward_dynamics");
        }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(),
        "Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - K qd), solved by Cholesky.")
       .def("end_stop_torques", [](const Robot& r, const py::object& q, const py::object& qd) {
-         const int n = r.dof();
-         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd");
-         Workspace ws;
+         At at(r, q, false);
          MatN M;
-         r.mass_matrix(qv.data(), ws, M);
+         r.mass_matrix(at.q.data(), at.ws, M);
          VecN t;
-         r.end_stop_torques(qv.data(), qdv.data(), M, t);
+         r.end_stop_torques(at.q.data(), vec(qd, r.dof(), "qd").data(), M, t);
          return checked(t, "end_stop_torques");
        }, py::arg("q"), py::arg("qd"), "Soft end-stop torques (n,) beyond the joint limits.")
       .def("energy", [](const Robot& r, const py::object& q, const py::object& qd) {
-         const int n = r.dof();
-         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd");
-         Workspace ws;
-         const double T = r.kinetic_energy(qv.data(), qdv.data(), ws);
-         const double V = r.potential_energy(qv.data(), ws);
+         At at(r, q, false);
+         const double T = r.kinetic_energy(at.q.data(), vec(qd, r.dof(), "qd").data(), at.ws);
+         const double V = r.potential_energy(at.q.data(), at.ws);
          if (!std::isfinite(T) || !std::isfinite(V))
            throw py::value_error("energy: result is not finite for this input (values out of range?)");
          return py::make_tuple(T, V);

@@ -42,19 +42,6 @@ py::object exception_object(const std::exception_ptr& p) {
 }
 
 // A Reference (C++ or Python subclass), or a set-point array held at all times.
-// A list (or tuple) of Wrench, or one Wrench.
-std::vector<ExternalWrench> wrenches_arg(const py::object& obj) {
-  if (py::isinstance<ExternalWrench>(obj)) return {obj.cast<ExternalWrench>()};
-  if (!py::isinstance<py::list>(obj) && !py::isinstance<py::tuple>(obj))
-    throw py::value_error("wrenches must be a coopsim.Wrench or a list of them");
-  std::vector<ExternalWrench> out;
-  for (py::handle h : obj) {
-    if (!py::isinstance<ExternalWrench>(h)) throw py::value_error("wrenches must hold coopsim.Wrench objects only");
-    out.push_back(h.cast<ExternalWrench>());
-  }
-  return out;
-}
-
 std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
   if (py::isinstance<Reference>(ref)) return ref.cast<std::shared_ptr<Reference>>();
   if (ref.is_none())
@@ -197,9 +184,10 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def("set_applied", [](Simulation& s, int i, const py::object& forces, const py::object& wrenches) {
              const int n = s.robot(i).dof();
              if (!forces.is_none()) s.set_applied_forces(i, vec(forces, n, "forces"));
-             if (!wrenches.is_none()) s.set_applied_wrenches(i, wrenches_arg(wrenches));
+             if (!wrenches.is_none()) s.set_applied_wrenches(i, wrenches_arg(wrenches, "wrenches"));
            }, py::arg("i"), py::arg("forces") = py::none(), py::arg("wrenches") = py::none(),
-           "Sets robot i's applied joint forces (n,) and/or link wrenches (a list of Wrench); None keeps one.")
+           "Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench "
+           "at the tool centre point); None keeps that input as it is.")
       .def("applied", [](const Simulation& s, int i) {
              return py::make_tuple(to_numpy(s.applied_forces(i)), s.applied_wrenches(i));
            }, py::arg("i"), "(forces (n,), wrenches [Wrench]) applied to robot i now.")

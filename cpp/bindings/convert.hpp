@@ -136,6 +136,25 @@ inline Eigen::Isometry3d pose(const py::handle& obj, const char* name) {
   return T;
 }
 
+// Wrenches on a robot (`name`: the argument): a Wrench, a list or tuple of
+// them (may be empty), or a (6,) wrench [f; m] at the tool centre point.
+inline std::vector<ExternalWrench> wrenches_arg(const py::object& obj, const char* name) {
+  if (py::isinstance<ExternalWrench>(obj)) return {obj.cast<ExternalWrench>()};
+  if (py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
+    std::vector<ExternalWrench> out;
+    for (py::handle h : obj) {
+      if (!py::isinstance<ExternalWrench>(h)) break;
+      out.push_back(h.cast<ExternalWrench>());
+    }
+    if (out.size() == py::len(obj)) return out;
+  }
+  ExternalWrench w;
+  w.at_tool = true;
+  Arr a = array(obj, {6}, name);
+  w.wrench = Eigen::Map<const Vec6>(a.data());
+  return {w};
+}
+
 inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T);
 
 template <class Derived>

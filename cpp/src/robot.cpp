@@ -592,11 +592,6 @@ void Robot::external_torques(const std::vector<ExternalWrench>& wrenches, Worksp
   }
 }
 
-void Robot::tool_wrench_torques(const Vec6& wrench, Workspace& ws, VecN& tau) const {
-  Mat6N J;
-  tool_jacobian(ws, J);
-  tau.noalias() = J.transpose() * wrench;
-}
 
 void Robot::inverse_dynamics(const double* q, const double* qd, const double* qdd, const double* tau_ext,
                              Workspace& ws, VecN& tau) const {

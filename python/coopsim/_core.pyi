@@ -752,7 +752,7 @@ class SimulationCore:
         """
     def set_applied(self, i: typing.SupportsInt | typing.SupportsIndex, forces: typing.Any = None, wrenches: typing.Any = None) -> None:
         """
-        Sets robot i's applied joint forces (n,) and/or link wrenches (a list of Wrench); None keeps one.
+        Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench at the tool centre point); None keeps that input as it is.
         """
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """

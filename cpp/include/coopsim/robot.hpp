@@ -242,9 +242,9 @@ class Robot {
   void coriolis_matrix(const double* q, const double* qd, Workspace& ws, MatN& C) const;
   // dM/dq_k for k = 0..n-1, each n x n.
   void mass_matrix_derivatives(const double* q, Workspace& ws, std::vector<MatN>& dM) const;
-  // Joint torques of external wrenches: sum J(link, point)^T w.
+  // Joint torques of external wrenches: sum J(link, point)^T w (the tool
+  // Jacobian for a wrench at_tool).
   void external_torques(const std::vector<ExternalWrench>& wrenches, Workspace& ws, VecN& tau) const;
-  void tool_wrench_torques(const Vec6& wrench, Workspace& ws, VecN& tau) const;
   // Eq. (1): tau = M qdd + C + G + K qd - tau_ext.
   void inverse_dynamics(const double* q, const double* qd, const double* qdd, const double* tau_ext,
                         Workspace& ws, VecN& tau) const;
