@@ -7,6 +7,7 @@
 
 #include "convert.hpp"
 #include "coopsim/simulation.hpp"
+#include "coopsim/world.hpp"
 
 namespace py = pybind11;
 using namespace coopsim;
@@ -82,7 +83,50 @@ py::dict metrics_dict(const Simulation& s, int i) {
   return d;
 }
 
+py::dict contact_dict(const World& w, const ContactPoint& c) {
+  const BodySpec& a = w.body(c.a);
+  const BodySpec& b = w.body(c.b);
+  py::dict d;
+  d["a"] = a.name;
+  d["b"] = b.name;
+  d["kind"] = contact_kind(a, b);
+  d["point_a"] = to_numpy(c.point_a);
+  d["point_b"] = to_numpy(c.point_b);
+  d["normal"] = to_numpy(c.normal);
+  d["depth"] = c.depth;
+  d["force"] = to_numpy(c.force);
+  return d;
+}
+
+const World& world_of(const Simulation& s) {
+  if (!s.world()) throw py::value_error("the simulation has no world (give one: Simulation(world=...))");
+  return *s.world();
+}
+
+int body_id(const Simulation& s, const std::string& name) {
+  const int id = world_of(s).find(name);
+  if (id < 0) throw py::value_error("no body named '" + name + "' in the world");
+  return id;
+}
+
+// Columns of a table of n rows, as a dict of arrays: one per field.
+template <class T, class F>
+py::array_t<double> column(const std::vector<T>& rows, F field) {
+  py::array_t<double> out(static_cast<py::ssize_t>(rows.size()));
+  for (size_t i = 0; i < rows.size(); ++i) out.mutable_data()[i] = field(rows[i]);
+  return out;
+}
+
+template <class T, class F>
+py::list names(const World& w, const std::vector<T>& rows, F field) {
+  py::list out;
+  for (const T& r : rows) out.append(w.body(field(r)).name);
+  return out;
+}
+
 }  // namespace
+
+py::dict body_state_dict(const BodyState& s);  // bind_world.cpp
 
 void bind_simulation(py::module_& m) {
   divergence_type = PyErr_NewExceptionWithDoc(
@@ -105,8 +149,12 @@ The C++ simulation loop behind coopsim.Simulation (use that class): robots
 with controllers and references, RK4 at a fixed dt, zero-order hold of the
 torques between controller updates, the log and tracking metrics.)doc")
       .def(py::init([](double dt, int control_every, int log_every, bool end_stops, double max_speed,
-                       double max_position, const std::string& integrator) {
+                       double max_position, const std::string& integrator, std::shared_ptr<World> world,
+                       int world_every, bool contact_forces, bool log_contacts) {
              SimulationOptions o;
+             o.world_every = world_every;
+             o.contact_forces = contact_forces;
+             o.log_contacts = log_contacts;
              o.dt = dt;
              o.control_every = control_every;
              o.log_every = log_every;
@@ -114,10 +162,12 @@ torques between controller updates, the log and tracking metrics.)doc")
              o.max_speed = max_speed;
              o.max_position = max_position;
              o.integrator = method_from_name(integrator, "integrator");
-             return Simulation(o);
+             return Simulation(o, std::move(world));
            }),
            py::arg("dt") = 2e-4, py::arg("control_every") = 1, py::arg("log_every") = 1, py::arg("end_stops") = true,
-           py::arg("max_speed") = 1e4, py::arg("max_position") = 1e6, py::arg("integrator") = "rk4")
+           py::arg("max_speed") = 1e4, py::arg("max_position") = 1e6, py::arg("integrator") = "rk4",
+           py::arg("world") = py::none(), py::arg("world_every") = 1, py::arg("contact_forces") = true,
+           py::arg("log_contacts") = false)
       .def("add_robot", [](Simulation& s, const Robot& robot, std::shared_ptr<Controller> controller,
                            const py::object& reference, const py::object& q0, const py::object& qd0) {
              const int n = robot.dof();
@@ -176,6 +226,91 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def_property_readonly("started", &Simulation::started)
       .def_property_readonly("diverged", &Simulation::diverged)
       .def_property_readonly("integrator", [](const Simulation& s) { return method_name(s.options().integrator); })
+      .def_property_readonly("world", [](const Simulation& s) { return s.world(); })
+      .def_property_readonly("world_every", [](const Simulation& s) { return s.options().world_every; })
+      .def_property_readonly("contact_forces", [](const Simulation& s) { return s.options().contact_forces; })
+      .def_property_readonly("log_contacts", [](const Simulation& s) { return s.options().log_contacts; })
+      .def("contacts", [](const Simulation& s) {
+             const World& w = world_of(s);
+             py::list out;
+             for (const ContactPoint& c : w.contacts()) out.append(contact_dict(w, c));
+             return out;
+           }, "Contact points of the last world step: dicts with a, b (names), kind, point_a, point_b (3,) m, "
+              "normal (3,) from b to a, depth m (>= 0 touching), force (3,) N on a (b feels -force).")
+      .def("body_state", [](const Simulation& s, const std::string& name) {
+             return body_state_dict(s.body_state(body_id(s, name)));
+           }, py::arg("name"), "A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) "
+                               "[w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s.")
+      .def("link_body_state", [](const Simulation& s, int i, int box) {
+             const int id = s.link_body(i, box);
+             if (id < 0) throw py::value_error("the robots' link bodies join the world at the first step");
+             return body_state_dict(world_of(s).state(id));
+           }, py::arg("i"), py::arg("box"),
+           "The pose and twist the world holds for robot i's box (as set at the last world step).")
+      .def("free_body_names", [](const Simulation& s) {
+             std::vector<std::string> out;
+             if (s.world())
+               for (int id : s.world()->free_bodies()) out.push_back(s.world()->body(id).name);
+             return out;
+           })
+      .def("body_log", [](const Simulation& s) {
+             py::list out;
+             for (const LogColumn& c : s.body_log()) out.append(view(c, s.log_rows(), true));
+             return out;
+           }, "Free bodies' logs (free_body_names order), each (rows, 13): position (3), quaternion w x y z (4), "
+              "velocity (3), angular velocity (3).")
+      .def("contact_events", [](const Simulation& s) {
+             py::dict d;
+             if (!s.world()) return d;
+             const World& w = *s.world();
+             const auto& ev = w.events();
+             d["a"] = names(w, ev, [](const ContactEvent& e) { return e.a; });
+             d["b"] = names(w, ev, [](const ContactEvent& e) { return e.b; });
+             py::list kinds;
+             for (const ContactEvent& e : ev) kinds.append(contact_kind(w.body(e.a), w.body(e.b)));
+             d["kind"] = kinds;
+             d["begin"] = column(ev, [](const ContactEvent& e) { return e.begin; });
+             d["end"] = column(ev, [](const ContactEvent& e) { return e.end; });
+             d["peak_force"] = column(ev, [](const ContactEvent& e) { return e.peak_force; });
+             d["max_depth"] = column(ev, [](const ContactEvent& e) { return e.max_depth; });
+             d["steps"] = column(ev, [](const ContactEvent& e) { return static_cast<double>(e.steps); });
+             return d;
+           }, "Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force "
+              "(N), max_depth (m), steps.")
+      .def("contact_log", [](const Simulation& s) {
+             py::dict d;
+             if (!s.world()) return d;
+             const World& w = *s.world();
+             const auto& rows = s.contact_log();
+             d["t"] = column(rows, [](const LoggedContact& c) { return c.t; });
+             d["a"] = names(w, rows, [](const LoggedContact& c) { return c.contact.a; });
+             d["b"] = names(w, rows, [](const LoggedContact& c) { return c.contact.b; });
+             for (int k = 0; k < 3; ++k) {
+               const char* axis[3] = {"x", "y", "z"};
+               d[py::str(std::string("point_") + axis[k])] = column(rows, [k](const LoggedContact& c) { return c.contact.point_a[k]; });
+               d[py::str(std::string("normal_") + axis[k])] = column(rows, [k](const LoggedContact& c) { return c.contact.normal[k]; });
+               d[py::str(std::string("force_") + axis[k])] = column(rows, [k](const LoggedContact& c) { return c.contact.force[k]; });
+             }
+             d["depth"] = column(rows, [](const LoggedContact& c) { return c.contact.depth; });
+             return d;
+           }, "Every contact point of every world step (with log_contacts=True) as columns: t, a, b, point_x.. "
+              "(on a), normal_x.., force_x.. (on a), depth.")
+      .def_static("excluded_pairs", [](const Robot& r, int samples) { return Simulation::excluded_pairs(r, samples); },
+                  py::arg("robot"), py::arg("samples") = 200,
+                  "Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at "
+                  "every one of `samples` random poses.")
+      .def("set_profiling", &Simulation::set_profiling, py::arg("on"))
+      .def("profile", [](const Simulation& s) {
+             const StepProfile& p = s.profile();
+             py::dict d;
+             d["controllers"] = p.controllers;
+             d["world"] = p.world;
+             d["contacts"] = p.contacts;
+             d["robots"] = p.robots;
+             d["world_steps"] = p.world_steps;
+             return d;
+           }, "Seconds spent in the controllers, the world's step, the contact mapping and the robots' "
+              "integration since profiling was switched on (set_profiling).")
       .def("robot", [](const Simulation& s, int i) { return s.robot(i); }, py::arg("i"),
            "Robot i as simulated (robots are immutable: this equals the robot added).")
       .def("controller", [](const Simulation& s, int i) { return s.controller(i); }, py::arg("i"))

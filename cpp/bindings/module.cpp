@@ -10,6 +10,7 @@ void bind_codegen(py::module_& m);
 void bind_trajectory(py::module_& m);
 void bind_ik(py::module_& m);
 void bind_control(py::module_& m);
+void bind_world(py::module_& m);
 void bind_simulation(py::module_& m);
 
 PYBIND11_MODULE(_core, m) {
@@ -26,5 +27,6 @@ PYBIND11_MODULE(_core, m) {
   bind_trajectory(m);
   bind_ik(m);
   bind_control(m);
+  bind_world(m);
   bind_simulation(m);
 }

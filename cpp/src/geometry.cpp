@@ -1,5 +1,6 @@
 // Link geometry: the boxes fixed to a robot's links and its clamp.
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -98,6 +99,47 @@ void Robot::build_geometry_() {
           "clamp: fixed_face's z axis must be the moving joint's axis (z of fixed_link's DH frame)");
   require(std::isfinite(c.jaw_length) && c.jaw_length > 0, "clamp: jaw_length must be finite and > 0 m");
   require(std::isfinite(c.pad_width) && c.pad_width > 0, "clamp: pad_width must be finite and > 0 m");
+}
+
+double box_penetration(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+                       const Eigen::Vector3d& half_b) {
+  const Eigen::Matrix3d& A = a.linear();
+  const Eigen::Matrix3d& B = b.linear();
+  const Eigen::Vector3d d = b.translation() - a.translation();
+  double depth = std::numeric_limits<double>::infinity();
+  auto along = [&](const Eigen::Vector3d& u) {
+    const double ra = (A.transpose() * u).cwiseAbs().dot(half_a);
+    const double rb = (B.transpose() * u).cwiseAbs().dot(half_b);
+    depth = std::min(depth, ra + rb - std::abs(d.dot(u)));
+  };
+  for (int i = 0; i < 3; ++i) {
+    along(A.col(i));
+    along(B.col(i));
+  }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const Eigen::Vector3d c = A.col(i).cross(B.col(j));
+      const double len = c.norm();
+      if (len > 1e-9) along(c / len);
+    }
+  return depth;
+}
+
+void Robot::frame_velocities(const Workspace& ws, const double* qd, Eigen::Vector3d* w, Eigen::Vector3d* v) const {
+  w[0].setZero();
+  v[0].setZero();
+  for (int i = 1; i <= n_; ++i) {
+    const Eigen::Vector3d z = ws.R[i - 1].col(2);
+    const Eigen::Vector3d r = ws.o[i] - ws.o[i - 1];
+    if (links_[i - 1].type == JointType::Revolute) {
+      // joint axis i passes through o_{i-1}: link i turns about it
+      w[i] = w[i - 1] + z * qd[i - 1];
+      v[i] = v[i - 1] + w[i].cross(r);
+    } else {
+      w[i] = w[i - 1];
+      v[i] = v[i - 1] + w[i - 1].cross(r) + z * qd[i - 1];
+    }
+  }
 }
 
 void Robot::box_poses(const Workspace& ws, std::vector<Eigen::Isometry3d>& out) const {

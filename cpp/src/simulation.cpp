@@ -7,7 +7,10 @@
 #include <map>
 #include <mutex>
 #include <sstream>
+#include <random>
 #include <thread>
+
+#include <Eigen/Cholesky>
 
 namespace coopsim {
 
@@ -42,8 +45,12 @@ VecN TrackingMetrics::rms_error() const {
   return (sum_sq_error / static_cast<double>(steps)).cwiseSqrt();
 }
 
-Simulation::Simulation(SimulationOptions options) : opt_(options) {
+Simulation::Simulation(SimulationOptions options, std::shared_ptr<World> world) : opt_(options) {
   check_step_size(opt_.dt);
+  if (opt_.world_every < 1)
+    throw std::invalid_argument("world_every must be >= 1, got " + std::to_string(opt_.world_every));
+  if (!(opt_.contact_frequency_dt > 0 && opt_.contact_frequency_dt <= 1))
+    throw std::invalid_argument("contact_frequency_dt must be in (0, 1]");
   if (opt_.control_every < 1)
     throw std::invalid_argument("control_every must be >= 1, got " + std::to_string(opt_.control_every));
   if (opt_.log_every < 0)
@@ -52,6 +59,14 @@ Simulation::Simulation(SimulationOptions options) : opt_(options) {
     throw std::invalid_argument("max_speed must be > 0, got " + std::to_string(opt_.max_speed));
   if (!(opt_.max_position > 0))
     throw std::invalid_argument("max_position must be > 0, got " + std::to_string(opt_.max_position));
+  if (world) {
+    world->attach();
+    world_ = std::move(world);
+  }
+}
+
+Simulation::~Simulation() {
+  if (world_) world_->detach();
 }
 
 Simulation::Slot& Simulation::slot_(int i) {
@@ -93,7 +108,9 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   s.tau = VecN::Zero(n);
   s.tau_max = robot.tau_max();
   s.q_ref = s.qd_ref = s.qdd_ref = s.k1 = s.q_prev = s.qd_prev = VecN::Zero(n);
-  s.applied_forces = s.tau_ext = VecN::Zero(n);
+  s.applied_forces = s.tau_ext = s.tau_contact = VecN::Zero(n);
+  if (world_ && (robot.gravity_acceleration() - world_->options().gravity).norm() > 1e-12)
+    throw std::invalid_argument("robot '" + robot.name() + "' has another gravity than the world's");
   s.metrics.sum_sq_error = s.metrics.max_abs_error = s.metrics.max_abs_tau = VecN::Zero(n);
   for (LogColumn& c : s.log.columns) c = LogColumn(n);
   slots_.push_back(std::move(s));
@@ -101,6 +118,11 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
 }
 
 void Simulation::reset() {
+  if (world_) world_->reset();
+  for (LogColumn& c : body_log_) c.clear();
+  contact_log_.clear();
+  world_at_ = -1;
+  profile_ = StepProfile();
   k_ = 0;
   logged_at_ = -1;
   started_ = false;
@@ -114,8 +136,10 @@ void Simulation::reset() {
     s.tau.setZero(n);
     s.applied_forces.setZero(n);
     s.tau_ext.setZero(n);
+    s.tau_contact.setZero(n);
     s.applied_wrenches.clear();
-    s.has_applied = false;
+    s.contact_wrenches.clear();
+    s.has_applied = s.has_contact = false;
     s.k1_valid = false;
     s.updated_at = -1;
     for (LogColumn& c : s.log.columns) c.clear();
@@ -205,9 +229,38 @@ void Simulation::reserve(long steps) {
   log_t_.reserve(rows);
   for (Slot& s : slots_)
     for (LogColumn& c : s.log.columns) c.reserve(rows);
+  for (LogColumn& c : body_log_) c.reserve(rows);
 }
 
 void Simulation::start_() {
+  if (world_) {
+    // robot labels: names, made unique with _<index> when repeated (as the log's)
+    World& w = *world_;
+    w.clear_robots();
+    for (size_t i = 0; i < slots_.size(); ++i) {
+      Slot& s = slots_[i];
+      const Robot& r = s.robot;
+      int same = 0;
+      for (const Slot& o : slots_) same += o.robot.name() == r.name();
+      const std::string label = same > 1 ? r.name() + "_" + std::to_string(i) : r.name();
+      r.kinematics(s.q.data(), s.ws);
+      std::vector<Eigen::Isometry3d> poses;
+      r.box_poses(s.ws, poses);
+      std::vector<std::string> names;
+      std::vector<int> links;
+      std::vector<Eigen::Vector3d> half;
+      for (const LinkBox& b : r.boxes()) {
+        names.push_back(b.name.empty() ? "box" + std::to_string(names.size()) : b.name);
+        links.push_back(b.link);
+        half.push_back(b.half_extents);
+      }
+      s.first_body = w.body_count();
+      w.add_robot(static_cast<int>(i), label, names, links, half, poses, excluded_pairs(r), 1.0);
+    }
+    free_ids_ = w.free_bodies();
+    body_now_.assign(free_ids_.size(), BodyState());
+    if (body_log_.size() != free_ids_.size()) body_log_.assign(free_ids_.size(), LogColumn(13));
+  }
   const double period = opt_.dt * opt_.control_every;
   for (Slot& s : slots_) {
     s.controller->reset(s.robot, period);
@@ -218,7 +271,7 @@ void Simulation::start_() {
 }
 
 void Simulation::qdd_(Slot& s, VecN& out) {
-  s.robot.forward_dynamics(s.q.data(), s.qd.data(), s.tau.data(), s.has_applied ? s.tau_ext.data() : nullptr, s.ws,
+  s.robot.forward_dynamics(s.q.data(), s.qd.data(), s.tau.data(), has_ext_(s) ? s.tau_ext.data() : nullptr, s.ws,
                            out, opt_.end_stops);
 }
 
@@ -260,11 +313,9 @@ void Simulation::applied_changed_(Slot& s) {
 }
 
 void Simulation::external_(Slot& s) {
-  if (!s.has_applied) {
-    s.tau_ext.setZero();
-    return;
-  }
-  s.tau_ext = s.applied_forces;
+  s.tau_ext = s.tau_contact;
+  if (!s.has_applied) return;
+  s.tau_ext += s.applied_forces;
   if (!s.applied_wrenches.empty()) {
     VecN t;
     s.robot.kinematics(s.q.data(), s.ws);
@@ -274,12 +325,16 @@ void Simulation::external_(Slot& s) {
 }
 
 void Simulation::update_() {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = profiling_ ? clock::now() : clock::time_point();
   const double t = time();
   const bool control = k_ % opt_.control_every == 0;
   ControlInput in;
   in.t = t;
+  bool fresh = false;
   for (Slot& s : slots_) {
     if (s.updated_at == k_) continue;
+    fresh = true;
     const int n = s.robot.dof();
     s.reference->evaluate(t, s.q_ref.data(), s.qd_ref.data(), s.qdd_ref.data());
     if (control) {
@@ -305,10 +360,6 @@ void Simulation::update_() {
       s.tau = u;
       s.k1_valid = false;
     }
-    if (s.has_applied) {
-      external_(s);
-      s.k1_valid = false;
-    }
     TrackingMetrics& m = s.metrics;
     for (int i = 0; i < n; ++i) {
       const double e = s.q_ref[i] - s.q[i];
@@ -318,6 +369,18 @@ void Simulation::update_() {
     }
     ++m.steps;
     s.updated_at = k_;
+  }
+  if (profiling_) profile_.controllers += std::chrono::duration<double>(clock::now() - t0).count();
+  if (world_ && world_at_ != k_ && k_ % opt_.world_every == 0) world_step_();
+  if (fresh) {
+    for (Slot& s : slots_) {
+      // the applied wrenches' J^T changes with q; contacts may have come or gone
+      if (s.has_applied || s.has_contact || s.ext_held) {
+        external_(s);
+        s.k1_valid = false;
+        s.ext_held = s.has_applied || s.has_contact;
+      }
+    }
   }
   if (opt_.log_every == 0 || k_ % opt_.log_every != 0 || logged_at_ == k_) return;
   for (size_t i = 0; i < slots_.size(); ++i) {
@@ -341,7 +404,200 @@ void Simulation::update_() {
     c[kLogQRef].push(s.q_ref.data());
     c[kLogQdRef].push(s.qd_ref.data());
   }
+  for (size_t b = 0; b < body_log_.size(); ++b) {
+    const BodyState& st = body_now_[b];
+    const Eigen::Quaterniond quat(st.pose.linear());
+    double row[13];
+    Eigen::Map<Eigen::Vector3d>(row + 0) = st.pose.translation();
+    row[3] = quat.w();
+    row[4] = quat.x();
+    row[5] = quat.y();
+    row[6] = quat.z();
+    Eigen::Map<Eigen::Vector3d>(row + 7) = st.velocity;
+    Eigen::Map<Eigen::Vector3d>(row + 10) = st.angular_velocity;
+    body_log_[b].push(row);
+  }
   logged_at_ = k_;
+}
+
+Eigen::Vector3d Simulation::point_velocity(const Slot& s, int link, const Eigen::Vector3d& p) {
+  return s.frame_v[link] + s.frame_w[link].cross(p - s.ws.o[link]);
+}
+
+// J_v^T n (n,) for the world point p fixed on `link` of a slot's robot (kinematics in its ws).
+static VecN normal_jacobian(const Robot& r, const Workspace& ws, int link, const Eigen::Vector3d& p,
+                            const Eigen::Vector3d& n) {
+  Mat6N J;
+  r.jacobian(ws, link, ws.R[link].transpose() * (p - ws.o[link]), J);
+  return J.topRows<3>().transpose() * n;
+}
+
+// u^T M^-1 u for the slot's robot at its q (M factored once per world step).
+double Simulation::inverse_mass_along(Slot& s, const VecN& u) {
+  if (!s.M_valid) {
+    MatN M;
+    s.robot.mass_matrix(s.q.data(), s.ws, M);
+    s.M_ldlt.compute(M);
+    s.M_valid = true;
+  }
+  return u.dot(s.M_ldlt.solve(u));
+}
+
+void Simulation::contact_wrenches_(double h) {
+  World& w = *world_;
+  std::vector<ContactPoint>& contacts = w.contacts();
+  for (Slot& s : slots_) s.contact_wrenches.clear();
+  if (!opt_.contact_forces) {
+    for (Slot& s : slots_) {
+      s.has_contact = false;
+      s.tau_contact.setZero();
+    }
+    return;
+  }
+  // a penalty force where Bullet's solver gives none (link against scenery or
+  // another link): pushing only, critically damped, stiffness from the
+  // effective mass along the normal so that omega * h stays at contact_frequency_dt
+  const double omega = opt_.contact_frequency_dt / h;
+  for (ContactPoint& c : contacts) {
+    if (c.solver || c.depth <= 0) continue;
+    const BodySpec& A = w.body(c.a);
+    const BodySpec& B = w.body(c.b);
+    if (A.kind != BodyKind::Link && B.kind != BodyKind::Link) continue;
+    double inv_mass = 0.0;
+    Eigen::Vector3d va = Eigen::Vector3d::Zero(), vb = Eigen::Vector3d::Zero();
+    if (A.kind == BodyKind::Link) va = point_velocity(slots_[A.robot], A.link, c.point_a);
+    if (B.kind == BodyKind::Link) vb = point_velocity(slots_[B.robot], B.link, c.point_b);
+    if (A.kind == BodyKind::Link && B.kind == BodyKind::Link && A.robot == B.robot) {
+      Slot& s = slots_[A.robot];
+      const VecN u = normal_jacobian(s.robot, s.ws, A.link, c.point_a, c.normal) -
+                     normal_jacobian(s.robot, s.ws, B.link, c.point_b, c.normal);
+      inv_mass = inverse_mass_along(s, u);
+    } else {
+      if (A.kind == BodyKind::Link) {
+        Slot& s = slots_[A.robot];
+        inv_mass += inverse_mass_along(s, normal_jacobian(s.robot, s.ws, A.link, c.point_a, c.normal));
+      }
+      if (B.kind == BodyKind::Link) {
+        Slot& s = slots_[B.robot];
+        inv_mass += inverse_mass_along(s, normal_jacobian(s.robot, s.ws, B.link, c.point_b, c.normal));
+      }
+    }
+    if (!(inv_mass > 1e-12)) continue;  // neither side can move along the normal
+    const double m = 1.0 / inv_mass;
+    const double closing = -(va - vb).dot(c.normal);  // > 0: approaching
+    const double f = m * omega * omega * c.depth + 2.0 * m * omega * closing;
+    c.force = std::max(f, 0.0) * c.normal;
+  }
+  // every force on a link, as a wrench at its point
+  for (const ContactPoint& c : contacts) {
+    if (c.force.squaredNorm() == 0.0) continue;
+    for (int side = 0; side < 2; ++side) {
+      const BodySpec& body = w.body(side == 0 ? c.a : c.b);
+      if (body.kind != BodyKind::Link || body.link == 0) continue;
+      Slot& s = slots_[body.robot];
+      const Eigen::Vector3d& p = side == 0 ? c.point_a : c.point_b;
+      ExternalWrench wr;
+      wr.link = body.link;
+      wr.point = s.ws.R[body.link].transpose() * (p - s.ws.o[body.link]);
+      wr.wrench.head<3>() = side == 0 ? c.force : Eigen::Vector3d(-c.force);
+      s.contact_wrenches.push_back(wr);
+    }
+  }
+  for (Slot& s : slots_) {
+    s.has_contact = !s.contact_wrenches.empty();
+    if (s.has_contact) s.robot.external_torques(s.contact_wrenches, s.ws, s.tau_contact);
+    else s.tau_contact.setZero();
+  }
+}
+
+std::vector<std::pair<int, int>> Simulation::excluded_pairs(const Robot& r, int samples) {
+  const std::vector<LinkBox>& boxes = r.boxes();
+  const int k = static_cast<int>(boxes.size()), n = r.dof();
+  std::vector<std::pair<int, int>> out, candidates;
+  for (int i = 0; i < k; ++i)
+    for (int j = i + 1; j < k; ++j) {
+      if (std::abs(boxes[i].link - boxes[j].link) <= 1) out.emplace_back(i, j);
+      else candidates.emplace_back(i, j);
+    }
+  // the others that touch at every sampled pose (MoveIt's way), from a fixed seed
+  std::mt19937 rng(12345);
+  std::vector<char> always(candidates.size(), 1);
+  Workspace ws;
+  std::vector<Eigen::Isometry3d> poses;
+  VecN q(n);
+  for (int s = 0; s < samples; ++s) {
+    for (int j = 0; j < n; ++j) {
+      const Link& L = r.links()[j];
+      const double span = L.type == JointType::Revolute ? M_PI : 0.5;
+      const double lo = std::isfinite(L.q_min) ? L.q_min : -span, hi = std::isfinite(L.q_max) ? L.q_max : span;
+      q[j] = std::uniform_real_distribution<double>(lo, hi)(rng);
+    }
+    r.kinematics(q.data(), ws);
+    r.box_poses(ws, poses);
+    for (size_t c = 0; c < candidates.size(); ++c) {
+      const auto [i, j] = candidates[c];
+      if (always[c] && box_penetration(poses[i], boxes[i].half_extents, poses[j], boxes[j].half_extents) <= -1e-9)
+        always[c] = 0;
+    }
+  }
+  for (size_t c = 0; c < candidates.size(); ++c)
+    if (always[c]) out.push_back(candidates[c]);
+  return out;
+}
+
+int Simulation::link_body(int i, int box) const {
+  const Slot& s = slot_(i);
+  if (s.first_body < 0) return -1;
+  if (box < 0 || box >= static_cast<int>(s.robot.boxes().size()))
+    throw std::out_of_range("box index " + std::to_string(box) + " out of range");
+  return s.first_body + box;
+}
+
+BodyState Simulation::body_state(int id) const {
+  if (!world_) throw std::invalid_argument("the simulation has no world");
+  const BodySpec& b = world_->body(id);
+  if (b.kind == BodyKind::Link) throw std::invalid_argument("body '" + b.name + "' is a robot's link: see the robot's state");
+  if (b.kind == BodyKind::Free && world_at_ >= 0) {
+    for (size_t k = 0; k < free_ids_.size(); ++k)
+      if (free_ids_[k] == id) return body_now_[k];
+  }
+  return world_->state(id);
+}
+
+void Simulation::world_step_() {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = profiling_ ? clock::now() : clock::time_point();
+  World& w = *world_;
+  const double h = opt_.dt * opt_.world_every;
+  // link bodies where the robots are now, with their exact twists
+  std::vector<Eigen::Isometry3d> poses;
+  for (Slot& s : slots_) {
+    const Robot& r = s.robot;
+    r.kinematics(s.q.data(), s.ws);
+    r.frame_velocities(s.ws, s.qd.data(), s.frame_w.data(), s.frame_v.data());
+    r.box_poses(s.ws, poses);
+    for (size_t b = 0; b < poses.size(); ++b) {
+      const int l = r.boxes()[b].link;
+      w.set_link(s.first_body + static_cast<int>(b), poses[b], point_velocity(s, l, poses[b].translation()),
+                 s.frame_w[l]);
+    }
+    s.M_valid = false;
+  }
+  // free bodies as they are at t_k, for the log and body_state()
+  for (size_t b = 0; b < free_ids_.size(); ++b) body_now_[b] = w.state(free_ids_[b]);
+  w.step(h, time());
+  const auto t1 = profiling_ ? clock::now() : clock::time_point();
+  contact_wrenches_(h);
+  w.record_events(time());
+  if (opt_.log_contacts)
+    for (const ContactPoint& c : w.contacts()) contact_log_.push_back(LoggedContact{time(), c});
+  world_at_ = k_;
+  if (profiling_) {
+    const auto t2 = clock::now();
+    profile_.world += std::chrono::duration<double>(t1 - t0).count();
+    profile_.contacts += std::chrono::duration<double>(t2 - t1).count();
+    ++profile_.world_steps;
+  }
 }
 
 void Simulation::diverge_(int i, const std::string& why, bool in_step, bool state_is_result) {
@@ -368,6 +624,8 @@ void Simulation::diverge_(int i, const std::string& why, bool in_step, bool stat
 }
 
 void Simulation::step_() {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = profiling_ ? clock::now() : clock::time_point();
   for (Slot& s : slots_) {
     s.q_prev = s.q;
     s.qd_prev = s.qd;
@@ -376,7 +634,7 @@ void Simulation::step_() {
     Slot& s = slots_[i];
     try {
       // the first stage was computed for the log row at this state and torque
-      step(s.robot, s.ws, opt_.integrator, s.q, s.qd, s.tau.data(), s.has_applied ? s.tau_ext.data() : nullptr,
+      step(s.robot, s.ws, opt_.integrator, s.q, s.qd, s.tau.data(), has_ext_(s) ? s.tau_ext.data() : nullptr,
            opt_.dt, opt_.end_stops, s.k1_valid ? &s.k1 : nullptr);
     } catch (const std::exception& e) {
       diverge_(static_cast<int>(i),
@@ -388,11 +646,16 @@ void Simulation::step_() {
     if (!why.empty()) diverge_(static_cast<int>(i), why, true, true);
   }
   ++k_;
+  if (profiling_) {
+    profile_.robots += std::chrono::duration<double>(clock::now() - t0).count();
+    ++profile_.steps;
+  }
 }
 
 void Simulation::advance(long n) {
   if (n < 0) throw std::invalid_argument("n must be >= 0, got " + std::to_string(n));
-  if (slots_.empty()) throw std::invalid_argument("the simulation has no robot: add one with add_robot()");
+  if (slots_.empty() && !world_)
+    throw std::invalid_argument("the simulation has no robot: add one with add_robot()");
   if (diverged_) throw std::runtime_error("the simulation has diverged (" + divergence_ + "); call reset()");
   if (!started_) start_();
   reserve(n);

@@ -17,6 +17,7 @@ from ._core import (
     Robot,
     SetPoint,
     Tool,
+    World,
     Wrench,
     box_inertia,
     dh_transform,
@@ -29,7 +30,7 @@ from . import robots
 from .urdf import to_urdf
 from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
-from .log import RobotLog, SimulationLog
+from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 from .batch import run_batch, simulate
 
@@ -48,6 +49,7 @@ __all__ = [
     "Robot",
     "SetPoint",
     "Tool",
+    "World",
     "Wrench",
     "box_inertia",
     "clamp_pose",
@@ -60,5 +62,5 @@ __all__ = [
     "rk4_step",
     "robots",
     "to_urdf",
-    "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
+    "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
 ]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'Wrench', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -696,6 +696,57 @@ class ComputedTorque(Controller):
         """
         The controller's model (a copy), or None for the simulated robot.
         """
+class World:
+    """
+    A Bullet dynamics world: an optional floor (the plane z = 0), static boxes
+    (scenery) and free boxes with mass. Give it to a Simulation (world=...),
+    which brings every robot's link boxes into it as kinematic bodies; one world
+    belongs to one simulation. Friction and restitution of a contact are the
+    products of the two bodies' coefficients (the floor's, static boxes' and
+    links' default 1, so a free body's own coefficient decides).
+    
+    floor: add the floor. gravity: (3,) m/s^2, the robots' too. floor_friction,
+    floor_restitution: the floor's coefficients. solver_iterations: Bullet's
+    contact solver iterations per step.
+    """
+    def __getstate__(self) -> tuple[bool, numpy.typing.NDArray[numpy.float64], float, float, int, list]:
+        ...
+    def __init__(self, floor: bool = True, gravity: typing.Any = (0.0, 0.0, -9.81), floor_friction: typing.SupportsFloat | typing.SupportsIndex = 1.0, floor_restitution: typing.SupportsFloat | typing.SupportsIndex = 0.0, solver_iterations: typing.SupportsInt | typing.SupportsIndex = 10) -> None:
+        ...
+    def __len__(self) -> int:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    def add_free_box(self, name: str, half_extents: typing.Any, mass: typing.SupportsFloat | typing.SupportsIndex, pose: typing.Any = None, *, position: typing.Any = None, quaternion: typing.Any = None, friction: typing.SupportsFloat | typing.SupportsIndex = 0.5, restitution: typing.SupportsFloat | typing.SupportsIndex = 0.0, velocity: typing.Any = (0.0, 0.0, 0.0), angular_velocity: typing.Any = (0.0, 0.0, 0.0)) -> int:
+        """
+        Adds a free box: half extents (3,) m, mass kg (a uniform box), at pose (4, 4) or position and quaternion, with initial velocity (3,) m/s and angular velocity (3,) rad/s; returns its id.
+        """
+    def add_static_box(self, name: str, half_extents: typing.Any, pose: typing.Any = None, *, position: typing.Any = None, quaternion: typing.Any = None, friction: typing.SupportsFloat | typing.SupportsIndex = 1.0, restitution: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> int:
+        """
+        Adds a static box (scenery): half extents (3,) m, at pose (4, 4) or position (3,) m and quaternion (4,) [w, x, y, z]; returns its id.
+        """
+    def body(self, name: str) -> dict:
+        """
+        A body's description: name, kind, half_extents, mass, pose, velocity, ... .
+        """
+    @property
+    def attached(self) -> bool:
+        """
+        Whether a simulation owns the world.
+        """
+    @property
+    def body_names(self) -> list[str]:
+        """
+        Names of every body, by id (robots' link bodies once a simulation has stepped).
+        """
+    @property
+    def floor(self) -> bool:
+        ...
+    @property
+    def gravity(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
 class DivergenceError(RuntimeError):
     """
     The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time (s), robot (index), q, qd (the rejected state). The simulation keeps its log up to the last good step.
@@ -706,7 +757,12 @@ class SimulationCore:
     with controllers and references, RK4 at a fixed dt, zero-order hold of the
     torques between controller updates, the log and tracking metrics.
     """
-    def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4') -> None:
+    @staticmethod
+    def excluded_pairs(robot: Robot, samples: typing.SupportsInt | typing.SupportsIndex = 200) -> list[tuple[int, int]]:
+        """
+        Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at every one of `samples` random poses.
+        """
+    def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4', world: World = None, world_every: typing.SupportsInt | typing.SupportsIndex = 1, contact_forces: bool = True, log_contacts: bool = False) -> None:
         ...
     def add_robot(self, robot: Robot, controller: Controller, reference: typing.Any, q0: typing.Any = None, qd0: typing.Any = None) -> int:
         """
@@ -720,10 +776,36 @@ class SimulationCore:
         """
         (forces (n,), wrenches [Wrench]) applied to robot i now.
         """
+    def body_log(self) -> list:
+        """
+        Free bodies' logs (free_body_names order), each (rows, 13): position (3), quaternion w x y z (4), velocity (3), angular velocity (3).
+        """
+    def body_state(self, name: str) -> dict:
+        """
+        A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s.
+        """
+    def contact_events(self) -> dict:
+        """
+        Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force (N), max_depth (m), steps.
+        """
+    def contact_log(self) -> dict:
+        """
+        Every contact point of every world step (with log_contacts=True) as columns: t, a, b, point_x.. (on a), normal_x.., force_x.. (on a), depth.
+        """
+    def contacts(self) -> list:
+        """
+        Contact points of the last world step: dicts with a, b (names), kind, point_a, point_b (3,) m, normal (3,) from b to a, depth m (>= 0 touching), force (3,) N on a (b feels -force).
+        """
     def controller(self, i: typing.SupportsInt | typing.SupportsIndex) -> Controller:
+        ...
+    def free_body_names(self) -> list[str]:
         ...
     def initial_state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         ...
+    def link_body_state(self, i: typing.SupportsInt | typing.SupportsIndex, box: typing.SupportsInt | typing.SupportsIndex) -> dict:
+        """
+        The pose and twist the world holds for robot i's box (as set at the last world step).
+        """
     def log(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
         """
         Robot i's log as a dict of (rows, n) arrays, one per quantity of log_schema(): read-only views of the rows so far, which later steps and reset() do not change.
@@ -735,6 +817,10 @@ class SimulationCore:
     def metrics(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
         """
         Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).
+        """
+    def profile(self) -> dict:
+        """
+        Seconds spent in the controllers, the world's step, the contact mapping and the robots' integration since profiling was switched on (set_profiling).
         """
     def reference(self, i: typing.SupportsInt | typing.SupportsIndex) -> Reference:
         ...
@@ -754,6 +840,8 @@ class SimulationCore:
         """
         Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench at the tool centre point); None keeps that input as it is.
         """
+    def set_profiling(self, on: bool) -> None:
+        ...
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
         (q, qd) of robot i now, each (n,).
@@ -771,6 +859,9 @@ class SimulationCore:
         The torque held on robot i now (saturated), (n,).
         """
     @property
+    def contact_forces(self) -> bool:
+        ...
+    @property
     def control_every(self) -> int:
         ...
     @property
@@ -786,6 +877,9 @@ class SimulationCore:
         ...
     @property
     def integrator(self) -> str:
+        ...
+    @property
+    def log_contacts(self) -> bool:
         ...
     @property
     def log_every(self) -> int:
@@ -815,6 +909,12 @@ class SimulationCore:
         """
         Simulated time, s.
         """
+    @property
+    def world(self) -> World:
+        ...
+    @property
+    def world_every(self) -> int:
+        ...
 def box_inertia(mass: typing.SupportsFloat | typing.SupportsIndex, lx: typing.SupportsFloat | typing.SupportsIndex, ly: typing.SupportsFloat | typing.SupportsIndex, lz: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
     Inertia tensor (3, 3) in kg m^2 of a solid box of `mass` kg and edges lx, ly, lz (m) along x, y, z, about its centre.

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["QUANTITIES", "RobotLog", "SimulationLog", "log_schema"]
+__all__ = ["BODY_COLUMNS", "BodyLog", "QUANTITIES", "RobotLog", "SimulationLog", "log_schema"]
 
 
 def log_schema() -> List[Tuple[str, str]]:
@@ -98,22 +98,93 @@ class RobotLog:
         return f"<RobotLog '{self.name}' {len(self.t)} rows x {self.dof} joints>"
 
 
+class BodyLog:
+    """One free body's log: t (rows,) s; position (rows, 3) m; quaternion
+    (rows, 4) [w, x, y, z]; velocity (rows, 3) m/s of the centre; angular
+    velocity (rows, 3) rad/s; all in the world, sampled at the world's steps
+    (with world_every = k, held for k robot steps)."""
+
+    __slots__ = ("name", "t", "data")
+
+    def __init__(self, name, t, data):
+        self.name, self.t, self.data = str(name), t, data
+
+    position = property(lambda self: self.data[:, 0:3])
+    quaternion = property(lambda self: self.data[:, 3:7])
+    velocity = property(lambda self: self.data[:, 7:10])
+    angular_velocity = property(lambda self: self.data[:, 10:13])
+
+    def poses(self) -> np.ndarray:
+        """World poses (rows, 4, 4)."""
+        w, x, y, z = self.quaternion.T
+        T = np.zeros((len(self.t), 4, 4))
+        T[:, 0] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y), self.position[:, 0]], 1)
+        T[:, 1] = np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x), self.position[:, 1]], 1)
+        T[:, 2] = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y), self.position[:, 2]], 1)
+        T[:, 3, 3] = 1.0
+        return T
+
+    def __getstate__(self):
+        return {k: getattr(self, k) for k in self.__slots__}
+
+    def __setstate__(self, state):
+        for k, v in state.items():
+            setattr(self, k, v)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def __repr__(self) -> str:
+        return f"<BodyLog '{self.name}' {len(self.t)} rows>"
+
+
+#: Table columns of a free body: position, quaternion, velocity, angular velocity.
+BODY_COLUMNS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
+#: Columns of the contact events table.
+EVENT_COLUMNS = ("a", "b", "kind", "begin", "end", "peak_force", "max_depth", "steps")
+
+
 class SimulationLog:
     """The log of a simulation (the paper's DataManager).
 
     ``log.t`` (rows,) s; ``log[i]`` or ``log.robots[i]`` is robot i's
     :class:`RobotLog`. With a single robot, ``log.q``, ``log.tau`` ... are
-    that robot's arrays. Export: :meth:`to_dataframe`, :meth:`to_csv`,
-    :meth:`to_excel`; read back with :meth:`read_csv`, :meth:`read_excel`.
+    that robot's arrays. With a world: ``log.bodies[name]`` is a free body's
+    :class:`BodyLog`; ``log.contacts`` the contact events (a pandas
+    DataFrame: a, b, kind, begin, end (s, NaN while ongoing), peak_force (N),
+    max_depth (m), steps); ``log.contact_points`` every contact point of
+    every world step when the simulation kept them (log_contacts=True).
+    Export: :meth:`to_dataframe`, :meth:`to_csv`, :meth:`to_excel` (robots'
+    and bodies' columns; Excel adds a 'contacts' sheet); read back with
+    :meth:`read_csv`, :meth:`read_excel`.
     """
 
     def __init__(self, t: np.ndarray, robots: Sequence[RobotLog], *, dt: Optional[float] = None,
-                 control_every: Optional[int] = None, log_every: Optional[int] = None):
+                 control_every: Optional[int] = None, log_every: Optional[int] = None,
+                 bodies: Optional[Sequence[BodyLog]] = None, contacts=None, contact_points=None):
         self.t = t
         self.robots: List[RobotLog] = list(robots)
+        self.bodies = {b.name: b for b in (bodies or [])}
         self.dt = dt
         self.control_every = control_every
         self.log_every = log_every
+        self._contacts = contacts
+        self._contact_points = contact_points
+
+    @property
+    def contacts(self):
+        """The contact events as a pandas DataFrame (one row per contact from begin to end)."""
+        import pandas as pd
+
+        data = self._contacts or {k: [] for k in EVENT_COLUMNS}
+        return pd.DataFrame({k: data[k] for k in EVENT_COLUMNS})
+
+    @property
+    def contact_points(self):
+        """Every contact point of every world step (log_contacts=True) as a pandas DataFrame, else None."""
+        import pandas as pd
+
+        return None if self._contact_points is None else pd.DataFrame(self._contact_points)
 
     # single-robot shortcuts
     def __getattr__(self, name):
@@ -146,10 +217,13 @@ class SimulationLog:
     # ---- tables ----
 
     def columns(self) -> List[str]:
-        """Column names: 't', then '<label>.<quantity><joint>' (joints from 1)."""
+        """Column names: 't', then '<label>.<quantity><joint>' (joints from 1), then
+        '<body>.<x|y|z|qw|qx|qy|qz|vx|vy|vz|wx|wy|wz>' per free body."""
         cols = ["t"]
         for label, r in zip(self.labels, self.robots):
             cols += [f"{label}.{qty}{j + 1}" for qty in QUANTITIES for j in range(r.dof)]
+        for name in self.bodies:
+            cols += [f"{name}.{c}" for c in BODY_COLUMNS]
         return cols
 
     def to_array(self) -> np.ndarray:
@@ -157,6 +231,7 @@ class SimulationLog:
         parts = [self.t[:, None]]
         for r in self.robots:
             parts += [getattr(r, "error" if qty == "e" else qty) for qty in QUANTITIES]
+        parts += [b.data for b in self.bodies.values()]
         return np.hstack(parts) if parts else np.zeros((0, 1))
 
     def to_dataframe(self):
@@ -173,12 +248,18 @@ class SimulationLog:
             raise ValueError("df must start with a 't' column")
         data = np.asarray(df.to_numpy(dtype=np.float64))
         pat = re.compile(r"^(.*)\.(" + "|".join(sorted(QUANTITIES, key=len, reverse=True)) + r")(\d+)$")
+        body_pat = re.compile(r"^(.*)\.(" + "|".join(BODY_COLUMNS) + r")$")
         order: List[str] = []
         found = {}
+        body_cols: dict = {}
         for k, c in enumerate(cols[1:], start=1):
             m = pat.match(c)
+            b = None if m else body_pat.match(c)
+            if b:
+                body_cols.setdefault(b.group(1), {})[b.group(2)] = k
+                continue
             if not m:
-                raise ValueError(f"df column {c!r} is not '<robot>.<quantity><joint>'")
+                raise ValueError(f"df column {c!r} is not '<robot>.<quantity><joint>' nor '<body>.<x|y|z|qw|...>'")
             label, qty, j = m.group(1), m.group(2), int(m.group(3))
             if label not in found:
                 order.append(label)
@@ -199,8 +280,14 @@ class SimulationLog:
                     raise ValueError(f"df columns of {label}.{qty} are not joints 1..{n}")
                 arrays[qty] = data[:, idx].copy()
             robots.append(RobotLog(label, t, **arrays))
+        bodies = []
+        for name, cmap in body_cols.items():
+            missing = [c for c in BODY_COLUMNS if c not in cmap]
+            if missing:
+                raise ValueError(f"df lacks {missing} columns for body {name!r}")
+            bodies.append(BodyLog(name, t, data[:, [cmap[c] for c in BODY_COLUMNS]].copy()))
         dt = float(t[1] - t[0]) if len(t) > 1 else None
-        return cls(t, robots, dt=dt)
+        return cls(t, robots, dt=dt, bodies=bodies)
 
     # ---- files (written to a temporary file, then renamed over the target) ----
 
@@ -237,6 +324,13 @@ class SimulationLog:
                 sheet.write_row(0, 0, ["key", "value"])
                 for i, row in enumerate(info, start=1):
                     sheet.write_row(i, 0, row)
+                if self._contacts and len(self._contacts["a"]):
+                    sheet = book.add_worksheet("contacts")
+                    sheet.write_row(0, 0, EVENT_COLUMNS)
+                    events = self.contacts
+                    for i, row in enumerate(events.itertuples(index=False), start=1):
+                        # an ongoing contact has no end: an empty cell
+                        sheet.write_row(i, 0, ["" if isinstance(v, float) and v != v else v for v in row])
             finally:
                 book.close()
 

@@ -17,8 +17,8 @@ from typing import Callable, List, Optional
 import numpy as np
 
 from . import _core
-from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, Wrench
-from .log import RobotLog, SimulationLog
+from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, World
+from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 
 __all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation"]
@@ -48,6 +48,18 @@ class Simulation:
     joint torque is held over each step like the controller's torque and
     logged as ``tau_ext``.
 
+    world: a :class:`coopsim.World` (floor, scenery, free bodies), owned by
+    this simulation alone. Every robot brings its boxes into it as
+    kinematic bodies; each step runs controllers, then the world (free
+    bodies advance under gravity and contacts), then the robots with the
+    contacts' wrenches mapped by J^T into their tau_ext (contact_forces;
+    False: contacts are reported only). world_every: the world steps every
+    k-th robot step with its contacts and their torques held in between
+    (a k times cheaper world; contacts then act k steps late at most, and a
+    link may sink about k times deeper before its contact pushes back).
+    log_contacts: keep every contact point of every world step (else only
+    the contact events: begin, end, peak force, deepest penetration).
+
     Arguments of the wrong type raise TypeError, values out of range
     ValueError naming the argument (checked once, in the engine).
 
@@ -56,11 +68,16 @@ class Simulation:
     unpickled simulation starts at t = 0.
     """
 
-    def __init__(self, dt: float = 2e-4, *, integrator: str = "rk4", control_every: int = 1, log_every: int = 1,
-                 end_stops: bool = True, max_speed: float = 1e4, max_position: float = 1e6):
+    def __init__(self, dt: float = 2e-4, *, world: Optional[World] = None, integrator: str = "rk4",
+                 control_every: int = 1, log_every: int = 1, end_stops: bool = True, max_speed: float = 1e4,
+                 max_position: float = 1e6, world_every: int = 1, contact_forces: bool = True,
+                 log_contacts: bool = False):
+        if world is not None and not isinstance(world, World):
+            raise ValueError(f"world must be a coopsim.World or None, got {type(world).__name__}")
         self._core = _core.SimulationCore(dt=dt, control_every=control_every, log_every=log_every,
                                           end_stops=end_stops, max_speed=max_speed, max_position=max_position,
-                                          integrator=integrator)
+                                          integrator=integrator, world=world, world_every=world_every,
+                                          contact_forces=contact_forces, log_contacts=log_contacts)
         self.stats: Optional[RunStats] = None
 
     # ---- building ----
@@ -104,10 +121,16 @@ class Simulation:
 
     @property
     def options(self) -> dict:
-        """The constructor's keyword arguments."""
+        """The constructor's keyword arguments but the world."""
         c = self._core
         return dict(dt=c.dt, integrator=c.integrator, control_every=c.control_every, log_every=c.log_every,
-                    end_stops=c.end_stops, max_speed=c.max_speed, max_position=c.max_position)
+                    end_stops=c.end_stops, max_speed=c.max_speed, max_position=c.max_position,
+                    world_every=c.world_every, contact_forces=c.contact_forces, log_contacts=c.log_contacts)
+
+    @property
+    def world(self) -> Optional[World]:
+        """The simulation's World, or None."""
+        return self._core.world
 
     @property
     def robot_count(self) -> int:
@@ -130,10 +153,11 @@ class Simulation:
     def __getstate__(self):
         c = self._core
         entries = [(c.robot(i), c.controller(i), c.reference(i), *c.initial_state(i)) for i in range(self.robot_count)]
-        return {"options": self.options, "entries": entries}
+        # the world as built (a fresh copy of its bodies, at their initial states)
+        return {"options": self.options, "world": c.world, "entries": entries}
 
     def __setstate__(self, state):
-        self.__init__(**state["options"])
+        self.__init__(world=state.get("world"), **state["options"])
         for robot, controller, reference, q0, qd0 in state["entries"]:
             self.add_robot(robot, controller, reference, q0=q0, qd0=qd0)
 
@@ -190,9 +214,31 @@ class Simulation:
         i = _index(robot, self.robot_count)
         self._core.set_applied(i, np.zeros(self._core.robot(i).dof), [])
 
+    def contacts(self) -> List[dict]:
+        """The contact points of the last world step (acting over the step from now): dicts with
+        a, b (body names, e.g. 'scara1/link3', 'bar', 'floor'), kind ('self', 'robot-robot',
+        'robot-scenery', 'robot-body', 'body-scenery', 'body-body'), point_a, point_b (3,) m,
+        normal (3,) unit from b to a, depth m (>= 0 when touching) and force (3,) N on a (b feels
+        -force): Bullet's solver force where a free body is involved, coopsim's penalty force
+        between robots and scenery (contact_forces=True; else zero)."""
+        return self._core.contacts()
+
+    def body_state(self, name: str) -> dict:
+        """A free or static body's state now: pose (4, 4), position (3,) m, quaternion (4,)
+        [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s."""
+        return self._core.body_state(name)
+
+    def excluded_pairs(self, robot: int = 0) -> List[tuple]:
+        """Names of the box pairs of a robot that never collide in the world: boxes of one
+        link or of adjacent links (the base column is link 0), and pairs touching at every
+        one of 200 random poses within the joint limits."""
+        r = self._core.robot(_index(robot, self.robot_count))
+        names = [b.name for b in r.boxes]
+        return [(names[i], names[j]) for i, j in _core.SimulationCore.excluded_pairs(r)]
+
     def reset(self) -> None:
-        """Back to t = 0 and the initial states; clears the log, metrics, applied inputs and
-        statistics. Controllers are reset at the next step."""
+        """Back to t = 0 and the initial states (the world's bodies too); clears the log, metrics,
+        contacts, applied inputs and statistics. Controllers are reset at the next step."""
         self._core.reset()
         self.stats = None
 
@@ -256,9 +302,13 @@ class Simulation:
     @property
     def log(self) -> SimulationLog:
         """The log up to now: read-only views, without copying, that later steps do not change."""
-        t = self._core.log_t()
-        robots = [RobotLog(self._core.robot(i).name, t, **self._core.log(i)) for i in range(self.robot_count)]
-        return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every)
+        c = self._core
+        t = c.log_t()
+        robots = [RobotLog(c.robot(i).name, t, **c.log(i)) for i in range(self.robot_count)]
+        bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
+        return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
+                             bodies=bodies, contacts=c.contact_events() if c.world is not None else None,
+                             contact_points=c.contact_log() if c.log_contacts and c.world is not None else None)
 
     def metrics(self) -> List[dict]:
         """Per robot, tracking metrics over every step so far (whatever log_every):

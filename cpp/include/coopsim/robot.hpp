@@ -206,6 +206,9 @@ class Robot {
   // base placed above the floor stands on a column of that section from
   // the floor (z = 0) to the base frame's origin.
   std::vector<LinkBox> default_boxes() const;
+  // Angular velocity w[i] (rad/s) and velocity v[i] (m/s) of the origin of
+  // DH frames i = 0..n in the world, for the kinematics in ws and qd.
+  void frame_velocities(const Workspace& ws, const double* qd, Eigen::Vector3d* w, Eigen::Vector3d* v) const;
   // World poses of every box, in the order of boxes(), for the kinematics
   // in ws (see kinematics()).
   void box_poses(const Workspace& ws, std::vector<Eigen::Isometry3d>& out) const;
@@ -295,6 +298,12 @@ class Robot {
   };
   std::vector<Pre> pre_;
 };
+
+// Separating-axis test of two boxes (world poses of their centres, half
+// extents): the smallest overlap over the 15 axes, m; > 0 means they
+// overlap by that much, <= 0 that they are that far apart along some axis.
+double box_penetration(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+                       const Eigen::Vector3d& half_b);
 
 // Solves A x = b for symmetric positive definite A by Cholesky, overwriting A
 // with its factor; false if A is not positive definite.

@@ -48,10 +48,13 @@
 #include <array>
 #include <functional>
 
+#include <Eigen/Cholesky>
+
 #include "coopsim/controller.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/reference.hpp"
 #include "coopsim/robot.hpp"
+#include "coopsim/world.hpp"
 
 namespace coopsim {
 
@@ -61,6 +64,11 @@ struct SimulationOptions {
   int log_every = 1;          // log row every n-th step; 0: no log
   bool end_stops = true;      // robot's spring-damper end stops beyond q_limits
   Method integrator = Method::RK4;
+  // with a world:
+  int world_every = 1;         // the world steps every k-th robot step, its contacts held in between
+  bool contact_forces = true;  // contacts push the robots (false: reported only)
+  bool log_contacts = false;   // keep every contact point of every world step (else events only)
+  double contact_frequency_dt = 0.2;  // penalty contacts: omega * (world step) for the stiffness
   double max_speed = 1e4;     // rad/s or m/s: faster counts as divergence
   double max_position = 1e6;  // rad or m: farther counts as divergence
 };
@@ -124,9 +132,33 @@ struct TrackingMetrics {
   VecN rms_error() const;
 };
 
+// A contact point of one world step, with the time the step began.
+struct LoggedContact {
+  double t = 0.0;
+  ContactPoint contact;
+};
+
+// Time spent per part of the loop (with SimulationOptions profiling on), s.
+struct StepProfile {
+  double controllers = 0, world = 0, contacts = 0, robots = 0;
+  long steps = 0, world_steps = 0;
+};
+
 class Simulation {
  public:
-  explicit Simulation(SimulationOptions options = SimulationOptions());
+  // With a world, every robot added brings its boxes into it as kinematic
+  // bodies at the first step, and the step runs, in order: controllers;
+  // link poses and twists into the world; the world's step (free bodies
+  // advance, contacts with the solver's forces); penalty forces where both
+  // sides are robots or scenery; contact wrenches mapped by J^T into each
+  // robot's tau_ext, held over the world step; the robots' integration; the
+  // log. A world belongs to one simulation.
+  explicit Simulation(SimulationOptions options = SimulationOptions(), std::shared_ptr<World> world = nullptr);
+  ~Simulation();
+  Simulation(Simulation&&) = default;
+  Simulation& operator=(Simulation&&) = default;
+  Simulation(const Simulation&) = delete;
+  Simulation& operator=(const Simulation&) = delete;
 
   // Adds a robot (copied) driven by `controller` towards `reference`, from
   // q0, qd0 (null: the reference's q and qd at t = 0). Only before the first
@@ -141,7 +173,19 @@ class Simulation {
   const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).controller; }
   const std::shared_ptr<const Reference>& reference(int i) const { return slot_(i).reference; }
   const SimulationOptions& options() const { return opt_; }
-
+  const std::shared_ptr<World>& world() const { return world_; }
+  // The world body of robot i's box b (-1 without a world or before the first step).
+  int link_body(int i, int box) const;
+  // Box index pairs of robot i that never collide: boxes of one link, of
+  // adjacent links (the base is link 0), and pairs that overlap at every
+  // one of `samples` random poses within the joint limits.
+  static std::vector<std::pair<int, int>> excluded_pairs(const Robot& robot, int samples = 200);
+  // The state of a free or static body at the simulation's time (free bodies
+  // as sampled at the last world step).
+  BodyState body_state(int id) const;
+  const std::vector<LoggedContact>& contact_log() const { return contact_log_; }
+  const StepProfile& profile() const { return profile_; }
+  void set_profiling(bool on) { profiling_ = on; }
   // ---- state ----
   long step_count() const { return k_; }
   double time() const { return k_ * opt_.dt; }
@@ -183,6 +227,10 @@ class Simulation {
   // ---- log and metrics ----
   long log_rows() const { return log_t_.rows(); }
   const LogColumn& log_t() const { return log_t_; }
+  // Free bodies' log, one column each (world.free_bodies() order): 13 values
+  // per row, position (3) m, quaternion w x y z (4), velocity (3) m/s,
+  // angular velocity (3) rad/s, sampled at the world's steps.
+  const std::vector<LogColumn>& body_log() const { return body_log_; }
   const RobotLog& log(int i) const { return slot_(i).log; }
   const TrackingMetrics& metrics(int i) const { return slot_(i).metrics; }
 
@@ -193,9 +241,15 @@ class Simulation {
     std::shared_ptr<Controller> controller;
     std::shared_ptr<const Reference> reference;
     VecN q0, qd0, q, qd, tau, tau_max;
-    VecN applied_forces, tau_ext;  // applied joint forces; their total with the wrenches' J^T w, held
-    std::vector<ExternalWrench> applied_wrenches;
-    bool has_applied = false;
+    VecN applied_forces, tau_ext;  // applied joint forces; their total with the wrenches' J^T w and contacts, held
+    VecN tau_contact;              // J^T of the contact wrenches of the last world step, held
+    std::vector<ExternalWrench> applied_wrenches, contact_wrenches;
+    bool has_applied = false, has_contact = false;
+    int first_body = -1;           // world body of box 0
+    bool ext_held = false;         // tau_ext held nonzero from the step before
+    std::array<Eigen::Vector3d, kMaxDof + 1> frame_w, frame_v;  // frame velocities at the last world step
+    Eigen::LDLT<MatN> M_ldlt;
+    bool M_valid = false;
     VecN q_ref, qd_ref, qdd_ref;
     VecN k1;  // qdd at (q, qd, tau), valid when k1_valid
     VecN q_prev, qd_prev;
@@ -214,10 +268,23 @@ class Simulation {
   [[noreturn]] void diverge_(int i, const std::string& why, bool in_step, bool state_is_result);
   void qdd_(Slot& s, VecN& out);
   void external_(Slot& s);
+  void world_step_();
+  void contact_wrenches_(double h);
+  bool has_ext_(const Slot& s) const { return s.has_applied || s.has_contact; }
+  static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
+  double inverse_mass_along(Slot& s, const VecN& u);
   void applied_changed_(Slot& s);
 
   SimulationOptions opt_;
+  std::shared_ptr<World> world_;
   std::vector<Slot> slots_;
+  std::vector<LogColumn> body_log_;
+  std::vector<int> free_ids_;
+  std::vector<BodyState> body_now_;
+  std::vector<LoggedContact> contact_log_;
+  long world_at_ = -1;
+  bool profiling_ = false;
+  StepProfile profile_;
   LogColumn log_t_{1};
   long k_ = 0;
   long logged_at_ = -1;

@@ -1,0 +1,165 @@
+// The Bullet world: scenery and free bodies (robots' link bodies come from a
+// simulation).
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "convert.hpp"
+#include "coopsim/world.hpp"
+
+namespace py = pybind11;
+using namespace coopsim;
+using namespace coopsim::py_convert;
+
+namespace {
+
+// A pose as (4, 4), or as a position (3,) m with a unit quaternion (4,) [w, x, y, z].
+Eigen::Isometry3d pose_arg(const py::object& pose_obj, const py::object& position, const py::object& quaternion) {
+  if (!pose_obj.is_none()) {
+    if (!position.is_none() || !quaternion.is_none())
+      throw py::value_error("give either pose (4, 4) or position and quaternion, not both");
+    return pose(pose_obj, "pose");
+  }
+  if (position.is_none()) throw py::value_error("a body needs a pose (4, 4) or a position (3,)");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = vecx(position, 3, "position");
+  if (!quaternion.is_none()) {
+    const Eigen::VectorXd q = vecx(quaternion, 4, "quaternion");
+    if (std::abs(q.norm() - 1.0) > 1e-9)
+      throw py::value_error("quaternion must have unit norm [w, x, y, z], got norm " + std::to_string(q.norm()));
+    T.linear() = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
+  }
+  return T;
+}
+
+py::dict spec_dict(const BodySpec& b) {
+  py::dict d;
+  d["name"] = b.name;
+  d["kind"] = body_kind_name(b.kind);
+  d["half_extents"] = to_numpy(b.half_extents);
+  d["mass"] = b.mass;
+  d["pose"] = to_numpy(b.pose);
+  d["velocity"] = to_numpy(b.velocity);
+  d["angular_velocity"] = to_numpy(b.angular_velocity);
+  d["friction"] = b.friction;
+  d["restitution"] = b.restitution;
+  return d;
+}
+
+}  // namespace
+
+py::dict body_state_dict(const BodyState& s) {
+  py::dict d;
+  const Eigen::Quaterniond q(s.pose.linear());
+  d["pose"] = to_numpy(s.pose);
+  d["position"] = to_numpy(Eigen::Vector3d(s.pose.translation()));
+  d["quaternion"] = to_numpy(Eigen::Vector4d(q.w(), q.x(), q.y(), q.z()));
+  d["velocity"] = to_numpy(s.velocity);
+  d["angular_velocity"] = to_numpy(s.angular_velocity);
+  return d;
+}
+
+void bind_world(py::module_& m) {
+  py::class_<World, std::shared_ptr<World>>(m, "World", R"doc(A Bullet dynamics world: an optional floor (the plane z = 0), static boxes
+(scenery) and free boxes with mass. Give it to a Simulation (world=...),
+which brings every robot's link boxes into it as kinematic bodies; one world
+belongs to one simulation. Friction and restitution of a contact are the
+products of the two bodies' coefficients (the floor's, static boxes' and
+links' default 1, so a free body's own coefficient decides).
+
+floor: add the floor. gravity: (3,) m/s^2, the robots' too. floor_friction,
+floor_restitution: the floor's coefficients. solver_iterations: Bullet's
+contact solver iterations per step.)doc")
+      .def(py::init([](bool floor, const py::object& gravity, double floor_friction, double floor_restitution,
+                       int solver_iterations) {
+             WorldOptions o;
+             o.floor = floor;
+             o.gravity = vecx(gravity, 3, "gravity");
+             o.floor_friction = floor_friction;
+             o.floor_restitution = floor_restitution;
+             o.solver_iterations = solver_iterations;
+             return std::make_shared<World>(o);
+           }),
+           py::arg("floor") = true, py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.81),
+           py::arg("floor_friction") = 1.0, py::arg("floor_restitution") = 0.0, py::arg("solver_iterations") = 10)
+      .def("add_static_box", [](World& w, const std::string& name, const py::object& half_extents,
+                                const py::object& pose_obj, const py::object& position, const py::object& quaternion,
+                                double friction, double restitution) {
+             return w.add_static_box(name, vecx(half_extents, 3, "half_extents"),
+                                     pose_arg(pose_obj, position, quaternion), friction, restitution);
+           },
+           py::arg("name"), py::arg("half_extents"), py::arg("pose") = py::none(), py::kw_only(),
+           py::arg("position") = py::none(), py::arg("quaternion") = py::none(), py::arg("friction") = 1.0,
+           py::arg("restitution") = 0.0,
+           "Adds a static box (scenery): half extents (3,) m, at pose (4, 4) or position (3,) m and quaternion "
+           "(4,) [w, x, y, z]; returns its id.")
+      .def("add_free_box", [](World& w, const std::string& name, const py::object& half_extents, double mass,
+                              const py::object& pose_obj, const py::object& position, const py::object& quaternion,
+                              double friction, double restitution, const py::object& velocity,
+                              const py::object& angular_velocity) {
+             return w.add_free_box(name, vecx(half_extents, 3, "half_extents"), mass,
+                                   pose_arg(pose_obj, position, quaternion), friction, restitution,
+                                   vecx(velocity, 3, "velocity"), vecx(angular_velocity, 3, "angular_velocity"));
+           },
+           py::arg("name"), py::arg("half_extents"), py::arg("mass"), py::arg("pose") = py::none(), py::kw_only(),
+           py::arg("position") = py::none(), py::arg("quaternion") = py::none(), py::arg("friction") = 0.5,
+           py::arg("restitution") = 0.0, py::arg("velocity") = py::make_tuple(0.0, 0.0, 0.0),
+           py::arg("angular_velocity") = py::make_tuple(0.0, 0.0, 0.0),
+           "Adds a free box: half extents (3,) m, mass kg (a uniform box), at pose (4, 4) or position and "
+           "quaternion, with initial velocity (3,) m/s and angular velocity (3,) rad/s; returns its id.")
+      .def_property_readonly("gravity", [](const World& w) { return to_numpy(w.options().gravity); })
+      .def_property_readonly("floor", [](const World& w) { return w.options().floor; })
+      .def_property_readonly("attached", &World::attached, "Whether a simulation owns the world.")
+      .def_property_readonly("body_names", [](const World& w) {
+             std::vector<std::string> out;
+             for (int i = 0; i < w.body_count(); ++i) out.push_back(w.body(i).name);
+             return out;
+           }, "Names of every body, by id (robots' link bodies once a simulation has stepped).")
+      .def("body", [](const World& w, const std::string& name) {
+             const int id = w.find(name);
+             if (id < 0) throw py::value_error("no body named '" + name + "' in the world");
+             return spec_dict(w.body(id));
+           }, py::arg("name"), "A body's description: name, kind, half_extents, mass, pose, velocity, ... .")
+      .def("__len__", &World::body_count)
+      .def("__repr__", [](const World& w) {
+         int free = 0, fixed = 0;
+         for (int i = 0; i < w.body_count(); ++i) {
+           free += w.body(i).kind == BodyKind::Free;
+           fixed += w.body(i).kind == BodyKind::Static;
+         }
+         return "<coopsim.World floor=" + std::string(w.options().floor ? "True" : "False") + ", " +
+                std::to_string(fixed) + " static, " + std::to_string(free) + " free bodies>";
+       })
+      .def(py::pickle(
+          [](const World& w) {
+            const WorldOptions& o = w.options();
+            py::list bodies;
+            for (int i = 0; i < w.body_count(); ++i) {
+              const BodySpec& b = w.body(i);
+              if (b.kind == BodyKind::Static || b.kind == BodyKind::Free) bodies.append(spec_dict(b));
+            }
+            return py::make_tuple(o.floor, to_numpy(o.gravity), o.floor_friction, o.floor_restitution,
+                                  o.solver_iterations, bodies);
+          },
+          [](py::tuple t) {
+            WorldOptions o;
+            o.floor = t[0].cast<bool>();
+            o.gravity = vecx(t[1], 3, "gravity");
+            o.floor_friction = t[2].cast<double>();
+            o.floor_restitution = t[3].cast<double>();
+            o.solver_iterations = t[4].cast<int>();
+            auto w = std::make_shared<World>(o);
+            for (py::handle h : t[5].cast<py::list>()) {
+              py::dict d = h.cast<py::dict>();
+              const std::string name = d["name"].cast<std::string>();
+              const Eigen::Vector3d he = vecx(d["half_extents"], 3, "half_extents");
+              const Eigen::Isometry3d T = pose(d["pose"], "pose");
+              if (d["kind"].cast<std::string>() == "static")
+                w->add_static_box(name, he, T, d["friction"].cast<double>(), d["restitution"].cast<double>());
+              else
+                w->add_free_box(name, he, d["mass"].cast<double>(), T, d["friction"].cast<double>(),
+                                d["restitution"].cast<double>(), vecx(d["velocity"], 3, "velocity"),
+                                vecx(d["angular_velocity"], 3, "angular_velocity"));
+            }
+            return w;
+          }));
+}

@@ -1,0 +1,161 @@
+// The world: a Bullet dynamics world with a floor, static scenery and free
+// rigid bodies, into which a simulation brings every robot's link boxes as
+// kinematic bodies (design: shared/design/world.md). Bullet appears only in
+// world.cpp.
+//
+// Division of labour: coopsim's dynamics move the robots; Bullet does the
+// geometry of everything and moves the free bodies, with its own solver,
+// against the scenery and the robot links. A simulation sets each link
+// body's pose and exact twist every world step; Bullet never moves them.
+//
+// Units: m, kg, s, N. Poses are world poses of the box centre with its axes.
+// Contact friction and restitution are the products of the two bodies'
+// coefficients (Bullet's rule): with the scenery's and links' default of 1,
+// a free body's own coefficient decides.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace coopsim {
+
+enum class BodyKind { Floor, Static, Free, Link };
+const char* body_kind_name(BodyKind k);
+
+struct BodySpec;
+// The kind of a contact between two bodies: "self" (links of one robot),
+// "robot-robot", "robot-scenery" (a link and the floor or a static box),
+// "robot-body" (a link and a free body), "body-scenery", "body-body".
+const char* contact_kind(const BodySpec& a, const BodySpec& b);
+
+// A body of the world: the floor (a plane z = 0), a static box, a free box
+// (mass > 0), or a link box of a robot (kinematic; added by a simulation).
+struct BodySpec {
+  std::string name;
+  BodyKind kind = BodyKind::Static;
+  Eigen::Vector3d half_extents = Eigen::Vector3d::Zero();   // m (boxes)
+  double mass = 0.0;                                         // kg, > 0 for free bodies
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();    // initial world pose of the centre
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();        // initial, m/s, of the centre
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  // initial, rad/s
+  double friction = 1.0;                                     // Coulomb coefficient, >= 0
+  double restitution = 0.0;                                  // 0 .. 1
+  int robot = -1, link = -1, box = -1;                       // link bodies: robot index, link, box index
+};
+
+// The state of a body now.
+struct BodyState {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();          // m/s, of the centre (world)
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  // rad/s (world)
+};
+
+// One contact point between bodies a and b of the last world step.
+struct ContactPoint {
+  int a = -1, b = -1;               // body ids
+  Eigen::Vector3d point_a, point_b;  // m, world: on a's and on b's surface
+  Eigen::Vector3d normal;            // unit, world, from b towards a
+  double depth = 0.0;                // m, penetration (>= 0 when touching)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // N, world, on a at point_a over the step (b: -force)
+  bool solver = false;               // force from Bullet's solver (false: coopsim's penalty, or none)
+};
+
+// A contact between two bodies over time: from the first world step where
+// they touch to the first where they no longer do (end NaN while ongoing).
+struct ContactEvent {
+  int a = -1, b = -1;
+  double begin = 0.0, end = std::numeric_limits<double>::quiet_NaN();  // s
+  double peak_force = 0.0;  // N, largest magnitude of the pair's total force
+  double max_depth = 0.0;   // m, deepest penetration
+  long steps = 0;           // world steps in contact
+};
+
+struct WorldOptions {
+  bool floor = true;
+  double floor_friction = 1.0, floor_restitution = 0.0;
+  Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81);  // m/s^2
+  int solver_iterations = 10;
+};
+
+class World {
+ public:
+  explicit World(WorldOptions options = WorldOptions());
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  const WorldOptions& options() const { return options_; }
+
+  // ---- building (before the first step) ----
+  // Throw std::invalid_argument naming what is wrong: sizes outside
+  // 1e-4 .. 1e4 m, non-positive or non-finite mass, friction < 0,
+  // restitution outside 0 .. 1, a pose that is not a finite rigid
+  // transform within 1e6 m, an empty or duplicate name. Return the body id.
+  int add_static_box(const std::string& name, const Eigen::Vector3d& half_extents, const Eigen::Isometry3d& pose,
+                     double friction = 1.0, double restitution = 0.0);
+  int add_free_box(const std::string& name, const Eigen::Vector3d& half_extents, double mass,
+                   const Eigen::Isometry3d& pose, double friction = 0.5, double restitution = 0.0,
+                   const Eigen::Vector3d& velocity = Eigen::Vector3d::Zero(),
+                   const Eigen::Vector3d& angular_velocity = Eigen::Vector3d::Zero());
+  // Link bodies of one robot (its boxes at their first poses), named
+  // "<label>/<box name>"; `excluded` lists pairs of box indices that never
+  // collide (the robot's adjacent, same-link and always-touching boxes).
+  // Called by the simulation that owns the world.
+  void add_robot(int robot, const std::string& label, const std::vector<std::string>& box_names,
+                 const std::vector<int>& box_links, const std::vector<Eigen::Vector3d>& half_extents,
+                 const std::vector<Eigen::Isometry3d>& poses, const std::vector<std::pair<int, int>>& excluded,
+                 double friction);
+  // Removes the robots' link bodies (the world keeps its own).
+  void clear_robots();
+
+  // ---- bodies ----
+  int body_count() const { return static_cast<int>(specs_.size()); }
+  const BodySpec& body(int id) const;
+  int find(const std::string& name) const;  // -1 if none
+  BodyState state(int id) const;
+  std::vector<int> free_bodies() const;     // ids of the free bodies, in order added
+
+  // ---- stepping (by the owning simulation) ----
+  // Sets a link body's pose and twist (velocity of the box centre).
+  void set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& velocity,
+                const Eigen::Vector3d& angular_velocity);
+  // Advances the free bodies by dt (s) at simulated time t (the step's
+  // start), then gathers the contacts with the solver's forces.
+  void step(double dt, double t);
+  const std::vector<ContactPoint>& contacts() const { return contacts_; }
+  std::vector<ContactPoint>& contacts() { return contacts_; }
+  // Folds this step's contacts (forces final) into the events at time t.
+  void record_events(double t);
+  const std::vector<ContactEvent>& events() const { return events_; }
+  // Back to the initial state of every body, no contacts, no events.
+  void reset();
+
+  // Whether a simulation owns this world (one at most; throws when a
+  // second one tries).
+  bool attached() const { return attached_; }
+  void attach();
+  void detach() { attached_ = false; }
+
+ private:
+  struct Impl;
+  int add_(BodySpec spec);
+  void build_();
+  WorldOptions options_;
+  std::vector<BodySpec> specs_;
+  std::vector<std::vector<int>> exclusions_;  // per body: ids never to collide with
+  std::map<std::string, int> names_;
+  std::unique_ptr<Impl> impl_;
+  std::vector<ContactPoint> contacts_;
+  std::vector<ContactEvent> events_;
+  std::map<std::pair<int, int>, size_t> open_;  // pair -> index of its ongoing event
+  bool attached_ = false;
+};
+
+}  // namespace coopsim

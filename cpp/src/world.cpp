@@ -1,0 +1,402 @@
+// The Bullet world (see world.hpp and shared/design/world.md): the only part
+// of the engine's simulation that includes Bullet.
+#include "coopsim/world.hpp"
+
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace coopsim {
+
+namespace {
+
+constexpr double kMinSize = 1e-4, kMaxSize = 1e4;  // m: box sizes Bullet handles well
+constexpr double kMaxDistance = 1e6;               // m: positions from the world origin
+
+void require(bool ok, const std::string& msg) {
+  if (!ok) throw std::invalid_argument(msg);
+}
+
+btVector3 bt(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
+Eigen::Vector3d eig(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(), v.z()); }
+
+btTransform bt(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d& R = T.linear();
+  btMatrix3x3 b(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2));
+  return btTransform(b, bt(Eigen::Vector3d(T.translation())));
+}
+
+Eigen::Isometry3d eig(const btTransform& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  const btMatrix3x3& b = t.getBasis();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) T.linear()(i, j) = b[i][j];
+  T.translation() = eig(t.getOrigin());
+  return T;
+}
+
+void check_pose(const Eigen::Isometry3d& T, const std::string& who) {
+  require(T.matrix().allFinite(), who + ": pose must be finite");
+  require(T.translation().norm() <= kMaxDistance, who + ": pose must lie within 1e6 m of the origin");
+  const Eigen::Matrix3d R = T.linear();
+  require((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 && R.determinant() > 0,
+          who + ": pose must be a rigid transform (orthonormal rotation)");
+}
+
+bool static_like(BodyKind k) { return k == BodyKind::Floor || k == BodyKind::Static; }
+
+// The world whose kinematic bodies keep the twist coopsim sets: the base
+// class would overwrite it with a one-step-late finite difference.
+class KinematicWorld : public btDiscreteDynamicsWorld {
+ public:
+  using btDiscreteDynamicsWorld::btDiscreteDynamicsWorld;
+
+ protected:
+  void saveKinematicState(btScalar) override {}
+};
+
+}  // namespace
+
+const char* body_kind_name(BodyKind k) {
+  switch (k) {
+    case BodyKind::Floor: return "floor";
+    case BodyKind::Static: return "static";
+    case BodyKind::Free: return "free";
+    default: return "link";
+  }
+}
+
+const char* contact_kind(const BodySpec& a, const BodySpec& b) {
+  const bool la = a.kind == BodyKind::Link, lb = b.kind == BodyKind::Link;
+  const bool fa = a.kind == BodyKind::Free, fb = b.kind == BodyKind::Free;
+  if (la && lb) return a.robot == b.robot ? "self" : "robot-robot";
+  if (la || lb) return (fa || fb) ? "robot-body" : "robot-scenery";
+  if (fa && fb) return "body-body";
+  return "body-scenery";
+}
+
+// Which pairs are even looked at: never two static bodies, never a pair
+// the robots' descriptions exclude, never a base box and the floor it
+// stands on.
+struct PairFilter : public btOverlapFilterCallback {
+  const std::vector<BodySpec>* specs = nullptr;
+  const std::vector<std::vector<int>>* exclusions = nullptr;
+  bool needBroadphaseCollision(btBroadphaseProxy* p0, btBroadphaseProxy* p1) const override {
+    const int a = static_cast<const btCollisionObject*>(p0->m_clientObject)->getUserIndex();
+    const int b = static_cast<const btCollisionObject*>(p1->m_clientObject)->getUserIndex();
+    const BodySpec& A = (*specs)[a];
+    const BodySpec& B = (*specs)[b];
+    if (static_like(A.kind) && static_like(B.kind)) return false;
+    if ((A.kind == BodyKind::Link && A.link == 0 && B.kind == BodyKind::Floor) ||
+        (B.kind == BodyKind::Link && B.link == 0 && A.kind == BodyKind::Floor))
+      return false;
+    const std::vector<int>& ex = (*exclusions)[a];
+    return std::find(ex.begin(), ex.end(), b) == ex.end();
+  }
+};
+
+struct World::Impl {
+  btDefaultCollisionConfiguration config;
+  btCollisionDispatcher dispatcher{&config};
+  btDbvtBroadphase broadphase;
+  btSequentialImpulseConstraintSolver solver;
+  KinematicWorld world{&dispatcher, &broadphase, &solver, &config};
+  PairFilter filter;
+  std::vector<std::unique_ptr<btCollisionShape>> shapes;
+  std::vector<std::unique_ptr<btRigidBody>> bodies;  // by body id
+
+  ~Impl() {
+    for (auto& b : bodies) world.removeRigidBody(b.get());
+  }
+};
+
+World::World(WorldOptions options) : options_(options) {
+  require(options_.gravity.allFinite(), "gravity must be finite");
+  require(std::isfinite(options_.floor_friction) && options_.floor_friction >= 0,
+          "floor_friction must be finite and >= 0");
+  require(std::isfinite(options_.floor_restitution) && options_.floor_restitution >= 0 &&
+              options_.floor_restitution <= 1,
+          "floor_restitution must be in 0 .. 1");
+  require(options_.solver_iterations >= 1 && options_.solver_iterations <= 1000,
+          "solver_iterations must be in 1 .. 1000");
+  if (options_.floor) {
+    BodySpec floor;
+    floor.name = "floor";
+    floor.kind = BodyKind::Floor;
+    floor.friction = options_.floor_friction;
+    floor.restitution = options_.floor_restitution;
+    add_(floor);
+  }
+}
+
+World::~World() = default;
+
+int World::add_(BodySpec spec) {
+  const std::string who = std::string(body_kind_name(spec.kind)) + " body '" + spec.name + "'";
+  require(!spec.name.empty(), "a body needs a name");
+  require(!names_.count(spec.name), "a body named '" + spec.name + "' is already in the world");
+  if (spec.kind != BodyKind::Floor) {
+    require(spec.half_extents.allFinite() && spec.half_extents.minCoeff() >= kMinSize &&
+                spec.half_extents.maxCoeff() <= kMaxSize,
+            who + ": half_extents must be in 1e-4 .. 1e4 m");
+    check_pose(spec.pose, who);
+  }
+  require(std::isfinite(spec.friction) && spec.friction >= 0, who + ": friction must be finite and >= 0");
+  require(std::isfinite(spec.restitution) && spec.restitution >= 0 && spec.restitution <= 1,
+          who + ": restitution must be in 0 .. 1");
+  if (spec.kind == BodyKind::Free) {
+    require(std::isfinite(spec.mass) && spec.mass > 0, who + ": mass must be finite and > 0 kg");
+    require(spec.velocity.allFinite() && spec.angular_velocity.allFinite(), who + ": velocities must be finite");
+  }
+  const int id = body_count();
+  specs_.push_back(std::move(spec));
+  exclusions_.emplace_back();
+  names_[specs_.back().name] = id;
+  impl_.reset();  // built again, with the new body, at the next step
+  return id;
+}
+
+int World::add_static_box(const std::string& name, const Eigen::Vector3d& half_extents,
+                          const Eigen::Isometry3d& pose, double friction, double restitution) {
+  require(!impl_, "bodies can only be added before the first step (or after reset())");
+  BodySpec s;
+  s.name = name;
+  s.kind = BodyKind::Static;
+  s.half_extents = half_extents;
+  s.pose = pose;
+  s.friction = friction;
+  s.restitution = restitution;
+  return add_(s);
+}
+
+int World::add_free_box(const std::string& name, const Eigen::Vector3d& half_extents, double mass,
+                        const Eigen::Isometry3d& pose, double friction, double restitution,
+                        const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity) {
+  require(!impl_, "bodies can only be added before the first step (or after reset())");
+  BodySpec s;
+  s.name = name;
+  s.kind = BodyKind::Free;
+  s.half_extents = half_extents;
+  s.mass = mass;
+  s.pose = pose;
+  s.friction = friction;
+  s.restitution = restitution;
+  s.velocity = velocity;
+  s.angular_velocity = angular_velocity;
+  return add_(s);
+}
+
+void World::add_robot(int robot, const std::string& label, const std::vector<std::string>& box_names,
+                      const std::vector<int>& box_links, const std::vector<Eigen::Vector3d>& half_extents,
+                      const std::vector<Eigen::Isometry3d>& poses, const std::vector<std::pair<int, int>>& excluded,
+                      double friction) {
+  const int first = body_count();
+  for (size_t k = 0; k < box_names.size(); ++k) {
+    BodySpec s;
+    s.name = label + "/" + box_names[k];
+    s.kind = BodyKind::Link;
+    s.half_extents = half_extents[k];
+    s.pose = poses[k];
+    s.friction = friction;
+    s.robot = robot;
+    s.link = box_links[k];
+    s.box = static_cast<int>(k);
+    add_(s);
+  }
+  for (const auto& [i, j] : excluded) {
+    exclusions_[first + i].push_back(first + j);
+    exclusions_[first + j].push_back(first + i);
+  }
+}
+
+void World::clear_robots() {
+  while (!specs_.empty() && specs_.back().kind == BodyKind::Link) {
+    names_.erase(specs_.back().name);
+    specs_.pop_back();
+    exclusions_.pop_back();
+  }
+  require(std::none_of(specs_.begin(), specs_.end(), [](const BodySpec& s) { return s.kind == BodyKind::Link; }),
+          "clear_robots: link bodies must come last");
+  impl_.reset();
+}
+
+const BodySpec& World::body(int id) const {
+  require(id >= 0 && id < body_count(),
+          "body id " + std::to_string(id) + " out of range [0, " + std::to_string(body_count()) + ")");
+  return specs_[id];
+}
+
+int World::find(const std::string& name) const {
+  auto it = names_.find(name);
+  return it == names_.end() ? -1 : it->second;
+}
+
+std::vector<int> World::free_bodies() const {
+  std::vector<int> out;
+  for (int i = 0; i < body_count(); ++i)
+    if (specs_[i].kind == BodyKind::Free) out.push_back(i);
+  return out;
+}
+
+BodyState World::state(int id) const {
+  const BodySpec& s = body(id);
+  BodyState out;
+  if (!impl_) {
+    out.pose = s.pose;
+    out.velocity = s.velocity;
+    out.angular_velocity = s.angular_velocity;
+    return out;
+  }
+  const btRigidBody& b = *impl_->bodies[id];
+  out.pose = s.kind == BodyKind::Floor ? Eigen::Isometry3d::Identity() : eig(b.getWorldTransform());
+  out.velocity = eig(b.getLinearVelocity());
+  out.angular_velocity = eig(b.getAngularVelocity());
+  return out;
+}
+
+void World::attach() {
+  require(!attached_, "this world already belongs to another simulation: give each simulation its own World");
+  attached_ = true;
+}
+
+void World::build_() {
+  impl_ = std::make_unique<Impl>();
+  Impl& I = *impl_;
+  I.filter.specs = &specs_;
+  I.filter.exclusions = &exclusions_;
+  I.world.getPairCache()->setOverlapFilterCallback(&I.filter);
+  I.world.setGravity(bt(options_.gravity));
+  btContactSolverInfo& info = I.world.getSolverInfo();
+  info.m_numIterations = options_.solver_iterations;
+  // split impulses for every penetration: the default (-0.04) folds
+  // penetrations under 4 cm into the velocity impulse, which launches bodies
+  info.m_splitImpulsePenetrationThreshold = 0;
+  // two friction directions: one lets a body creep on an incline it should stick to
+  info.m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS;
+  for (size_t id = 0; id < specs_.size(); ++id) {
+    const BodySpec& s = specs_[id];
+    std::unique_ptr<btCollisionShape> shape;
+    if (s.kind == BodyKind::Floor) {
+      shape = std::make_unique<btStaticPlaneShape>(btVector3(0, 0, 1), 0);
+    } else {
+      shape = std::make_unique<btBoxShape>(bt(s.half_extents));
+      shape->setMargin(0.0);  // the box is exactly its size
+    }
+    btVector3 inertia(0, 0, 0);
+    const double mass = s.kind == BodyKind::Free ? s.mass : 0.0;
+    if (mass > 0) shape->calculateLocalInertia(mass, inertia);
+    btRigidBody::btRigidBodyConstructionInfo ci(mass, nullptr, shape.get(), inertia);
+    ci.m_friction = s.friction;
+    ci.m_restitution = s.restitution;
+    ci.m_startWorldTransform = s.kind == BodyKind::Floor ? btTransform::getIdentity() : bt(s.pose);
+    auto body = std::make_unique<btRigidBody>(ci);
+    body->setUserIndex(static_cast<int>(id));
+    if (s.kind == BodyKind::Link) body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+    if (s.kind == BodyKind::Free) {
+      body->setLinearVelocity(bt(s.velocity));
+      body->setAngularVelocity(bt(s.angular_velocity));
+    }
+    // no sleeping: a resting body keeps its contact forces and reacts at once
+    if (s.kind != BodyKind::Floor && s.kind != BodyKind::Static) body->setActivationState(DISABLE_DEACTIVATION);
+    I.world.addRigidBody(body.get());
+    I.shapes.push_back(std::move(shape));
+    I.bodies.push_back(std::move(body));
+  }
+}
+
+void World::set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& velocity,
+                     const Eigen::Vector3d& angular_velocity) {
+  if (!impl_) build_();
+  btRigidBody& b = *impl_->bodies[id];
+  const btTransform T = bt(pose);
+  b.setWorldTransform(T);
+  b.setInterpolationWorldTransform(T);
+  b.setLinearVelocity(bt(velocity));
+  b.setAngularVelocity(bt(angular_velocity));
+}
+
+void World::step(double dt, double t) {
+  if (!impl_) build_();
+  Impl& I = *impl_;
+  I.world.stepSimulation(dt, 0);  // exactly one step of dt
+  contacts_.clear();
+  const int nm = I.dispatcher.getNumManifolds();
+  for (int m = 0; m < nm; ++m) {
+    const btPersistentManifold* man = I.dispatcher.getManifoldByIndexInternal(m);
+    const int i0 = static_cast<const btCollisionObject*>(man->getBody0())->getUserIndex();
+    const int i1 = static_cast<const btCollisionObject*>(man->getBody1())->getUserIndex();
+    const bool solved = specs_[i0].kind == BodyKind::Free || specs_[i1].kind == BodyKind::Free;
+    for (int j = 0; j < man->getNumContacts(); ++j) {
+      const btManifoldPoint& p = man->getContactPoint(j);
+      const double lambda = p.getAppliedImpulse();
+      if (p.getDistance() > 0.0 && lambda == 0.0) continue;  // kept past separation, no force
+      ContactPoint c;
+      c.a = i0;
+      c.b = i1;
+      c.point_a = eig(p.getPositionWorldOnA());
+      c.point_b = eig(p.getPositionWorldOnB());
+      c.normal = eig(p.m_normalWorldOnB);
+      c.depth = -p.getDistance();
+      c.solver = solved;
+      if (solved)
+        c.force = (c.normal * lambda + eig(p.m_lateralFrictionDir1) * p.m_appliedImpulseLateral1 +
+                   eig(p.m_lateralFrictionDir2) * p.m_appliedImpulseLateral2) /
+                  dt;
+      // a is the body added first: names come out in a fixed order
+      if (c.a > c.b) {
+        std::swap(c.a, c.b);
+        std::swap(c.point_a, c.point_b);
+        c.normal = -c.normal;
+        c.force = -c.force;
+      }
+      contacts_.push_back(c);
+    }
+  }
+  (void)t;
+}
+
+void World::record_events(double t) {
+  // the pairs touching in this step, with their total force and deepest point
+  std::map<std::pair<int, int>, std::pair<Eigen::Vector3d, double>> now;
+  for (const ContactPoint& c : contacts_) {
+    if (c.depth < 0) continue;
+    auto& e = now.try_emplace({c.a, c.b}, Eigen::Vector3d::Zero(), 0.0).first->second;
+    e.first += c.force;
+    e.second = std::max(e.second, c.depth);
+  }
+  for (auto it = open_.begin(); it != open_.end();) {
+    if (!now.count(it->first)) {
+      events_[it->second].end = t;
+      it = open_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  for (const auto& [pair, fd] : now) {
+    auto it = open_.find(pair);
+    if (it == open_.end()) {
+      ContactEvent e;
+      e.a = pair.first;
+      e.b = pair.second;
+      e.begin = t;
+      events_.push_back(e);
+      it = open_.emplace(pair, events_.size() - 1).first;
+    }
+    ContactEvent& e = events_[it->second];
+    e.peak_force = std::max(e.peak_force, fd.first.norm());
+    e.max_depth = std::max(e.max_depth, fd.second);
+    ++e.steps;
+  }
+}
+
+void World::reset() {
+  impl_.reset();
+  contacts_.clear();
+  events_.clear();
+  open_.clear();
+}
+
+}  // namespace coopsim
