@@ -570,7 +570,7 @@ void Simulation::world_step_() {
   World& w = *world_;
   const double h = opt_.dt * opt_.world_every;
   // link bodies where the robots are now, with their exact twists
-  std::vector<Eigen::Isometry3d> poses;
+  std::vector<Eigen::Isometry3d>& poses = box_poses_;
   for (Slot& s : slots_) {
     const Robot& r = s.robot;
     r.kinematics(s.q.data(), s.ws);

@@ -15,6 +15,7 @@ namespace {
 
 constexpr double kMinSize = 1e-4, kMaxSize = 1e4;  // m: box sizes Bullet handles well
 constexpr double kMaxDistance = 1e6;               // m: positions from the world origin
+constexpr double kFloorHalf = 100.0;               // m: the floor is the top face of a 200 m cube
 
 void require(bool ok, const std::string& msg) {
   if (!ok) throw std::invalid_argument(msg);
@@ -269,6 +270,8 @@ void World::build_() {
   I.filter.exclusions = &exclusions_;
   I.world.getPairCache()->setOverlapFilterCallback(&I.filter);
   I.world.setGravity(bt(options_.gravity));
+  // static bodies keep their bounding boxes: only moving ones are updated
+  I.world.setForceUpdateAllAabbs(false);
   btContactSolverInfo& info = I.world.getSolverInfo();
   info.m_numIterations = options_.solver_iterations;
   // split impulses for every penetration: the default (-0.04) folds
@@ -280,7 +283,10 @@ void World::build_() {
     const BodySpec& s = specs_[id];
     std::unique_ptr<btCollisionShape> shape;
     if (s.kind == BodyKind::Floor) {
-      shape = std::make_unique<btStaticPlaneShape>(btVector3(0, 0, 1), 0);
+      // a slab under z = 0 rather than a plane: a plane's bounding box is
+      // infinite, so every link box would be tested against it every step
+      shape = std::make_unique<btBoxShape>(btVector3(kFloorHalf, kFloorHalf, kFloorHalf));
+      shape->setMargin(0.0);
     } else {
       shape = std::make_unique<btBoxShape>(bt(s.half_extents));
       shape->setMargin(0.0);  // the box is exactly its size
@@ -291,7 +297,8 @@ void World::build_() {
     btRigidBody::btRigidBodyConstructionInfo ci(mass, nullptr, shape.get(), inertia);
     ci.m_friction = s.friction;
     ci.m_restitution = s.restitution;
-    ci.m_startWorldTransform = s.kind == BodyKind::Floor ? btTransform::getIdentity() : bt(s.pose);
+    ci.m_startWorldTransform = s.kind == BodyKind::Floor ? btTransform(btMatrix3x3::getIdentity(), btVector3(0, 0, -kFloorHalf))
+                                                         : bt(s.pose);
     auto body = std::make_unique<btRigidBody>(ci);
     body->setUserIndex(static_cast<int>(id));
     if (s.kind == BodyKind::Link) body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
@@ -359,23 +366,37 @@ void World::step(double dt, double t) {
 }
 
 void World::record_events(double t) {
-  // the pairs touching in this step, with their total force and deepest point
-  std::map<std::pair<int, int>, std::pair<Eigen::Vector3d, double>> now;
+  // the pairs touching in this step (contacts come grouped by pair), with
+  // their total force and deepest point
+  touching_.clear();
   for (const ContactPoint& c : contacts_) {
     if (c.depth < 0) continue;
-    auto& e = now.try_emplace({c.a, c.b}, Eigen::Vector3d::Zero(), 0.0).first->second;
-    e.first += c.force;
-    e.second = std::max(e.second, c.depth);
+    if (touching_.empty() || touching_.back().a != c.a || touching_.back().b != c.b) {
+      ContactEvent e;
+      e.a = c.a;
+      e.b = c.b;
+      touching_.push_back(e);
+      touching_force_.resize(touching_.size());
+      touching_force_.back().setZero();
+    }
+    touching_force_[touching_.size() - 1] += c.force;
+    touching_.back().max_depth = std::max(touching_.back().max_depth, c.depth);
   }
+  auto is_touching = [&](const std::pair<int, int>& p) {
+    for (const ContactEvent& e : touching_)
+      if (e.a == p.first && e.b == p.second) return true;
+    return false;
+  };
   for (auto it = open_.begin(); it != open_.end();) {
-    if (!now.count(it->first)) {
+    if (!is_touching(it->first)) {
       events_[it->second].end = t;
       it = open_.erase(it);
     } else {
       ++it;
     }
   }
-  for (const auto& [pair, fd] : now) {
+  for (size_t k = 0; k < touching_.size(); ++k) {
+    const std::pair<int, int> pair(touching_[k].a, touching_[k].b);
     auto it = open_.find(pair);
     if (it == open_.end()) {
       ContactEvent e;
@@ -386,8 +407,8 @@ void World::record_events(double t) {
       it = open_.emplace(pair, events_.size() - 1).first;
     }
     ContactEvent& e = events_[it->second];
-    e.peak_force = std::max(e.peak_force, fd.first.norm());
-    e.max_depth = std::max(e.max_depth, fd.second);
+    e.peak_force = std::max(e.peak_force, touching_force_[k].norm());
+    e.max_depth = std::max(e.max_depth, touching_[k].max_depth);
     ++e.steps;
   }
 }

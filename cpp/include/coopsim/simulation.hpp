@@ -281,6 +281,7 @@ class Simulation {
   std::vector<LogColumn> body_log_;
   std::vector<int> free_ids_;
   std::vector<BodyState> body_now_;
+  std::vector<Eigen::Isometry3d> box_poses_;  // scratch of world_step_
   std::vector<LoggedContact> contact_log_;
   long world_at_ = -1;
   bool profiling_ = false;

@@ -35,7 +35,8 @@ struct BodySpec;
 // "robot-body" (a link and a free body), "body-scenery", "body-body".
 const char* contact_kind(const BodySpec& a, const BodySpec& b);
 
-// A body of the world: the floor (a plane z = 0), a static box, a free box
+// A body of the world: the floor (the plane z = 0 within 100 m of the
+// origin: the top face of a static 200 m cube), a static box, a free box
 // (mass > 0), or a link box of a robot (kinematic; added by a simulation).
 struct BodySpec {
   std::string name;
@@ -155,6 +156,8 @@ class World {
   std::vector<ContactPoint> contacts_;
   std::vector<ContactEvent> events_;
   std::map<std::pair<int, int>, size_t> open_;  // pair -> index of its ongoing event
+  std::vector<ContactEvent> touching_;           // scratch of record_events
+  std::vector<Eigen::Vector3d> touching_force_;
   bool attached_ = false;
 };
 
