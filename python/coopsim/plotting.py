@@ -18,16 +18,24 @@ _LOG_LABELS = {
 }
 
 
-def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, title=None, joint_types=None):
+def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, title=None, joint_types=None,
+             label=None, color=None, reference: bool = True):
     """Joints of one robot against time, one panel per joint.
 
     log: a SimulationLog (or one robot's RobotLog). quantity: 'q', 'qd'
     (drawn with the reference dashed), 'qdd', 'tau' or 'error'. joints:
     indices (from 0) to draw, default all. axes: a sequence of as many
     matplotlib Axes, default a new figure with one column of panels sharing
-    the time axis. Revolute joints are in rad, prismatic ones in m;
-    joint_types (e.g. robot.joint_types, "RRPRRP") labels each panel with
-    its joint's name and unit (θ1 (rad), d3 (m), ...).
+    the time axis; pass the axes of an earlier call (``fig.axes``) to
+    overlay another run. label: this run's name in the legends (e.g. the
+    controller), default none; color: its line colour (any matplotlib
+    colour), default 'C0' with the reference in 'C1' (with a color, the
+    reference is dashed in the same colour). reference: draw q_ref / qd_ref.
+    Revolute joints are in rad, prismatic ones in m; joint_types (e.g.
+    robot.joint_types, "RRPRRP") names each joint θ1, d3, ... with its unit
+    (default q1, q2, ...). Each panel's legend names its joint; tick labels
+    show whole values (no offset such as "+3e-1" hiding them).
+    Returns the Figure.
     """
     import matplotlib.pyplot as plt
 
@@ -36,13 +44,19 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
     rlog = log.robots[robot] if hasattr(log, "robots") else log
     t = rlog.t
     data = getattr(rlog, quantity)
-    ref = {"q": rlog.q_ref, "qd": rlog.qd_ref}.get(quantity)
+    ref = {"q": rlog.q_ref, "qd": rlog.qd_ref}.get(quantity) if reference else None
     n = data.shape[1]
     joints = list(range(n)) if joints is None else [int(j) for j in joints]
     for j in joints:
         if not 0 <= j < n:
             raise ValueError(f"joints must be indices in [0, {n}), got {j}")
-    if axes is None:
+    if color is not None:
+        from matplotlib.colors import is_color_like
+
+        if not is_color_like(color):
+            raise ValueError(f"color must be a matplotlib colour, got {color!r}")
+    new_figure = axes is None
+    if new_figure:
         fig, axes = plt.subplots(len(joints), 1, sharex=True, squeeze=False,
                                  figsize=(7.0, 1.6 + 1.4 * len(joints)))
         axes = axes[:, 0]
@@ -53,21 +67,35 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
         fig = axes[0].figure
     name, unit = _LOG_LABELS[quantity]
     names, units = _joint_labels(n, joint_types)
+    prefix = "" if label is None else f"{label}: "
     for ax, j in zip(axes, joints):
-        ax.plot(t, data[:, j], "-", color="C0", lw=1.4, label=f"{quantity}{j + 1}")
+        shown = names[j] if joint_types is not None else f"{quantity}{j + 1}"
+        ax.plot(t, data[:, j], "-", color=color or "C0", lw=1.4, label=f"{prefix}{shown}")
         if ref is not None:
-            ax.plot(t, ref[:, j], "--", color="C1", lw=1.2, label="reference")
+            ax.plot(t, ref[:, j], "--", color=color or "C1", lw=1.2, label=f"{prefix}{shown} reference")
         if joint_types is None:
             ax.set_ylabel(f"{quantity}{j + 1}")
         else:
             ax.set_ylabel(f"{'' if quantity == 'q' else quantity + ' '}{names[j]} "
                           f"({unit.split(' | ')[0 if units[j] == 'rad' else 1]})")
+        _plain_ticks(ax)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(loc="upper right", fontsize="small")
+        ax.legend(loc="upper right", fontsize="x-small")
     axes[-1].set_xlabel("t (s)")
-    fig.suptitle(title or f"{rlog.name}: {name} ({unit})")
-    fig.tight_layout()
+    if new_figure or title is not None:
+        fig.suptitle(title or f"{rlog.name}: {name} ({unit})")
+    if new_figure:
+        fig.tight_layout()
     return fig
+
+
+def _plain_ticks(ax, axis: str = "y") -> None:
+    """Tick labels with their whole values: no offset ("+3e-1") and a ×10ⁿ factor only for tiny or huge values."""
+    from matplotlib.ticker import ScalarFormatter
+
+    fmt = ScalarFormatter(useOffset=False, useMathText=True)
+    fmt.set_powerlimits((-4, 5))
+    (ax.yaxis if axis == "y" else ax.xaxis).set_major_formatter(fmt)
 
 
 def _joint_labels(n, joint_types):
@@ -77,6 +105,15 @@ def _joint_labels(n, joint_types):
         raise ValueError(f"joint_types must have {n} letters, got {joint_types!r}")
     names = [("θ" if c in "Rr" else "d") + str(j + 1) for j, c in enumerate(joint_types)]
     return names, ["rad" if c in "Rr" else "m" for c in joint_types]
+
+
+def _unit_label(units, joints, order: int) -> str:
+    """'rad', 'm', 'rad | m' (mixed) or 'rad or m' (unknown) with /s or /s² for derivative `order`."""
+    per = "" if order == 0 else "/s" if order == 1 else "/s²"
+    kinds = sorted({units[j] for j in joints}, key=lambda u: u != "rad")
+    if kinds == [""]:
+        return f"rad{per} or m{per}"
+    return " | ".join(k + per for k in kinds)
 
 
 def plot_trajectory(trajectory, robot=None, t=None, samples: int = 600, joints=None, axes=None, title=None,
@@ -123,7 +160,8 @@ def plot_trajectory(trajectory, robot=None, t=None, samples: int = 600, joints=N
             if has_knots and k < 2:
                 pts = trajectory.q_points if k == 0 else trajectory.qd_points
                 ax.plot(trajectory.times, pts[:, j], "o", color=f"C{c % 10}", ms=3.5)
-        ax.set_ylabel(what)
+        ax.set_ylabel(f"{what} ({_unit_label(units, joints, k)})")
+        _plain_ticks(ax)
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
     axes[-1].set_xlabel("t (s)")
