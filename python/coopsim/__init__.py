@@ -33,6 +33,7 @@ from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simula
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 from .batch import run_batch, simulate
+from . import view
 
 Robot.to_urdf = to_urdf
 
@@ -62,5 +63,6 @@ __all__ = [
     "rk4_step",
     "robots",
     "to_urdf",
+    "view",
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
 ]

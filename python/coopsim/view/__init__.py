@@ -1,0 +1,16 @@
+"""Seeing it: robots as shaded boxes in matplotlib, still (:func:`draw`) or animated from a log (:func:`animate`).
+
+The paper's colour conventions (:data:`COLORS`): the desired pose as a
+transparent blue ghost, robots green while they hold something, collision
+boxes green (free) or red (in contact), contact points as red lines along
+the normal, the bar (any extra :class:`Body`) red.
+
+    scene = view.draw(None, [r1, r2], [q1, q2], reference=[q1_ref, None])
+    scene.update([q1_new, q2_new])              # cheap: one polygon collection changes
+    view.animate(log, sim.robots, fps=30, speed=2.0, path="out/run.mp4")   # or .gif; or show inline
+"""
+from .animation import Animation, animate, ffmpeg_path
+from .geometry import box_corners, box_faces
+from .scene import COLORS, Body, Scene, draw
+
+__all__ = ["COLORS", "Animation", "Body", "Scene", "animate", "box_corners", "box_faces", "draw", "ffmpeg_path"]

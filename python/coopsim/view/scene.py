@@ -1,0 +1,642 @@
+"""A 3D matplotlib scene of robots drawn as shaded boxes, updated cheaply from new joint positions.
+
+Every box (robot links, the desired-pose ghost, extra bodies) is in one
+``Poly3DCollection`` whose vertices and colours are replaced on each update
+(``set_verts``): matplotlib sorts its polygons by depth as a whole
+(painter's algorithm), and a redraw costs one collection, not a new axes.
+The floor, at z = 0 below everything and seen from above, is a second,
+fixed collection drawn first; contact points are a ``Line3DCollection``
+drawn over the boxes.
+
+Colours follow the paper: the desired pose as a transparent blue ghost,
+robots green while they hold something, collision boxes green (free) or red
+(in contact), contact points as red lines along the normal, the bar red.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from .geometry import box_faces, box_normals, floor_tiles, light_direction, shade, view_direction
+
+__all__ = ["Body", "COLORS", "Scene", "draw"]
+
+#: The colour conventions (any matplotlib colour). robots: the normal colour of robot i's links, cycling;
+#: base: base columns; jaw: the clamp's jaws; holding: a robot that holds something; free / colliding:
+#: collision boxes without / with contact; ghost: the desired pose (drawn with ghost_alpha);
+#: contact: contact lines; body: extra boxes without their own colour (the bar); floor: two tile colours.
+COLORS = {
+    "robots": ("#f0a23c", "#e4e4e8", "#c07a4a", "#a5a5a5"),
+    "base": "#757575",
+    "jaw": "#2f3237",
+    "holding": "#2ca02c",
+    "free": "#3cc43c",
+    "colliding": "#e8231e",
+    "ghost": "#1f5bff",
+    "ghost_alpha": 0.3,
+    "contact": "#e8231e",
+    "body": "#d62728",
+    "floor": ("#b9bec6", "#a9aeb7"),
+}
+
+_KEEP = object()   # update(): leave as it is
+
+
+@dataclass
+class Body:
+    """Extra boxes drawn with the robots: world bodies such as the bar, or scenery.
+
+    name: a label. half_extents: (3,) m for one box, or (m, 3) for m boxes.
+    poses: the boxes' centres and axes in the world, (4, 4) (one box, fixed),
+    (m, 4, 4) (m boxes, fixed), or one pose per log row for
+    :func:`~coopsim.view.animate`: (rows, 4, 4) for one box, (rows, m, 4, 4)
+    for m boxes. color: any matplotlib colour (default the bar's red);
+    alpha: 0..1.
+    """
+
+    name: str
+    half_extents: object
+    poses: object
+    color: object = COLORS["body"]
+    alpha: float = 1.0
+
+    def _checked(self, what: str, rows: Optional[int] = None):
+        """(half (m, 3), poses, rgba (4,)), checked; poses (m, 4, 4), or with `rows` given either that
+        (fixed boxes) or (rows, m, 4, 4) (one pose per log row)."""
+        from matplotlib.colors import to_rgba
+
+        h = _array(self.half_extents, f"{what}.half_extents")
+        if h.ndim == 1:
+            h = h[None, :]
+        if h.ndim != 2 or h.shape[1] != 3 or not np.all(h > 0):
+            raise ValueError(f"{what}.half_extents must be (3,) or (m, 3) lengths > 0 m, got shape "
+                             f"{np.shape(self.half_extents)}")
+        m = h.shape[0]
+        p = _array(self.poses, f"{what}.poses")
+        fixed = [(m, 4, 4)] + ([(4, 4)] if m == 1 else [])
+        moving = [] if rows is None else [(rows, m, 4, 4)] + ([(rows, 4, 4)] if m == 1 else [])
+        if p.shape in fixed:
+            p = p.reshape(m, 4, 4)
+        elif p.shape in moving:
+            p = p.reshape(rows, m, 4, 4)
+        else:
+            raise ValueError(f"wrong shape for {what}.poses: expected {' or '.join(map(str, fixed + moving))} "
+                             f"for {m} box(es), got {p.shape}")
+        try:
+            rgba = np.array(to_rgba(self.color, float(self.alpha)))
+        except (ValueError, TypeError) as e:
+            raise ValueError(f"{what}.color / alpha: {e}") from None
+        return h, p, rgba
+
+
+def _array(x, what: str) -> np.ndarray:
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be an array of numbers, got {type(x).__name__}") from None
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} must be finite (no NaN or inf)")
+    return a
+
+
+def _robot_list(robots) -> list:
+    from .. import Robot
+
+    if isinstance(robots, Robot):
+        return [robots]
+    if hasattr(robots, "robots") and not isinstance(robots, (list, tuple)):   # a Simulation
+        robots = robots.robots
+    try:
+        robots = list(robots)
+    except TypeError:
+        raise ValueError(f"robots must be a coopsim.Robot or a sequence of them, got {type(robots).__name__}") \
+            from None
+    if not robots or not all(isinstance(r, Robot) for r in robots):
+        raise ValueError("robots must be a coopsim.Robot or a non-empty sequence of them")
+    return robots
+
+
+def _per_robot_q(q, robots, what: str, allow_none: bool = False) -> list:
+    """One (n_i,) float array per robot (or None where allowed) from q for one robot or a sequence."""
+    n = len(robots)
+    if q is None:
+        if allow_none:
+            return [None] * n
+        raise ValueError(f"{what} must be given")
+    if n == 1 and not (isinstance(q, (list, tuple)) and len(q) == 1 and (q[0] is None or np.ndim(q[0]) == 1)):
+        items = [q]
+    else:
+        if isinstance(q, np.ndarray) and q.ndim != 2:
+            raise ValueError(f"wrong shape for {what}: expected one (n,) array per robot for {n} robots, "
+                             f"got {q.shape}")
+        items = list(q)
+        if len(items) != n:
+            raise ValueError(f"{what} must hold one joint vector per robot ({n}), got {len(items)}")
+    out = []
+    for i, (x, r) in enumerate(zip(items, robots)):
+        name = what if n == 1 else f"{what}[{i}]"
+        if x is None and allow_none:
+            out.append(None)
+            continue
+        a = _array(x, name)
+        if a.shape != (r.dof,):
+            raise ValueError(f"wrong shape for {name}: expected ({r.dof},), got {a.shape}")
+        out.append(a)
+    return out
+
+
+def _per_robot_bool(x, robots, what: str) -> list:
+    n = len(robots)
+    if x is None or isinstance(x, (bool, np.bool_)):
+        return [bool(x)] * n
+    items = list(x) if isinstance(x, (list, tuple, np.ndarray)) else None
+    if items is None or len(items) != n:
+        raise ValueError(f"{what} must be a bool or one bool per robot ({n}), got {x!r}")
+    out = []
+    for i, v in enumerate(items):
+        if not isinstance(v, (bool, np.bool_, int, np.integer)) or v not in (0, 1):
+            raise ValueError(f"{what}[{i}] must be a bool, got {v!r}")
+        out.append(bool(v))
+    return out
+
+
+def _per_robot_mask(x, robots, what: str) -> list:
+    """One (k_i,) bool array per robot (k_i = its box count); None (for all or one robot) -> all False."""
+    n = len(robots)
+    ks = [len(r.boxes) for r in robots]
+    if x is None:
+        return [np.zeros(k, dtype=bool) for k in ks]
+    if n == 1 and np.ndim(x) == 1 and not (isinstance(x, (list, tuple)) and len(x) == 1 and np.ndim(x[0]) == 1):
+        items = [x]
+    else:
+        items = list(x)
+        if len(items) != n:
+            raise ValueError(f"{what} must hold one (boxes,) mask per robot ({n}), got {len(items)}")
+    out = []
+    for i, (m, k) in enumerate(zip(items, ks)):
+        name = what if n == 1 else f"{what}[{i}]"
+        if m is None:
+            out.append(np.zeros(k, dtype=bool))
+            continue
+        a = np.asarray(m)
+        if a.shape != (k,):
+            raise ValueError(f"wrong shape for {name}: expected ({k},), one flag per box of robot {i}, got {a.shape}")
+        if a.dtype != bool and not (np.issubdtype(a.dtype, np.integer) and np.isin(a, (0, 1)).all()):
+            raise ValueError(f"{name} must be booleans, got dtype {a.dtype}")
+        out.append(a.astype(bool))
+    return out
+
+
+def _contacts(x, what: str = "contacts") -> np.ndarray:
+    """(m, 2, 3): contact points and unit normals."""
+    if x is None:
+        return np.zeros((0, 2, 3))
+    if isinstance(x, (list, tuple)) and len(x) == 0:
+        return np.zeros((0, 2, 3))
+    a = _array(x, what)
+    if a.ndim != 3 or a.shape[1:] != (2, 3):
+        raise ValueError(f"wrong shape for {what}: expected (m, 2, 3), m pairs of (point, normal), got {a.shape}")
+    norm = np.linalg.norm(a[:, 1], axis=1)
+    if np.any(norm <= 0):
+        raise ValueError(f"{what}: every normal must be non-zero")
+    a = a.copy()
+    a[:, 1] /= norm[:, None]
+    return a
+
+
+def _bodies(bodies, what: str = "bodies") -> list:
+    if bodies is None:
+        return []
+    if isinstance(bodies, Body):
+        bodies = [bodies]
+    out = []
+    for i, b in enumerate(bodies):
+        if not isinstance(b, Body):
+            raise ValueError(f"{what}[{i}] must be a coopsim.view.Body, got {type(b).__name__}")
+        out.append(b._checked(f"{what}[{i}]"))
+    return out
+
+
+def _rgba(c, what: str) -> np.ndarray:
+    from matplotlib.colors import to_rgba
+
+    try:
+        return np.array(to_rgba(c))
+    except (ValueError, TypeError):
+        raise ValueError(f"{what}: not a matplotlib colour: {c!r}") from None
+
+
+_KINDS = ("robot", "body", "ghost")
+
+
+class Scene:
+    """Robots as shaded boxes on a tiled floor in a 3D matplotlib Axes; :meth:`update` moves them.
+
+    Made by :func:`draw` (see there for the options). Artists: ``polys``,
+    the one Poly3DCollection of every box (robots, bodies, ghosts), sorted
+    by depth as a whole; ``floor``, the floor tiles, drawn before it (the
+    floor lies at z = 0 under everything and the camera looks from above,
+    so it never hides a box; it does not change with the frames);
+    ``lines``, the contact lines, drawn over the boxes; ``label``, a figure
+    text at the top left. :meth:`faces` and :meth:`colors` give what is
+    drawn, :meth:`project` where a world point lands in the image.
+    """
+
+    def __init__(self, ax, robots, *, colors=None, collision_boxes: bool = False, floor=True, tile: float = 0.1,
+                 limits=None, elev: float = 22.0, azim: float = -62.0, axis: bool = False, zoom: Optional[float] = None,
+                 contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4, cull: bool = False,
+                 ghost_margin: float = 0.002):
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+        self.robots = _robot_list(robots)
+        self.ax = ax
+        self.fig = ax.figure
+        self.collision_boxes = bool(collision_boxes)
+        self.contact_length = _positive(contact_length, "contact_length")
+        self.tile = _positive(tile, "tile")
+        self.ghost_margin = _positive(ghost_margin, "ghost_margin", zero=True)
+        self._zoom = (1.6 if not axis else 0.9) if zoom is None else _positive(zoom, "zoom")
+        elev, azim = _finite(elev, "elev"), _finite(azim, "azim")
+        self._edges = bool(edges)
+        self.cull = bool(cull)
+        self._colors = self._robot_colors(colors)
+        c = COLORS
+        self._ghost_face = _rgba(c["ghost"], "COLORS['ghost']")
+        self._ghost_face[3] = c["ghost_alpha"]
+        self._holding = _rgba(c["holding"], "COLORS['holding']")
+        self._free = _rgba(c["free"], "COLORS['free']")
+        self._colliding = _rgba(c["colliding"], "COLORS['colliding']")
+
+        # what is shown (update changes it)
+        n = len(self.robots)
+        self._q = [np.zeros(r.dof) for r in self.robots]
+        self._ref: List[Optional[np.ndarray]] = [None] * n
+        self._hold = [False] * n
+        self._mask = [np.zeros(len(r.boxes), dtype=bool) for r in self.robots]
+        self._moving = [np.array([b.link != 0 for b in r.boxes], dtype=bool) for r in self.robots]
+        self._contacts = np.zeros((0, 2, 3))
+        self._bodies: list = []
+
+        self._floor_given = None          # "auto", (x0, x1, y0, y1) or None (no floor)
+        if floor is True:
+            self._floor_given = "auto"
+        elif floor is not False and floor is not None:
+            f = _array(floor, "floor")
+            if f.shape != (4,) or not (f[0] < f[1] and f[2] < f[3]):
+                raise ValueError(f"floor must be True, False or (x0, x1, y0, y1) m with x0 < x1, y0 < y1, "
+                                 f"got {floor!r}")
+            self._floor_given = f
+        self._given_limits = None if limits is None else self._check_limits(limits)
+        self._limits = self._given_limits
+        self._fitted = False
+
+        ax.set_proj_type("persp", focal_length=0.9)
+        ax.computed_zorder = False       # floor, then the boxes (sorted among themselves), then contact lines
+        ax.view_init(elev=elev, azim=azim)
+        if not axis:
+            ax.set_axis_off()
+        else:
+            ax.set_xlabel("x (m)")
+            ax.set_ylabel("y (m)")
+            ax.set_zlabel("z (m)")
+        self.floor = Poly3DCollection(np.zeros((0, 4, 3)), linewidths=0.0, zorder=0.5)
+        ax.add_collection3d(self.floor, autolim=False)
+        self.polys = Poly3DCollection(np.zeros((0, 4, 3)), linewidths=linewidth if edges else 0.0, zorder=1)
+        ax.add_collection3d(self.polys, autolim=False)
+        self.lines = Line3DCollection(np.zeros((0, 2, 3)), colors=[_rgba(c["contact"], "COLORS['contact']")],
+                                      linewidths=2.2, zorder=3)
+        ax.add_collection3d(self.lines, autolim=False)
+        for a in (self.floor, self.polys, self.lines):
+            a.set_clip_on(False)       # a 3D Axes draws into a square: use the whole (wider) figure
+        self.label = self.fig.text(0.02, 0.975, "", va="top", ha="left", fontsize=9, zorder=4)
+        self._verts = np.zeros((0, 4, 3))
+        self._owner = np.zeros((0, 4), dtype=int)     # per polygon: kind, robot or body index, box, face
+        self._cols = np.zeros((0, 4))
+        self._segments = np.zeros((0, 2, 3))
+
+    # ---- set-up ----
+
+    def _robot_colors(self, colors) -> list:
+        """Per robot, the (k, 4) normal colours of its boxes."""
+        n = len(self.robots)
+        if colors is None:
+            colors = [None] * n
+        elif _is_colour(colors):
+            colors = [colors] * n
+        else:
+            colors = list(colors)
+            if len(colors) != n:
+                raise ValueError(f"colors must hold one colour (or one per box) per robot ({n}), got {len(colors)}")
+        out = []
+        for i, (r, c) in enumerate(zip(self.robots, colors)):
+            k = len(r.boxes)
+            if c is not None and not _is_colour(c):
+                c = list(c)
+                if len(c) != k:
+                    raise ValueError(f"colors[{i}] must be a colour or {k} colours, one per box, got {len(c)}")
+                out.append(np.array([_rgba(x, f"colors[{i}]") for x in c]).reshape(k, 4))
+                continue
+            link = _rgba(COLORS["robots"][i % len(COLORS["robots"])] if c is None else c, f"colors[{i}]")
+            base, jaw = _rgba(COLORS["base"], "COLORS['base']"), _rgba(COLORS["jaw"], "COLORS['jaw']")
+            moving = r.clamp.moving_joint if r.clamp is not None else -1
+            rows = [base if b.link == 0 else jaw if ("jaw" in b.name or b.link == moving) else link
+                    for b in r.boxes]
+            out.append(np.array(rows).reshape(k, 4))
+        return out
+
+    @staticmethod
+    def _check_limits(limits) -> np.ndarray:
+        a = _array(limits, "limits")
+        if a.shape != (3, 2) or not np.all(a[:, 0] < a[:, 1]):
+            raise ValueError(f"limits must be ((x0, x1), (y0, y1), (z0, z1)) m with each low < high, got {limits!r}")
+        return a
+
+    def fit(self, points) -> None:
+        """Fixes the floor, the axis limits (equal scales) and the box aspect so that the points (m, 3) m
+        are in view. The first update fits what it shows; an animation fits all its frames first."""
+        corners = _array(points, "points").reshape(-1, 3)
+        if not len(corners):
+            raise ValueError("points must hold at least one point")
+        self._fitted = True
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        if self._floor_given is not None:
+            if isinstance(self._floor_given, str):
+                pad = 1.5 * self.tile
+                ext = (lo[0] - pad, hi[0] + pad, lo[1] - pad, hi[1] + pad)
+            else:
+                ext = tuple(self._floor_given)
+            tiles = floor_tiles(ext[:2], ext[2:], self.tile)
+            cols = [_rgba(c, "COLORS['floor']") for c in COLORS["floor"]]
+            ij = np.round(tiles[:, 0, :2] / self.tile).astype(int).sum(axis=1) % 2
+            self.floor.set_verts(tiles)
+            self.floor.set_facecolor(np.array([cols[k] for k in ij]).reshape(-1, 4))
+            lo = np.minimum(lo, [tiles[..., 0].min(), tiles[..., 1].min(), 0.0])
+            hi = np.maximum(hi, [tiles[..., 0].max(), tiles[..., 1].max(), 0.0])
+        if self._given_limits is None:
+            self._limits = np.column_stack([lo - 0.02, hi + 0.02])
+        L = self._limits
+        self.ax.set_xlim(*L[0])
+        self.ax.set_ylim(*L[1])
+        self.ax.set_zlim(*L[2])
+        self.ax.set_box_aspect(tuple(L[:, 1] - L[:, 0]), zoom=self._zoom)
+
+    # ---- state ----
+
+    def update(self, q=_KEEP, *, reference=_KEEP, holding=_KEEP, colliding=_KEEP, contacts=_KEEP, bodies=_KEEP,
+               label=_KEEP) -> list:
+        """Shows the robots at q; returns the changed artists. Nothing is drawn here: call
+        ``fig.canvas.draw_idle()`` or save the figure afterwards.
+
+        q: joint positions, (n,) for one robot or one (n_i,) array per robot
+        (rad or m). reference: the desired pose drawn as a ghost, the same
+        layout (None: no ghost; a robot's entry None: no ghost for it).
+        holding: bool or one bool per robot (its links green while True).
+        colliding: per robot a (boxes,) bool mask in robot.boxes order,
+        shown when the scene draws collision boxes. contacts: (m, 2, 3)
+        pairs of (point m, normal), drawn as red lines of contact_length
+        along the normal. bodies: a list of :class:`Body` with (4, 4) or
+        (m, 4, 4) poses. label: text at the top left. An argument left out
+        keeps its value; None removes what it shows (holding None: not
+        holding; colliding None: all free).
+        """
+        if q is not _KEEP:
+            self._q = _per_robot_q(q, self.robots, "q")
+        if reference is not _KEEP:
+            self._ref = _per_robot_q(reference, self.robots, "reference", allow_none=True)
+        if holding is not _KEEP:
+            self._hold = _per_robot_bool(holding, self.robots, "holding")
+        if colliding is not _KEEP:
+            self._mask = _per_robot_mask(colliding, self.robots, "colliding")
+        if contacts is not _KEEP:
+            self._contacts = _contacts(contacts)
+        if bodies is not _KEEP:
+            self._bodies = _bodies(bodies)
+        if label is not _KEEP:
+            self.label.set_text("" if label is None else str(label))
+        self._rebuild()
+        return [self.polys, self.lines, self.label]
+
+    def _rebuild(self) -> None:
+        # every box to draw: (kind, owner, poses (k, 4, 4), half extents (k, 3), base colours (k, 4))
+        boxes = []
+        for i, r in enumerate(self.robots):
+            poses, half = r.shapes(self._q[i])
+            if self.collision_boxes:
+                col = np.where(self._mask[i][:, None], self._colliding, self._free)
+            elif self._hold[i]:
+                col = self._colors[i].copy()
+                col[self._moving[i]] = self._holding
+            else:
+                col = self._colors[i]
+            boxes.append((0, i, poses, half, col, np.arange(len(half))))
+        for j, (half, poses, col) in enumerate(self._bodies):
+            boxes.append((1, j, poses, half, np.tile(col, (len(half), 1)), np.arange(len(half))))
+        for i, r in enumerate(self.robots):
+            if self._ref[i] is not None:
+                # no ghost of the base (it never moves); ghost boxes a little smaller, so a robot on its
+                # reference hides its ghost and the ghost shows only where the robot is not
+                poses, half = r.shapes(self._ref[i])
+                moving = self._moving[i]
+                half = half[moving] - np.minimum(self.ghost_margin, 0.25 * half[moving])
+                boxes.append((2, i, poses[moving], half, np.tile(self._ghost_face, (len(half), 1)),
+                              np.flatnonzero(moving)))
+        if not self._fitted:
+            self.fit(np.concatenate([box_faces(b[2], b[3]).reshape(-1, 3) for b in boxes]))
+
+        poses = np.concatenate([b[2] for b in boxes])
+        half = np.concatenate([b[3] for b in boxes])
+        base = np.repeat(np.concatenate([b[4] for b in boxes]), 6, axis=0)
+        owner = np.concatenate([np.column_stack([np.full(len(b[3]), b[0]), np.full(len(b[3]), b[1]), b[5]])
+                                for b in boxes])
+        owner = np.column_stack([np.repeat(owner, 6, axis=0), np.tile(np.arange(6), len(owner))])
+        verts = box_faces(poses, half)
+        normals = box_normals(poses)
+        elev, azim = self.ax.elev, self.ax.azim
+        if self.cull:
+            # faces turned clearly away from the camera are hidden behind their own box
+            keep = normals @ view_direction(elev, azim) > -0.2
+            verts, normals, base, owner = verts[keep], normals[keep], base[keep], owner[keep]
+        cols = shade(base, normals, light_direction(elev, azim))
+        self._verts, self._owner, self._cols = verts, owner, cols
+        self.polys.set_verts(verts)
+        self.polys.set_facecolor(cols)
+        if self._edges:
+            edge = cols.copy()
+            edge[:, :3] *= 0.55
+            ghost = owner[:, 0] == 2
+            edge[ghost, 3] = min(1.0, 2.0 * self._ghost_face[3])
+            self.polys.set_edgecolor(edge)
+        c = self._contacts
+        self._segments = (np.stack([c[:, 0], c[:, 0] + self.contact_length * c[:, 1]], axis=1)
+                          if len(c) else np.zeros((0, 2, 3)))
+        self.lines.set_segments(self._segments)
+
+    # ---- drawing ----
+
+    def redraw(self) -> None:
+        """Draws the figure after :meth:`update`, cheaply: the first call draws everything but the boxes,
+        contact lines and label once as a background and keeps it; later calls restore it and draw only
+        those (blitting; the background is drawn again when the figure's size, the camera or the limits
+        change). On a canvas that cannot blit, a full draw. For live views and animations."""
+        canvas = self.fig.canvas
+        if not getattr(canvas, "supports_blit", False):
+            canvas.draw()
+            return
+        key = (canvas.get_width_height(physical=True), self.ax.elev, self.ax.azim, self.ax.roll,
+               None if self._limits is None else self._limits.tobytes(), self.fig.dpi)
+        if getattr(self, "_background", None) is None or self._background[0] != key:
+            dynamic = [self.polys, self.lines, self.label]
+            visible = [a.get_visible() for a in dynamic]
+            for a in dynamic:
+                a.set_visible(False)
+            try:
+                canvas.draw()
+                self._background = (key, canvas.copy_from_bbox(self.fig.bbox))
+            finally:
+                for a, v in zip(dynamic, visible):
+                    a.set_visible(v)
+        canvas.restore_region(self._background[1])
+        for a in (self.polys, self.lines):
+            if a.get_visible():
+                a.do_3d_projection()
+                self.ax.draw_artist(a)
+        if self.label.get_visible() and self.label.get_text():
+            self.fig.draw_artist(self.label)
+        canvas.blit(self.fig.bbox)
+
+    # ---- what is drawn ----
+
+    def _select(self, kind: str, index, box, face) -> np.ndarray:
+        if kind not in _KINDS:
+            raise ValueError(f"kind must be one of {_KINDS}, got {kind!r}")
+        sel = self._owner[:, 0] == _KINDS.index(kind)
+        for col, v in ((1, index), (2, box), (3, face)):
+            if v is not None:
+                sel &= self._owner[:, col] == v
+        return sel
+
+    def faces(self, kind: str = "robot", index: Optional[int] = None, box: Optional[int] = None,
+              face: Optional[int] = None) -> np.ndarray:
+        """The drawn polygons (m, 4, 3) m: kind 'robot' or 'ghost' (index: the robot, box: its box in
+        robot.boxes order) or 'body' (index: the Body, box: its box); face: 0..5 for the box's -z, +z,
+        -y, +x, +y, -x face; None: all. Boxes in order, six faces each, less the faces culled
+        (cull=True). The floor: :meth:`floor_faces`."""
+        return self._verts[self._select(kind, index, box, face)]
+
+    def colors(self, kind: str = "robot", index: Optional[int] = None, box: Optional[int] = None,
+               face: Optional[int] = None) -> np.ndarray:
+        """The shaded RGBA face colours (m, 4) of the polygons :meth:`faces` returns."""
+        return self._cols[self._select(kind, index, box, face)]
+
+    def contact_lines(self) -> np.ndarray:
+        """The contact lines drawn, (m, 2, 3) m: from each contact point along its normal."""
+        return self._segments.copy()
+
+    def floor_faces(self) -> np.ndarray:
+        """The floor tiles (m, 4, 3) m."""
+        return np.asarray(self.floor._faces) if hasattr(self.floor, "_faces") else np.zeros((0, 4, 3))
+
+    @property
+    def floor_extent(self):
+        """(x0, x1, y0, y1) m of the floor tiles, or None without a floor (or before the first update)."""
+        f = self.floor_faces()
+        if not len(f):
+            return None
+        return (float(f[..., 0].min()), float(f[..., 0].max()), float(f[..., 1].min()), float(f[..., 1].max()))
+
+    @property
+    def limits(self) -> np.ndarray:
+        """((x0, x1), (y0, y1), (z0, z1)) m of the axes, (3, 2)."""
+        return None if self._limits is None else self._limits.copy()
+
+    def project(self, points) -> np.ndarray:
+        """Pixel coordinates (m, 2) of world points (m, 3) m in the figure's image: x to the right, y down
+        from the top-left corner, as in ``np.asarray(fig.canvas.buffer_rgba())[y, x]``. Draw the figure
+        first (e.g. ``fig.canvas.draw()``) so that the layout is final."""
+        from mpl_toolkits.mplot3d import proj3d
+
+        p = _array(points, "points").reshape(-1, 3)
+        x, y, _ = proj3d.proj_transform(p[:, 0], p[:, 1], p[:, 2], self.ax.get_proj())
+        disp = self.ax.transData.transform(np.column_stack([x, y]))
+        h = self.fig.bbox.height
+        return np.column_stack([disp[:, 0], h - disp[:, 1]])
+
+
+def _positive(x, what: str, zero: bool = False) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) \
+            or x < 0 or (x == 0 and not zero):
+        raise ValueError(f"{what} must be {'>= 0' if zero else '> 0'}, got {x!r}")
+    return float(x)
+
+
+def _finite(x, what: str) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x):
+        raise ValueError(f"{what} must be a finite number (degrees), got {x!r}")
+    return float(x)
+
+
+def _is_colour(c) -> bool:
+    from matplotlib.colors import is_color_like
+
+    if isinstance(c, str):
+        return is_color_like(c)
+    return isinstance(c, tuple) and len(c) in (3, 4) and all(isinstance(v, (int, float)) for v in c)
+
+
+def draw(ax, robots, q, *, reference=None, holding=None, collision_boxes: bool = False, colliding=None,
+         contacts=None, bodies=None, floor=True, tile: float = 0.1, colors=None, limits=None, elev: float = 22.0,
+         azim: float = -62.0, axis: bool = False, zoom: Optional[float] = None, contact_length: float = 0.04,
+         edges: bool = True, cull: bool = False, ghost_margin: float = 0.002, label: Optional[str] = None) -> Scene:
+    """Draws robots as shaded boxes in a 3D Axes; returns a :class:`Scene` to update with new q cheaply.
+
+    ax: a 3D matplotlib Axes (``fig.add_subplot(projection='3d')``), or
+    None for a new 6.4 x 4.8 in pyplot figure. robots: a coopsim.Robot or a
+    sequence of them (or a Simulation: its robots). q: joint positions
+    (rad or m), (n,) for one robot or one (n_i,) array per robot. Every box
+    of ``robot.shapes(q)`` is drawn: base column, links, clamp body and both
+    jaws.
+
+    The paper's colours: reference, desired joint positions in the same
+    layout as q, is drawn as a transparent blue ghost of the moving links
+    (boxes ghost_margin = 2 mm smaller, so a robot on its reference hides
+    it and the ghost shows where the robot lags; None: none). holding:
+    bool or one per robot: that robot's links are green. collision_boxes:
+    every box green (free) or red where ``colliding`` (per robot a (boxes,)
+    bool mask in robot.boxes order) is True. contacts: (m, 2, 3) array of
+    (point, normal) pairs, m, drawn as red lines of contact_length m along
+    the normals. bodies: extra boxes, a list of :class:`Body` (the bar,
+    scenery) with (4, 4) or (m, 4, 4) poses.
+
+    floor: True for a checkered floor at z = 0 under everything drawn (tiles
+    of `tile` m), (x0, x1, y0, y1) m for a given extent, False for none.
+    colors: one matplotlib colour per robot (its links; base and jaws stay
+    grey), or per robot one colour per box. limits: ((x0, x1), (y0, y1),
+    (z0, z1)) m, default fitted to the floor and the boxes; the three axes
+    always have equal scales. elev, azim (degrees): the camera, matplotlib's
+    convention, looking from above; zoom: > 1 enlarges (default 1.6, or 0.9
+    with axis=True to leave room for the tick labels). axis: draw
+    matplotlib's axes, ticks and panes (a frame then costs several times
+    more). Faces are flat-shaded by a light over the camera's left
+    shoulder, with darker edges (edges=False: none). cull: leave out faces
+    turned away from the camera (faster, and right only while the camera
+    stays where it is: animations use it). label: text at the top left.
+
+    Raises ValueError naming the argument for wrong shapes or values.
+    """
+    robots = _robot_list(robots)
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(figsize=(6.4, 4.8))
+        ax = fig.add_subplot(projection="3d")
+        fig.subplots_adjust(0, 0, 1, 1)
+    elif getattr(ax, "name", None) != "3d":
+        raise ValueError("ax must be a 3D Axes (fig.add_subplot(projection='3d')) or None")
+    scene = Scene(ax, robots, colors=colors, collision_boxes=collision_boxes, floor=floor, tile=tile,
+                  limits=limits, elev=elev, azim=azim, axis=axis, zoom=zoom, contact_length=contact_length,
+                  edges=edges, cull=cull, ghost_margin=ghost_margin)
+    scene.update(q, reference=reference, holding=holding, colliding=colliding, contacts=contacts, bodies=bodies,
+                 label=label)
+    return scene

@@ -1,0 +1,465 @@
+"""coopsim.view: robots drawn as boxes, the paper's colours, animations from logs; plot_log overlays.
+
+The stored picture tests/data/view_reference.png is rewritten (after a deliberate change of the
+drawing) from the repository root with
+
+    python3 tests/test_view.py --write-reference
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+import coopsim as cs  # noqa: E402
+from coopsim import view  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REFERENCE = os.path.join(ROOT, "tests", "data", "view_reference.png")
+
+R1 = cs.robots.scara1()
+R2 = cs.robots.scara2(base_position=(0.75, 0.0, 0.0), base_yaw=np.pi)
+# a known scene: SCARA #1 reaching left, its ghost turned 1.1 rad away; SCARA #2 reaching over
+Q1 = np.array([-0.5, 1.2, 0.10, 0.0, np.pi / 2, 0.03])
+Q2 = np.array([0.6, -0.8, -0.6, 0.1, 0.0, 0.03])
+REF1 = Q1 + np.array([1.1, -0.6, 0.0, 0.0, 0.0, 0.0])
+LIMITS = [[-0.45, 1.05], [-0.6, 0.7], [0.0, 0.8]]
+FLOOR = (-0.4, 1.0, -0.5, 0.6)
+
+
+def new_axes(w=4.0, h=3.0, dpi=60):
+    """A 3D Axes filling a figure of w x h inches at dpi, outside pyplot (nothing to close)."""
+    fig = Figure(figsize=(w, h), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d")
+    fig.subplots_adjust(0, 0, 1, 1)
+    return ax
+
+
+def render(fig) -> np.ndarray:
+    """The figure as an (H, W, 3) int array."""
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
+
+
+def corners(T, h):
+    """The 8 corners (8, 3) of a box of half extents h at pose T, computed directly."""
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+    return np.array([(T @ np.append(s * h, 1.0))[:3] for s in signs])
+
+
+def same_points(a, b, tol):
+    """Every point of a is within tol of a point of b and the reverse."""
+    d = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
+    return d.min(axis=1).max() <= tol and d.min(axis=0).max() <= tol
+
+
+def top_centre(robot, q, box, margin=0.0):
+    """The centre (3,) of a box's top (+z) face at q (boxes `margin` m smaller, as ghosts are)."""
+    P, H = robot.shapes(q)
+    return (P[box] @ np.array([0.0, 0.0, H[box, 2] - min(margin, 0.25 * H[box, 2]), 1.0]))[:3]
+
+
+def known_scene(ax, **kw):
+    kw.setdefault("limits", LIMITS)
+    kw.setdefault("floor", FLOOR)
+    kw.setdefault("cull", True)
+    return view.draw(ax, [R1, R2], [Q1, Q2], **kw)
+
+
+# ---- geometry ----
+
+@pytest.mark.parametrize("robot", [R1, R2], ids=["scara1", "scara2"])
+def test_drawn_boxes_are_the_robots_shapes(robot):
+    rng = np.random.default_rng(7)
+    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
+    poses = [np.zeros(robot.dof), (lo + hi) / 2] + [rng.uniform(lo, hi) for _ in range(4)]
+    scene = view.draw(new_axes(), robot, poses[0])
+    for q in poses:
+        scene.update(q)
+        P, H = robot.shapes(q)
+        assert len(scene.faces("robot")) == 6 * len(robot.boxes)
+        for k in range(len(robot.boxes)):
+            drawn = scene.faces("robot", 0, box=k).reshape(-1, 3)
+            assert drawn.shape == (24, 3)
+            assert same_points(drawn, corners(P[k], H[k]), 1e-12), (robot.name, k)
+        # the collection holds exactly these polygons
+        if hasattr(scene.polys, "_faces"):
+            np.testing.assert_array_equal(scene.polys._faces, scene.faces("robot"))
+
+
+def test_ghost_bodies_and_floor_geometry():
+    scene = view.draw(new_axes(), [R1, R2], [Q1, Q2], reference=[REF1, Q2], ghost_margin=0.0,
+                      bodies=[view.Body("bar", [0.175, 0.01, 0.01], np.eye(4)),
+                              view.Body("pair", [[0.1, 0.1, 0.1], [0.05, 0.05, 0.2]],
+                                        [cs.dh_transform(0.3, 0.1, 0.2, 0.4), cs.dh_transform(-1, 0.5, 0.1, 0)])])
+    for i, (r, q) in enumerate(((R1, REF1), (R2, Q2))):
+        P, H = r.shapes(q)
+        moving = [k for k, b in enumerate(r.boxes) if b.link != 0]
+        assert len(scene.faces("ghost", i)) == 6 * len(moving)         # no ghost of the base column
+        for k in moving:
+            assert same_points(scene.faces("ghost", i, box=k).reshape(-1, 3), corners(P[k], H[k]), 1e-12)
+    assert same_points(scene.faces("body", 0).reshape(-1, 3), corners(np.eye(4), np.array([0.175, 0.01, 0.01])),
+                       1e-12)
+    assert same_points(scene.faces("body", 1, box=1).reshape(-1, 3),
+                       corners(cs.dh_transform(-1, 0.5, 0.1, 0), np.array([0.05, 0.05, 0.2])), 1e-12)
+    # the default ghost is 2 mm smaller, so a robot on its reference hides it
+    small = view.draw(new_axes(), [R1, R2], [Q1, Q2], reference=[Q1, None])
+    P, H = R1.shapes(Q1)
+    assert same_points(small.faces("ghost", 0, box=1).reshape(-1, 3), corners(P[1], H[1] - 0.002), 1e-12)
+    assert len(small.faces("ghost", 1)) == 0
+    # the floor: tiles at z = 0 covering everything's footprint
+    tiles = scene.floor_faces()
+    assert len(tiles) > 20 and np.all(tiles[..., 2] == 0.0)
+    x0, x1, y0, y1 = scene.floor_extent
+    pts = scene.faces("robot").reshape(-1, 3)
+    assert x0 < pts[:, 0].min() and pts[:, 0].max() < x1 and y0 < pts[:, 1].min() and pts[:, 1].max() < y1
+    # equal scales: the box aspect follows the limits
+    L = scene.limits
+    aspect = np.asarray(scene.ax.get_box_aspect())
+    np.testing.assert_allclose(aspect / aspect[0], (L[:, 1] - L[:, 0]) / (L[0, 1] - L[0, 0]), rtol=1e-9)
+
+
+def test_culling_keeps_the_faces_towards_the_camera():
+    full = known_scene(new_axes(), cull=False)
+    culled = known_scene(new_axes(), cull=True)
+    assert len(culled.faces("robot")) < len(full.faces("robot"))
+    # a top face is seen from above, a bottom face is not
+    assert len(culled.faces("robot", 0, box=1, face=1)) == 1
+    assert len(culled.faces("robot", 0, box=1, face=0)) == 0
+
+
+# ---- pictures ----
+
+def pixel(img, scene, point):
+    x, y = scene.project(np.asarray(point))[0]
+    return img[int(round(y)), int(round(x))]
+
+
+def test_colours_where_the_ghost_a_holding_robot_and_a_colliding_box_appear():
+    # the ghost: blue and transparent over what is behind it
+    with_ghost = known_scene(new_axes(), reference=[REF1, None], holding=[False, True])
+    img = render(with_ghost.fig)
+    behind = render(known_scene(new_axes(), holding=[False, True]).fig)
+    p_ghost = top_centre(R1, REF1, 1, margin=0.002)
+    seen, under = pixel(img, with_ghost, p_ghost), pixel(behind, with_ghost, p_ghost)
+    ghost = with_ghost.colors("ghost", 0, box=1, face=1)[0]
+    expected = (1 - ghost[3]) * under + ghost[3] * 255 * ghost[:3]
+    assert seen[2] > seen[0] + 40 and seen[2] > seen[1] + 20, seen           # blue
+    assert np.abs(seen - expected).max() <= 8, (seen, expected)                # alpha-blended over the floor
+    assert np.abs(seen - 255 * ghost[:3]).max() > 40                          # not opaque
+    # the holding robot: its links green
+    p_link = top_centre(R2, Q2, 2)
+    green = 255 * with_ghost.colors("robot", 1, box=2, face=1)[0][:3]
+    got = pixel(img, with_ghost, p_link)
+    assert got[1] > got[0] + 60 and got[1] > got[2] + 60, got
+    assert np.abs(got - green).max() <= 6, (got, green)
+    # SCARA #1 keeps its own colour (amber)
+    amber = pixel(img, with_ghost, top_centre(R1, Q1, 2))
+    assert amber[0] > amber[1] > amber[2] + 50, amber
+
+    # collision boxes: link 1 of SCARA #1 in contact is red, the others green; the contact a red line
+    mask = [np.arange(len(R1.boxes)) == 1, np.zeros(len(R2.boxes), dtype=bool)]
+    contact = top_centre(R1, Q1, 1)
+    boxes = known_scene(new_axes(), collision_boxes=True, colliding=mask, contacts=[[contact, [0.0, 0.0, 1.0]]],
+                        contact_length=0.1)
+    img = render(boxes.fig)
+    P, H = R1.shapes(Q1)
+    red = pixel(img, boxes, (P[1] @ [0.5 * H[1, 0], 0.0, H[1, 2], 1.0])[:3])      # halfway out along link 1
+    assert red[0] > red[1] + 100 and red[0] > red[2] + 100, red
+    free = pixel(img, boxes, top_centre(R1, Q1, 2))
+    assert free[1] > free[0] + 60 and free[1] > free[2] + 60, free
+    x, y = boxes.project(contact + [0.0, 0.0, 0.06])[0]
+    patch = img[int(y) - 1:int(y) + 2, int(x) - 1:int(x) + 2].reshape(-1, 3)
+    assert any(p[0] > 180 and p[1] < 90 and p[2] < 90 for p in patch), patch
+
+
+def reference_picture() -> np.ndarray:
+    scene = known_scene(new_axes(3.2, 2.4, 50), reference=[REF1, None], holding=[False, True],
+                        bodies=[view.Body("bar", [0.175, 0.01, 0.01], cs.dh_transform(0.3, 0.02, 0.5, 0.0))])
+    return render(scene.fig).astype(np.uint8)
+
+
+def test_picture_matches_the_stored_reference():
+    from PIL import Image
+
+    got = reference_picture().astype(int)
+    want = np.asarray(Image.open(REFERENCE).convert("RGB")).astype(int)
+    assert got.shape == want.shape
+    diff = np.abs(got - want).max(axis=2)
+    # antialiasing may differ between matplotlib versions; the picture may not
+    assert diff.mean() < 2.0 and (diff > 60).mean() < 0.01, (diff.mean(), (diff > 60).mean())
+
+
+# ---- animations ----
+
+@pytest.fixture(scope="module")
+def run_log():
+    """Both SCARAs for 1 s under a slow PID (so that they lag their ghosts), logged every 10 ms."""
+    refs = []
+    for r, f in ((R1, [-0.2, 0.15, -0.1]), (R2, [0.15, -0.2, 0.1])):
+        lo, hi = r.q_limits[:, 0], r.q_limits[:, 1]
+        refs.append(cs.CubicTrajectory([0.0, 0.5, 1.0], np.array([(lo + hi) / 2 + x * (hi - lo) for x in f])))
+    sim = cs.Simulation(dt=2e-4, log_every=50)
+    for r, ref in zip((R1, R2), refs):
+        sim.add_robot(r, cs.PID(np.full(6, 60.0), np.zeros(6), np.full(6, 8.0)), ref)
+    return sim.run(1.0, progress=False), sim.robots
+
+
+def frame_as_drawn(anim, log, robots, k):
+    """draw() of the log's q and q_ref at frame k's time, with the animation's camera, floor and limits."""
+    t = anim.times[k]
+    row = int(np.argmin(np.abs(log.t - t)))
+    assert abs(log.t[row] - t) < 1e-9
+    w, h = anim.fig.get_size_inches()
+    scene = view.draw(new_axes(w, h, anim.fig.dpi), robots, [rl.q[row] for rl in log.robots],
+                      reference=[rl.q_ref[row] for rl in log.robots], limits=anim.scene.limits,
+                      floor=anim.scene.floor_extent, cull=True)
+    return render(scene.fig)
+
+
+def test_animation_files_have_the_frames_and_duration_and_show_the_log(run_log, tmp_path):
+    import imageio_ffmpeg
+    from PIL import Image
+
+    log, robots = run_log
+    anim = view.animate(log, robots, fps=10, path=tmp_path / "run.mp4", figsize=(3.2, 2.4), dpi=50, label=False)
+    assert len(anim) == 11 and anim.duration == pytest.approx(1.1)
+    np.testing.assert_allclose(anim.times, np.arange(11) * 0.1, atol=1e-12)
+    assert imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "run.mp4")) == (11, pytest.approx(1.1))
+    # decoded with the same ffmpeg (imageio_ffmpeg.read_frames leaves its pipes open)
+    raw = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(tmp_path / "run.mp4"),
+                          "-f", "rawvideo", "-pix_fmt", "rgb24", "-"], capture_output=True, check=True).stdout
+    assert len(raw) == 11 * 120 * 160 * 3                              # 11 frames of 160 x 120
+    mp4 = list(np.frombuffer(raw, np.uint8).reshape(11, 120, 160, 3).astype(int))
+    assert anim.save(tmp_path / "run.gif") == str(tmp_path / "run.gif")
+    with Image.open(tmp_path / "run.gif") as gif:
+        assert gif.n_frames == 11
+        frames, total = [], 0
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            total += gif.info["duration"]
+            frames.append(np.asarray(gif.convert("RGB")).astype(int))
+    assert total == 1100                                        # ms
+    # frame k is the log at t = k / fps, and not another time's
+    drawn = {k: frame_as_drawn(anim, log, robots, k) for k in (0, 5, 10)}
+    for k in drawn:
+        for video, tol in ((mp4, 4.0), (frames, 3.0)):
+            err = np.abs(video[k] - drawn[k]).mean()
+            others = [np.abs(video[k] - drawn[j]).mean() for j in drawn if j != k]
+            assert err < tol and min(others) > 3 * err, (k, err, others)
+
+
+def test_blitted_frames_equal_full_draws(run_log):
+    log, robots = run_log
+    anim = view.animate(log, robots, fps=5, figsize=(3.2, 2.4), dpi=50, holding=[None, log.t > 0.5])
+    blitted = [f[..., :3].astype(int) for f in anim.frames()]
+    for k in (1, 4):
+        anim.show_frame(k)
+        np.testing.assert_array_equal(blitted[k], render(anim.fig))
+
+
+def test_frame_times_speed_and_duration(run_log):
+    log, robots = run_log
+    a = view.animate(log, robots, fps=10, speed=2.0, figsize=(2, 2), dpi=20)
+    np.testing.assert_allclose(a.times, np.arange(6) * 0.2, atol=1e-12)
+    a = view.animate(log, robots, fps=25, speed=0.5, t_start=0.2, t_end=0.4, figsize=(2, 2), dpi=20)
+    np.testing.assert_allclose(a.times, 0.2 + np.arange(11) * 0.02, atol=1e-12)
+    a = view.animate(log, robots, fps=10, speed=0.0, duration=0.5, t_start=0.3, figsize=(2, 2), dpi=20)
+    assert len(a) == 5 and np.all(a.times == 0.3)
+    # a duration past the log's end holds the last pose
+    a = view.animate(log, robots, fps=10, speed=4.0, duration=1.0, figsize=(2, 2), dpi=20)
+    assert len(a) == 10 and a.times[-1] == pytest.approx(1.0) and a.times[2] == pytest.approx(0.8)
+    assert "frames" in repr(a) and "<video" in a._repr_html_()
+
+
+def test_per_row_holding_colliding_contacts_and_bodies(run_log):
+    log, robots = run_log
+    rows = len(log.t)
+    colliding = np.zeros((rows, len(R1.boxes)), dtype=bool)
+    colliding[log.t >= 0.5, 2] = True
+    contacts = [None] * rows
+    contacts[60] = [[[0.3, 0.0, 0.2], [0.0, 0.0, 2.0]], [[0.3, 0.1, 0.2], [1.0, 0.0, 0.0]]]
+    bar = np.tile(np.eye(4), (rows, 1, 1))
+    bar[:, 0, 3] = np.linspace(0.0, 0.5, rows)
+    anim = view.animate(log, robots, fps=10, holding=[None, log.t >= 0.5], figsize=(2, 2), dpi=20,
+                        bodies=[view.Body("bar", [0.175, 0.01, 0.01], bar)])
+    anim.show_frame(4)
+    c = anim.scene.colors("robot", 1, box=2)[0]
+    assert c[1] < c[0] + 0.05                                           # not green yet (the robot's own colour)
+    drawn = anim.scene.faces("body", 0).reshape(-1, 3)      # the faces seen (culled), so corners of the bar at row 40
+    d = np.linalg.norm(drawn[:, None] - corners(bar[40], np.array([0.175, 0.01, 0.01]))[None], axis=2)
+    assert len(drawn) and d.min(axis=1).max() < 1e-12
+    anim.show_frame(5)
+    c = anim.scene.colors("robot", 1, box=2)[0]
+    assert c[1] > c[0] + 0.2 and c[1] > c[2] + 0.2                       # green: holding from t = 0.5 s
+    assert anim.scene.colors("robot", 1, box=0)[0][1] < 0.6               # the base column is not
+    boxes = view.animate(log, robots, fps=10, collision_boxes=True, colliding=[colliding, None],
+                         contacts=contacts, figsize=(2, 2), dpi=20)
+    boxes.show_frame(4)
+    assert len(boxes.scene.contact_lines()) == 0
+    assert boxes.scene.colors("robot", 0, box=2)[0][1] > boxes.scene.colors("robot", 0, box=2)[0][0]   # free
+    boxes.show_frame(6)
+    c = boxes.scene.colors("robot", 0, box=2)[0]
+    assert c[0] > c[1] + 0.3                                              # red: in contact
+    assert boxes.scene.colors("robot", 1, box=2)[0][1] > 0.3              # the other robot's boxes free
+    lines = boxes.scene.contact_lines()                                  # row 60, t = 0.6 s
+    np.testing.assert_allclose(lines[0], [[0.3, 0.0, 0.2], [0.3, 0.0, 0.2 + boxes.scene.contact_length]])
+    np.testing.assert_allclose(lines[1], [[0.3, 0.1, 0.2], [0.3 + boxes.scene.contact_length, 0.1, 0.2]])
+
+
+# ---- bad input ----
+
+def test_bad_input_names_the_argument(run_log, tmp_path):
+    log, robots = run_log
+    small = dict(figsize=(2, 2), dpi=20)
+    for speed in (-0.1, 4.5, float("nan"), "fast"):
+        with pytest.raises(ValueError, match="speed"):
+            view.animate(log, robots, speed=speed, **small)
+    for fps in (0, -5, float("inf")):
+        with pytest.raises(ValueError, match="fps"):
+            view.animate(log, robots, fps=fps, **small)
+    with pytest.raises(ValueError, match="duration"):
+        view.animate(log, robots, speed=0, **small)
+    for path in ("run.avi", "run", "run.mp4.txt"):
+        with pytest.raises(ValueError, match="path"):
+            view.animate(log, robots, path=tmp_path / path, **small)
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(ValueError, match="fps"):
+        view.animate(log, robots, fps=60, **small).save(tmp_path / "x.gif")
+    with pytest.raises(ValueError, match="t_start"):
+        view.animate(log, robots, t_start=2.0, **small)
+    with pytest.raises(ValueError, match="holding"):
+        view.animate(log, robots, holding=[None, np.ones(5, bool)], **small)
+    with pytest.raises(ValueError, match=r"colliding\[0\]"):
+        view.animate(log, robots, collision_boxes=True, colliding=[np.ones((len(log.t), 3), bool), None], **small)
+    with pytest.raises(ValueError, match="reference"):
+        view.animate(log, robots, reference=[np.zeros((len(log.t), 5)), None], **small)
+    with pytest.raises(ValueError, match="contacts"):
+        view.animate(log, robots, contacts=[None] * 3, **small)
+    with pytest.raises(ValueError, match="robots"):
+        view.animate(log, [R1], **small)
+    with pytest.raises(ValueError, match=r"bodies\[0\].poses"):
+        view.animate(log, robots, bodies=[view.Body("bar", [0.1, 0.1, 0.1], np.eye(3))], **small)
+
+    ax = new_axes()
+    with pytest.raises(ValueError, match=r"wrong shape for q\[1\]: expected \(6,\), got \(5,\)"):
+        view.draw(ax, [R1, R2], [Q1, Q2[:5]])
+    with pytest.raises(ValueError, match="q must hold one joint vector per robot"):
+        view.draw(ax, [R1, R2], [Q1])
+    with pytest.raises(ValueError, match="q"):
+        view.draw(ax, R1, np.full(6, np.nan))
+    scene = view.draw(new_axes(), [R1, R2], [Q1, Q2])
+    with pytest.raises(ValueError, match=r"reference\[0\]"):
+        scene.update(reference=[np.zeros(7), None])
+    with pytest.raises(ValueError, match=r"wrong shape for colliding\[1\]: expected \(8,\)"):
+        scene.update(colliding=[np.zeros(8, bool), np.zeros(7, bool)])
+    with pytest.raises(ValueError, match="colliding"):
+        scene.update(colliding=[np.zeros(8), np.full(8, 0.5)])
+    with pytest.raises(ValueError, match="holding"):
+        scene.update(holding=[True])
+    with pytest.raises(ValueError, match="contacts"):
+        scene.update(contacts=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="contacts"):
+        scene.update(contacts=[[[0, 0, 0], [0, 0, 0]]])
+    with pytest.raises(ValueError, match="half_extents"):
+        scene.update(bodies=[view.Body("bar", [0.1, -0.1, 0.1], np.eye(4))])
+    with pytest.raises(ValueError, match="ax"):
+        fig = Figure()
+        view.draw(fig.add_subplot(), R1, Q1)
+    for kw, name in (({"floor": (1, 0, 0, 1)}, "floor"), ({"limits": [[0, 1], [0, 1]]}, "limits"),
+                     ({"tile": 0}, "tile"), ({"colors": ["red"]}, "colors"), ({"zoom": -1}, "zoom"),
+                     ({"elev": float("nan")}, "elev")):
+        with pytest.raises(ValueError, match=name):
+            view.draw(new_axes(), [R1, R2], [Q1, Q2], **kw)
+    with pytest.raises(ValueError, match="kind"):
+        scene.faces("floor")
+    with pytest.raises(ValueError, match="k must be a frame index"):
+        view.animate(log, robots, **small).show_frame(99)
+
+
+# ---- plots ----
+
+def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_log):
+    import matplotlib.pyplot as plt
+
+    from coopsim.plotting import plot_log, plot_trajectory
+
+    log, _ = run_log
+    fig = plot_log(log, robot=0, quantity="q", joints=[0, 2], joint_types="RRPRRP", label="slow PID", color="C2")
+    try:
+        shifted = cs.SimulationLog.from_dataframe(log.to_dataframe())
+        plot_log(shifted, robot=0, quantity="q", joints=[0, 2], joint_types="RRPRRP", axes=fig.axes,
+                 label="again", color="C3", reference=False)
+        ax = fig.axes[1]
+        assert len(ax.get_lines()) == 3
+        assert [t.get_text() for t in ax.get_legend().get_texts()] == \
+            ["slow PID: d3", "slow PID: d3 reference", "again: d3"]
+        assert matplotlib.colors.same_color(ax.get_lines()[2].get_color(), "C3")
+        assert ax.get_ylabel() == "d3 (m)"
+        with pytest.raises(ValueError, match="color"):
+            plot_log(log, color="not a colour")
+    finally:
+        plt.close(fig)
+    # values near 0.3 varying by 1e-6: whole values on the ticks, no offset text
+    from coopsim.log import STORED
+
+    t = np.linspace(0.0, 1.0, 50)
+    arrays = {k: np.zeros((50, 1)) for k in STORED}
+    arrays["q"] = 0.3 + 1e-6 * np.sin(t)[:, None]
+    fig = plot_log(cs.SimulationLog(t, [cs.RobotLog("x", t, **arrays)]), joint_types="P", reference=False)
+    try:
+        fig.canvas.draw()
+        ax = fig.axes[0]
+        assert ax.yaxis.get_offset_text().get_text() == ""
+        ticks = [lab.get_text().replace("$\\mathdefault{", "").rstrip("}$") for lab in ax.get_yticklabels()]
+        assert ticks and all(x.startswith(("0.30000", "0.29999")) for x in ticks), ticks
+    finally:
+        plt.close(fig)
+    tr = cs.CubicTrajectory([0.0, 1.0], [[0.0, 0.1], [1.0, 0.2]])
+    fig = plot_trajectory(tr, "RP", samples=20)
+    try:
+        assert [ax.get_ylabel() for ax in fig.axes] == ["position (rad | m)", "velocity (rad/s | m/s)",
+                                                       "acceleration (rad/s² | m/s²)"]
+    finally:
+        plt.close(fig)
+    fig = plot_trajectory(tr, samples=20)
+    try:
+        assert fig.axes[0].get_ylabel() == "position (rad or m)"
+    finally:
+        plt.close(fig)
+
+
+# ---- the live view example ----
+
+def test_live_view_example_writes_its_frames(tmp_path):
+    env = dict(os.environ, MPLBACKEND="Agg")
+    res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--frames", "3",
+                          "--speed", "4", "--out", str(tmp_path)], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stdout + res.stderr
+    frames = sorted(p.name for p in tmp_path.iterdir())
+    assert frames == [f"live_view_{k:04d}.png" for k in range(3)]
+    from PIL import Image
+
+    with Image.open(tmp_path / frames[-1]) as im:
+        assert im.size == (640, 480)
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] == ["--write-reference"]:
+        from PIL import Image
+
+        os.makedirs(os.path.dirname(REFERENCE), exist_ok=True)
+        Image.fromarray(reference_picture()).save(REFERENCE)
+        print("wrote", REFERENCE)
+    else:
+        sys.exit(f"usage: python3 {sys.argv[0]} --write-reference")
