@@ -345,6 +345,20 @@ def test_bad_input_names_the_argument(run_log, tmp_path):
         view.animate(log, robots, reference=[np.zeros((len(log.t), 5)), None], **small)
     with pytest.raises(ValueError, match="contacts"):
         view.animate(log, robots, contacts=[None] * 3, **small)
+    with pytest.raises(ValueError, match="holding must hold one array per robot"):
+        view.animate(log, robots, holding=np.zeros(len(log.t), bool), **small)
+    # one robot: its array alone; robots of different box counts each checked against their own
+    one = cs.SimulationLog(log.t, [log[0]])
+    view.animate(one, [R1], holding=list(log.t > 0.5), reference=log[0].q_ref, **small)
+    with pytest.raises(ValueError, match=r"wrong shape for colliding: expected \(101, 8\)"):
+        view.animate(one, [R1], collision_boxes=True, colliding=np.zeros((len(log.t), 7), bool), **small)
+    arm = cs.Robot.from_dh([[0, 0, 0.3, 0]], [[0, 0, 0.15, 0]], [1.0], [cs.box_inertia(1.0, 0.3, 0.05, 0.05)],
+                           joint_types="R")
+    k_arm = len(arm.boxes)
+    mixed = cs.SimulationLog(log.t, [log[0], cs.RobotLog("arm", log.t, **{k: getattr(log[0], k)[:, :1]
+                                                                        for k in log[0].__slots__[2:]})])
+    view.animate(mixed, [R1, arm], collision_boxes=True, **small,
+                 colliding=[np.zeros((len(log.t), 8), bool), np.ones((len(log.t), k_arm), bool)])
     with pytest.raises(ValueError, match="robots"):
         view.animate(log, [R1], **small)
     with pytest.raises(ValueError, match=r"bodies\[0\].poses"):

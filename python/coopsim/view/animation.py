@@ -14,11 +14,11 @@ import base64
 import math
 import os
 import tempfile
-from typing import Callable, List, Optional
+from typing import Callable, Optional
 
 import numpy as np
 
-from .scene import Body, Scene, _KEEP, _array, _contacts, _robot_list, _rgba  # noqa: F401
+from .scene import Body, Scene, _array, _contacts, _robot_list
 
 __all__ = ["Animation", "animate", "ffmpeg_path"]
 
@@ -220,21 +220,27 @@ def _interp(t_log: np.ndarray, X: np.ndarray, times: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(times, t_log, X[:, j]) for j in range(X.shape[1])])
 
 
-def _per_robot_rows(x, n_robots: int, rows: int, what: str, tail: tuple, dtype=float) -> list:
-    """Per robot an array (rows, *tail) or None, from None, one array (single robot) or a sequence."""
+def _per_robot_rows(x, n_robots: int, rows: int, what: str, tails: list, dtype=float) -> list:
+    """Per robot an array (rows, *tails[i]) or None, from None, one array (one robot) or one per robot."""
     if x is None:
         return [None] * n_robots
-    shape = (rows,) + tail
-    if n_robots == 1 and not isinstance(x, (list, tuple)):
+    shapes = [(rows,) + tuple(t) for t in tails]
+    try:
+        whole = np.shape(x)
+    except ValueError:          # ragged: one entry per robot
+        whole = None
+    if n_robots == 1 and (whole == shapes[0] or isinstance(x, np.ndarray)):
         items = [x]
-    elif isinstance(x, np.ndarray) and x.shape == (rows, n_robots) + tail:
-        items = [x[:, i] for i in range(n_robots)]
+    elif len(set(shapes)) == 1 and whole == (rows, n_robots) + shapes[0][1:]:
+        items = [np.asarray(x)[:, i] for i in range(n_robots)]
     else:
-        items = list(x)
+        items = list(x) if isinstance(x, (list, tuple, np.ndarray)) else [x]
         if len(items) != n_robots:
-            raise ValueError(f"{what} must hold one array per robot ({n_robots}), got {len(items)}")
+            raise ValueError(f"{what} must hold one array per robot ({n_robots}), each "
+                             f"{' / '.join(map(str, sorted(set(shapes))))} (one row per log row), got {len(items)} "
+                             f"entries")
     out = []
-    for i, a in enumerate(items):
+    for i, (a, shape) in enumerate(zip(items, shapes)):
         name = what if n_robots == 1 else f"{what}[{i}]"
         if a is None:
             out.append(None)
@@ -352,14 +358,13 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
     elif reference is False or reference is None:
         R = [None] * n
     else:
-        given = [_per_robot_rows(reference, n, rows, "reference", (r.dof,)) for r in robots]
-        R = [None if g[i] is None else _interp(t_log, g[i], times) for i, g in enumerate(given)]
+        given = _per_robot_rows(reference, n, rows, "reference", [(r.dof,) for r in robots])
+        R = [None if g is None else _interp(t_log, g, times) for g in given]
     at = _rows_at(t_log, times)
-    H = _per_robot_rows(holding, n, rows, "holding", (), dtype=bool)
+    H = _per_robot_rows(holding, n, rows, "holding", [()] * n, dtype=bool)
     if colliding is not None and not collision_boxes:
         raise ValueError("colliding is shown only with collision_boxes=True")
-    C = [_per_robot_rows(colliding, n, rows, "colliding", (len(r.boxes),), dtype=bool)[i]
-         for i, r in enumerate(robots)]
+    C = _per_robot_rows(colliding, n, rows, "colliding", [(len(r.boxes),) for r in robots], dtype=bool)
     if contacts is not None:
         if len(contacts) != rows:
             raise ValueError(f"contacts must hold one entry per log row ({rows}), got {len(contacts)}")

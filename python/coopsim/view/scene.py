@@ -15,7 +15,7 @@ robots green while they hold something, collision boxes green (free) or red
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Optional, Sequence
+from typing import List, Optional
 
 import numpy as np
 
