@@ -279,6 +279,8 @@ def test_frame_times_speed_and_duration(run_log):
     a = view.animate(log, robots, fps=10, speed=4.0, duration=1.0, figsize=(2, 2), dpi=20)
     assert len(a) == 10 and a.times[-1] == pytest.approx(1.0) and a.times[2] == pytest.approx(0.8)
     assert "frames" in repr(a) and "<video" in a._repr_html_()
+    # the same frames through matplotlib's own FuncAnimation and ffmpeg writer (imageio-ffmpeg's binary)
+    assert "<video" in a.animation.to_html5_video()
 
 
 def test_per_row_holding_colliding_contacts_and_bodies(run_log):
