@@ -14,13 +14,17 @@ the world at least every 5th step.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
 
-import numpy as np
+# numpy's OpenBLAS threads spin after each call and take a core from the run being timed
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import coopsim as cs
-from coopsim.tasks import scene
+import numpy as np  # noqa: E402
+
+import coopsim as cs  # noqa: E402
+from coopsim.tasks import scene  # noqa: E402
 
 DT = 2e-4
 TARGET_RTF = 50.0

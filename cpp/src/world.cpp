@@ -225,8 +225,9 @@ void World::clear_robots() {
 }
 
 const BodySpec& World::body(int id) const {
-  require(id >= 0 && id < body_count(),
-          "body id " + std::to_string(id) + " out of range [0, " + std::to_string(body_count()) + ")");
+  if (id < 0 || id >= body_count())
+    throw std::invalid_argument("body id " + std::to_string(id) + " out of range [0, " +
+                                std::to_string(body_count()) + ")");
   return specs_[id];
 }
 
