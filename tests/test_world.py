@@ -358,40 +358,67 @@ def test_link_bodies_move_with_the_exact_twist():
 
 # ---- bad input ----
 
-def test_world_bad_input():
+def test_a_box_resting_on_another_reports_a_body_body_contact():
     w = cs.World()
-    with pytest.raises(ValueError, match="half_extents"):
-        w.add_static_box("a", [0.1, 0.0, 0.1], np.eye(4))
-    with pytest.raises(ValueError, match="half_extents"):
-        w.add_free_box("a", [0.1, 1e5, 0.1], 1.0, np.eye(4))
-    with pytest.raises(ValueError, match="mass"):
-        w.add_free_box("a", [0.1, 0.1, 0.1], 0.0, np.eye(4))
-    with pytest.raises(ValueError, match="mass"):
-        w.add_free_box("a", [0.1, 0.1, 0.1], np.nan, np.eye(4))
-    with pytest.raises(ValueError, match="friction"):
-        w.add_static_box("a", [0.1, 0.1, 0.1], np.eye(4), friction=-0.1)
-    with pytest.raises(ValueError, match="restitution"):
-        w.add_free_box("a", [0.1, 0.1, 0.1], 1.0, np.eye(4), restitution=1.5)
-    with pytest.raises(ValueError, match="rigid"):
-        w.add_static_box("a", [0.1, 0.1, 0.1], np.diag([1.0, 2.0, 1.0, 1.0]))
-    with pytest.raises(ValueError, match="quaternion"):
-        w.add_static_box("a", [0.1, 0.1, 0.1], position=[0, 0, 0], quaternion=[1.0, 1.0, 0, 0])
-    with pytest.raises(ValueError, match="pose"):
-        w.add_static_box("a", [0.1, 0.1, 0.1])
-    with pytest.raises(ValueError, match="within 1e6"):
-        w.add_static_box("a", [0.1, 0.1, 0.1], position=[1e7, 0, 0])
-    w.add_static_box("a", [0.1, 0.1, 0.1], position=[1, 0, 0])
-    with pytest.raises(ValueError, match="already in the world"):
-        w.add_free_box("a", [0.1, 0.1, 0.1], 1.0, position=[0, 0, 1])
-    with pytest.raises(ValueError, match="name"):
-        w.add_free_box("", [0.1, 0.1, 0.1], 1.0, position=[0, 0, 1])
+    w.add_free_box("lower", [0.1, 0.1, 0.05], 1.0, position=[0, 0, 0.05])
+    w.add_free_box("upper", [0.05, 0.05, 0.05], 0.4, position=[0, 0, 0.15])
+    sim, log = world_only(w, 0.5, log_every=50)
+    kinds = {(c["a"], c["b"]): c["kind"] for c in sim.contacts()}
+    assert kinds == {("floor", "lower"): "body-scenery", ("lower", "upper"): "body-body"}
+    on_upper = -sum(c["force"] for c in sim.contacts() if c["b"] == "upper")
+    assert on_upper[2] == pytest.approx(0.4 * G, rel=1e-6)
+    on_lower_from_floor = -sum(c["force"] for c in sim.contacts() if c["b"] == "lower")
+    assert on_lower_from_floor[2] == pytest.approx(1.4 * G, rel=1e-6)
+
+
+BAD_BODIES = [
+    ("sizes", lambda w: w.add_static_box("a", [0.1, 0.0, 0.1], np.eye(4)), "half_extents"),
+    ("sizes", lambda w: w.add_free_box("a", [0.1, 1e5, 0.1], 1.0, np.eye(4)), "half_extents"),
+    ("masses", lambda w: w.add_free_box("a", [0.1, 0.1, 0.1], 0.0, np.eye(4)), "mass"),
+    ("masses", lambda w: w.add_free_box("a", [0.1, 0.1, 0.1], np.nan, np.eye(4)), "mass"),
+    ("friction", lambda w: w.add_static_box("a", [0.1, 0.1, 0.1], np.eye(4), friction=-0.1), "friction"),
+    ("restitution", lambda w: w.add_free_box("a", [0.1, 0.1, 0.1], 1.0, np.eye(4), restitution=1.5),
+     "restitution"),
+    ("poses", lambda w: w.add_static_box("a", [0.1, 0.1, 0.1], np.diag([1.0, 2.0, 1.0, 1.0])), "rigid"),
+    ("poses", lambda w: w.add_static_box("a", [0.1, 0.1, 0.1], position=[0, 0, 0], quaternion=[1.0, 1.0, 0, 0]),
+     "quaternion"),
+    ("poses", lambda w: w.add_static_box("a", [0.1, 0.1, 0.1]), "pose"),
+    ("poses", lambda w: w.add_static_box("a", [0.1, 0.1, 0.1], position=[1e7, 0, 0]), "within 1e6"),
+    ("names", lambda w: w.add_free_box("", [0.1, 0.1, 0.1], 1.0, position=[0, 0, 1]), "name"),
+    ("names", lambda w: w.add_free_box("floor", [0.1, 0.1, 0.1], 1.0, position=[0, 0, 1]), "already in the world"),
+]
+
+
+@pytest.mark.parametrize("kind, call, word", BAD_BODIES, ids=[f"{k}-{i}" for i, (k, _, _) in enumerate(BAD_BODIES)])
+def test_bad_bodies_are_refused_naming_what_is_wrong(kind, call, word):
+    w = cs.World()
+    with pytest.raises(ValueError, match=word):
+        call(w)
+    assert w.body_names == ["floor"]  # nothing half-added
+
+
+def test_a_world_belongs_to_one_simulation():
+    w = cs.World()
     sim = cs.Simulation(world=w)
     with pytest.raises(ValueError, match="another simulation"):
         cs.Simulation(world=w)
+    del sim
+    import gc
+
+    gc.collect()
+    cs.Simulation(world=w)  # free again once its simulation is gone
+
+
+def test_world_bad_input():
+    w = cs.World()
+    w.add_static_box("a", [0.1, 0.1, 0.1], position=[1, 0, 0])
+    sim = cs.Simulation(world=w)
     with pytest.raises(ValueError, match="gravity"):
         sim.add_robot(cs.robots.scara1(gravity=(0, 0, -1.0)), cs.PID(0.0, 0.0, 0.0), np.zeros(6) + 0.01)
     with pytest.raises(ValueError, match="world_every"):
         cs.Simulation(world=cs.World(), world_every=0)
+    with pytest.raises(ValueError, match="world"):
+        cs.Simulation(world="a world")
     with pytest.raises(ValueError, match="no body named"):
         sim.body_state("nothing")
     with pytest.raises(ValueError, match="no world"):
@@ -399,3 +426,12 @@ def test_world_bad_input():
     sim.run(0.001, progress=False)
     with pytest.raises(ValueError, match="before the first step"):
         w.add_free_box("late", [0.1, 0.1, 0.1], 1.0, position=[0, 0, 1])
+    sim.reset()
+    w.add_free_box("late", [0.1, 0.1, 0.1], 1.0, position=[0, 0, 1])  # after reset() it may grow again
+    sim2 = cs.Simulation(world=cs.World())
+    sim2.add_robot(cs.robots.scara1(), cs.PID(0.0, 0.0, 0.0), np.zeros(6) + 0.01)
+    sim2.run(0.001, progress=False)
+    sim2.reset()
+    sim2.world.add_free_box("late", [0.02, 0.02, 0.02], 0.1, position=[0.3, 0.0, 0.02])
+    log = sim2.run(0.002, progress=False)
+    assert "late" in log.bodies and "scara1/link1" in sim2.world.body_names

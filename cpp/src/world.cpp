@@ -415,6 +415,7 @@ void World::record_events(double t) {
 }
 
 void World::reset() {
+  clear_robots();  // their owner brings them back at its next first step
   impl_.reset();
   contacts_.clear();
   events_.clear();

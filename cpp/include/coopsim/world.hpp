@@ -135,7 +135,8 @@ class World {
   // Folds this step's contacts (forces final) into the events at time t.
   void record_events(double t);
   const std::vector<ContactEvent>& events() const { return events_; }
-  // Back to the initial state of every body, no contacts, no events.
+  // Back to the initial state of every body, no contacts, no events; the
+  // robots' link bodies leave (the simulation adds them again).
   void reset();
 
   // Whether a simulation owns this world (one at most; throws when a
