@@ -150,8 +150,21 @@ with controllers and references, RK4 at a fixed dt, zero-order hold of the
 torques between controller updates, the log and tracking metrics.)doc")
       .def(py::init([](double dt, int control_every, int log_every, bool end_stops, double max_speed,
                        double max_position, const std::string& integrator, std::shared_ptr<World> world,
-                       int world_every, bool contact_forces, bool log_contacts) {
+                       int world_every, bool contact_forces, bool log_contacts, bool grasp, const py::dict& grasp_options) {
              SimulationOptions o;
+             o.grasp.enabled = grasp;
+             for (auto item : grasp_options) {
+               const std::string k = item.first.cast<std::string>();
+               const double v = scalar_arg(item.second, k.c_str());
+               GraspOptions& g = o.grasp;
+               double* field = k == "hold_time" ? &g.hold_time : k == "gap" ? &g.gap : k == "penetration" ? &g.penetration
+                             : k == "angle" ? &g.angle : k == "speed" ? &g.speed : k == "angular_speed" ? &g.angular_speed
+                             : k == "open_margin" ? &g.open_margin : k == "slip" ? &g.slip
+                             : k == "weld_omega_dt" ? &g.weld_omega_dt : nullptr;
+               if (!field) throw py::value_error("grasp_options: unknown option '" + k + "'");
+               if (!(v >= 0)) throw py::value_error("grasp_options: " + k + " must be >= 0");
+               *field = v;
+             }
              o.world_every = world_every;
              o.contact_forces = contact_forces;
              o.log_contacts = log_contacts;
@@ -167,7 +180,7 @@ torques between controller updates, the log and tracking metrics.)doc")
            py::arg("dt") = 2e-4, py::arg("control_every") = 1, py::arg("log_every") = 1, py::arg("end_stops") = true,
            py::arg("max_speed") = 1e4, py::arg("max_position") = 1e6, py::arg("integrator") = "rk4",
            py::arg("world") = py::none(), py::arg("world_every") = 1, py::arg("contact_forces") = true,
-           py::arg("log_contacts") = false)
+           py::arg("log_contacts") = false, py::arg("grasp") = true, py::arg("grasp_options") = py::dict())
       .def("add_robot", [](Simulation& s, const Robot& robot, std::shared_ptr<Controller> controller,
                            const py::object& reference, const py::object& q0, const py::object& qd0) {
              const int n = robot.dof();
@@ -241,6 +254,49 @@ torques between controller updates, the log and tracking metrics.)doc")
              return body_state_dict(s.body_state(body_id(s, name)));
            }, py::arg("name"), "A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) "
                                "[w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s.")
+      .def("holding", [](const Simulation& s, int i) -> py::object {
+             const int id = s.holding(i);
+             if (id < 0) return py::none();
+             return py::str(world_of(s).body(id).name);
+           }, py::arg("i"), "The name of the free body robot i holds, or None.")
+      .def("release", &Simulation::release, py::arg("i"), "Releases what robot i holds, now.")
+      .def("weld_wrench", [](const Simulation& s, int i) { return to_numpy(s.weld_wrench(i)); }, py::arg("i"),
+           "The weld's force (N) and moment (N m) on the body robot i holds over the last world step, (6,).")
+      .def("grasp_check", [](Simulation& s, int i, const std::string& body) {
+             const GraspCheck c = s.grasp_check(i, body_id(s, body));
+             py::dict d;
+             d["closing"] = c.closing; d["aligned"] = c.aligned; d["touching"] = c.touching;
+             d["in_pads"] = c.in_pads; d["slow"] = c.slow; d["ok"] = c.ok();
+             d["angle"] = c.angle; d["gap_fixed"] = c.gap_fixed; d["gap_moving"] = c.gap_moving;
+             d["speed"] = c.speed; d["angular_speed"] = c.angular_speed; d["width"] = c.width;
+             return d;
+           }, py::arg("i"), py::arg("body"),
+           "The clamp rule's conditions for robot i and a free body now: closing, aligned, touching, in_pads, "
+           "slow, ok (all of them), with angle (rad), gap_fixed, gap_moving (m, < 0 penetrating), speed (m/s), "
+           "angular_speed (rad/s) and width (m).")
+      .def("grasp_options", [](const Simulation& s) {
+             const GraspOptions& g = s.options().grasp;
+             py::dict d;
+             d["hold_time"] = g.hold_time; d["gap"] = g.gap; d["penetration"] = g.penetration; d["angle"] = g.angle;
+             d["speed"] = g.speed; d["angular_speed"] = g.angular_speed; d["open_margin"] = g.open_margin;
+             d["slip"] = g.slip; d["weld_omega_dt"] = g.weld_omega_dt;
+             return d;
+           })
+      .def_property_readonly("grasp", [](const Simulation& s) { return s.options().grasp.enabled; })
+      .def("grasp_events", [](const Simulation& s) {
+             py::dict d;
+             py::list t, robot, body, event, reason;
+             for (const GraspEvent& e : s.grasp_events()) {
+               t.append(e.t);
+               robot.append(e.robot);
+               body.append(world_of(s).body(e.body).name);
+               event.append(e.grasp ? "grasp" : "release");
+               reason.append(e.reason);
+             }
+             d["t"] = t; d["robot"] = robot; d["body"] = body; d["event"] = event; d["reason"] = reason;
+             return d;
+           }, "Grasps and releases as columns: t (s), robot (index), body (name), event ('grasp' or 'release'), "
+              "reason ('grasp', 'opened', 'slipped', 'released').")
       .def("link_body_state", [](const Simulation& s, int i, int box) {
              const int id = s.link_body(i, box);
              if (id < 0) throw py::value_error("the robots' link bodies join the world at the first step");

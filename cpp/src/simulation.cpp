@@ -11,6 +11,7 @@
 #include <thread>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 namespace coopsim {
 
@@ -121,6 +122,7 @@ void Simulation::reset() {
   if (world_) world_->reset();
   for (LogColumn& c : body_log_) c.clear();
   contact_log_.clear();
+  grasp_events_.clear();
   world_at_ = -1;
   profile_ = StepProfile();
   k_ = 0;
@@ -140,6 +142,9 @@ void Simulation::reset() {
     s.applied_wrenches.clear();
     s.contact_wrenches.clear();
     s.has_applied = s.has_contact = false;
+    s.held = s.candidate = -1;
+    s.candidate_since = -1;
+    s.weld.setZero();
     s.k1_valid = false;
     s.updated_at = -1;
     for (LogColumn& c : s.log.columns) c.clear();
@@ -447,13 +452,38 @@ void Simulation::contact_wrenches_(double h) {
   World& w = *world_;
   std::vector<ContactPoint>& contacts = w.contacts();
   for (Slot& s : slots_) s.contact_wrenches.clear();
-  if (!opt_.contact_forces) {
-    for (Slot& s : slots_) {
-      s.has_contact = false;
-      s.tau_contact.setZero();
-    }
-    return;
+  if (opt_.contact_forces) link_contacts_(h);
+  // a held body pulls on its holder's clamp link: the weld's wrench, opposite, at the body's centre
+  for (Slot& s : slots_) {
+    if (s.held < 0) continue;
+    ExternalWrench wr;
+    wr.link = s.robot.clamp().fixed_link;
+    wr.point = s.weld_X.translation();
+    wr.wrench = -s.weld;
+    s.contact_wrenches.push_back(wr);
   }
+  for (Slot& s : slots_) {
+    s.has_contact = !s.contact_wrenches.empty();
+    if (s.has_contact) s.robot.external_torques(s.contact_wrenches, s.ws, s.tau_contact);
+    else s.tau_contact.setZero();
+    if (s.held >= 0) {
+      // the moving jaw meets the held body as a stop at its width (as the joints' end stops)
+      const int j = s.robot.clamp().moving_joint - 1;
+      const double pen = s.held_width - s.q[j];
+      if (pen > 0) {
+        MatN M;
+        s.robot.mass_matrix(s.q.data(), s.ws, M);
+        const double w = s.robot.end_stop().frequency, z = s.robot.end_stop().damping_ratio;
+        s.tau_contact[j] += std::max(0.0, M(j, j) * (w * w * pen - 2.0 * z * w * s.qd[j]));
+        s.has_contact = true;
+      }
+    }
+  }
+}
+
+void Simulation::link_contacts_(double h) {
+  World& w = *world_;
+  std::vector<ContactPoint>& contacts = w.contacts();
   // a penalty force where Bullet's solver gives none (link against scenery or
   // another link): pushing only, critically damped, stiffness from the
   // effective mass along the normal so that omega * h stays at contact_frequency_dt
@@ -503,10 +533,200 @@ void Simulation::contact_wrenches_(double h) {
       s.contact_wrenches.push_back(wr);
     }
   }
+}
+
+GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) const {
+  const GraspOptions& g = opt_.grasp;
+  const Robot& r = s.robot;
+  const Clamp& c = r.clamp();
+  const int j = c.moving_joint - 1, l = c.fixed_link;
+  const double opening = s.q[j];
+  GraspCheck out;
+  // the jaw commanded closing or closed
+  out.closing = s.q_ref[j] <= opening + 1e-9 || s.qd_ref[j] < 0;
+  const BodySpec& b = world_->body(id);
+  Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
+  link.linear() = s.ws.R[l];
+  link.translation() = s.ws.o[l];
+  const Eigen::Isometry3d F = link * c.fixed_face;  // x along the jaw, z the jaw axis, origin the pad centre
+  const Eigen::Matrix3d A = F.linear().transpose() * st.pose.linear();  // the body's axes in F
+  const Eigen::Vector3d p = F.inverse() * st.pose.translation();
+  const Eigen::Vector3d& he = b.half_extents;
+  // a face of the body normal to the jaw axis
+  int k = 0;
+  for (int i = 1; i < 3; ++i)
+    if (std::abs(A(2, i)) > std::abs(A(2, k))) k = i;
+  out.angle = std::acos(std::min(1.0, std::abs(A(2, k))));
+  out.aligned = out.angle <= g.angle;
+  out.width = 2.0 * he[k];
+  // both jaws touch it
+  const double ez = (A.row(2).cwiseAbs().transpose().array() * he.array()).sum();
+  out.gap_fixed = p.z() - ez;
+  out.gap_moving = opening - (p.z() + ez);
+  out.touching = out.gap_fixed <= g.gap && out.gap_fixed >= -g.penetration && out.gap_moving <= g.gap &&
+                 out.gap_moving >= -g.penetration;
+  // within the pads along the jaw (not beyond the tips, not into the palm), across their centre line
+  const double ex = (A.row(0).cwiseAbs().transpose().array() * he.array()).sum();
+  const double ey = (A.row(1).cwiseAbs().transpose().array() * he.array()).sum();
+  out.in_pads = p.x() - ex >= -c.jaw_length / 2 - 1e-9 && p.x() + ex <= c.jaw_length / 2 + 1e-9 &&
+                std::abs(p.y()) <= ey;
+  // moving with the clamp
+  out.speed = (st.velocity - point_velocity(s, l, st.pose.translation())).norm();
+  out.angular_speed = (st.angular_velocity - s.frame_w[l]).norm();
+  out.slow = out.speed <= g.speed && out.angular_speed <= g.angular_speed;
+  return out;
+}
+
+GraspCheck Simulation::grasp_check(int i, int body) {
+  Slot& s = slot_(i);
+  if (!world_) throw std::invalid_argument("the simulation has no world");
+  if (!s.robot.clamp().present()) throw std::invalid_argument("robot '" + s.robot.name() + "' has no clamp");
+  if (world_->body(body).kind != BodyKind::Free) throw std::invalid_argument("only free bodies can be grasped");
+  if (s.updated_at != k_) {
+    if (!started_) start_();
+    update_();
+  }
+  s.robot.kinematics(s.q.data(), s.ws);
+  s.robot.frame_velocities(s.ws, s.qd.data(), s.frame_w.data(), s.frame_v.data());
+  return grasp_check_(s, world_->state(body), body);
+}
+
+void Simulation::grasp_rule_(double h) {
+  World& w = *world_;
+  const GraspOptions& g = opt_.grasp;
+  bool changed = false;
+  for (size_t i = 0; i < slots_.size(); ++i) {
+    Slot& s = slots_[i];
+    const Clamp& c = s.robot.clamp();
+    if (!c.present()) continue;
+    const int l = c.fixed_link;
+    if (s.held >= 0) {
+      Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
+      link.linear() = s.ws.R[l];
+      link.translation() = s.ws.o[l];
+      const Eigen::Vector3d target = link * s.weld_X.translation();
+      BodyState st = w.state(s.held);
+      if (s.q_ref[c.moving_joint - 1] > s.held_width + g.open_margin) {
+        release_(s, "opened");
+        changed = true;
+      } else if ((target - st.pose.translation()).norm() > g.slip) {
+        release_(s, "slipped");
+        changed = true;
+      }
+      continue;
+    }
+    int found = -1;
+    double width = 0.0;
+    for (size_t b = 0; b < free_ids_.size(); ++b) {
+      const GraspCheck c = grasp_check_(s, body_now_[b], free_ids_[b]);
+      if (c.ok()) {
+        found = free_ids_[b];
+        width = c.width;
+        break;
+      }
+    }
+    if (found < 0) {
+      s.candidate = -1;
+      continue;
+    }
+    if (s.candidate != found) {
+      s.candidate = found;
+      s.candidate_since = k_;
+    }
+    if ((k_ - s.candidate_since) * opt_.dt < g.hold_time - 1e-12) continue;
+    // attach where the body is now: no snapping
+    Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
+    link.linear() = s.ws.R[l];
+    link.translation() = s.ws.o[l];
+    s.held = found;
+    s.held_width = width;
+    s.weld_X = link.inverse() * w.state(found).pose;
+    s.candidate = -1;
+    grasp_events_.push_back(GraspEvent{time(), static_cast<int>(i), found, true, "grasp"});
+    changed = true;
+  }
+  if (changed) ignore_held_();
+  (void)h;
+}
+
+void Simulation::ignore_held_() {
+  // a held body does not collide with its holder's clamp
+  std::vector<std::pair<int, int>> pairs;
+  for (const Slot& s : slots_) {
+    if (s.held < 0) continue;
+    const std::vector<LinkBox>& boxes = s.robot.boxes();
+    for (size_t b = 0; b < boxes.size(); ++b)
+      if (boxes[b].link >= s.robot.clamp().fixed_link) pairs.emplace_back(s.held, s.first_body + static_cast<int>(b));
+  }
+  world_->set_ignored(std::move(pairs));
+}
+
+void Simulation::release_(Slot& s, const std::string& why) {
+  if (s.held < 0) return;
+  const int l = s.robot.clamp().fixed_link;
+  s.robot.kinematics(s.q.data(), s.ws);
+  s.robot.frame_velocities(s.ws, s.qd.data(), s.frame_w.data(), s.frame_v.data());
+  const BodyState st = world_->state(s.held);
+  // the body leaves with the clamp's rigid twist at its centre of mass
+  world_->set_velocity(s.held, point_velocity(s, l, st.pose.translation()), s.frame_w[l]);
+  grasp_events_.push_back(GraspEvent{time(), static_cast<int>(&s - slots_.data()), s.held, false, why});
+  s.held = -1;
+  s.weld.setZero();
+}
+
+void Simulation::release(int i) {
+  Slot& s = slot_(i);
+  if (s.held < 0) return;
+  release_(s, "released");
+  ignore_held_();
+  // its body's state now is the released one; the robots feel the weld no more from the next step
+  for (size_t k = 0; k < free_ids_.size(); ++k) body_now_[k] = world_->state(free_ids_[k]);
+  for (Slot& o : slots_) {
+    o.robot.kinematics(o.q.data(), o.ws);
+    o.robot.frame_velocities(o.ws, o.qd.data(), o.frame_w.data(), o.frame_v.data());
+    o.M_valid = false;
+  }
+  contact_wrenches_(opt_.dt * opt_.world_every);
+  for (Slot& o : slots_) {
+    external_(o);
+    o.k1_valid = false;
+    o.ext_held = o.has_applied || o.has_contact;
+  }
+  if (logged_at_ == k_) logged_at_ = -1;
+}
+
+void Simulation::welds_(double h) {
+  World& w = *world_;
+  const double omega = opt_.grasp.weld_omega_dt / h;
   for (Slot& s : slots_) {
-    s.has_contact = !s.contact_wrenches.empty();
-    if (s.has_contact) s.robot.external_torques(s.contact_wrenches, s.ws, s.tau_contact);
-    else s.tau_contact.setZero();
+    if (s.held < 0) continue;
+    const int l = s.robot.clamp().fixed_link;
+    int holders = 0;
+    for (const Slot& o : slots_) holders += o.held == s.held;
+    const BodySpec& b = w.body(s.held);
+    const BodyState st = w.state(s.held);
+    Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
+    link.linear() = s.ws.R[l];
+    link.translation() = s.ws.o[l];
+    const Eigen::Isometry3d target = link * s.weld_X;
+    // the reduced mass and inertia between body and robot, in their stiffest direction
+    Mat6N J;
+    s.robot.jacobian(s.ws, l, s.weld_X.translation(), J);
+    double inv_m = 0.0, inv_i = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      inv_m = std::max(inv_m, inverse_mass_along(s, J.row(a).transpose()));
+      inv_i = std::max(inv_i, inverse_mass_along(s, J.row(3 + a).transpose()));
+    }
+    const Eigen::Matrix3d I = w.inertia(s.held);
+    const double i_body = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I, Eigen::EigenvaluesOnly).eigenvalues()[0];
+    const double m = 1.0 / (1.0 / b.mass + inv_m), i = 1.0 / (1.0 / i_body + inv_i);
+    const Eigen::Vector3d e_p = target.translation() - st.pose.translation();
+    const Eigen::AngleAxisd e_r(target.linear() * st.pose.linear().transpose());
+    const Eigen::Vector3d e_v = point_velocity(s, l, target.translation()) - st.velocity;
+    const Eigen::Vector3d e_w = s.frame_w[l] - st.angular_velocity;
+    s.weld.head<3>() = m * omega * omega * e_p + 2.0 * m * omega / holders * e_v;
+    s.weld.tail<3>() = i * omega * omega * e_r.angle() * e_r.axis() + 2.0 * i * omega / holders * e_w;
+    w.apply_wrench(s.held, s.weld.head<3>(), s.weld.tail<3>());
   }
 }
 
@@ -585,6 +805,10 @@ void Simulation::world_step_() {
   }
   // free bodies as they are at t_k, for the log and body_state()
   for (size_t b = 0; b < free_ids_.size(); ++b) body_now_[b] = w.state(free_ids_[b]);
+  if (opt_.grasp.enabled) {
+    grasp_rule_(h);
+    welds_(h);
+  }
   w.step(h, time());
   const auto t1 = profiling_ ? clock::now() : clock::time_point();
   contact_wrenches_(h);

@@ -85,6 +85,7 @@ const char* contact_kind(const BodySpec& a, const BodySpec& b) {
 struct PairFilter : public btOverlapFilterCallback {
   const std::vector<BodySpec>* specs = nullptr;
   const std::vector<std::vector<int>>* exclusions = nullptr;
+  const std::vector<std::pair<int, int>>* ignored = nullptr;
   bool needBroadphaseCollision(btBroadphaseProxy* p0, btBroadphaseProxy* p1) const override {
     const int a = static_cast<const btCollisionObject*>(p0->m_clientObject)->getUserIndex();
     const int b = static_cast<const btCollisionObject*>(p1->m_clientObject)->getUserIndex();
@@ -95,7 +96,9 @@ struct PairFilter : public btOverlapFilterCallback {
         (B.kind == BodyKind::Link && B.link == 0 && A.kind == BodyKind::Floor))
       return false;
     const std::vector<int>& ex = (*exclusions)[a];
-    return std::find(ex.begin(), ex.end(), b) == ex.end();
+    if (std::find(ex.begin(), ex.end(), b) != ex.end()) return false;
+    const std::pair<int, int> p(std::min(a, b), std::max(a, b));
+    return std::find(ignored->begin(), ignored->end(), p) == ignored->end();
   }
 };
 
@@ -269,6 +272,7 @@ void World::build_() {
   Impl& I = *impl_;
   I.filter.specs = &specs_;
   I.filter.exclusions = &exclusions_;
+  I.filter.ignored = &ignored_;
   I.world.getPairCache()->setOverlapFilterCallback(&I.filter);
   I.world.setGravity(bt(options_.gravity));
   // static bodies keep their bounding boxes: only moving ones are updated
@@ -324,6 +328,44 @@ void World::set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3
   b.setInterpolationWorldTransform(T);
   b.setLinearVelocity(bt(velocity));
   b.setAngularVelocity(bt(angular_velocity));
+}
+
+void World::apply_wrench(int id, const Eigen::Vector3d& force, const Eigen::Vector3d& moment) {
+  if (!impl_) build_();
+  btRigidBody& b = *impl_->bodies[id];
+  b.applyCentralForce(bt(force));
+  b.applyTorque(bt(moment));
+}
+
+void World::set_velocity(int id, const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity) {
+  if (!impl_) build_();
+  btRigidBody& b = *impl_->bodies[id];
+  b.setLinearVelocity(bt(velocity));
+  b.setAngularVelocity(bt(angular_velocity));
+}
+
+Eigen::Matrix3d World::inertia(int id) const {
+  const BodySpec& s = body(id);
+  const Eigen::Vector3d e = 2.0 * s.half_extents;
+  Eigen::Matrix3d I = Eigen::Matrix3d::Zero();
+  I(0, 0) = s.mass * (e.y() * e.y() + e.z() * e.z()) / 12.0;
+  I(1, 1) = s.mass * (e.x() * e.x() + e.z() * e.z()) / 12.0;
+  I(2, 2) = s.mass * (e.x() * e.x() + e.y() * e.y()) / 12.0;
+  const Eigen::Matrix3d R = state(id).pose.linear();
+  return R * I * R.transpose();
+}
+
+void World::set_ignored(std::vector<std::pair<int, int>> pairs) {
+  for (auto& p : pairs)
+    if (p.first > p.second) std::swap(p.first, p.second);
+  std::sort(pairs.begin(), pairs.end());
+  if (pairs == ignored_) return;
+  ignored_ = std::move(pairs);
+  if (!impl_) return;
+  // the free bodies' pairs are made again, through the filter
+  Impl& I = *impl_;
+  for (int id = 0; id < body_count(); ++id)
+    if (specs_[id].kind == BodyKind::Free) I.world.refreshBroadphaseProxy(I.bodies[id].get());
 }
 
 void World::step(double dt, double t) {
@@ -416,6 +458,7 @@ void World::record_events(double t) {
 
 void World::reset() {
   clear_robots();  // their owner brings them back at its next first step
+  ignored_.clear();
   impl_.reset();
   contacts_.clear();
   events_.clear();

@@ -762,7 +762,7 @@ class SimulationCore:
         """
         Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at every one of `samples` random poses.
         """
-    def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4', world: World = None, world_every: typing.SupportsInt | typing.SupportsIndex = 1, contact_forces: bool = True, log_contacts: bool = False) -> None:
+    def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4', world: World = None, world_every: typing.SupportsInt | typing.SupportsIndex = 1, contact_forces: bool = True, log_contacts: bool = False, grasp: bool = True, grasp_options: dict = {}) -> None:
         ...
     def add_robot(self, robot: Robot, controller: Controller, reference: typing.Any, q0: typing.Any = None, qd0: typing.Any = None) -> int:
         """
@@ -800,6 +800,20 @@ class SimulationCore:
         ...
     def free_body_names(self) -> list[str]:
         ...
+    def grasp_check(self, i: typing.SupportsInt | typing.SupportsIndex, body: str) -> dict:
+        """
+        The clamp rule's conditions for robot i and a free body now: closing, aligned, touching, in_pads, slow, ok (all of them), with angle (rad), gap_fixed, gap_moving (m, < 0 penetrating), speed (m/s), angular_speed (rad/s) and width (m).
+        """
+    def grasp_events(self) -> dict:
+        """
+        Grasps and releases as columns: t (s), robot (index), body (name), event ('grasp' or 'release'), reason ('grasp', 'opened', 'slipped', 'released').
+        """
+    def grasp_options(self) -> dict:
+        ...
+    def holding(self, i: typing.SupportsInt | typing.SupportsIndex) -> typing.Any:
+        """
+        The name of the free body robot i holds, or None.
+        """
     def initial_state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         ...
     def link_body_state(self, i: typing.SupportsInt | typing.SupportsIndex, box: typing.SupportsInt | typing.SupportsIndex) -> dict:
@@ -824,6 +838,10 @@ class SimulationCore:
         """
     def reference(self, i: typing.SupportsInt | typing.SupportsIndex) -> Reference:
         ...
+    def release(self, i: typing.SupportsInt | typing.SupportsIndex) -> None:
+        """
+        Releases what robot i holds, now.
+        """
     def reset(self) -> None:
         """
         Back to t = 0 and the initial states; clears log and metrics.
@@ -858,6 +876,10 @@ class SimulationCore:
         """
         The torque held on robot i now (saturated), (n,).
         """
+    def weld_wrench(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        The weld's force (N) and moment (N m) on the body robot i holds over the last world step, (6,).
+        """
     @property
     def contact_forces(self) -> bool:
         ...
@@ -874,6 +896,9 @@ class SimulationCore:
         """
     @property
     def end_stops(self) -> bool:
+        ...
+    @property
+    def grasp(self) -> bool:
         ...
     @property
     def integrator(self) -> str:

@@ -161,7 +161,7 @@ class SimulationLog:
 
     def __init__(self, t: np.ndarray, robots: Sequence[RobotLog], *, dt: Optional[float] = None,
                  control_every: Optional[int] = None, log_every: Optional[int] = None,
-                 bodies: Optional[Sequence[BodyLog]] = None, contacts=None, contact_points=None):
+                 bodies: Optional[Sequence[BodyLog]] = None, contacts=None, contact_points=None, grasps=None):
         self.t = t
         self.robots: List[RobotLog] = list(robots)
         self.bodies = {b.name: b for b in (bodies or [])}
@@ -170,6 +170,17 @@ class SimulationLog:
         self.log_every = log_every
         self._contacts = contacts
         self._contact_points = contact_points
+        self._grasps = grasps
+
+    @property
+    def grasps(self):
+        """Grasps and releases as a pandas DataFrame: t (s), robot (index), body, event ('grasp' or
+        'release'), reason ('grasp', 'opened', 'slipped', 'released')."""
+        import pandas as pd
+
+        cols = ("t", "robot", "body", "event", "reason")
+        data = self._grasps or {k: [] for k in cols}
+        return pd.DataFrame({k: data[k] for k in cols})
 
     @property
     def contacts(self):

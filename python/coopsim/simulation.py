@@ -60,6 +60,13 @@ class Simulation:
     log_contacts: keep every contact point of every world step (else only
     the contact events: begin, end, peak force, deepest penetration).
 
+    grasp: every robot with a clamp grasps free bodies by the clamp rule
+    and holds them by a soft weld (see :meth:`holding`, :meth:`release`);
+    grasp_options overrides its thresholds: hold_time (s, 2e-3), gap (m,
+    5e-4), penetration (m, 1e-3), angle (rad, 10 deg), speed (m/s, 0.05),
+    angular_speed (rad/s, 0.5), open_margin (m, 1e-3), slip (m, 5e-3),
+    weld_omega_dt (0.2).
+
     Arguments of the wrong type raise TypeError, values out of range
     ValueError naming the argument (checked once, in the engine).
 
@@ -71,13 +78,14 @@ class Simulation:
     def __init__(self, dt: float = 2e-4, *, world: Optional[World] = None, integrator: str = "rk4",
                  control_every: int = 1, log_every: int = 1, end_stops: bool = True, max_speed: float = 1e4,
                  max_position: float = 1e6, world_every: int = 1, contact_forces: bool = True,
-                 log_contacts: bool = False):
+                 log_contacts: bool = False, grasp: bool = True, grasp_options: Optional[dict] = None):
         if world is not None and not isinstance(world, World):
             raise ValueError(f"world must be a coopsim.World or None, got {type(world).__name__}")
         self._core = _core.SimulationCore(dt=dt, control_every=control_every, log_every=log_every,
                                           end_stops=end_stops, max_speed=max_speed, max_position=max_position,
                                           integrator=integrator, world=world, world_every=world_every,
-                                          contact_forces=contact_forces, log_contacts=log_contacts)
+                                          contact_forces=contact_forces, log_contacts=log_contacts, grasp=grasp,
+                                          grasp_options=dict(grasp_options or {}))
         self.stats: Optional[RunStats] = None
 
     # ---- building ----
@@ -125,7 +133,8 @@ class Simulation:
         c = self._core
         return dict(dt=c.dt, integrator=c.integrator, control_every=c.control_every, log_every=c.log_every,
                     end_stops=c.end_stops, max_speed=c.max_speed, max_position=c.max_position,
-                    world_every=c.world_every, contact_forces=c.contact_forces, log_contacts=c.log_contacts)
+                    world_every=c.world_every, contact_forces=c.contact_forces, log_contacts=c.log_contacts,
+                    grasp=c.grasp, grasp_options=c.grasp_options())
 
     @property
     def world(self) -> Optional[World]:
@@ -228,6 +237,25 @@ class Simulation:
         [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s."""
         return self._core.body_state(name)
 
+    def holding(self, robot: int = 0) -> Optional[str]:
+        """The name of the free body a robot holds now, or None."""
+        return self._core.holding(_index(robot, self.robot_count))
+
+    def release(self, robot: int = 0) -> None:
+        """Releases what a robot holds, now: the body leaves with the clamp's rigid twist."""
+        self._core.release(_index(robot, self.robot_count))
+
+    def grasp_check(self, robot: int, body: str) -> dict:
+        """The clamp rule's conditions for a robot and a free body in the present state: closing,
+        aligned, touching, in_pads, slow and ok (all of them), with the measures behind them: angle
+        (rad), gap_fixed and gap_moving (m, < 0 penetrating), speed (m/s), angular_speed (rad/s),
+        width (m)."""
+        return self._core.grasp_check(_index(robot, self.robot_count), body)
+
+    def weld_wrench(self, robot: int = 0) -> np.ndarray:
+        """The weld's force (N) and moment (N m) on the body a robot holds, (6,), world frame."""
+        return self._core.weld_wrench(_index(robot, self.robot_count))
+
     def excluded_pairs(self, robot: int = 0) -> List[tuple]:
         """Names of the box pairs of a robot that never collide in the world: boxes of one
         link or of adjacent links (the base column is link 0), and pairs touching at every
@@ -308,6 +336,7 @@ class Simulation:
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,
+                             grasps=c.grasp_events() if c.world is not None else None,
                              contact_points=c.contact_log() if c.log_contacts and c.world is not None else None)
 
     def metrics(self) -> List[dict]:

@@ -58,6 +58,54 @@
 
 namespace coopsim {
 
+// The clamp grasp (shared/design/world.md, "The clamp grasp"; the paper's
+// clamp algorithm). A robot with a clamp grasps a free body when, for
+// hold_time in a row: its jaw is commanded closing or closed (q_ref of the
+// moving joint at or below the opening, or closing); a face of the body is
+// normal to the jaw axis within `angle`; both inner faces touch the body
+// (gap at most `gap`, penetration at most `penetration`); the body covers
+// the pads' centre and does not reach into the palm beyond the pads; and
+// it moves with the clamp (relative speed below `speed`, relative angular
+// speed below `angular_speed`). The body is then tied to the clamp's link
+// by a soft weld at the pose it has at that instant: a 6-DOF spring-damper
+// (stiffness from the reduced mass and inertia between body and robot so
+// that omega * h = weld_omega_dt for the world step h, critical damping
+// shared among the welds on the body) whose force and moment act on the
+// body and, opposite, on the clamp's link through J^T; the moving jaw meets
+// the body as a stop at the body's width. It is released when the jaw is
+// commanded open beyond the width plus open_margin, when the weld stretches
+// beyond `slip`, or by release(); the body then leaves with the clamp's
+// rigid twist at its centre of mass.
+struct GraspOptions {
+  bool enabled = true;
+  double hold_time = 2e-3;        // s
+  double gap = 5e-4;              // m
+  double penetration = 1e-3;      // m
+  double angle = 0.17453292519943295;  // rad (10 deg)
+  double speed = 0.05;            // m/s
+  double angular_speed = 0.5;     // rad/s
+  double open_margin = 1e-3;      // m
+  double slip = 5e-3;             // m
+  double weld_omega_dt = 0.2;
+};
+
+// The clamp rule's conditions for one robot and one body, and the measures behind them.
+struct GraspCheck {
+  bool closing = false, aligned = false, touching = false, in_pads = false, slow = false;
+  double angle = 0, gap_fixed = 0, gap_moving = 0, speed = 0, angular_speed = 0;  // rad, m, m, m/s, rad/s
+  double width = 0;  // m, the body's width along the jaw axis
+  bool ok() const { return closing && aligned && touching && in_pads && slow; }
+};
+
+// A grasp or a release.
+struct GraspEvent {
+  double t = 0.0;     // s
+  int robot = -1;
+  int body = -1;      // world body id
+  bool grasp = true;  // false: a release
+  std::string reason; // "grasp", "opened", "slipped", "released"
+};
+
 struct SimulationOptions {
   double dt = 2e-4;           // s, > 0
   int control_every = 1;      // controller update every k-th step, >= 1
@@ -69,6 +117,7 @@ struct SimulationOptions {
   bool contact_forces = true;  // contacts push the robots (false: reported only)
   bool log_contacts = false;   // keep every contact point of every world step (else events only)
   double contact_frequency_dt = 0.2;  // penalty contacts: omega * (world step) for the stiffness
+  GraspOptions grasp;
   double max_speed = 1e4;     // rad/s or m/s: faster counts as divergence
   double max_position = 1e6;  // rad or m: farther counts as divergence
 };
@@ -185,6 +234,16 @@ class Simulation {
   BodyState body_state(int id) const;
   const std::vector<LoggedContact>& contact_log() const { return contact_log_; }
   const StepProfile& profile() const { return profile_; }
+  // ---- grasps ----
+  // The free body robot i holds (world id), or -1.
+  int holding(int i) const { return slot_(i).held; }
+  // Releases what robot i holds (nothing if it holds nothing), now.
+  void release(int i);
+  const std::vector<GraspEvent>& grasp_events() const { return grasp_events_; }
+  // The weld's force and moment on the body held by robot i over the last world step, (6).
+  const Vec6& weld_wrench(int i) const { return slot_(i).weld; }
+  // The rule's conditions for robot i and free body `body` in the present state.
+  GraspCheck grasp_check(int i, int body);
   void set_profiling(bool on) { profiling_ = on; }
   // ---- state ----
   long step_count() const { return k_; }
@@ -250,6 +309,12 @@ class Simulation {
     std::array<Eigen::Vector3d, kMaxDof + 1> frame_w, frame_v;  // frame velocities at the last world step
     Eigen::LDLT<MatN> M_ldlt;
     bool M_valid = false;
+    // grasp
+    int held = -1, candidate = -1;
+    long candidate_since = -1;
+    Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame
+    double held_width = 0.0;   // m, the body's width between the jaws
+    Vec6 weld = Vec6::Zero();  // force, moment on the body
     VecN q_ref, qd_ref, qdd_ref;
     VecN k1;  // qdd at (q, qd, tau), valid when k1_valid
     VecN q_prev, qd_prev;
@@ -270,6 +335,12 @@ class Simulation {
   void external_(Slot& s);
   void world_step_();
   void contact_wrenches_(double h);
+  void grasp_rule_(double h);
+  void link_contacts_(double h);
+  void ignore_held_();
+  void welds_(double h);
+  void release_(Slot& s, const std::string& why);
+  GraspCheck grasp_check_(const Slot& s, const BodyState& st, int body) const;
   bool has_ext_(const Slot& s) const { return s.has_applied || s.has_contact; }
   static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
   double inverse_mass_along(Slot& s, const VecN& u);
@@ -286,6 +357,7 @@ class Simulation {
   long world_at_ = -1;
   bool profiling_ = false;
   StepProfile profile_;
+  std::vector<GraspEvent> grasp_events_;
   LogColumn log_t_{1};
   long k_ = 0;
   long logged_at_ = -1;

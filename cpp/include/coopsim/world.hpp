@@ -127,6 +127,15 @@ class World {
   // Sets a link body's pose and twist (velocity of the box centre).
   void set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& velocity,
                 const Eigen::Vector3d& angular_velocity);
+  // A force (N, at the centre) and moment (N m) on a free body over the next step.
+  void apply_wrench(int id, const Eigen::Vector3d& force, const Eigen::Vector3d& moment);
+  // Sets a free body's velocity (of its centre) and angular velocity.
+  void set_velocity(int id, const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity);
+  // Pairs that do not collide for now (a held body and its holder's clamp);
+  // set again whenever it changes.
+  void set_ignored(std::vector<std::pair<int, int>> pairs);
+  // Inertia tensor (kg m^2) of a free body about its centre, in the world.
+  Eigen::Matrix3d inertia(int id) const;
   // Advances the free bodies by dt (s) at simulated time t (the step's
   // start), then gathers the contacts with the solver's forces.
   void step(double dt, double t);
@@ -152,6 +161,7 @@ class World {
   WorldOptions options_;
   std::vector<BodySpec> specs_;
   std::vector<std::vector<int>> exclusions_;  // per body: ids never to collide with
+  std::vector<std::pair<int, int>> ignored_;  // pairs not colliding for now (a < b)
   std::map<std::string, int> names_;
   std::unique_ptr<Impl> impl_;
   std::vector<ContactPoint> contacts_;

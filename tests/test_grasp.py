@@ -1,0 +1,163 @@
+"""The clamp grasp: the rule, the weld, the release."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+
+DT = 2e-4
+Q0 = np.array([0.3, 0.5, 0.15, 0.2, np.pi / 2, 0.03])  # SCARA #1, clamp pointing down, 3 cm open
+PID = dict(kp=[400, 400, 2000, 20, 20, 500], ki=[0] * 6, kd=[40, 40, 100, 2, 2, 20])
+
+
+def rot_z(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def scene(he, *, centre=None, turn=0.0, shift=0.0, velocity=0.0, gravity=True, friction=0.5, pedestal=True):
+    """SCARA #1 with a box between its jaws: half extents `he` along the tool's x (across), y (jaw
+    axis) and z (approach), turned by `turn` about the approach, its centre `centre` m from the fixed
+    jaw's face along the jaw axis (default: touching it), shifted along the approach by `shift`,
+    moving across the jaws at `velocity` m/s."""
+    r = cs.robots.scara1(gravity=(0, 0, -9.81 if gravity else 0.0))
+    T = r.fk(Q0)
+    fixed, _ = r.clamp_faces(Q0)
+    P = T.copy()
+    P[:3, :3] = T[:3, :3] @ rot_z(turn)
+    c = he[1] + 2e-4 if centre is None else centre
+    P[:3, 3] = fixed[:3, 3] + fixed[:3, 2] * c + T[:3, 2] * shift
+    w = cs.World(gravity=r.gravity_acceleration)
+    w.add_free_box("box", he, 0.1, P, friction=friction, velocity=velocity * T[:3, 0])
+    if pedestal:  # thin enough for the jaws to close around it
+        top = P[2, 3] - he[2]
+        ped = np.eye(4)
+        ped[:3, 3] = [P[0, 3], P[1, 3], top / 2]
+        w.add_static_box("pedestal", [0.004, 0.004, top / 2], ped, friction=friction)
+    return r, w
+
+
+def closing(r, w, jaw_ref=0.019, lift=0.0, t_close=0.1, t_lift=0.3, open_at=None, **kw):
+    """The jaw closes to jaw_ref over t_close (or, above the present opening, is commanded open from
+    the start), then the quill lifts by `lift` m over t_lift; from open_at (s) the jaw opens to 3 cm."""
+    sim = cs.Simulation(dt=DT, world=w, log_every=25, **kw)
+    q1 = Q0.copy()
+    q1[5] = jaw_ref
+    if jaw_ref > Q0[5]:
+        sim.add_robot(r, cs.PID(**PID), q1, q0=Q0)
+        return sim
+    q2 = q1.copy()
+    q2[2] -= lift
+    t1 = 0.02 + t_close
+    times, points = [0.0, 0.02, t1, t1 + 0.05, t1 + 0.05 + t_lift], [Q0, Q0, q1, q1, q2]
+    if open_at is not None:
+        q3 = q2.copy()
+        q3[5] = 0.03
+        times += [open_at, open_at + 0.1]
+        points += [q2, q3]
+    sim.add_robot(r, cs.PID(**PID), cs.CubicTrajectory(times, np.array(points)))
+    return sim
+
+
+# the truth table, at the moment the jaws meet the body: everything right but one condition
+BOX = np.array([0.05, 0.015, 0.01])  # 3 cm wide: both faces touch at the 3 cm opening
+CUBE = 0.015 / (np.cos(np.pi / 6) + np.sin(np.pi / 6))  # half side: turned 30 deg it still spans 3 cm
+CASES = {
+    "all conditions": (dict(he=BOX), {}, None),
+    "one jaw touching": (dict(he=np.array([0.05, 0.01, 0.01])), dict(jaw_ref=0.025), "touching"),
+    "turned 30 deg about the approach": (dict(he=np.full(3, CUBE), turn=np.pi / 6, centre=0.015 + 2e-4), {},
+                                         "aligned"),
+    "wider than the opening": (dict(he=np.array([0.05, 0.017, 0.01]), centre=0.015), {}, "touching"),
+    "outside the pads": (dict(he=BOX, shift=0.025), {}, "in_pads"),
+    "moving at 0.2 m/s": (dict(he=BOX, velocity=0.2, friction=0.0), {}, "slow"),
+    "jaw commanded open": (dict(he=BOX), dict(jaw_ref=0.04), "closing"),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_clamp_rule_as_a_truth_table(case):
+    scene_kw, sim_kw, broken = CASES[case]
+    r, w = scene(**scene_kw)
+    sim = closing(r, w, **sim_kw)
+    check = sim.grasp_check(0, "box")
+    names = ("closing", "aligned", "touching", "in_pads", "slow")
+    assert {n: check[n] for n in names} == {n: n != broken for n in names}, check
+    assert check["ok"] == (broken is None)
+
+
+def test_the_grasp_happens_through_the_rule_and_never_snaps():
+    r, w = scene(BOX * [1, 2 / 3, 1])  # 2 cm wide against the fixed jaw: the moving jaw closes on it
+    sim = closing(r, w)
+    p0 = sim.body_state("box")["pose"]
+    sim.run(0.2, progress=False)
+    g = sim.log.grasps
+    assert sim.holding(0) == "box" and list(g["event"]) == ["grasp"] and 0.02 < g["t"][0] < 0.2
+    # attached where it was: the body has not jumped
+    assert np.abs(sim.body_state("box")["pose"] - p0).max() < 2e-3
+    # without the rule nothing is held
+    r, w = scene(BOX * [1, 2 / 3, 1])
+    sim = closing(r, w, grasp=False)
+    sim.run(0.2, progress=False)
+    assert sim.holding(0) is None and len(sim.log.grasps) == 0
+
+
+@pytest.mark.parametrize("case", ["one jaw touching", "jaw commanded open", "moving at 0.2 m/s"])
+def test_no_grasp_when_a_condition_stays_false(case):
+    scene_kw, sim_kw, _ = CASES[case]
+    r, w = scene(**scene_kw)
+    sim = closing(r, w, **sim_kw)
+    sim.run(0.2, progress=False)
+    assert sim.holding(0) is None and len(sim.log.grasps) == 0
+
+
+def test_a_lifted_body_weighs_m_g_on_the_weld_and_loads_the_robot():
+    r, w = scene(BOX * [1, 2 / 3, 1])
+    sim = closing(r, w, lift=0.05)
+    sim.run(1.5, progress=False)
+    assert sim.holding(0) == "box"
+    assert sim.body_state("box")["position"][2] > sim.world.body("box")["pose"][2, 3] + 0.045  # carried up
+    F = sim.weld_wrench(0)
+    assert F[2] == pytest.approx(0.1 * 9.81, rel=1e-6)
+    assert np.abs(F[:2]).max() < 1e-6 * 0.981
+    # the robot feels it: the clamp link carries the weld's reaction, J^T (-F) at the body's centre
+    q, _ = sim.state(0)
+    link = r.clamp.fixed_link
+    c = sim.body_state("box")["position"]
+    tau = r.external_torques(q, [cs.Wrench(link, np.linalg.solve(r.frames(q)[link], [*c, 1.0])[:3], -F)])
+    tau_ext = sim.applied(0)["tau_ext"]
+    np.testing.assert_allclose(tau_ext[:5], tau[:5], rtol=1e-3, atol=1e-4)  # joint 6 also feels the jaw stop
+
+
+def test_release_gives_the_body_the_clamps_rigid_twist():
+    r, w = scene(BOX * [1, 2 / 3, 1], gravity=False, pedestal=False)
+    sim = closing(r, w)
+    sim.run(0.2, progress=False)
+    assert sim.holding(0) == "box"
+    sim.set_applied(0, forces=np.array([2.0, -1.0, 0.0, 0.5, 0.0, 0.0]))  # swing the arm
+    sim.run(0.3, progress=False)
+    q, qd = sim.state(0)
+    assert np.abs(qd).max() > 0.05
+    sim.release(0)
+    assert sim.holding(0) is None
+    st = sim.body_state("box")
+    link = r.clamp.fixed_link
+    p = np.linalg.solve(r.frames(q)[link], [*st["position"], 1.0])[:3]
+    twist = r.jacobian(q, link, p) @ qd
+    np.testing.assert_allclose(st["velocity"], twist[:3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(st["angular_velocity"], twist[3:], rtol=0, atol=1e-9)
+    g = sim.log.grasps
+    assert list(g["event"]) == ["grasp", "release"] and g["reason"].iloc[-1] == "released"
+
+
+def test_opening_the_jaw_releases_and_the_body_falls():
+    r, w = scene(BOX * [1, 2 / 3, 1])
+    sim = closing(r, w, lift=0.05, open_at=0.8)
+    sim.run(0.75, progress=False)
+    assert sim.holding(0) == "box"
+    z_held = sim.body_state("box")["position"][2]
+    sim.run(1.5, progress=False)
+    g = sim.log.grasps
+    assert sim.holding(0) is None and list(g["event"]) == ["grasp", "release"], g
+    assert g["reason"].iloc[-1] == "opened" and 0.8 < g["t"].iloc[-1] < 0.9
+    assert sim.body_state("box")["position"][2] < z_held - 0.04  # back down on the pedestal
