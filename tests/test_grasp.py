@@ -161,3 +161,85 @@ def test_opening_the_jaw_releases_and_the_body_falls():
     assert sim.holding(0) is None and list(g["event"]) == ["grasp", "release"], g
     assert g["reason"].iloc[-1] == "opened" and 0.8 < g["t"].iloc[-1] < 0.9
     assert sim.body_state("box")["position"][2] < z_held - 0.04  # back down on the pedestal
+
+
+# ---- two holders ----
+
+def gripper(x, name):
+    """A gantry gripper over (x, 0): joint 1 lifts its hand (prismatic, vertical), joint 2 opens its
+    jaw along -y (prismatic); the jaws hang 3 cm under the hand, the fixed one's face in the plane y = 0."""
+    dh = [[0.0, 0.0, 0.0, np.pi / 2], [0.0, 0.0, 0.0, 0.0]]
+    com = [[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]
+    inertias = [cs.box_inertia(1.0, 0.04, 0.04, 0.04), cs.box_inertia(0.05, 0.02, 0.02, 0.005)]
+    # frame 1: x1 = x0, y1 up, z1 = -y0 (the jaw axis); the jaw runs down, along -y1
+    face = np.eye(4)
+    face[:3, :3] = [[0, 1, 0], [-1, 0, 0], [0, 0, 1]]
+    face[:3, 3] = [0, -0.03, 0]
+
+    def at(y, z):
+        T = np.eye(4)
+        T[1, 3], T[2, 3] = y, z
+        return T
+
+    boxes = [cs.LinkBox(1, [0.02, 0.02, 0.02], np.eye(4), "hand"),
+             cs.LinkBox(1, [0.01, 0.02, 0.0025], at(-0.03, -0.0025), "fixed_jaw"),
+             cs.LinkBox(2, [0.01, 0.02, 0.0025], at(-0.03, 0.0025), "moving_jaw")]
+    return cs.Robot.from_dh(dh, com, [1.0, 0.05], inertias, joint_types="PP", q_limits=[[-1, 1], [0, 0.05]],
+                            base_position=(x, 0.0, 0.0), name=name, boxes=boxes,
+                            clamp=cs.Clamp(1, face, 2, 0.04, 0.02))
+
+
+BAR = np.array([0.2, 0.015, 0.01])  # along x, 3 cm across the jaws
+G_BAR = 0.2 * 9.81
+
+
+def two_holders(xa, xb, close_b=0.0, open_a=None, t_end=1.0):
+    """A bar held at its centre's height 0.17 m by grippers at xa and xb; b closes at close_b (s), a
+    opens at open_a (s)."""
+    w = cs.World(floor=False)
+    P = np.eye(4)
+    P[:3, 3] = [0.0, -0.015, 0.17]
+    w.add_free_box("bar", BAR, 0.2, P, friction=0.5)
+    sim = cs.Simulation(dt=DT, world=w, log_every=50)
+    for x, name, t_close, t_open in ((xa, "a", 0.0, open_a), (xb, "b", close_b, None)):
+        g = gripper(x, name)
+        q_open, q_shut = np.array([0.2, 0.035 if t_close > 0 else 0.03]), np.array([0.2, 0.029])
+        times, points = [0.0, t_close + 1e-3 if t_close > 0 else 0.02, t_close + 0.06], [q_open, q_open, q_shut]
+        if t_open is not None:
+            times += [t_open, t_open + 0.05]
+            points += [q_shut, np.array([0.2, 0.04])]
+        q0 = q_shut.copy()
+        q0[1] = 0.035 if t_close > 0 else 0.03
+        sim.add_robot(g, cs.PID([4000.0, 200.0], [0.0, 0.0], [200.0, 4.0]), cs.CubicTrajectory(times, np.array(points)),
+                      q0=q0)
+    return sim
+
+
+def test_two_holders_share_the_weight():
+    sim = two_holders(-0.1, 0.1)
+    sim.run(1.0, progress=False)
+    assert sim.holding(0) == "bar" and sim.holding(1) == "bar"
+    fa, fb = sim.weld_wrench(0), sim.weld_wrench(1)
+    assert fa[2] + fb[2] == pytest.approx(G_BAR, rel=1e-6)
+    assert fa[2] == pytest.approx(G_BAR / 2, rel=1e-4) and fb[2] == pytest.approx(G_BAR / 2, rel=1e-4)
+    # the internal force: what the two wrenches cancel on the bar, small for a symmetric hold
+    assert abs(fa[0] + fb[0]) < 1e-6 and abs(fa[1] + fb[1]) < 1e-6
+
+
+def test_a_second_holder_takes_no_load_at_first_and_all_of_it_after_a_handover():
+    sim = two_holders(-0.1, 0.12, close_b=0.3, open_a=0.7)
+    sim.run(0.25, progress=False)
+    assert sim.holding(0) == "bar" and sim.holding(1) is None
+    history = []
+    while sim.time < 1.4 - 1e-9:
+        sim.step(1)
+        history.append((sim.time, sim.holding(0), sim.holding(1), sim.weld_wrench(0)[2], sim.weld_wrench(1)[2]))
+    t, ha, hb, fa, fb = map(np.array, zip(*history))
+    k = int(np.flatnonzero(hb == "bar")[0])  # b's first held step
+    assert abs(fb[k]) < 0.01 * G_BAR  # no jump when b attaches
+    settle = (t > t[k]) & (t < t[k] + 0.05)
+    assert np.abs(np.diff(fb[settle])).max() < 0.01 * G_BAR and np.abs(np.diff(fa[settle])).max() < 0.01 * G_BAR
+    g = sim.log.grasps
+    assert list(zip(g["robot"], g["event"])) == [(0, "grasp"), (1, "grasp"), (0, "release")]
+    assert sim.holding(0) is None and sim.holding(1) == "bar"
+    assert fb[-1] == pytest.approx(G_BAR, rel=1e-6)
