@@ -127,6 +127,13 @@ def test_a_lifted_body_weighs_m_g_on_the_weld_and_loads_the_robot():
     tau = r.external_torques(q, [cs.Wrench(link, np.linalg.solve(r.frames(q)[link], [*c, 1.0])[:3], -F)])
     tau_ext = sim.applied(0)["tau_ext"]
     np.testing.assert_allclose(tau_ext[:5], tau[:5], rtol=1e-3, atol=1e-4)  # joint 6 also feels the jaw stop
+    # the log: what each row held and the weld's wrench over it
+    log = sim.log
+    held = log[0].holding
+    k = int(np.flatnonzero(held == "box")[0])
+    assert set(held[:k]) == {""} and set(held[k:]) == {"box"}
+    assert log.grasps["t"][0] == pytest.approx(log.t[k], abs=25 * DT)
+    np.testing.assert_allclose(log[0].weld[-1], F, rtol=1e-6, atol=1e-9)
 
 
 def test_release_gives_the_body_the_clamps_rigid_twist():

@@ -73,6 +73,11 @@ py::dict log_dict(const Simulation& s, int i) {
   return d;
 }
 
+// Robot i's grasp log: (rows, 7) [held body id or -1, weld force (3), weld moment (3)].
+py::array_t<double> grasp_log(const Simulation& s, int i) {
+  return view(s.log(i).grasp, s.log_rows(), true);
+}
+
 py::dict metrics_dict(const Simulation& s, int i) {
   const TrackingMetrics& m = s.metrics(i);
   py::dict d;
@@ -333,6 +338,9 @@ torques between controller updates, the log and tracking metrics.)doc")
              return d;
            }, "Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force "
               "(N), max_depth (m), steps.")
+      .def("grasp_log", &grasp_log, py::arg("i"),
+           "Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force "
+           "(3) N and moment (3) N m on it.")
       .def("contact_log", [](const Simulation& s) {
              py::dict d;
              if (!s.world()) return d;

@@ -114,6 +114,7 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
     throw std::invalid_argument("robot '" + robot.name() + "' has another gravity than the world's");
   s.metrics.sum_sq_error = s.metrics.max_abs_error = s.metrics.max_abs_tau = VecN::Zero(n);
   for (LogColumn& c : s.log.columns) c = LogColumn(n);
+  s.log.grasp = LogColumn(7);
   slots_.push_back(std::move(s));
   return robot_count() - 1;
 }
@@ -148,6 +149,7 @@ void Simulation::reset() {
     s.k1_valid = false;
     s.updated_at = -1;
     for (LogColumn& c : s.log.columns) c.clear();
+    s.log.grasp.clear();
     s.metrics.steps = 0;
     s.metrics.sum_sq_error.setZero(n);
     s.metrics.max_abs_error.setZero(n);
@@ -232,8 +234,10 @@ void Simulation::reserve(long steps) {
   if (opt_.log_every == 0 || steps <= 0) return;
   const long rows = log_t_.rows() + steps / opt_.log_every + 2;
   log_t_.reserve(rows);
-  for (Slot& s : slots_)
+  for (Slot& s : slots_) {
     for (LogColumn& c : s.log.columns) c.reserve(rows);
+    s.log.grasp.reserve(rows);
+  }
   for (LogColumn& c : body_log_) c.reserve(rows);
 }
 
@@ -408,6 +412,8 @@ void Simulation::update_() {
     c[kLogTauExt].push(s.tau_ext.data());
     c[kLogQRef].push(s.q_ref.data());
     c[kLogQdRef].push(s.qd_ref.data());
+    double g[7] = {static_cast<double>(s.held), s.weld[0], s.weld[1], s.weld[2], s.weld[3], s.weld[4], s.weld[5]};
+    s.log.grasp.push(g);
   }
   for (size_t b = 0; b < body_log_.size(); ++b) {
     const BodyState& st = body_now_[b];

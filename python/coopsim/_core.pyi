@@ -808,6 +808,10 @@ class SimulationCore:
         """
         Grasps and releases as columns: t (s), robot (index), body (name), event ('grasp' or 'release'), reason ('grasp', 'opened', 'slipped', 'released').
         """
+    def grasp_log(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force (3) N and moment (3) N m on it.
+        """
     def grasp_options(self) -> dict:
         ...
     def holding(self, i: typing.SupportsInt | typing.SupportsIndex) -> typing.Any:

@@ -50,15 +50,18 @@ class RobotLog:
     (later steps or a reset do not change them); copy one to modify it.
     """
 
-    __slots__ = ("name", "t") + STORED
+    __slots__ = ("name", "t", "holding", "weld") + STORED
 
-    def __init__(self, name, t, **arrays):
+    def __init__(self, name, t, holding=None, weld=None, **arrays):
         missing = [k for k in STORED if k not in arrays]
         unknown = [k for k in arrays if k not in STORED]
         if missing or unknown:
             raise ValueError(f"RobotLog needs the arrays {list(STORED)}; missing {missing}, unknown {unknown}")
         self.name = str(name)
         self.t = t
+        #: per row, the name of the body held ('' when none), and the weld's force and moment on it (rows, 6)
+        self.holding = np.full(len(t), "", dtype=object) if holding is None else holding
+        self.weld = np.zeros((len(t), 6)) if weld is None else weld
         for k in STORED:
             setattr(self, k, arrays[k])
 

@@ -332,7 +332,12 @@ class Simulation:
         """The log up to now: read-only views, without copying, that later steps do not change."""
         c = self._core
         t = c.log_t()
-        robots = [RobotLog(c.robot(i).name, t, **c.log(i)) for i in range(self.robot_count)]
+        names = np.array((c.world.body_names if c.world is not None else []) + [""], dtype=object)
+        robots = []
+        for i in range(self.robot_count):
+            g = c.grasp_log(i)
+            held = names[g[:, 0].astype(int)]  # -1 (none) picks the trailing ""
+            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:], **c.log(i)))
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,

@@ -169,6 +169,9 @@ const std::array<LogQuantityInfo, kLogQuantities>& log_schema();
 // One robot's log: one (rows x n) column per quantity of log_schema().
 struct RobotLog {
   std::array<LogColumn, kLogQuantities> columns;
+  // per row: the world id of the body held (-1: none), then the weld's force
+  // (N) and moment (N m) on it over the world step, world frame (7 values)
+  LogColumn grasp{7};
   const LogColumn& operator[](int quantity) const { return columns[quantity]; }
 };
 
