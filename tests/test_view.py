@@ -358,7 +358,7 @@ def test_bad_input_names_the_argument(run_log, tmp_path):
                            joint_types="R")
     k_arm = len(arm.boxes)
     mixed = cs.SimulationLog(log.t, [log[0], cs.RobotLog("arm", log.t, **{k: getattr(log[0], k)[:, :1]
-                                                                        for k in log[0].__slots__[2:]})])
+                                                                        for k in cs.log.STORED})])
     view.animate(mixed, [R1, arm], collision_boxes=True, **small,
                  colliding=[np.zeros((len(log.t), 8), bool), np.ones((len(log.t), k_arm), bool)])
     with pytest.raises(ValueError, match="robots"):
