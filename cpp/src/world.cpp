@@ -311,8 +311,10 @@ void World::build_() {
       body->setLinearVelocity(bt(s.velocity));
       body->setAngularVelocity(bt(s.angular_velocity));
     }
-    // no sleeping: a resting body keeps its contact forces and reacts at once
-    if (s.kind != BodyKind::Floor && s.kind != BodyKind::Static) body->setActivationState(DISABLE_DEACTIVATION);
+    if (s.kind == BodyKind::Link) body->setActivationState(DISABLE_DEACTIVATION);
+    // a free body at rest (below 0.1 mm/s and 1 mrad/s) for Bullet's 2 s sleeps: it costs nothing
+    // then, keeps the contact forces it last had, and wakes when touched or pushed
+    if (s.kind == BodyKind::Free) body->setSleepingThresholds(1e-4, 1e-3);
     I.world.addRigidBody(body.get());
     I.shapes.push_back(std::move(shape));
     I.bodies.push_back(std::move(body));
@@ -333,6 +335,7 @@ void World::set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3
 void World::apply_wrench(int id, const Eigen::Vector3d& force, const Eigen::Vector3d& moment) {
   if (!impl_) build_();
   btRigidBody& b = *impl_->bodies[id];
+  b.activate();
   b.applyCentralForce(bt(force));
   b.applyTorque(bt(moment));
 }
@@ -340,6 +343,7 @@ void World::apply_wrench(int id, const Eigen::Vector3d& force, const Eigen::Vect
 void World::set_velocity(int id, const Eigen::Vector3d& velocity, const Eigen::Vector3d& angular_velocity) {
   if (!impl_) build_();
   btRigidBody& b = *impl_->bodies[id];
+  b.activate();
   b.setLinearVelocity(bt(velocity));
   b.setAngularVelocity(bt(angular_velocity));
 }
