@@ -18,7 +18,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .scene import Body, Scene, _array, _contacts, _robot_list
+from .scene import Body, Scene, _array, _contacts, _is_simulation, _robot_list
 
 __all__ = ["Animation", "animate", "ffmpeg_path"]
 
@@ -258,16 +258,22 @@ def _per_robot_rows(x, n_robots: int, rows: int, what: str, tails: list, dtype=f
     return out
 
 
-def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_start: Optional[float] = None,
+def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=None, t_start: Optional[float] = None,
             t_end: Optional[float] = None, duration: Optional[float] = None, reference=True, holding=None,
-            collision_boxes: bool = False, colliding=None, contacts=None, bodies=None, label=True,
+            collision_boxes: bool = False, colliding=None, contacts=None, bodies=None, world=None, label=True,
             ax=None, figsize=(6.4, 4.8), dpi: float = 100.0, quality: Optional[float] = None,
             **scene_options) -> Animation:
     """An animation of a simulation log: robots as shaded boxes, at `fps` frames per second and `speed`.
 
     log: a SimulationLog (``sim.run(...)`` or ``sim.log``) with rows at
-    times log.t (s). robots: the simulated robots in log order (a list of
-    Robot, one Robot, or the Simulation). fps: video frames per second (>
+    times log.t (s), or a finished Simulation: its log, robots and world
+    (``view.animate(sim)``). robots: the simulated robots in log order (a
+    list of Robot, one Robot, or the Simulation; default the Simulation's).
+    world: a coopsim.World or a Simulation (its world; default the
+    Simulation given as log or robots, False for none): its static boxes
+    drawn as grey scenery, its free bodies (the bar, named 'bar...', red;
+    others purple) at their logged poses (``log.bodies``) in every frame.
+    fps: video frames per second (>
     0). speed: simulated seconds per video second, 0 .. 4 (the paper's
     0-400 %; 0 freezes t_start and needs `duration`). Frame k shows the log
     at t_start + k speed / fps (joint positions interpolated between rows),
@@ -291,11 +297,16 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
       while True. A (rows, robots) array is accepted too.
     - collision_boxes: colour every box green (free) or red where colliding
       is True; colliding: per robot a (rows, boxes) bool mask in
-      robot.boxes order (None: all free).
+      robot.boxes order (default: from the log's contact events, see
+      :func:`~coopsim.view.colliding_from_log`; all free without them).
     - contacts: a sequence of rows entries, each an (m, 2, 3) array of
-      (point, normal) pairs (m) or None: red lines along the normals.
+      (point, normal) pairs (m) or None: red lines along the normals
+      (default with collision_boxes=True: the log's contact points when
+      the simulation kept them, log_contacts=True, see
+      :func:`~coopsim.view.contacts_from_log`; False: none).
     - bodies: a list of :class:`Body` (the bar, scenery), poses fixed or
-      one per row ((rows, 4, 4) or (rows, m, 4, 4)).
+      one per row ((rows, 4, 4) or (rows, m, 4, 4)), drawn before the
+      world's.
     - label: True for "t = ... s" at the top left and the speed at the
       top right, False for none, or a function of t (s) returning the
       text at the top left.
@@ -308,10 +319,25 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
     True.
 
     Raises ValueError naming the argument: speed outside 0..4, fps <= 0,
-    arrays of the wrong shape, times outside the log, an unknown suffix.
+    arrays of the wrong shape, times outside the log, an unknown suffix, a
+    world that is not a World or Simulation.
     """
+    from .world import colliding_from_log, contacts_from_log, resolve_world, world_bodies
+
     # ---- arguments ----
-    robots = _robot_list(robots)
+    sim = None
+    if _is_simulation(log):
+        sim = log
+        log = sim.log
+        if robots is None:
+            robots = sim.robots
+    elif _is_simulation(robots):
+        sim = robots
+    wld, _ = resolve_world(sim if world is None else world, "world")
+    if robots is None:
+        raise ValueError("robots must be given with a log (the simulated robots in log order), or pass the "
+                         "Simulation itself")
+    robots = _robot_list(robots, allow_empty=wld is not None)
     fps = _number(fps, "fps")
     if not 0 < fps <= 1000:
         raise ValueError(f"fps must be > 0 (and at most 1000) frames per second, got {fps!r}")
@@ -364,6 +390,12 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
     H = _per_robot_rows(holding, n, rows, "holding", [()] * n, dtype=bool)
     if colliding is not None and not collision_boxes:
         raise ValueError("colliding is shown only with collision_boxes=True")
+    if collision_boxes and colliding is None and len(log.contacts):
+        colliding = colliding_from_log(log, robots)
+    if contacts is False:
+        contacts = None
+    elif contacts is None and collision_boxes:
+        contacts = contacts_from_log(log)
     C = _per_robot_rows(colliding, n, rows, "colliding", [(len(r.boxes),) for r in robots], dtype=bool)
     if contacts is not None:
         if len(contacts) != rows:
@@ -374,6 +406,10 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
         bodies = []
     elif isinstance(bodies, Body):
         bodies = [bodies]
+    else:
+        bodies = list(bodies)
+    if wld is not None:
+        bodies = bodies + world_bodies(sim if sim is not None and sim.world is wld else wld, log, rows=rows)
     checked_bodies = []
     for j, b in enumerate(bodies):
         if not isinstance(b, Body):
@@ -392,7 +428,7 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
     def body_at(b, chk, k):
         h, p, _ = chk
         pose = p if p.ndim == 3 else p[at[k]]
-        return Body(b.name, h, pose, b.color, b.alpha)
+        return Body(b.name, h, pose, b.color, b.alpha, b.scenery)
 
     def frame_args(k: int) -> dict:
         r = at[k]
@@ -419,6 +455,10 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
     elif getattr(ax, "name", None) != "3d":
         raise ValueError("ax must be a 3D Axes (fig.add_subplot(projection='3d')) or None")
     scene_options.setdefault("cull", True)       # the camera does not move
+    if wld is not None:
+        scene_options.setdefault("floor", bool(wld.floor))
+    if not robots and not checked_bodies:
+        raise ValueError("nothing to draw: the log has no robots and the world no bodies")
     scene = Scene(ax, robots, collision_boxes=collision_boxes, **scene_options)
     from .geometry import box_corners
 
@@ -431,6 +471,11 @@ def animate(log, robots, *, fps: float = 30.0, speed: float = 1.0, path=None, t_
                     pts.append(box_corners(*r.shapes(qq)).reshape(-1, 3))
         for b, (hb, p, _) in checked_bodies:
             pts.append(box_corners(p if p.ndim == 3 else p[at[k]], hb).reshape(-1, 3))
+    # the camera: robots and bodies seen past each other over a few frames (azim=None)
+    few = sample[np.unique(np.linspace(0, len(sample) - 1, min(len(sample), 8)).astype(int))]
+    scene.choose_azimuth([[(True, *r.shapes(Q[i][k]), False) for i, r in enumerate(robots)]
+                          + [(False, p if p.ndim == 3 else p[at[k]], hb, b.scenery and p.ndim == 3)
+                             for b, (hb, p, _) in checked_bodies] for k in few])
     scene.fit(np.concatenate(pts))
     if label is True:
         # the part that does not change goes into the background (text costs about 0.1 ms a glyph)

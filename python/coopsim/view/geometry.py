@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["CORNER_SIGNS", "FACE_CORNERS", "FACE_NORMALS", "box_corners", "box_faces", "box_normals",
-           "shade", "floor_tiles", "view_direction"]
+           "box_samples", "hidden", "shade", "floor_tiles", "split_quads", "view_direction"]
 
 #: Corner k of a box is centre + R @ (CORNER_SIGNS[k] * half_extents): the bottom ring 0-3, then the top ring 4-7,
 #: each counter-clockwise seen from +z.
@@ -80,3 +80,65 @@ def floor_tiles(x_range, y_range, tile: float, z: float = 0.0) -> np.ndarray:
         quads[:, c, 1] = Y + dy * tile
         quads[:, c, 2] = z
     return quads
+
+
+def box_samples(poses, half_extents) -> np.ndarray:
+    """Points (k * 15, 3) m that stand for k boxes when seen: each box's centre, 8 corners and 6 face
+    centres, pulled 2 % towards the centre (so that a box lying on another is not hidden by it)."""
+    poses = np.asarray(poses, dtype=float)
+    h = 0.98 * np.asarray(half_extents, dtype=float)
+    signs = np.concatenate([np.zeros((1, 3)), CORNER_SIGNS, FACE_NORMALS])              # (15, 3)
+    local = signs[None, :, :] * h[:, None, :]
+    return (np.einsum("kij,kcj->kci", poses[:, :3, :3], local) + poses[:, None, :3, 3]).reshape(-1, 3)
+
+
+def hidden(points, direction, poses, half_extents, margin: float = 1e-3) -> np.ndarray:
+    """(m,) bool: whether each point (m, 3) m is hidden behind one of the boxes (poses (k, 4, 4), half
+    extents (k, 3)) when seen from far away along `direction` (3,), from the points towards the camera.
+
+    A box hides a point when the ray from the point towards the camera enters it more than `margin` m
+    away (a point inside a box, or on its surface, is not hidden by it). Parallel projection: the
+    camera's perspective is left out.
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    poses = np.asarray(poses, dtype=float).reshape(-1, 4, 4)
+    h = np.asarray(half_extents, dtype=float).reshape(-1, 3)
+    if not len(p) or not len(poses):
+        return np.zeros(len(p), dtype=bool)
+    R, c = poses[:, :3, :3], poses[:, :3, 3]
+    d = np.asarray(direction, dtype=float)
+    pl = np.einsum("kji,mkj->mki", R, p[:, None, :] - c[None, :, :])      # (m, k, 3) in each box's axes
+    dl = np.einsum("kji,j->ki", R, d)[None, :, :]                          # (1, k, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (-h[None] - pl) / dl
+        t2 = (h[None] - pl) / dl
+    lo, hi = np.minimum(t1, t2), np.maximum(t1, t2)
+    # along an axis the ray is parallel to: inside the slab for all s, or never
+    par = np.broadcast_to(dl == 0.0, pl.shape)
+    inside = np.abs(pl) <= h[None]
+    lo = np.where(par, np.where(inside, -np.inf, np.inf), lo)
+    hi = np.where(par, np.where(inside, np.inf, -np.inf), hi)
+    t_in, t_out = lo.max(axis=2), hi.min(axis=2)
+    return ((t_in > margin) & (t_out >= t_in)).any(axis=1)
+
+
+def split_quads(quads, size: float):
+    """Each parallelogram of quads (m, 4, 3) m (corners in order) cut into a grid of pieces no longer than
+    `size` m along either edge. Returns (pieces (p, 4, 3), counts (m,), the pieces of each quad, in order).
+
+    Big faces cut into pieces sort by depth with their neighbours piece by piece (matplotlib's painter's
+    algorithm sorts whole polygons), so that a wall does not cover a box in front of part of it.
+    """
+    quads = np.asarray(quads, dtype=float).reshape(-1, 4, 3)
+    u = quads[:, 1] - quads[:, 0]
+    v = quads[:, 3] - quads[:, 0]
+    nu = np.maximum(1, np.ceil(np.linalg.norm(u, axis=1) / size - 1e-9)).astype(int)
+    nv = np.maximum(1, np.ceil(np.linalg.norm(v, axis=1) / size - 1e-9)).astype(int)
+    pieces = []
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    for q, a, b, i_n, j_n in zip(quads, u, v, nu, nv):
+        I, J = np.meshgrid(np.arange(i_n), np.arange(j_n), indexing="ij")
+        s = (I.ravel()[:, None] + corners[None, :, 0]) / i_n            # (pieces, 4)
+        t = (J.ravel()[:, None] + corners[None, :, 1]) / j_n
+        pieces.append(q[0] + s[..., None] * a + t[..., None] * b)
+    return (np.concatenate(pieces) if pieces else np.zeros((0, 4, 3))), nu * nv

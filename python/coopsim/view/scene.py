@@ -19,14 +19,16 @@ from typing import List, Optional
 
 import numpy as np
 
-from .geometry import box_faces, box_normals, floor_tiles, light_direction, shade, view_direction
+from .geometry import (box_corners, box_faces, box_normals, box_samples, floor_tiles, hidden, light_direction, shade,
+                       split_quads, view_direction)
 
 __all__ = ["Body", "COLORS", "Scene", "draw"]
 
 #: The colour conventions (any matplotlib colour). robots: the normal colour of robot i's links, cycling;
 #: base: base columns; jaw: the clamp's jaws; holding: a robot that holds something; free / colliding:
 #: collision boxes without / with contact; ghost: the desired pose (drawn with ghost_alpha);
-#: contact: contact lines; body: extra boxes without their own colour (the bar); floor: two tile colours.
+#: contact: contact lines; body: extra boxes without their own colour (the bar); floor: two tile colours;
+#: scenery: a world's static boxes; free_body: a world's free bodies other than the bar.
 COLORS = {
     "robots": ("#f0a23c", "#e4e4e8", "#c07a4a", "#a5a5a5"),
     "base": "#757575",
@@ -39,9 +41,15 @@ COLORS = {
     "contact": "#e8231e",
     "body": "#d62728",
     "floor": ("#b9bec6", "#a9aeb7"),
+    "scenery": "#8d9099",
+    "free_body": "#8a5fb8",
 }
 
 _KEEP = object()   # update(): leave as it is
+
+#: The default camera (degrees, matplotlib's convention): from the front right, above the floor.
+DEFAULT_ELEV = 22.0
+DEFAULT_AZIM = -62.0
 
 
 @dataclass
@@ -53,7 +61,9 @@ class Body:
     (m, 4, 4) (m boxes, fixed), or one pose per log row for
     :func:`~coopsim.view.animate`: (rows, 4, 4) for one box, (rows, m, 4, 4)
     for m boxes. color: any matplotlib colour (default the bar's red);
-    alpha: 0..1.
+    alpha: 0..1. scenery: fixed surroundings (a world's static boxes):
+    their big faces are drawn in tiles (see :meth:`Scene.choose_azimuth`
+    for how they turn the default camera).
     """
 
     name: str
@@ -61,6 +71,7 @@ class Body:
     poses: object
     color: object = COLORS["body"]
     alpha: float = 1.0
+    scenery: bool = False
 
     def _checked(self, what: str, rows: Optional[int] = None):
         """(half (m, 3), poses, rgba (4,)), checked; poses (m, 4, 4), or with `rows` given either that
@@ -101,19 +112,29 @@ def _array(x, what: str) -> np.ndarray:
     return a
 
 
-def _robot_list(robots) -> list:
+def _is_simulation(x) -> bool:
+    from ..simulation import Simulation
+
+    return isinstance(x, Simulation)
+
+
+def _robot_list(robots, allow_empty: bool = False) -> list:
+    """A list of Robot from one Robot, a sequence of them or a Simulation (its robots); empty only when
+    allowed (a scene of a world's bodies alone)."""
     from .. import Robot
 
     if isinstance(robots, Robot):
         return [robots]
-    if hasattr(robots, "robots") and not isinstance(robots, (list, tuple)):   # a Simulation
+    if _is_simulation(robots):
         robots = robots.robots
+    elif robots is None and allow_empty:
+        robots = []
     try:
         robots = list(robots)
     except TypeError:
-        raise ValueError(f"robots must be a coopsim.Robot or a sequence of them, got {type(robots).__name__}") \
-            from None
-    if not robots or not all(isinstance(r, Robot) for r in robots):
+        raise ValueError(f"robots must be a coopsim.Robot, a sequence of them or a Simulation, got "
+                         f"{type(robots).__name__}") from None
+    if (not robots and not allow_empty) or not all(isinstance(r, Robot) for r in robots):
         raise ValueError("robots must be a coopsim.Robot or a non-empty sequence of them")
     return robots
 
@@ -245,12 +266,12 @@ class Scene:
     """
 
     def __init__(self, ax, robots, *, colors=None, collision_boxes: bool = False, floor=True, tile: float = 0.1,
-                 limits=None, elev: float = 22.0, azim: float = -62.0, axis: bool = False, zoom: Optional[float] = None,
-                 contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4, cull: bool = False,
-                 ghost_margin: float = 0.002):
+                 limits=None, elev: Optional[float] = 22.0, azim: Optional[float] = None, axis: bool = False,
+                 zoom: Optional[float] = None, contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4,
+                 cull: bool = False, ghost_margin: float = 0.002):
         from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-        self.robots = _robot_list(robots)
+        self.robots = _robot_list(robots, allow_empty=True)
         self.ax = ax
         self.fig = ax.figure
         self.collision_boxes = bool(collision_boxes)
@@ -258,7 +279,10 @@ class Scene:
         self.tile = _positive(tile, "tile")
         self.ghost_margin = _positive(ghost_margin, "ghost_margin", zero=True)
         self._zoom = (1.6 if not axis else 0.9) if zoom is None else _positive(zoom, "zoom")
-        elev, azim = _finite(elev, "elev"), _finite(azim, "azim")
+        # azim None: DEFAULT_AZIM, turned at the first fit when that hides bodies behind the robots
+        self._auto_azim = azim is None
+        elev = DEFAULT_ELEV if elev is None else _finite(elev, "elev")
+        azim = DEFAULT_AZIM if azim is None else _finite(azim, "azim")
         self._edges = bool(edges)
         self.cull = bool(cull)
         self._colors = self._robot_colors(colors)
@@ -278,6 +302,8 @@ class Scene:
         self._moving = [np.array([b.link != 0 for b in r.boxes], dtype=bool) for r in self.robots]
         self._contacts = np.zeros((0, 2, 3))
         self._bodies: list = []
+        self._body_names: List[str] = []
+        self._body_scenery: List[bool] = []
 
         self._floor_given = None          # "auto", (x0, x1, y0, y1) or None (no floor)
         if floor is True:
@@ -353,6 +379,72 @@ class Scene:
             raise ValueError(f"limits must be ((x0, x1), (y0, y1), (z0, z1)) m with each low < high, got {limits!r}")
         return a
 
+    def choose_azimuth(self, frames) -> float:
+        """Turns the camera, when the scene was made with azim=None, so that robots and bodies are seen
+        past each other; returns the azimuth (degrees).
+
+        frames: one or more arrangements of the scene (e.g. a few frames of
+        an animation), each a list of (robot, poses (k, 4, 4), half extents
+        (k, 3), scenery) tuples: robot True for a robot's boxes, False for
+        a body's; scenery True for fixed surroundings (a world's static
+        boxes).
+
+        The preferred azimuth looks across low scenery (all of it below the
+        robots' top) at the robots, from the robots' centre towards the
+        scenery's in plan view, when it is away from them; else (no
+        scenery, or tall scenery such as a wall, which stays behind the
+        robots) DEFAULT_AZIM. The score of an azimuth is the mean over the
+        boxes of every frame of the square of the fraction of the box's
+        sample points (:func:`~coopsim.view.geometry.box_samples`) hidden
+        behind boxes of the other kind (bodies behind robots, robots behind
+        bodies; a box out of sight weighs more than parts of several).
+        From the preferred azimuth outwards in 7.5 degree steps either way,
+        the first whose score is within 0.02 of the best wins. Without
+        bodies, or with a given azim, the camera stays."""
+        if not self._auto_azim:
+            return float(self.ax.azim)
+        frames = [[(bool(rb), np.asarray(p, float).reshape(-1, 4, 4), np.asarray(h, float).reshape(-1, 3), bool(sc))
+                   for rb, p, h, sc in f] for f in frames]
+
+        def stack(items):
+            items = [(p, h) for p, h in items if len(h)]
+            if not items:
+                return np.zeros((0, 4, 4)), np.zeros((0, 3))
+            return np.concatenate([p for p, _ in items]), np.concatenate([h for _, h in items])
+
+        tests = []      # per frame and kind: its boxes' sample points, their count, the other kind's boxes
+        for f in frames:
+            robots = stack([(p, h) for rb, p, h, _ in f if rb])
+            bodies = stack([(p, h) for rb, p, h, _ in f if not rb])
+            if len(robots[1]) and len(bodies[1]):
+                tests.append((box_samples(*bodies), len(bodies[1]), *robots))
+                tests.append((box_samples(*robots), len(robots[1]), *bodies))
+        if not tests:
+            return float(self.ax.azim)
+        preferred = DEFAULT_AZIM
+        robot = stack([(p, h) for rb, p, h, _ in frames[0] if rb])
+        scen = stack([(p, h) for rb, p, h, sc in frames[0] if sc and not rb])
+        if len(robot[1]) and len(scen[1]):
+            # low scenery (a container, a table) is looked across; tall scenery (a wall) stays behind
+            low = box_corners(*scen)[..., 2].max() < box_corners(*robot)[..., 2].max()
+            d = scen[0][:, :2, 3].mean(axis=0) - robot[0][:, :2, 3].mean(axis=0)
+            if low and np.hypot(*d) > 0.1:
+                preferred = float(np.degrees(np.arctan2(d[1], d[0])))
+        n_boxes = sum(t[1] for t in tests)
+        elev = self.ax.elev
+        candidates = preferred + 7.5 * np.array([0] + [s * k for k in range(1, 25) for s in (1, -1)])
+
+        def score(a):
+            v = view_direction(elev, a)
+            return sum((hidden(pts, v, OP, OH).reshape(k, 15).mean(axis=1) ** 2).sum()
+                       for pts, k, OP, OH in tests) / n_boxes
+
+        scores = np.array([score(a) for a in candidates])
+        best = float(candidates[np.flatnonzero(scores <= scores.min() + 0.02)[0]])
+        best = (best + 180.0) % 360.0 - 180.0
+        self.ax.view_init(elev=elev, azim=best)
+        return best
+
     def fit(self, points) -> None:
         """Fixes the floor, the axis limits (equal scales) and the box aspect so that the points (m, 3) m
         are in view. The first update fits what it shows; an animation fits all its frames first."""
@@ -413,6 +505,9 @@ class Scene:
             self._contacts = _contacts(contacts)
         if bodies is not _KEEP:
             self._bodies = _bodies(bodies)
+            listed = [] if bodies is None else [bodies] if isinstance(bodies, Body) else list(bodies)
+            self._body_names = [b.name for b in listed]
+            self._body_scenery = [bool(b.scenery) for b in listed]
         if label is not _KEEP:
             self.label.set_text("" if label is None else str(label))
         self._rebuild()
@@ -443,6 +538,8 @@ class Scene:
                 boxes.append((2, i, poses[moving], half, np.tile(self._ghost_face, (len(half), 1)),
                               np.flatnonzero(moving)))
         if not self._fitted:
+            self.choose_azimuth([[(b[0] == 0, b[2], b[3], b[0] == 1 and self._body_scenery[b[1]])
+                                  for b in boxes if b[0] < 2]])
             self.fit(np.concatenate([box_faces(b[2], b[3]).reshape(-1, 3) for b in boxes]))
 
         poses = np.concatenate([b[2] for b in boxes])
@@ -459,12 +556,26 @@ class Scene:
             keep = normals @ view_direction(elev, azim) > -0.2
             verts, normals, base, owner = verts[keep], normals[keep], base[keep], owner[keep]
         cols = shade(base, normals, light_direction(elev, azim))
+        # big scenery faces in tiles, so that they sort by depth piece by piece; no edges between the tiles
+        seamless = np.zeros(len(verts), dtype=bool)
+        if any(self._body_scenery):
+            big = owner[:, 0] == 1
+            big[big] = np.array(self._body_scenery, dtype=bool)[owner[big, 1]]
+            if big.any():
+                pieces, counts = split_quads(verts[big], self.tile)
+                n = np.ones(len(verts), dtype=int)
+                n[big] = counts
+                slots = np.repeat(np.arange(len(verts)), n)
+                new = verts[slots]
+                new[np.repeat(big, n)] = pieces
+                verts, owner, cols = new, owner[slots], cols[slots]
+                seamless = np.repeat(big & (n > 1), n)
         self._verts, self._owner, self._cols = verts, owner, cols
         self.polys.set_verts(verts)
         self.polys.set_facecolor(cols)
         if self._edges:
             edge = cols.copy()
-            edge[:, :3] *= 0.55
+            edge[~seamless, :3] *= 0.55
             ghost = owner[:, 0] == 2
             edge[ghost, 3] = min(1.0, 2.0 * self._ghost_face[3])
             self.polys.set_edgecolor(edge)
@@ -530,6 +641,19 @@ class Scene:
         """The shaded RGBA face colours (m, 4) of the polygons :meth:`faces` returns."""
         return self._cols[self._select(kind, index, box, face)]
 
+    @property
+    def body_names(self) -> List[str]:
+        """The names of the :class:`Body` boxes shown, in order: ``faces('body', index)`` is the body
+        ``body_names[index]``."""
+        return list(self._body_names)
+
+    def body_index(self, name: str) -> int:
+        """The index of the body named `name` for :meth:`faces` and :meth:`colors`; ValueError when none."""
+        try:
+            return self._body_names.index(name)
+        except ValueError:
+            raise ValueError(f"no body named {name!r} in the scene (bodies: {self._body_names})") from None
+
     def contact_lines(self) -> np.ndarray:
         """The contact lines drawn, (m, 2, 3) m: from each contact point along its normal."""
         return self._segments.copy()
@@ -585,18 +709,30 @@ def _is_colour(c) -> bool:
     return isinstance(c, tuple) and len(c) in (3, 4) and all(isinstance(v, (int, float)) for v in c)
 
 
-def draw(ax, robots, q, *, reference=None, holding=None, collision_boxes: bool = False, colliding=None,
-         contacts=None, bodies=None, floor=True, tile: float = 0.1, colors=None, limits=None, elev: float = 22.0,
-         azim: float = -62.0, axis: bool = False, zoom: Optional[float] = None, contact_length: float = 0.04,
-         edges: bool = True, cull: bool = False, ghost_margin: float = 0.002, label: Optional[str] = None) -> Scene:
+def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: bool = False, colliding=None,
+         contacts=None, bodies=None, world=None, floor=None, tile: float = 0.1, colors=None, limits=None,
+         elev: Optional[float] = None, azim: Optional[float] = None, axis: bool = False, zoom: Optional[float] = None,
+         contact_length: float = 0.04, edges: bool = True, cull: bool = False, ghost_margin: float = 0.002,
+         label: Optional[str] = None) -> Scene:
     """Draws robots as shaded boxes in a 3D Axes; returns a :class:`Scene` to update with new q cheaply.
 
     ax: a 3D matplotlib Axes (``fig.add_subplot(projection='3d')``), or
     None for a new 6.4 x 4.8 in pyplot figure. robots: a coopsim.Robot or a
-    sequence of them (or a Simulation: its robots). q: joint positions
-    (rad or m), (n,) for one robot or one (n_i,) array per robot. Every box
-    of ``robot.shapes(q)`` is drawn: base column, links, clamp body and both
-    jaws.
+    sequence of them, or a Simulation: its robots, by default at their
+    state now and with its world). q: joint positions (rad or m), (n,) for
+    one robot or one (n_i,) array per robot (None: a Simulation's state
+    now). Every box of ``robot.shapes(q)`` is drawn: base column, links,
+    clamp body and both jaws.
+
+    world: a coopsim.World, or a Simulation (default: robots when that is
+    a Simulation; False: none). Its static boxes are drawn as grey scenery,
+    its free bodies as boxes (the bar, a body named 'bar...', red; others
+    purple): a World's at the poses they were added with, a Simulation's
+    at their state now (``sim.body_state``). With collision_boxes=True and
+    a Simulation, the boxes in ``sim.contacts()`` are red and the contact
+    points red lines, unless colliding / contacts are given (contacts=False:
+    no lines). The robots' link boxes must be named as the world names them
+    (the simulation's robots).
 
     The paper's colours: reference, desired joint positions in the same
     layout as q, is drawn as a transparent blue ghost of the moving links
@@ -607,15 +743,19 @@ def draw(ax, robots, q, *, reference=None, holding=None, collision_boxes: bool =
     bool mask in robot.boxes order) is True. contacts: (m, 2, 3) array of
     (point, normal) pairs, m, drawn as red lines of contact_length m along
     the normals. bodies: extra boxes, a list of :class:`Body` (the bar,
-    scenery) with (4, 4) or (m, 4, 4) poses.
+    scenery) with (4, 4) or (m, 4, 4) poses, drawn before the world's.
 
     floor: True for a checkered floor at z = 0 under everything drawn (tiles
-    of `tile` m), (x0, x1, y0, y1) m for a given extent, False for none.
+    of `tile` m), (x0, x1, y0, y1) m for a given extent, False for none;
+    default True, or False with a world that has no floor.
     colors: one matplotlib colour per robot (its links; base and jaws stay
     grey), or per robot one colour per box. limits: ((x0, x1), (y0, y1),
     (z0, z1)) m, default fitted to the floor and the boxes; the three axes
     always have equal scales. elev, azim (degrees): the camera, matplotlib's
-    convention, looking from above; zoom: > 1 enlarges (default 1.6, or 0.9
+    convention, looking from above (default elevation 22; default azimuth
+    -62, from the front right, turned in steps of 7.5 degrees when that
+    hides the scenery or bodies behind the robots: see
+    :meth:`Scene.choose_azimuth`); zoom: > 1 enlarges (default 1.6, or 0.9
     with axis=True to leave room for the tick labels). axis: draw
     matplotlib's axes, ticks and panes (a frame then costs several times
     more). Faces are flat-shaded by a light over the camera's left
@@ -625,7 +765,30 @@ def draw(ax, robots, q, *, reference=None, holding=None, collision_boxes: bool =
 
     Raises ValueError naming the argument for wrong shapes or values.
     """
-    robots = _robot_list(robots)
+    from .world import colliding_from_contacts, contact_lines, resolve_world, world_bodies
+
+    sim = robots if _is_simulation(robots) else None
+    w, wsim = resolve_world(sim if world is None else world, "world")
+    robots = _robot_list(robots, allow_empty=w is not None or bodies is not None)
+    if q is None:
+        if sim is None and robots:
+            raise ValueError("q must be given (joint positions per robot), unless robots is a Simulation")
+        q = [sim.state(i)[0] for i in range(len(robots))] if robots else []
+    if floor is None:
+        floor = True if w is None else bool(w.floor)
+    shown = [] if bodies is None else ([bodies] if isinstance(bodies, Body) else list(bodies))
+    if w is not None:
+        shown = shown + world_bodies(wsim if wsim is not None else w)
+        if collision_boxes and wsim is not None and wsim.steps > 0:
+            now = wsim.contacts()
+            if colliding is None:
+                colliding = colliding_from_contacts(now, robots)
+            if contacts is None:
+                contacts = contact_lines(now)
+    if contacts is False:
+        contacts = None
+    if not robots and not shown:
+        raise ValueError("nothing to draw: give robots, bodies or a world with bodies")
     if ax is None:
         import matplotlib.pyplot as plt
 
@@ -637,6 +800,6 @@ def draw(ax, robots, q, *, reference=None, holding=None, collision_boxes: bool =
     scene = Scene(ax, robots, colors=colors, collision_boxes=collision_boxes, floor=floor, tile=tile,
                   limits=limits, elev=elev, azim=azim, axis=axis, zoom=zoom, contact_length=contact_length,
                   edges=edges, cull=cull, ghost_margin=ghost_margin)
-    scene.update(q, reference=reference, holding=holding, colliding=colliding, contacts=contacts, bodies=bodies,
+    scene.update(q, reference=reference, holding=holding, colliding=colliding, contacts=contacts, bodies=shown,
                  label=label)
     return scene
