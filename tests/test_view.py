@@ -222,7 +222,7 @@ def frame_as_drawn(anim, log, robots, k):
     w, h = anim.fig.get_size_inches()
     scene = view.draw(new_axes(w, h, anim.fig.dpi), robots, [rl.q[row] for rl in log.robots],
                       reference=[rl.q_ref[row] for rl in log.robots], limits=anim.scene.limits,
-                      floor=anim.scene.floor_extent, cull=True)
+                      floor=anim.scene.floor_extent, zoom=anim.scene.zoom, cull=True)
     return render(scene.fig)
 
 

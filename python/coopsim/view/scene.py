@@ -278,7 +278,9 @@ class Scene:
         self.contact_length = _positive(contact_length, "contact_length")
         self.tile = _positive(tile, "tile")
         self.ghost_margin = _positive(ghost_margin, "ghost_margin", zero=True)
-        self._zoom = (1.6 if not axis else 0.9) if zoom is None else _positive(zoom, "zoom")
+        # by default as large as the boxes allow: the floor's edges may leave the picture, the boxes may not
+        self._zoom_auto = zoom is None and not axis and limits is None
+        self._zoom = (0.9 if axis else 1.6) if zoom is None else _positive(zoom, "zoom")
         # azim None: DEFAULT_AZIM, turned at the first fit when that hides bodies behind the robots
         self._auto_azim = azim is None
         elev = DEFAULT_ELEV if elev is None else _finite(elev, "elev")
@@ -473,6 +475,32 @@ class Scene:
         self.ax.set_ylim(*L[1])
         self.ax.set_zlim(*L[2])
         self.ax.set_box_aspect(tuple(L[:, 1] - L[:, 0]), zoom=self._zoom)
+        if self._zoom_auto:
+            # no box out of the picture: zoom less where they would reach past its edges
+            zoom = self._zoom
+            for _ in range(3):
+                reach = self._reach(corners)
+                if reach <= 0.97:
+                    break
+                zoom *= 0.95 / reach
+                self.ax.set_box_aspect(tuple(L[:, 1] - L[:, 0]), zoom=zoom)
+            self._zoom_now = zoom
+        else:
+            self._zoom_now = self._zoom
+
+    def _reach(self, points) -> float:
+        """How far the points (m, 3) reach from the middle of the axes' place in the figure towards its edges,
+        at most: 1 at an edge (the larger of x and y, as fractions of the half width and half height). A 3D
+        Axes draws into a square, but its artists are not clipped: the place is the whole subplot."""
+        from mpl_toolkits.mplot3d import proj3d
+
+        self.ax.apply_aspect()           # as drawing will: the square the Axes draws into
+        x, y, _ = proj3d.proj_transform(points[:, 0], points[:, 1], points[:, 2], self.ax.get_proj())
+        disp = self.ax.transData.transform(np.column_stack([x, y]))
+        bb = self.ax.get_position(original=True).transformed(self.fig.transFigure)
+        fx = np.abs(disp[:, 0] - (bb.x0 + bb.x1) / 2) / (bb.width / 2)
+        fy = np.abs(disp[:, 1] - (bb.y0 + bb.y1) / 2) / (bb.height / 2)
+        return float(max(fx.max(), fy.max()))
 
     # ---- state ----
 
@@ -671,6 +699,11 @@ class Scene:
         return (float(f[..., 0].min()), float(f[..., 0].max()), float(f[..., 1].min()), float(f[..., 1].max()))
 
     @property
+    def zoom(self) -> float:
+        """The zoom of the picture (matplotlib's box aspect zoom): the one given, or the default as fitted."""
+        return float(getattr(self, "_zoom_now", self._zoom))
+
+    @property
     def limits(self) -> np.ndarray:
         """((x0, x1), (y0, y1), (z0, z1)) m of the axes, (3, 2)."""
         return None if self._limits is None else self._limits.copy()
@@ -755,8 +788,9 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
     convention, looking from above (default elevation 22; default azimuth
     -62, from the front right, turned in steps of 7.5 degrees when that
     hides the scenery or bodies behind the robots: see
-    :meth:`Scene.choose_azimuth`); zoom: > 1 enlarges (default 1.6, or 0.9
-    with axis=True to leave room for the tick labels). axis: draw
+    :meth:`Scene.choose_azimuth`); zoom: > 1 enlarges (default 1.6, less
+    where a box would reach out of the picture unless limits are given;
+    0.9 with axis=True to leave room for the tick labels). axis: draw
     matplotlib's axes, ticks and panes (a frame then costs several times
     more). Faces are flat-shaded by a light over the camera's left
     shoulder, with darker edges (edges=False: none). cull: leave out faces

@@ -125,7 +125,7 @@ def _log_and_robots(log, robots):
 
     if robots is None:
         raise ValueError("robots must be given with a log (the robots in log order, for their boxes)")
-    robots = _robot_list(robots)
+    robots = _robot_list(robots, allow_empty=True)
     if len(robots) != len(log.robots):
         raise ValueError(f"robots must match the log's robots: the log has {len(log.robots)}, got {len(robots)}")
     return log, robots
@@ -178,12 +178,10 @@ def colliding_from_log(log, robots=None) -> List[np.ndarray]:
 
 def colliding_from_contacts(contacts, robots, labels=None) -> List[np.ndarray]:
     """Per robot a (boxes,) bool mask: True for boxes in one of `contacts` (``sim.contacts()``: dicts with
-    a, b and depth; points with depth < 0, kept by Bullet past separation, do not count)."""
+    a and b; every point the world reports, touching or pushing)."""
     index = _box_index(robots, labels)
     masks = [np.zeros(len(r.boxes), dtype=bool) for r in robots]
     for c in contacts:
-        if c.get("depth", 0.0) < 0:
-            continue
         for side in ("a", "b"):
             ik = index.get(c[side])
             if ik is not None:
@@ -196,9 +194,8 @@ def colliding_from_contacts(contacts, robots, labels=None) -> List[np.ndarray]:
 def contact_lines(contacts) -> np.ndarray:
     """(m, 2, 3) (point, direction) pairs from ``sim.contacts()``: each point on a (the body added first:
     the floor, scenery, a free body before a link) with the direction a pushes b (-normal), so that
-    lines stand out of the floor and the walls towards what touches them. Points with depth < 0 are
-    left out."""
-    pts = [(c["point_a"], -np.asarray(c["normal"], dtype=float)) for c in contacts if c.get("depth", 0.0) >= 0]
+    lines stand out of the floor and the walls towards what touches them."""
+    pts = [(c["point_a"], -np.asarray(c["normal"], dtype=float)) for c in contacts]
     return np.array(pts, dtype=float).reshape(-1, 2, 3)
 
 
@@ -208,7 +205,7 @@ def contacts_from_log(log) -> Optional[list]:
     points (run the simulation with ``log_contacts=True``).
 
     Row r shows, for each touching pair, its points at the last world step in (t[r-1], t[r]] (the row's
-    interval, as :func:`colliding_from_log`); points with depth < 0 are left out.
+    interval, as :func:`colliding_from_log`).
     """
     if _is_simulation(log):
         log = log.log
@@ -219,7 +216,6 @@ def contacts_from_log(log) -> Optional[list]:
     out: list = [None] * len(t)
     if len(cp) == 0 or len(t) == 0:
         return out
-    cp = cp[cp["depth"].to_numpy(dtype=float) >= 0]
     tt = cp["t"].to_numpy(dtype=float)
     row = _rows_of(t, tt)
     keep = row < len(t)
