@@ -318,6 +318,251 @@ def test_per_row_holding_colliding_contacts_and_bodies(run_log):
     np.testing.assert_allclose(lines[1], [[0.3, 0.1, 0.2], [0.3 + boxes.scene.contact_length, 0.1, 0.2]])
 
 
+# ---- the world: scenery, free bodies, colliding boxes and contacts from a simulation ----
+
+WALL_Y = 0.25          # the wall's mid-plane, 5 mm thick
+
+
+@pytest.fixture(scope="module")
+def wall_sim():
+    """SCARA #1 driven into a wall (test_world.py's scenario), every contact point logged; a bar lying on the
+    floor and a cube beside it, both free."""
+    r = cs.robots.scara1()
+    q0 = np.array([0.0, 0.3, 0.10, 0.0, np.pi / 2, 0.02])
+    w = cs.World()
+    w.add_static_box("wall", [0.3, 0.0025, 0.4], position=[0.45, WALL_Y, 0.4])
+    w.add_free_box("bar", [0.175, 0.01, 0.01], 0.15, position=[0.45, -0.25, 0.01], friction=0.5)
+    w.add_free_box("cube", [0.03, 0.03, 0.03], 0.2, position=[0.2, -0.3, 0.03])
+    sim = cs.Simulation(dt=2e-4, world=w, log_every=10, log_contacts=True)
+    sim.add_robot(r, cs.PID(400.0, 0.0, 40.0), cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]])))
+    sim.run(0.4, progress=False)
+    return sim
+
+
+def box_names(robot):
+    return [b.name for b in robot.boxes]
+
+
+def face_towards_camera(scene, robot, q, box):
+    """The centre (3,) of the face of a box that looks most towards the camera."""
+    from coopsim.view.geometry import FACE_NORMALS, view_direction
+
+    P, H = robot.shapes(q)
+    k = int(np.argmax(FACE_NORMALS @ (P[box, :3, :3].T @ view_direction(scene.ax.elev, scene.ax.azim))))
+    return (P[box] @ np.append(FACE_NORMALS[k] * H[box], 1.0))[:3]
+
+
+def is_red(p):
+    return p[0] > p[1] + 100 and p[0] > p[2] + 100
+
+
+def is_green(p):
+    return p[1] > p[0] + 60 and p[1] > p[2] + 60
+
+
+def test_a_wall_contact_draws_the_touching_box_red_a_free_one_green_and_the_contact_lines(wall_sim):
+    sim = wall_sim
+    robot = sim.robots[0]
+    now = sim.contacts()
+    touching = {c["b"].split("/")[1] for c in now if c["a"] == "wall"}
+    assert "link3" in touching and "link2" not in touching          # the quill is against the wall, the arm free
+    scene = view.draw(new_axes(6.4, 4.8, 80), sim, collision_boxes=True)
+    # the world's bodies: the wall as scenery, the bar red, the cube in the other bodies' colour
+    assert scene.body_names == ["wall", "bar", "cube"]
+    assert set(scene.floor_faces()[..., 2].ravel()) == {0.0}
+    q = sim.state(0)[0]
+    img = render(scene.fig)
+    names = box_names(robot)
+    quill, arm = names.index("link3"), names.index("link2")
+    red = pixel(img, scene, face_towards_camera(scene, robot, q, quill))
+    green = pixel(img, scene, face_towards_camera(scene, robot, q, arm))
+    assert is_red(red), red
+    assert is_green(green), green
+    # every box is red exactly when the world reports a contact of it
+    for k, name in enumerate(names):
+        c = scene.colors("robot", 0, box=k)[0]
+        assert (c[0] > c[1]) == (name in {n.split("/")[1] for c_ in now for n in (c_["a"], c_["b"])
+                                          if n.startswith("scara1/")}), name
+    # a contact line per contact point, from the point on a along the push on b (out of the wall: -y)
+    lines = scene.contact_lines()
+    assert len(lines) == len(now)
+    for seg, c in zip(lines, now):
+        np.testing.assert_allclose(seg[0], c["point_a"], atol=1e-12)
+        np.testing.assert_allclose(seg[1] - seg[0], -scene.contact_length * c["normal"], atol=1e-12)
+    wall_lines = [seg for seg, c in zip(lines, now) if c["a"] == "wall"]
+    assert wall_lines and all(seg[1, 1] < seg[0, 1] for seg in wall_lines)
+    # scenery grey, the bar red, the cube purple: the colours of the faces drawn
+    from matplotlib.colors import to_rgb
+
+    for name, colour in (("wall", view.COLORS["scenery"]), ("bar", view.COLORS["body"]),
+                         ("cube", view.COLORS["free_body"])):
+        c = scene.colors("body", scene.body_index(name))[:, :3]
+        hue = c / c.max(axis=1, keepdims=True)
+        base = np.array(to_rgb(colour))
+        np.testing.assert_allclose(hue, np.tile(base / base.max(), (len(c), 1)), atol=1e-9)
+    # the bar's face towards the camera is red in the picture
+    bar = sim.body_state("bar")["pose"]
+    assert is_red(pixel(img, scene, (bar @ [0.0, 0.0, 0.01, 1.0])[:3]))
+    # without collision boxes: the robot's own colours, no lines
+    plain = view.draw(new_axes(), sim)
+    assert len(plain.contact_lines()) == 0 and not is_red(255 * plain.colors("robot", 0, box=quill)[0])
+
+
+def rows_expected(log, robot, label="scara1"):
+    """Colliding masks from the contact points (an independent count): row r is True when a point of the box
+    (depth >= 0, as the events count them) falls in (t[r-1], t[r]]."""
+    cp = log.contact_points
+    cp = cp[cp["depth"] >= 0]
+    t = log.t
+    out = np.zeros((len(t), len(robot.boxes)), dtype=bool)
+    for k, name in enumerate(box_names(robot)):
+        mine = cp[(cp["a"] == f"{label}/{name}") | (cp["b"] == f"{label}/{name}")]
+        for tp in mine["t"].to_numpy():
+            r = int(np.searchsorted(t, tp - 1e-12, side="left"))
+            if r < len(t):
+                out[r, k] = True
+    return out
+
+
+def test_colliding_masks_from_the_log_of_a_wall_contact(wall_sim):
+    sim = wall_sim
+    log = sim.log
+    robot = sim.robots[0]
+    names = box_names(robot)
+    masks = view.colliding_from_log(log, sim.robots)
+    assert len(masks) == 1 and masks[0].shape == (len(log.t), len(robot.boxes)) and masks[0].dtype == bool
+    m = masks[0]
+    np.testing.assert_array_equal(m, rows_expected(log, robot))
+    assert view.colliding_from_log(sim)[0].tolist() == m.tolist()      # a Simulation: its log and robots
+    ev = log.contacts
+    links = ev[ev["b"].str.startswith("scara1/")]
+    assert set(links["a"]) == {"wall"}
+    # boxes that never touch the wall stay False; those that do are True only from begin to end
+    t = log.t
+    for k, name in enumerate(names):
+        mine = links[links["b"] == f"scara1/{name}"]
+        if mine.empty:
+            assert not m[:, k].any(), name
+            continue
+        for _, e in mine.iterrows():
+            end = np.inf if np.isnan(e["end"]) else e["end"]
+            inside = (t >= e["begin"] - 1e-12) & (np.concatenate([[-np.inf], t[:-1]]) < end - 1e-12)
+            assert m[inside, k].all(), name
+        # outside every event of the box: False (the row after an event's end and before its beginning)
+        first = mine["begin"].min()
+        assert not m[t < first - 1e-12, k].any(), name
+    assert not m[:, [names.index(n) for n in ("base", "link1", "link2")]].any()
+    quill = names.index("link3")
+    assert m[-1, quill] and not m[0, quill]
+    # a contact shorter than a log row (link4 touched the wall for two world steps) shows in one row
+    short = links[(links["steps"] <= 5) & links["end"].notna()]
+    assert len(short)
+    for _, e in short.iterrows():
+        assert m[:, names.index(e["b"].split("/")[1])].sum() == 1
+    # contact points per row: the latest world step's points of each pair in the row's interval
+    pts = view.contacts_from_log(log)
+    assert len(pts) == len(t) and pts[0] is not None                 # the bar and the cube on the floor
+    last = log.contact_points[log.contact_points["t"] == log.contact_points["t"].max()]
+    np.testing.assert_allclose(pts[-1][:, 0], last[["point_x", "point_y", "point_z"]].to_numpy(), atol=1e-12)
+    np.testing.assert_allclose(pts[-1][:, 1], -last[["normal_x", "normal_y", "normal_z"]].to_numpy(), atol=1e-12)
+    # a log kept without contact points has none; the masks come from the events alone
+    sim2 = cs.Simulation(dt=2e-4, world=cs.World(), log_every=10)
+    sim2.add_robot(cs.robots.scara1(), cs.PID(0.0, 0.0, 0.0), np.array([0.0, 0.3, 0.1, 0.0, np.pi / 2, 0.02]))
+    log2 = sim2.run(0.01, progress=False)
+    assert view.contacts_from_log(log2) is None
+    assert not view.colliding_from_log(log2, sim2.robots)[0].any()
+
+
+def test_an_animation_of_a_simulation_draws_the_bar_at_its_logged_pose_and_the_colliding_boxes(wall_sim):
+    sim = wall_sim
+    log = sim.log
+    anim = view.animate(sim, fps=25, figsize=(6.4, 4.8), dpi=80, collision_boxes=True, reference=False)
+    assert len(anim) == 11 and anim.scene.body_names == ["wall", "bar", "cube"]
+    bar_log = log.bodies["bar"]
+    quill = box_names(sim.robots[0]).index("link3")
+    masks = view.colliding_from_log(log, sim.robots)[0]
+    for k in (0, 5, 10):
+        anim.show_frame(k)
+        row = int(np.argmin(np.abs(log.t - anim.times[k])))
+        T = bar_log.poses()[row]
+        drawn = anim.scene.faces("body", anim.scene.body_index("bar")).reshape(-1, 3)
+        d = np.linalg.norm(drawn[:, None] - corners(T, np.array([0.175, 0.01, 0.01]))[None], axis=2)
+        assert d.min(axis=1).max() < 1e-12                           # at the logged pose of this frame's row
+        img = render(anim.fig)
+        assert is_red(pixel(img, anim.scene, bar_log.position[row] + [0.0, 0.0, 0.01])), k
+        c = anim.scene.colors("robot", 0, box=quill)[0]
+        assert (c[0] > c[1] + 0.3) == bool(masks[row, quill]), k
+    assert masks[0, quill] is np.False_ and masks[-1, quill]
+
+
+def test_an_animation_follows_a_moving_bar_frame_by_frame():
+    # a bar thrown across the floor: frame k shows it, red, where the log has it at that frame's time
+    w = cs.World()
+    w.add_free_box("bar", [0.1, 0.03, 0.03], 0.15, position=[-0.3, 0.0, 0.35], velocity=[1.2, 0.0, 0.5], friction=0.5)
+    w.add_static_box("block", [0.05, 0.2, 0.05], position=[0.6, 0.0, 0.05])
+    sim = cs.Simulation(dt=2e-4, world=w, log_every=25)
+    log = sim.run(0.5, progress=False)
+    anim = view.animate(sim, fps=20, figsize=(6.4, 4.8), dpi=80)
+    assert anim.scene.robots == [] and anim.scene.body_names == ["bar", "block"]      # in the order added
+    bar = log.bodies["bar"]
+    positions = []
+    for k in (2, 6, 9):
+        anim.show_frame(k)
+        row = int(np.argmin(np.abs(log.t - anim.times[k])))
+        img = render(anim.fig)
+        p = bar.position[row]
+        positions.append(p)
+        assert is_red(pixel(img, anim.scene, p)), (k, pixel(img, anim.scene, p))
+    # and not where it was in another frame: the pixel of frame 2's position is floor by frame 9
+    assert np.linalg.norm(positions[0] - positions[2]) > 0.2
+    assert not is_red(pixel(img, anim.scene, positions[0]))
+    # the block: grey scenery
+    anim.show_frame(0)
+    img = render(anim.fig)
+    grey = pixel(img, anim.scene, [0.6, 0.0, 0.1])
+    assert np.ptp(grey) < 30 and 40 < grey.mean() < 200, grey
+
+
+def test_the_task_scene_shows_the_container_and_the_bar_past_the_robots():
+    from coopsim.tasks import scene as task
+    from coopsim.view.geometry import box_samples, hidden, view_direction
+
+    r1, r2 = task.scaras()
+    sim = cs.Simulation(dt=2e-4, world=task.world())
+    for r in (r1, r2):
+        sim.add_robot(r, cs.PID(0.0, 0.0, 0.0), r.q_limits.mean(axis=1))
+    scene = view.draw(new_axes(6.4, 4.8, 80), sim)
+    names = [w[0] for w in task.container_walls()]
+    assert scene.body_names == names + ["bar"]
+    walls = [(w[2], w[1]) for w in task.container_walls()]
+    robot_boxes = [r.shapes(r.q_limits.mean(axis=1)) for r in (r1, r2)]
+    P = np.concatenate([b[0] for b in robot_boxes])
+    H = np.concatenate([b[1] for b in robot_boxes])
+
+    def hidden_fraction(azim):
+        pts = np.concatenate([box_samples(T[None], h[None]) for T, h in walls])
+        return hidden(pts, view_direction(scene.ax.elev, azim), P, H).mean()
+
+    # matplotlib's usual camera (-62 degrees) has the container behind SCARA #1; the default turns past it
+    assert hidden_fraction(-62.0) > 0.3
+    assert hidden_fraction(scene.ax.azim) == 0.0
+    # in the picture: the container's top wall where it is drawn, in its shade of the scenery's grey
+    img = render(scene.fig)
+    bare = render(view.draw(new_axes(6.4, 4.8, 80), sim, world=False, azim=scene.ax.azim, limits=scene.limits,
+                            floor=scene.floor_extent, zoom=scene.zoom).fig)
+    T, h = walls[1]
+    top = (T @ [0.05, 0.0, h[2], 1.0])[:3]           # the middle of a tile (4 along the wall), off the seams
+    seen = pixel(img, scene, top)
+    want = 255 * scene.colors("body", names.index("container_top"), face=1)[0, :3]
+    assert np.abs(seen - want).max() <= 6, (seen, want)
+    assert np.abs(seen - pixel(bare, scene, top)).max() > 20
+    # every box of the scene inside the picture
+    h_px, w_px = img.shape[:2]
+    xy = scene.project(scene.faces("robot").reshape(-1, 3))
+    xy = np.concatenate([xy, scene.project(scene.faces("body").reshape(-1, 3))])
+    assert (xy[:, 0] >= 0).all() and (xy[:, 0] < w_px).all() and (xy[:, 1] >= 0).all() and (xy[:, 1] < h_px).all()
+
+
 # ---- bad input ----
 
 def test_bad_input_names_the_argument(run_log, tmp_path):
@@ -400,6 +645,30 @@ def test_bad_input_names_the_argument(run_log, tmp_path):
         scene.faces("floor")
     with pytest.raises(ValueError, match="k must be a frame index"):
         view.animate(log, robots, **small).show_frame(99)
+
+
+def test_bad_world_input_names_the_argument(run_log):
+    log, robots = run_log
+    small = dict(figsize=(2, 2), dpi=20)
+    for bad in ("wall", 42, [cs.World()], cs.robots.scara1()):
+        with pytest.raises(ValueError, match="world must be a coopsim.World, a coopsim.Simulation"):
+            view.draw(new_axes(), [R1, R2], [Q1, Q2], world=bad)
+        with pytest.raises(ValueError, match="world must be"):
+            view.animate(log, robots, world=bad, **small)
+        with pytest.raises(ValueError, match="world must be"):
+            view.world_bodies(bad)
+    with pytest.raises(ValueError, match="robots must be given"):
+        view.animate(log, **small)
+    with pytest.raises(ValueError, match="q must be given"):
+        view.draw(new_axes(), [R1, R2])
+    with pytest.raises(ValueError, match="log must be"):
+        view.colliding_from_log(np.zeros(3), [R1])
+    with pytest.raises(ValueError, match="robots must match"):
+        view.colliding_from_log(log, [R1])
+    with pytest.raises(ValueError, match="no body named"):
+        view.draw(new_axes(), [R1, R2], [Q1, Q2]).body_index("bar")
+    with pytest.raises(ValueError, match="nothing to draw"):
+        view.draw(new_axes(), [], world=cs.World())
 
 
 # ---- plots ----
