@@ -428,7 +428,7 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     def body_at(b, chk, k):
         h, p, _ = chk
         pose = p if p.ndim == 3 else p[at[k]]
-        return Body(b.name, h, pose, b.color, b.alpha, b.scenery)
+        return Body(b.name, h, pose, b.color, b.alpha, b.scenery, b.tiled)
 
     def frame_args(k: int) -> dict:
         r = at[k]

@@ -61,9 +61,12 @@ class Body:
     (m, 4, 4) (m boxes, fixed), or one pose per log row for
     :func:`~coopsim.view.animate`: (rows, 4, 4) for one box, (rows, m, 4, 4)
     for m boxes. color: any matplotlib colour (default the bar's red);
-    alpha: 0..1. scenery: fixed surroundings (a world's static boxes):
-    their big faces are drawn in tiles (see :meth:`Scene.choose_azimuth`
-    for how they turn the default camera).
+    alpha: 0..1. scenery: fixed surroundings (a world's static boxes; see
+    :meth:`Scene.choose_azimuth` for how they turn the default camera).
+    tiled: faces longer than the scene's tile drawn as tiles without
+    edges between them, so that they sort by depth piece by piece against
+    what lies on them or beside them (matplotlib sorts whole polygons);
+    the world's bodies are tiled.
     """
 
     name: str
@@ -72,6 +75,7 @@ class Body:
     color: object = COLORS["body"]
     alpha: float = 1.0
     scenery: bool = False
+    tiled: bool = False
 
     def _checked(self, what: str, rows: Optional[int] = None):
         """(half (m, 3), poses, rgba (4,)), checked; poses (m, 4, 4), or with `rows` given either that
@@ -306,6 +310,7 @@ class Scene:
         self._bodies: list = []
         self._body_names: List[str] = []
         self._body_scenery: List[bool] = []
+        self._body_tiled: List[bool] = []
 
         self._floor_given = None          # "auto", (x0, x1, y0, y1) or None (no floor)
         if floor is True:
@@ -331,6 +336,7 @@ class Scene:
             ax.set_zlabel("z (m)")
         self.floor = Poly3DCollection(np.zeros((0, 4, 3)), linewidths=0.0, zorder=0.5)
         ax.add_collection3d(self.floor, autolim=False)
+        self._linewidth = float(linewidth)
         self.polys = Poly3DCollection(np.zeros((0, 4, 3)), linewidths=linewidth if edges else 0.0, zorder=1)
         ax.add_collection3d(self.polys, autolim=False)
         self.lines = Line3DCollection(np.zeros((0, 2, 3)), colors=[_rgba(c["contact"], "COLORS['contact']")],
@@ -339,6 +345,14 @@ class Scene:
         for a in (self.floor, self.polys, self.lines):
             a.set_clip_on(False)       # a 3D Axes draws into a square: use the whole (wider) figure
         self.label = self.fig.text(0.02, 0.975, "", va="top", ha="left", fontsize=9, zorder=4)
+        # the boxes may use the whole subplot, not only the square a 3D Axes draws into: an empty frame over
+        # the subplot keeps all of it in a tight bounding box (notebooks show figures with bbox_inches='tight')
+        from matplotlib.patches import Rectangle
+
+        pos = ax.get_position(original=True)
+        self.extent = Rectangle((pos.x0, pos.y0), pos.width, pos.height, transform=self.fig.transFigure,
+                                fill=False, edgecolor="none", linewidth=0.0, zorder=0)
+        self.fig.add_artist(self.extent)
         self._verts = np.zeros((0, 4, 3))
         self._owner = np.zeros((0, 4), dtype=int)     # per polygon: kind, robot or body index, box, face
         self._cols = np.zeros((0, 4))
@@ -536,6 +550,7 @@ class Scene:
             listed = [] if bodies is None else [bodies] if isinstance(bodies, Body) else list(bodies)
             self._body_names = [b.name for b in listed]
             self._body_scenery = [bool(b.scenery) for b in listed]
+            self._body_tiled = [bool(b.tiled) for b in listed]
         if label is not _KEEP:
             self.label.set_text("" if label is None else str(label))
         self._rebuild()
@@ -584,11 +599,11 @@ class Scene:
             keep = normals @ view_direction(elev, azim) > -0.2
             verts, normals, base, owner = verts[keep], normals[keep], base[keep], owner[keep]
         cols = shade(base, normals, light_direction(elev, azim))
-        # big scenery faces in tiles, so that they sort by depth piece by piece; no edges between the tiles
+        # tiled bodies' big faces in tiles, so that they sort by depth piece by piece; no edges between them
         seamless = np.zeros(len(verts), dtype=bool)
-        if any(self._body_scenery):
+        if any(self._body_tiled):
             big = owner[:, 0] == 1
-            big[big] = np.array(self._body_scenery, dtype=bool)[owner[big, 1]]
+            big[big] = np.array(self._body_tiled, dtype=bool)[owner[big, 1]]
             if big.any():
                 pieces, counts = split_quads(verts[big], self.tile)
                 n = np.ones(len(verts), dtype=int)
@@ -601,12 +616,17 @@ class Scene:
         self._verts, self._owner, self._cols = verts, owner, cols
         self.polys.set_verts(verts)
         self.polys.set_facecolor(cols)
-        if self._edges:
+        if self._edges or seamless.any():
             edge = cols.copy()
-            edge[~seamless, :3] *= 0.55
-            ghost = owner[:, 0] == 2
-            edge[ghost, 3] = min(1.0, 2.0 * self._ghost_face[3])
+            if self._edges:
+                edge[~seamless, :3] *= 0.55
+                ghost = owner[:, 0] == 2
+                edge[ghost, 3] = min(1.0, 2.0 * self._ghost_face[3])
             self.polys.set_edgecolor(edge)
+            # tiles edged in their own colour, wide enough to close the antialiased seams between them
+            width = np.full(len(verts), self._linewidth if self._edges else 0.0)
+            width[seamless] = 1.0
+            self.polys.set_linewidth(width)
         c = self._contacts
         self._segments = (np.stack([c[:, 0], c[:, 0] + self.contact_length * c[:, 1]], axis=1)
                           if len(c) else np.zeros((0, 2, 3)))

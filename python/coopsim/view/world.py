@@ -86,7 +86,8 @@ def world_bodies(world, log=None, *, rows: Optional[int] = None, scenery: bool =
     ``log.bodies`` gives each free body one pose per row (for
     :func:`~coopsim.view.animate`); a free body the log lacks stays at its
     pose now. rows: the expected row count (default len(log.t)). The floor
-    is not a box: the scene draws its own tiles. Link bodies (the robots')
+    is not a box: the scene draws its own tiles. Every body is ``tiled``
+    (its big faces drawn in pieces, for depth sorting). Link bodies (the robots')
     are drawn by the robots themselves. scenery / free: include those.
     """
     w, sim = resolve_world(world)
@@ -97,7 +98,8 @@ def world_bodies(world, log=None, *, rows: Optional[int] = None, scenery: bool =
         d = w.body(name)
         kind = d["kind"]
         if kind == "static" and scenery:
-            out.append(Body(name, np.array(d["half_extents"]), np.array(d["pose"]), COLORS["scenery"], scenery=True))
+            out.append(Body(name, np.array(d["half_extents"]), np.array(d["pose"]), COLORS["scenery"], scenery=True,
+                            tiled=True))
         elif kind == "free" and free:
             if log is not None and name in getattr(log, "bodies", {}):
                 pose = log.bodies[name].poses()
@@ -107,7 +109,7 @@ def world_bodies(world, log=None, *, rows: Optional[int] = None, scenery: bool =
                 pose = np.array(sim.body_state(name)["pose"])
             else:
                 pose = np.array(d["pose"])
-            out.append(Body(name, np.array(d["half_extents"]), pose, _free_color(name)))
+            out.append(Body(name, np.array(d["half_extents"]), pose, _free_color(name), tiled=True))
     return out
 
 
