@@ -334,7 +334,8 @@ def wall_sim():
     w.add_free_box("bar", [0.175, 0.01, 0.01], 0.15, position=[0.45, -0.25, 0.01], friction=0.5)
     w.add_free_box("cube", [0.03, 0.03, 0.03], 0.2, position=[0.2, -0.3, 0.03])
     sim = cs.Simulation(dt=2e-4, world=w, log_every=10, log_contacts=True)
-    sim.add_robot(r, cs.PID(400.0, 0.0, 40.0), cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]])))
+    turn = cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]]))
+    sim.add_robot(r, cs.PID(400.0, 0.0, 40.0), turn)
     sim.run(0.4, progress=False)
     return sim
 

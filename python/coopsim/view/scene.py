@@ -415,8 +415,8 @@ class Scene:
         behind boxes of the other kind (bodies behind robots, robots behind
         bodies; a box out of sight weighs more than parts of several).
         From the preferred azimuth outwards in 7.5 degree steps either way,
-        the first whose score is within 0.02 of the best wins. Without
-        bodies, or with a given azim, the camera stays."""
+        the first whose score is at most 0.02 wins (if none, the best).
+        Without bodies, or with a given azim, the camera stays."""
         if not self._auto_azim:
             return float(self.ax.azim)
         frames = [[(bool(rb), np.asarray(p, float).reshape(-1, 4, 4), np.asarray(h, float).reshape(-1, 3), bool(sc))
@@ -455,8 +455,12 @@ class Scene:
             return sum((hidden(pts, v, OP, OH).reshape(k, 15).mean(axis=1) ** 2).sum()
                        for pts, k, OP, OH in tests) / n_boxes
 
-        scores = np.array([score(a) for a in candidates])
-        best = float(candidates[np.flatnonzero(scores <= scores.min() + 0.02)[0]])
+        scores = []
+        for a in candidates:
+            scores.append(score(a))
+            if scores[-1] <= 0.02:
+                break
+        best = float(candidates[len(scores) - 1] if scores[-1] <= 0.02 else candidates[int(np.argmin(scores))])
         best = (best + 180.0) % 360.0 - 180.0
         self.ax.view_init(elev=elev, azim=best)
         return best
