@@ -250,3 +250,54 @@ def test_a_second_holder_takes_no_load_at_first_and_all_of_it_after_a_handover()
     assert list(zip(g["robot"], g["event"])) == [(0, "grasp"), (1, "grasp"), (0, "release")]
     assert sim.holding(0) is None and sim.holding(1) == "bar"
     assert fb[-1] == pytest.approx(G_BAR, rel=1e-6)
+
+
+def payload_robot(r, X, mass, he):
+    """SCARA #1 with a box of `mass` and half extents `he` lumped into its clamp link 5 at the pose
+    X (4, 4) in frame 5: the exact oracle of a held body at rest. Link 5's CoM row is rewritten
+    to the composite centre of mass (frame 5 sits at Tx(L5) of frame 4 with alpha 0) and its
+    inertia to the composite's about it, in that CoM frame."""
+    m5, I5 = r.masses[4], r.inertias[4]
+    L5 = r.dh[4, 2]
+    C5 = r.com[4]
+    A_com5 = cs.dh_transform(*C5)  # link 5's CoM frame in frame 4 (q5 = 0)
+    A5 = cs.dh_transform(*r.dh[4])  # frame 5 in frame 4
+    c_link = A_com5[:3, 3]
+    c_box = (A5 @ X)[:3, 3]
+    m = m5 + mass
+    c = (m5 * c_link + mass * c_box) / m
+
+    def shifted(I, R, mass_, at):
+        d = at - c
+        return R @ I @ R.T + mass_ * (d @ d * np.eye(3) - np.outer(d, d))
+
+    I_box = cs.box_inertia(mass, *(2 * np.asarray(he)))
+    I4 = shifted(I5, A_com5[:3, :3], m5, c_link) + shifted(I_box, (A5 @ X)[:3, :3], mass, c_box)
+    theta = np.arctan2(c[1], c[0])
+    row = [theta, c[2], np.hypot(c[0], c[1]), 0.0]
+    Rc = cs.dh_transform(*row)[:3, :3]
+    com, masses, inertias = r.com.copy(), r.masses.copy(), r.inertias.copy()
+    com[4], masses[4], inertias[4] = row, m, Rc.T @ I4 @ Rc
+    return cs.Robot.from_dh(r.dh, com, masses, inertias, joint_types=r.joint_types,
+                            friction=r.friction_coefficients, q_limits=r.q_limits, tau_limits=r.tau_limits,
+                            gravity=r.gravity_acceleration, base_position=r.base_position, base_yaw=r.base_yaw,
+                            tool=r.tool)
+
+
+def test_holding_still_costs_the_torques_of_the_body_lumped_into_the_clamp_link():
+    he = BOX * [1, 2 / 3, 1]
+    r, w = scene(he)
+    sim = closing(r, w, lift=0.05)
+    sim.run(1.5, progress=False)
+    assert sim.holding(0) == "box"
+    q, qd = sim.state(0)
+    assert np.abs(qd).max() < 1e-4  # at rest
+    link = r.clamp.fixed_link
+    X = np.linalg.solve(r.frames(q)[link], sim.body_state("box")["pose"])
+    oracle = payload_robot(r, X, 0.1, he)
+    # gravity torques of robot + payload = the robot's own, minus what the weld brings in
+    tau_ext = sim.applied(0)["tau_ext"]
+    expected = oracle.gravity(q) - r.gravity(q)
+    assert expected[2] == pytest.approx(-0.1 * 9.81, rel=1e-9)  # the quill (down is +d3) carries the box
+    # joints 1-5 (joint 6, the jaw, also feels the stop at the body's width); within the weld's sag
+    np.testing.assert_allclose(-tau_ext[:5], expected[:5], rtol=0, atol=1e-4 * np.abs(oracle.gravity(q)).max())
