@@ -301,3 +301,31 @@ def test_holding_still_costs_the_torques_of_the_body_lumped_into_the_clamp_link(
     assert expected[2] == pytest.approx(-0.1 * 9.81, rel=1e-9)  # the quill (down is +d3) carries the box
     # joints 1-5 (joint 6, the jaw, also feels the stop at the body's width); within the weld's sag
     np.testing.assert_allclose(-tau_ext[:5], expected[:5], rtol=0, atol=1e-4 * np.abs(oracle.gravity(q)).max())
+
+
+def test_a_held_body_swinging_without_friction_or_gains_never_gains_energy():
+    # no gravity, no friction, zero gains: the arm swings with the box welded to its clamp. The weld is
+    # a spring-damper between them (it can only take energy out, through its damping of the small
+    # relative motion), so the total kinetic energy of robot and box never grows and falls only a little
+    r = cs.robots.scara1(gravity=(0, 0, 0), friction=np.zeros(6))
+    fixed, _ = r.clamp_faces(Q0)
+    P = r.fk(Q0)
+    P[:3, 3] = fixed[:3, 3] + fixed[:3, 2] * BOX[1]  # 3 cm wide: both faces touch
+    qd0 = np.array([0.5, -0.8, 0.0, 1.0, 0.0, 0.0])
+    twist = r.jacobian(Q0, 5, np.linalg.solve(r.frames(Q0)[5], P[:, 3])[:3]) @ qd0  # moving with the clamp
+    w = cs.World(floor=False, gravity=(0, 0, 0))
+    w.add_free_box("box", BOX, 0.1, P, friction=0.5, velocity=twist[:3], angular_velocity=twist[3:])
+    sim = cs.Simulation(dt=DT, world=w, log_every=10)
+    q_ref = Q0.copy()
+    q_ref[5] = 0.029  # commanded closed: the rule holds at once
+    sim.add_robot(r, cs.PID(0.0, 0.0, 0.0, gravity_compensation=False), q_ref, q0=Q0, qd0=qd0)
+    log = sim.run(2.0, progress=False)
+    assert set(log[0].holding[1:]) == {"box"}
+    box = log.bodies["box"]
+    R = box.poses()[:, :3, :3]
+    I = np.einsum("rij,jk,rlk->ril", R, cs.box_inertia(0.1, *(2 * BOX)), R)
+    e_box = 0.05 * (box.velocity ** 2).sum(1) + 0.5 * np.einsum("ri,rij,rj->r", box.angular_velocity, I,
+                                                               box.angular_velocity)
+    e = e_box + np.array([sum(r.energy(q, qd)) for q, qd in zip(log.q, log.qd)])
+    assert e.max() <= e[0] * (1 + 1e-9)
+    assert e[-1] > 0.8 * e[0]  # measured 0.937
