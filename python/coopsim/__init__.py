@@ -1,9 +1,9 @@
 """coopsim: simulation and control of serial manipulators, alone and cooperating.
 
 The engine is C++ (Eigen, Bullet) in the compiled module ``coopsim._core``;
-this package re-exports it and adds robot definitions, planning, plotting
-and the cooperative task. SI units and radians throughout; arrays are numpy
-float64.
+this package re-exports it and adds robot definitions, planning, plotting,
+views, and the cooperative task's scene (the task's sequence is still to
+come). SI units and radians throughout; arrays are numpy float64.
 """
 from . import _core
 from ._core import (

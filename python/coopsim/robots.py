@@ -1,7 +1,8 @@
 """The two SCARA robots of the paper, built from DH and centre-of-mass tables.
 
 The paper gives the joint structure (Tables 1 and 2) but no numbers; the
-defaults below are coopsim's (``shared/design/robots.md``). Every dimension is
+defaults below are coopsim's (listed with their units in the README's table
+"The two SCARAs"). Every dimension is
 a keyword argument. Changing one rebuilds the tables, and the mass properties
 follow it: each link is a uniform box whose mass scales with its volume
 (constant density), unless ``masses`` is given, and whose inertia tensor is

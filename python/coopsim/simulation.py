@@ -182,6 +182,11 @@ class Simulation:
         return self._core.time
 
     @property
+    def t(self) -> float:
+        """Simulated time now, s (the same as :attr:`time`)."""
+        return self._core.time
+
+    @property
     def steps(self) -> int:
         """Steps taken since t = 0."""
         return self._core.steps

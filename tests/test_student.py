@@ -1,0 +1,61 @@
+"""What a student trips over: each fix shown."""
+from __future__ import annotations
+
+import numpy as np
+
+import coopsim as cs
+
+
+def test_the_readme_round_trip_gives_back_the_accelerations():
+    # the README's first block: the same wrench in eq. (1) and eq. (2)
+    r = cs.robots.scara1(L1=0.32)
+    q, qd = np.zeros(6), np.zeros(6)
+    F = np.array([0, 0, -5.0, 0, 0, 0])
+    tau = r.inverse_dynamics(q, qd, np.ones(6), f_ext=F)
+    np.testing.assert_allclose(r.forward_dynamics(q, qd, tau, f_ext=F), np.ones(6), rtol=1e-12)
+    assert not np.allclose(r.forward_dynamics(q, qd, tau), np.ones(6))  # what tripped the student
+    with open(__file__.replace("tests/test_student.py", "README.md"), encoding="utf-8") as f:
+        assert "qdd = r.forward_dynamics(q, qd, tau, f_ext=F)" in f.read()
+
+
+def test_a_frame_callback_gets_the_simulation_and_its_pacer_and_sim_t_exists():
+    r = cs.robots.scara1()
+    sim = cs.Simulation()
+    sim.add_robot(r, cs.PID(50.0, 0.0, 5.0), np.full(6, 0.02))
+    seen = []
+
+    def on_frame(s, pacer):
+        seen.append((s.t, s.time, pacer.speed))
+        return len(seen) < 3
+
+    clock = iter(np.arange(0.0, 10.0, 0.01))
+    pacer = cs.Pacer(speed=1.0, frame_rate=100.0, clock=lambda: next(clock), sleep=lambda s: None)
+    sim.run_paced(1.0, on_frame=on_frame, pacer=pacer)
+    assert len(seen) == 3 and all(a == b for a, b, _ in seen) and seen[-1][0] > 0
+
+
+def test_the_pid_says_it_compensates_gravity():
+    assert "gravity_compensation=True" in repr(cs.PID(1.0, 0.0, 0.1))
+    assert "gravity_compensation=False" in repr(cs.PID(1.0, 0.0, 0.1, gravity_compensation=False))
+    r = cs.robots.scara1()
+    sim = cs.Simulation()
+    q = np.full(6, 0.02)
+    sim.add_robot(r, cs.PID(0.0, 0.0, 0.0), q)
+    sim.step(1)
+    np.testing.assert_allclose(sim.log.tau[0], np.clip(r.gravity(q), -r.tau_limits, r.tau_limits), rtol=1e-12)
+
+
+def test_an_output_folder_is_made_for_the_log(tmp_path):
+    sim = cs.Simulation()
+    sim.add_robot(cs.robots.scara1(), cs.PID(50.0, 0.0, 5.0), np.full(6, 0.02))
+    log = sim.run(0.01, progress=False)
+    path = log.to_csv(tmp_path / "out" / "run.csv")
+    assert cs.SimulationLog.read_csv(path).t.shape == log.t.shape
+
+
+def test_the_package_does_not_claim_the_task_before_it_is_there():
+    import os
+
+    assert "task's sequence is still" in cs.__doc__
+    with open(os.path.join(os.path.dirname(cs.robots.__file__), "robots.py"), encoding="utf-8") as f:
+        assert "shared/design" not in f.read()
