@@ -59,3 +59,15 @@ def test_the_package_does_not_claim_the_task_before_it_is_there():
     assert "task's sequence is still" in cs.__doc__
     with open(os.path.join(os.path.dirname(cs.robots.__file__), "robots.py"), encoding="utf-8") as f:
         assert "shared/design" not in f.read()
+
+
+def test_planning_errors_name_the_argument_and_what_is_wrong():
+    import pytest
+
+    r = cs.robots.scara2()
+    with pytest.raises(ValueError, match=r"position must be finite \(got \[nan, 0.0, 0.2\]\)"):
+        cs.clamp_pose(r, [np.nan, 0, 0.2])
+    with pytest.raises(ValueError, match=r"wrong shape for position"):
+        cs.clamp_pose(r, [0, 0.2])
+    with pytest.raises(ValueError, match=r"wrong shape for poses\[1\]: expected \(4, 4\), got \(3, 3\)"):
+        cs.plan_cartesian(r, [np.eye(4), np.eye(3)], [0, 1])

@@ -41,8 +41,10 @@ def clamp_pose(robot: Robot, position, yaw: float = 0.0, pitch: float | None = N
     if kind is None:
         raise ValueError(f"clamp_pose needs a SCARA structure: {robot.ik_kind_reason()}")
     p = np.asarray(position, dtype=float)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise ValueError(f"position must be 3 finite numbers (m), got shape {p.shape}")
+    if p.shape != (3,):
+        raise ValueError(f"wrong shape for position: expected (3,) m, got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"position must be finite (got {p.tolist()})")
     if not math.isfinite(yaw):
         raise ValueError("yaw must be finite")
     q = np.zeros(robot.dof)
@@ -132,7 +134,15 @@ def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
 
 
 def _poses_arg(poses) -> np.ndarray:
-    P = np.asarray(poses, dtype=float)
+    if isinstance(poses, (list, tuple)):
+        for i, T in enumerate(poses):
+            shape = np.shape(T)
+            if shape != (4, 4):
+                raise ValueError(f"wrong shape for poses[{i}]: expected (4, 4), got {shape}")
+    try:
+        P = np.asarray(poses, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError("poses must be an (N, 4, 4) array of numbers") from None
     if P.ndim == 2:
         P = P[None]
     if P.ndim != 3 or P.shape[1:] != (4, 4):
