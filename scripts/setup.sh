@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs everything coopsim needs on a fresh Debian machine, idempotently:
-# Debian packages (compiler, Eigen, Bullet, pkg-config) through apt-get, then
+# Debian packages (compiler, Eigen, Bullet, pkg-config, chromium) through apt-get, then
 # the package itself with its Python dependencies through pip. Re-running it
 # skips what is already there and rebuilds incrementally in build/.
 set -euo pipefail
@@ -10,7 +10,8 @@ export PIP_ROOT_USER_ACTION=ignore PIP_DISABLE_PIP_VERSION_CHECK=1
 PY=${PYTHON:-python3}
 
 need=()
-for pkg in g++ pkg-config libeigen3-dev libbullet-dev; do
+# chromium: the browser tests of view.replay_html (headless, through Playwright; no browser download)
+for pkg in g++ pkg-config libeigen3-dev libbullet-dev chromium; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

@@ -18,8 +18,10 @@ and the contact points red lines, all from the simulation:
 """
 from .animation import Animation, animate, ffmpeg_path
 from .geometry import box_corners, box_faces
+from .replay import replay_html
 from .scene import COLORS, Body, Scene, draw
 from .world import colliding_from_log, contacts_from_log, world_bodies
 
 __all__ = ["COLORS", "Animation", "Body", "Scene", "animate", "box_corners", "box_faces", "draw", "ffmpeg_path"]
 __all__ += ["colliding_from_log", "contacts_from_log", "world_bodies"]
+__all__ += ["replay_html"]

@@ -1,0 +1,679 @@
+"""Browser replay of a simulation: one self-contained HTML file, played in any browser from ``file://``.
+
+    view.replay_html(sim, "out/run.html")            # a finished Simulation: its log, robots and world
+    view.replay_html(log, "out/run.html", robots=sim.robots, world=sim.world, fps=30, speed=0.5)
+
+The page shows every box of every robot (``robot.shapes(q)``), the desired
+pose (the log's ``q_ref``) as a transparent blue ghost, the world's static
+scenery, its free bodies (the bar, in the paper's red) and the floor, with
+the colours of :data:`coopsim.view.COLORS`. It has an orbit camera (drag to
+turn, right-drag or shift-drag to pan, wheel to zoom), a play/pause button
+(or the space bar), a time scrubber (arrow keys step a frame) and a speed
+control from 0 to 400 %, as in the paper's viewer. It needs no server and
+no network: the viewer's JavaScript and the data are inside the file.
+
+How it is made. The viewer is meshcat's (MIT licence, kept in the page):
+its bundle ``viewer/dist/main.min.js`` from the ``meshcat`` wheel holds
+three.js r129, OrbitControls and a msgpack decoder. The scene is a list of
+meshcat commands, as meshcat's Python client would send them to its server
+(``set_object`` for each box, ``set_transform`` for fixed ones,
+``set_property``, and one ``set_animation`` for everything that moves),
+each packed with msgpack (meshcat's own ``umsgpack``), base64 in the page
+and fed to the viewer's ``handle_command_bytearray``. The animation is
+three.js keyframes: per moving box a position track and a quaternion track
+at the chosen frame rate (``fps``, default 30), with times and values as
+float32 arrays (msgpack extension 0x17, decoded as ``Float32Array``), so a
+20 s run of both SCARAs is well under 2 MB, the viewer bundle (0.85 MB)
+included. Frames are log rows (the row nearest each multiple of 1/fps),
+so a frame shows exactly what the log holds at its time; three.js
+interpolates between frames while playing. meshcat's scene root turns the
+z-up world into three.js's y-up one; the poses in the commands are z-up.
+
+A small JavaScript hook, ``window.coopsim``, lets scripts and tests drive
+the page (all times in the log's seconds, poses in the z-up world):
+
+- ``seek(t)``: shows time t (clamped to the replay) and renders; returns t.
+- ``pose(name)``: the (4, 4) pose of a box as nested rows, or null:
+  ``robot<i>/<box name>`` (e.g. ``robot0/link2``), ``ghost<i>/<box name>``,
+  ``bodies/<name>`` (e.g. ``bodies/bar``), ``scenery/<name>``, ``floor``.
+- ``names()``: all such names. ``time()``, ``play()``, ``pause()``,
+  ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``; ``t0``, ``t1``,
+  ``frames`` (the frame times), ``fps``, ``ready`` (true once loaded),
+  ``viewer`` (meshcat's ``Viewer``: its ``camera``, ``controls``, ``scene``).
+"""
+from __future__ import annotations
+
+import base64
+import functools
+import html
+import json
+import math
+import os
+import re
+import uuid
+from typing import List, Optional
+
+import numpy as np
+
+from .scene import COLORS
+
+__all__ = ["replay_html"]
+
+_GROUP = "coopsim"            # meshcat path of everything drawn here
+_FLOOR_THICKNESS = 0.01       # m, the floor slab under z = 0 (drawn)
+#: the static scenery's colour (the container); robots, ghosts and free bodies take theirs from COLORS
+SCENERY_COLOR = "#8fa1b8"
+_STILL = 1e-7                 # m (and rad): a box that moves less than this over the replay is drawn fixed
+_LOOP_ONCE = 2200             # THREE.LoopOnce: a seek to the end shows the end (LoopRepeat would wrap to 0)
+
+
+# ---- meshcat's bundle and client ----
+
+@functools.lru_cache(maxsize=1)
+def _meshcat_assets():
+    """(viewer JavaScript, licence text, meshcat version) from the installed meshcat wheel.
+
+    The package is found, not imported: importing meshcat loads its ZMQ server and IPython machinery,
+    none of which a file needs."""
+    import importlib.util
+    from importlib.metadata import PackageNotFoundError, version
+
+    spec = importlib.util.find_spec("meshcat")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("coopsim.view.replay_html needs the meshcat package for its viewer bundle "
+                          "(pip install meshcat; scripts/setup.sh installs it)")
+    root = list(spec.submodule_search_locations)[0]
+    dist = os.path.join(root, "viewer", "dist")
+    js_path = os.path.join(dist, "main.min.js")
+    if not os.path.isfile(js_path):   # pragma: no cover
+        raise ImportError(f"meshcat's viewer bundle is missing from this installation: {js_path}")
+    with open(js_path, encoding="utf-8") as f:
+        js = f.read()
+    if "</script" in js.lower():   # pragma: no cover - none in meshcat 0.3.2
+        js = re.sub(r"</(script)", r"<\\/\1", js, flags=re.I)
+    notices = []
+    for p in (os.path.join(root, "viewer", "LICENSE"), os.path.join(dist, "main.min.js.LICENSE.txt")):
+        if os.path.isfile(p):
+            with open(p, encoding="utf-8") as f:
+                notices.append(f.read().strip())
+    if not notices:   # pragma: no cover
+        notices.append("MeshCat viewer: MIT License, Copyright (c) 2018 Robin Deits. "
+                       "three.js: MIT License, Copyright 2010-2021 Three.js Authors.")
+    try:
+        mc_version = version("meshcat")
+    except PackageNotFoundError:   # pragma: no cover
+        mc_version = "?"
+    return js, "\n\n".join(notices), mc_version
+
+
+def _pack(cmd: dict) -> str:
+    import umsgpack   # the msgpack meshcat's Python client uses (a dependency of meshcat)
+
+    return base64.b64encode(umsgpack.packb(cmd)).decode("ascii")
+
+
+def _f32(a: np.ndarray):
+    """A float32 array as msgpack extension 0x17, which meshcat's decoder turns into a Float32Array."""
+    import umsgpack
+
+    return umsgpack.Ext(0x17, np.ascontiguousarray(a, dtype="<f4").tobytes())
+
+
+def _hex(color) -> int:
+    from matplotlib.colors import to_rgb
+
+    try:
+        r, g, b = to_rgb(color)
+    except (ValueError, TypeError):
+        raise ValueError(f"not a matplotlib colour: {color!r}") from None
+    return (int(round(r * 255)) << 16) | (int(round(g * 255)) << 8) | int(round(b * 255))
+
+
+# three.js JSON (ObjectLoader, format 4.5) of a set_object command, as meshcat.geometry lowers a Mesh of a
+# Box with a MeshLambertMaterial, or LineSegments of a PointsGeometry with a LineBasicMaterial
+
+def _object_json(kind: str, geometry: dict, material: dict) -> dict:
+    gid, mid, oid = (str(uuid.uuid4()) for _ in range(3))
+    return {"metadata": {"version": 4.5, "type": "Object"},
+            "geometries": [dict(geometry, uuid=gid)],
+            "materials": [dict(material, uuid=mid)],
+            "object": {"uuid": oid, "type": kind, "geometry": gid, "material": mid,
+                       "matrix": [1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0]}}
+
+
+def _material(kind: str, color: int, opacity: float) -> dict:
+    transparent = opacity < 1.0
+    m = {"type": kind, "color": int(color), "side": 2, "transparent": transparent, "opacity": float(opacity),
+         "vertexColors": 0}
+    if transparent:
+        m["depthWrite"] = False         # a ghost hides nothing behind it
+    return m
+
+
+def _box_object(half, color: int, opacity: float = 1.0) -> dict:
+    """A box of the given half extents, Lambert-shaded."""
+    w, h, d = (float(2 * x) for x in half)
+    return _object_json("Mesh", {"type": "BoxGeometry", "width": w, "height": h, "depth": d},
+                        _material("MeshLambertMaterial", color, opacity))
+
+
+def _lines_object(segments: np.ndarray, color: int, opacity: float) -> dict:
+    """Line segments between consecutive pairs of points (m, 3)."""
+    pos = {"itemSize": 3, "type": "Float32Array", "array": _f32(np.asarray(segments, float).reshape(-1)),
+           "normalized": False}
+    return _object_json("LineSegments", {"type": "BufferGeometry", "data": {"attributes": {"position": pos}}},
+                        _material("LineBasicMaterial", color, opacity))
+
+
+def _set_object(path: str, obj: dict) -> dict:
+    return {"type": "set_object", "path": path, "object": obj}
+
+
+def _set_transform(path: str, T: np.ndarray) -> dict:
+    return {"type": "set_transform", "path": path, "matrix": _f32(np.asarray(T, float).T.reshape(-1))}
+
+
+def _set_property(path: str, key: str, value) -> dict:
+    return {"type": "set_property", "path": path, "property": key, "value": value}
+
+
+# ---- poses ----
+
+def _quaternions(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices -> (..., 4) unit quaternions [x, y, z, w] (three.js order)."""
+    R = np.asarray(R, float)
+    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    tr = m00 + m11 + m22
+    q = np.empty(R.shape[:-2] + (4,))
+    # Shepperd: divide by the largest of 4w^2, 4x^2, 4y^2, 4z^2
+    cand = np.stack([tr, m00, m11, m22], axis=-1)
+    k = np.argmax(cand, axis=-1)
+    for case in range(4):
+        sel = k == case
+        if not np.any(sel):
+            continue
+        r = R[sel]
+        if case == 0:
+            t = np.sqrt(1.0 + r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2]) * 2
+            v = np.stack([(r[:, 2, 1] - r[:, 1, 2]) / t, (r[:, 0, 2] - r[:, 2, 0]) / t,
+                          (r[:, 1, 0] - r[:, 0, 1]) / t, 0.25 * t], axis=-1)
+        elif case == 1:
+            t = np.sqrt(1.0 + r[:, 0, 0] - r[:, 1, 1] - r[:, 2, 2]) * 2
+            v = np.stack([0.25 * t, (r[:, 0, 1] + r[:, 1, 0]) / t, (r[:, 0, 2] + r[:, 2, 0]) / t,
+                          (r[:, 2, 1] - r[:, 1, 2]) / t], axis=-1)
+        elif case == 2:
+            t = np.sqrt(1.0 - r[:, 0, 0] + r[:, 1, 1] - r[:, 2, 2]) * 2
+            v = np.stack([(r[:, 0, 1] + r[:, 1, 0]) / t, 0.25 * t, (r[:, 1, 2] + r[:, 2, 1]) / t,
+                          (r[:, 0, 2] - r[:, 2, 0]) / t], axis=-1)
+        else:
+            t = np.sqrt(1.0 - r[:, 0, 0] - r[:, 1, 1] + r[:, 2, 2]) * 2
+            v = np.stack([(r[:, 0, 2] + r[:, 2, 0]) / t, (r[:, 1, 2] + r[:, 2, 1]) / t, 0.25 * t,
+                          (r[:, 1, 0] - r[:, 0, 1]) / t], axis=-1)
+        q[sel] = v
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return q
+
+
+def _continuous(q: np.ndarray) -> np.ndarray:
+    """(frames, 4) quaternions with signs flipped so that neighbours have a positive dot product."""
+    q = q.copy()
+    for k in range(1, len(q)):
+        if np.dot(q[k], q[k - 1]) < 0:
+            q[k] = -q[k]
+    return q
+
+
+def _tracks(times: np.ndarray, poses: np.ndarray) -> list:
+    """Position and quaternion keyframe tracks of one box, (frames, 4, 4) poses at the given clip times."""
+    pos = poses[:, :3, 3]
+    quat = _continuous(_quaternions(poses[:, :3, :3]))
+    t = _f32(times)
+    return [{"name": ".position", "type": "vector", "times": t, "values": _f32(pos.reshape(-1))},
+            {"name": ".quaternion", "type": "quaternion", "times": t, "values": _f32(quat.reshape(-1))}]
+
+
+def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
+    """Indices of the log rows shown: the row nearest each t0 + k / fps within [t0, t1], the last row in it."""
+    lo = int(np.searchsorted(t, t0 - 1e-12, side="left"))
+    hi = int(np.searchsorted(t, t1 + 1e-12, side="right")) - 1
+    if hi < lo:
+        raise ValueError(f"no log row between t_start = {t0:g} s and t_end = {t1:g} s")
+    seg = t[lo:hi + 1]
+    n = int(math.floor((seg[-1] - seg[0]) * fps + 1e-9)) + 1
+    targets = seg[0] + np.arange(n) / fps
+    j = np.clip(np.searchsorted(seg, targets), 1, max(len(seg) - 1, 1))
+    if len(seg) > 1:
+        j = np.where(np.abs(seg[j - 1] - targets) <= np.abs(seg[j] - targets), j - 1, j)
+    else:
+        j = np.zeros(n, dtype=int)
+    rows = np.unique(np.append(j, len(seg) - 1)) + lo
+    return rows
+
+
+def _nearest(t_src: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Index of the row of t_src nearest each time."""
+    if len(t_src) == 1:
+        return np.zeros(len(times), dtype=int)
+    j = np.clip(np.searchsorted(t_src, times), 1, len(t_src) - 1)
+    return np.where(np.abs(t_src[j - 1] - times) <= np.abs(t_src[j] - times), j - 1, j)
+
+
+def _safe(name: str) -> str:
+    return str(name).replace("/", "_").strip() or "_"
+
+
+# ---- arguments ----
+
+def _number(x, what: str, lo: float, hi: float = math.inf, lo_open: bool = False) -> float:
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{what} must be a number, got {type(x).__name__}")
+    v = float(x)
+    if not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
+        rng = f"({lo:g}, {hi:g}]" if lo_open else f"[{lo:g}, {hi:g}]"
+        raise ValueError(f"{what} must be in {rng}, got {x!r}")
+    return v
+
+
+def _unpack_sources(log, robots, world):
+    """(log, robots, world) from a SimulationLog or a Simulation."""
+    from ..log import SimulationLog
+
+    if not isinstance(log, SimulationLog) and hasattr(log, "log") and hasattr(log, "robots"):   # a Simulation
+        sim = log
+        log = sim.log
+        if robots is None:
+            robots = sim.robots
+        if world is None:
+            world = getattr(sim, "world", None)
+    if not isinstance(log, SimulationLog):
+        raise ValueError(f"log must be a coopsim SimulationLog or a finished Simulation, got {type(log).__name__}")
+    if robots is None:
+        robots = []
+        if len(log.robots):
+            raise ValueError("robots must be given with a log (the robots it was run with), or pass the Simulation")
+    from .. import Robot
+
+    if isinstance(robots, Robot):
+        robots = [robots]
+    robots = list(robots)
+    if not all(isinstance(r, Robot) for r in robots):
+        raise ValueError("robots must be a coopsim.Robot or a sequence of them")
+    if len(robots) != len(log.robots):
+        raise ValueError(f"the log has {len(log.robots)} robot(s), got {len(robots)} robot(s)")
+    for i, (r, rl) in enumerate(zip(robots, log.robots)):
+        if r.dof != rl.dof:
+            raise ValueError(f"robots[{i}] has {r.dof} joints, the log's robot {i} ({rl.name}) {rl.dof}")
+    return log, robots, world
+
+
+def _world_bodies(world) -> list:
+    """The world's bodies as dicts (name, kind, half_extents, pose); [] without a world."""
+    if world is None:
+        return []
+    try:
+        names = list(world.body_names)
+    except AttributeError:
+        raise ValueError(f"world must be a coopsim.World, got {type(world).__name__}") from None
+    return [world.body(n) for n in names]
+
+
+# ---- the page ----
+
+def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed: float = 1.0,
+                t_start: Optional[float] = None, t_end: Optional[float] = None, reference: bool = True,
+                floor: bool = True, title: Optional[str] = None, autoplay: bool = False,
+                colors=None, ghost_margin: float = 0.002, elev: float = 30.0, azim: float = -45.0,
+                zoom: float = 1.0) -> str:
+    """Write a replay of a simulation log as one self-contained HTML file; returns its path.
+
+    log: a :class:`~coopsim.log.SimulationLog`, or a finished
+    :class:`~coopsim.Simulation` (its log, robots and world are used unless
+    given). robots: the robots the log was run with (``sim.robots``), one
+    per robot in the log. world: the simulation's :class:`~coopsim.World`
+    (``sim.world``): its static boxes are drawn as scenery and its free
+    bodies (sizes from the world, poses from ``log.bodies``) in the body
+    colour; needed when the log has free bodies.
+
+    fps: frames per second of the replay's keyframes (> 0; each frame is
+    the log row nearest its time, so a log coarser than 1/fps keeps all its
+    rows). speed: the speed the page starts at, 0 to 4 (400 %). t_start,
+    t_end: the part of the log to replay (s; default all). reference: draw
+    the desired pose (``q_ref``) as a transparent blue ghost (robots whose
+    reference is not finite get none). floor: draw the floor (z = 0) when
+    the world has one (or there is no world). title: the page's title.
+    autoplay: start playing when opened. colors: one colour per robot for
+    its links (matplotlib colours; default :data:`COLORS`). ghost_margin:
+    the ghost's boxes are this much smaller (m), so that a robot on its
+    reference hides its ghost. elev, azim: the camera's elevation and
+    azimuth (degrees, as matplotlib's view_init) looking at the middle of
+    the scene; zoom: > 1 brings it closer.
+
+    The file (about 0.9 MB plus 36 bytes per moving box and frame) needs
+    no network or server; see the module's docstring for the page's
+    controls and its ``window.coopsim`` hook.
+    """
+    log, robots, world = _unpack_sources(log, robots, world)
+    fps = _number(fps, "fps", 0.0, 1000.0, lo_open=True)
+    speed = _number(speed, "speed", 0.0, 4.0)
+    ghost_margin = _number(ghost_margin, "ghost_margin", 0.0, 0.1)
+    elev = _number(elev, "elev", -90.0, 90.0)
+    azim = _number(azim, "azim", -math.inf)
+    zoom = _number(zoom, "zoom", 0.0, 100.0, lo_open=True)
+    if path is None or not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be a file name, got {path!r}")
+    path = os.fspath(path)
+
+    t_log = np.asarray(log.t, dtype=float)
+    if t_log.ndim != 1 or len(t_log) == 0:
+        raise ValueError("the log has no rows: run the simulation first")
+    t0 = float(t_log[0]) if t_start is None else _number(t_start, "t_start", -math.inf)
+    t1 = float(t_log[-1]) if t_end is None else _number(t_end, "t_end", -math.inf)
+    if t1 < t0:
+        raise ValueError(f"t_end ({t1:g} s) must not be before t_start ({t0:g} s)")
+    rows = _frame_rows(t_log, fps, t0, t1)
+    times = t_log[rows]
+    t0, t1 = float(times[0]), float(times[-1])
+    clip_t = times - t0
+
+    n = len(robots)
+    if colors is None:
+        colors = [None] * n
+    elif isinstance(colors, str) or (isinstance(colors, tuple) and len(colors) in (3, 4)
+                                      and all(isinstance(c, (int, float)) for c in colors)):
+        colors = [colors] * n
+    else:
+        colors = list(colors)
+        if len(colors) != n:
+            raise ValueError(f"colors must hold one colour per robot ({n}), got {len(colors)}")
+
+    cmds: List[dict] = []
+    names: List[str] = []
+    animations: List[dict] = []
+    bounds: List[np.ndarray] = []          # points that should be in view
+
+    def add_box(name, half, color, opacity, poses):
+        """poses: (4, 4) fixed, or (frames, 4, 4) moving."""
+        p = f"/{_GROUP}/{name}"
+        cmds.append(_set_object(p, _box_object(half, color, opacity)))
+        poses = np.asarray(poses, float)
+        first = poses if poses.ndim == 2 else poses[0]
+        cmds.append(_set_transform(p, first))
+        # still bodies (a bar resting on the floor creeps by 1e-10 m) get one pose: 0.1 um is below float32 here
+        if poses.ndim == 3 and len(poses) > 1 and np.ptp(poses, axis=0).max() > _STILL:
+            animations.append({"path": p, "clip": {"fps": 1, "name": "default", "tracks": _tracks(clip_t, poses)}})
+        names.append(name)
+
+    # robots and ghosts
+    c = COLORS
+    for i, (r, rl) in enumerate(zip(robots, log.robots)):
+        q = np.asarray(rl.q, float)[rows]
+        k = len(r.boxes)
+        shapes = [r.shapes(qq) for qq in q]
+        P = np.stack([s[0] for s in shapes])             # (frames, k, 4, 4)
+        H = shapes[0][1]
+        link = _hex(c["robots"][i % len(c["robots"])] if colors[i] is None else colors[i])
+        base, jaw = _hex(c["base"]), _hex(c["jaw"])
+        moving_jaw = r.clamp.moving_joint if r.clamp is not None else -1
+        used = set()
+        box_names = []
+        for j, b in enumerate(r.boxes):
+            nm = _safe(b.name or f"box{j}")
+            if nm in used:
+                nm = f"{nm}_{j}"
+            used.add(nm)
+            box_names.append(nm)
+            col = base if b.link == 0 else jaw if ("jaw" in b.name or b.link == moving_jaw) else link
+            add_box(f"robot{i}/{nm}", H[j], col, 1.0, P[0, j] if b.link == 0 else P[:, j])
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+        pts = np.einsum("fkab,kcb->fkca", P[:, :, :3, :3], corners[None] * H[:, None, :]) + P[:, :, None, :3, 3]
+        bounds.append(pts.reshape(-1, 3))
+        if reference:
+            qr = np.asarray(rl.q_ref, float)[rows]
+            if qr.shape == q.shape and np.all(np.isfinite(qr)):
+                G = np.stack([r.shapes(qq)[0] for qq in qr])
+                ghost = _hex(c["ghost"])
+                alpha = float(c.get("ghost_alpha", 0.3))
+                for j, b in enumerate(r.boxes):
+                    if b.link == 0:
+                        continue
+                    half = H[j] - np.minimum(ghost_margin, 0.25 * H[j])
+                    add_box(f"ghost{i}/{box_names[j]}", half, ghost, alpha, G[:, j])
+
+    # the world: scenery, free bodies
+    bodies = _world_bodies(world)
+    has_floor = world is None
+    free_logged = dict(getattr(log, "bodies", {}) or {})
+    for b in bodies:
+        kind, name = b["kind"], b["name"]
+        if kind == "floor":
+            has_floor = True
+        elif kind == "static":
+            add_box(f"scenery/{_safe(name)}", b["half_extents"], _hex(SCENERY_COLOR), 1.0, b["pose"])
+            T = np.asarray(b["pose"], float)
+            bounds.append((T[:3, :3] @ (np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
+                                                   for sz in (-1, 1)]) * b["half_extents"]).T).T + T[:3, 3])
+        elif kind == "free":
+            bl = free_logged.pop(name, None)
+            if bl is None:
+                poses = np.asarray(b["pose"], float)
+            else:
+                poses = np.asarray(bl.poses(), float)[_nearest(np.asarray(bl.t, float), times)]
+            add_box(f"bodies/{_safe(name)}", b["half_extents"], _hex(c["body"]), 1.0, poses)
+            pp = poses.reshape(-1, 4, 4)[:, :3, 3]
+            bounds.append(pp)
+    if free_logged:
+        raise ValueError(f"the log has free bodies ({', '.join(sorted(free_logged))}) that the world does not: "
+                         "pass world=sim.world (their sizes), or the Simulation itself")
+
+    allpts = np.concatenate(bounds) if bounds else np.zeros((1, 3))
+    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    # the camera looks at the middle of what moves and the scenery, from elev / azim, far enough to see it all
+    centre = (lo + hi) / 2
+    centre[2] = 0.4 * hi[2] + 0.6 * lo[2]
+    radius = max(0.2, float(np.max(np.linalg.norm(allpts - centre, axis=1))))
+    dist = 0.8 * radius / math.sin(math.radians(75.0 / 2)) / zoom      # meshcat's camera: 75 deg vertical view
+    e, a = math.radians(elev), math.radians(azim)
+    d = dist * np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+
+    # the floor: a slab whose top is z = 0, tiled by grid lines every 0.1 m
+    if floor and has_floor:
+        tile = 0.1
+        x0, x1 = math.floor((lo[0] - 0.15) / tile) * tile, math.ceil((hi[0] + 0.15) / tile) * tile
+        y0, y1 = math.floor((lo[1] - 0.15) / tile) * tile, math.ceil((hi[1] + 0.15) / tile) * tile
+        T = np.eye(4)
+        T[:3, 3] = [(x0 + x1) / 2, (y0 + y1) / 2, -_FLOOR_THICKNESS / 2]
+        fc = c["floor"][0] if isinstance(c["floor"], (list, tuple)) else c["floor"]
+        add_box("floor", [(x1 - x0) / 2, (y1 - y0) / 2, _FLOOR_THICKNESS / 2], _hex(fc), 1.0, T)
+        segs = []
+        for x in np.arange(x0, x1 + 1e-9, tile):
+            segs += [[x, y0, 0.0005], [x, y1, 0.0005]]
+        for y in np.arange(y0, y1 + 1e-9, tile):
+            segs += [[x0, y, 0.0005], [x1, y, 0.0005]]
+        cmds.append(_set_object(f"/{_GROUP}/floor_grid", _lines_object(np.array(segs), _hex("#8a9099"), 0.6)))
+
+    # viewer set-up: no default grid and axes, a light background, the camera on the scene
+    cmds += [_set_property("/Grid", "visible", False), _set_property("/Axes", "visible", False),
+             _set_property("/Background", "top_color", [0.97, 0.98, 1.0]),
+             _set_property("/Background", "bottom_color", [0.74, 0.78, 0.84])]
+    if animations:
+        cmds.append({"type": "set_animation", "animations": animations,
+                     "options": {"play": True, "repetitions": 1, "loopMode": _LOOP_ONCE, "clampWhenFinished": True}})
+
+    js, notices, mc_version = _meshcat_assets()
+    robot_names = ", ".join(rl.name for rl in log.robots) or "no robots"
+    if title is None:
+        title = f"coopsim replay: {robot_names}"
+    meta = {"t0": t0, "t1": t1, "fps": fps, "speed": speed, "autoplay": bool(autoplay), "names": names,
+            "frames": [float(x) for x in times], "group": _GROUP,
+            "camera": {"position": [float(x) for x in centre + d], "target": [float(x) for x in centre]}}
+    values = {"TITLE": html.escape(str(title)), "NOTICES": html.escape(notices).replace("--", "- -"),
+              "NOTICES_TEXT": html.escape(notices), "MESHCAT_VERSION": html.escape(str(mc_version)),
+              "COMMANDS": json.dumps([_pack(x) for x in cmds]), "META": json.dumps(meta).replace("</", "<\\/"),
+              "MESHCAT_JS": js}
+    page = re.sub(r"@([A-Z_]+)@", lambda m: values[m.group(1)], _TEMPLATE)     # one pass: no value is rescanned
+    d = os.path.dirname(os.path.abspath(path))
+    if d:
+        os.makedirs(d, exist_ok=True)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(page)
+    return path
+
+
+_TEMPLATE = r"""<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>@TITLE@</title>
+<!-- Written by coopsim.view.replay_html. The viewer is MeshCat's (meshcat @MESHCAT_VERSION@, viewer/dist/main.min.js),
+which bundles three.js; their licence notices follow.
+
+@NOTICES@
+-->
+<style>
+  html, body { margin: 0; height: 100%; overflow: hidden; font: 13px/1.3 system-ui, sans-serif; }
+  #meshcat-pane { width: 100vw; height: 100vh; overflow: hidden; }
+  #cs-title { position: absolute; left: 10px; top: 8px; color: #223; background: rgba(255,255,255,0.7);
+              padding: 2px 6px; border-radius: 3px; pointer-events: none; }
+  #cs-bar { position: fixed; left: 0; right: 0; bottom: 0; display: flex; align-items: center; gap: 10px;
+            padding: 6px 12px; background: rgba(250,250,252,0.92); border-top: 1px solid #c8ccd4; }
+  #cs-bar button { width: 38px; height: 28px; font-size: 15px; cursor: pointer; }
+  #cs-scrub { flex: 1; min-width: 120px; }
+  #cs-speed { width: 130px; }
+  #cs-time, #cs-speed-value { font-variant-numeric: tabular-nums; white-space: nowrap; }
+  #cs-licences { position: relative; }
+  #cs-licences summary { cursor: pointer; color: #556; }
+  #cs-licences pre { position: absolute; right: 0; bottom: 28px; width: 560px; max-height: 60vh; overflow: auto;
+                     background: #fff; border: 1px solid #aab; padding: 8px; font-size: 11px; white-space: pre-wrap; }
+</style>
+</head>
+<body>
+<div id="meshcat-pane"></div>
+<div id="cs-title">@TITLE@</div>
+<div id="cs-bar">
+  <button id="cs-play" title="play / pause (space)">&#9654;</button>
+  <span id="cs-time">0.000 s</span>
+  <input id="cs-scrub" type="range" min="0" max="1" step="0.001" value="0" title="time (arrow keys: one frame)">
+  <label for="cs-speed">speed</label>
+  <input id="cs-speed" type="range" min="0" max="400" step="5" value="100" title="playback speed, 0 to 400 %">
+  <span id="cs-speed-value">100 %</span>
+  <details id="cs-licences"><summary>licences</summary><pre>@NOTICES_TEXT@</pre></details>
+</div>
+<script>@MESHCAT_JS@</script>
+<script type="application/json" id="cs-commands">@COMMANDS@</script>
+<script type="application/json" id="cs-meta">@META@</script>
+<script>
+(function () {
+  "use strict";
+  var meta = JSON.parse(document.getElementById("cs-meta").textContent);
+  var commands = JSON.parse(document.getElementById("cs-commands").textContent);
+  var THREE = MeshCat.THREE;
+  var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+  function bytes(b64) {
+    var s = atob(b64), a = new Uint8Array(s.length);
+    for (var i = 0; i < s.length; i++) a[i] = s.charCodeAt(i);
+    return a;
+  }
+  for (var i = 0; i < commands.length; i++) viewer.handle_command_bytearray(bytes(commands[i]));
+  var animator = viewer.animator;
+  animator.pause();                                       // the page's own clock drives the replay
+  if (animator.folder && viewer.gui) {                    // and its own controls: no second set in meshcat's menu
+    try { viewer.gui.removeFolder(animator.folder); } catch (e) { /* an older dat.gui */ }
+  }
+
+  var t0 = meta.t0, t1 = meta.t1, current = t0, playing = false, speed = meta.speed, last = 0;
+  var playBtn = document.getElementById("cs-play"), timeEl = document.getElementById("cs-time");
+  var scrub = document.getElementById("cs-scrub"), speedEl = document.getElementById("cs-speed");
+  var speedVal = document.getElementById("cs-speed-value");
+  scrub.min = 0; scrub.max = Math.max(t1 - t0, 0); scrub.step = "any";
+
+  function show(t) {
+    current = Math.min(Math.max(t, t0), t1);
+    if (animator.actions.length) animator.seek(current - t0);
+    scrub.value = current - t0;
+    timeEl.textContent = current.toFixed(3) + " s / " + t1.toFixed(3) + " s";
+    viewer.set_dirty();
+  }
+  function setPlaying(p) {
+    playing = p && t1 > t0;
+    last = performance.now();                             // the replay's clock runs from this moment
+    playBtn.innerHTML = playing ? "&#10074;&#10074;" : "&#9654;";
+  }
+  function setSpeed(s) {
+    if (playing) advance();                               // the time played so far at the old speed
+    speed = Math.min(Math.max(Number(s), 0), 4);
+    speedEl.value = Math.round(speed * 100);
+    speedVal.textContent = Math.round(speed * 100) + " %";
+  }
+  function frameStep(dir) {
+    var f = meta.frames, k = 0;
+    if (dir > 0) { while (k < f.length - 1 && f[k] <= current + 1e-9) k++; }
+    else { k = f.length - 1; while (k > 0 && f[k] >= current - 1e-9) k--; }
+    setPlaying(false); show(f[k]);
+  }
+  playBtn.addEventListener("click", function () {
+    if (playing) { advance(); setPlaying(false); return; }
+    if (current >= t1) show(t0);
+    setPlaying(true);
+  });
+  scrub.addEventListener("input", function () { show(t0 + Number(scrub.value)); });
+  speedEl.addEventListener("input", function () { setSpeed(Number(speedEl.value) / 100); });
+  document.addEventListener("keydown", function (e) {
+    if (e.target && e.target.tagName === "INPUT" && e.key !== " ") return;
+    if (e.key === " ") { e.preventDefault(); playBtn.click(); }
+    else if (e.key === "ArrowRight") frameStep(1);
+    else if (e.key === "ArrowLeft") frameStep(-1);
+  });
+  function advance() {                                    // wall time since the last call, times the speed
+    var now = performance.now(), t = current + (now - last) / 1000 * speed;
+    last = now;
+    if (t >= t1) { t = t1; setPlaying(false); }
+    show(t);
+  }
+  function tick() {
+    if (playing) advance();
+    requestAnimationFrame(tick);
+  }
+
+  var scene = viewer.scene;
+  function node(name) {
+    var n = viewer.scene_tree.children[meta.group];
+    var parts = String(name).split("/");
+    for (var i = 0; n && i < parts.length; i++) n = n.children[parts[i]];
+    return n ? n.object : null;
+  }
+  window.coopsim = {
+    t0: t0, t1: t1, fps: meta.fps, frames: meta.frames, ready: false, viewer: viewer,
+    names: function () { return meta.names.slice(); },
+    seek: function (t) { setPlaying(false); show(Number(t)); viewer.render(); return current; },
+    time: function () { if (playing) advance(); return current; },
+    play: function () { if (current >= t1) show(t0); setPlaying(true); },
+    pause: function () { if (playing) advance(); setPlaying(false); },
+    playing: function () { return playing; },
+    setSpeed: setSpeed,
+    speed: function () { return speed; },
+    pose: function (name) {
+      var obj = node(name);
+      if (!obj) return null;
+      obj.updateWorldMatrix(true, false);
+      var m = new THREE.Matrix4().copy(scene.matrixWorld).invert().multiply(obj.matrixWorld).elements;
+      return [[m[0], m[4], m[8], m[12]], [m[1], m[5], m[9], m[13]], [m[2], m[6], m[10], m[14]],
+              [m[3], m[7], m[11], m[15]]];
+    }
+  };
+  // the camera (z-up world in meta; three.js is y-up: (x, y, z) -> (x, z, -y)); its parents are identity in
+  // three.js's frame (meshcat's scene root turns by -90 deg about x, the camera's 'rotated' node back by +90 deg)
+  var cp = meta.camera.position, ct = meta.camera.target;
+  viewer.camera.position.set(cp[0], cp[2], -cp[1]);
+  viewer.controls.target.set(ct[0], ct[2], -ct[1]);
+  viewer.controls.update();
+  setSpeed(speed);
+  show(t0);
+  setPlaying(!!meta.autoplay);
+  requestAnimationFrame(tick);
+  window.coopsim.ready = true;
+})();
+</script>
+</body>
+</html>
+"""
