@@ -1,0 +1,394 @@
+"""coopsim.view.replay_html: a simulation replayed in one self-contained HTML file.
+
+Without a browser: the file has no network references, keeps meshcat's licence notice, stays
+below a size bound, and its packed keyframes are the log's poses. In a real browser (Debian's
+chromium, headless, driven by Playwright; scripts/setup.sh installs both): the page opens from
+file:// with the network blocked and raises no error, a seek shows the log's poses (read back
+through window.coopsim), the controls play at the chosen speed, and a screenshot shows the scene
+with the bar's red.
+"""
+from __future__ import annotations
+
+import base64
+import io
+import json
+import os
+import re
+import shutil
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+from coopsim import view
+from coopsim.tasks import scene
+
+T_END = 2.0
+#: bound on the file of a 2 s log of both SCARAs in the task's scene (the viewer bundle is 0.85 MB of it)
+SIZE_BOUND = 1.2e6
+#: float32 poses: positions within a few 1e-7 m of the log's (coordinates below 2 m), rotations 1e-6
+TOL = 2e-6
+CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if os.path.exists("/usr/bin/chromium") else None)
+
+
+def trajectory(robot, t_end, phase):
+    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
+    mid, span = (lo + hi) / 2, hi - lo
+    times = np.linspace(0.0, t_end, 5)
+    return cs.CubicTrajectory(times, [mid + 0.2 * np.sin(phase + 1.3 * k) * span for k in range(len(times))])
+
+
+def task_run(t_end=T_END, log_every=25):
+    """Both SCARAs of the task's scene on cubic trajectories (PID, so the ghost shows), the bar on the
+    floor and a second bar dropped from 0.4 m next to it."""
+    high = scene.bar_pose(x=0.95, y=-0.25, yaw=0.4)
+    high[2, 3] = 0.4
+    sim = cs.Simulation(dt=2e-4, world=scene.world(bars=[scene.bar_pose(), high]), log_every=log_every)
+    for i, r in enumerate(scene.scaras()):
+        sim.add_robot(r, cs.PID(60.0, 0.0, 6.0), trajectory(r, t_end, 1.7 * i))
+    sim.run(t_end, progress=False)
+    return sim
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return task_run()
+
+
+@pytest.fixture(scope="module")
+def page_path(sim, tmp_path_factory):
+    return view.replay_html(sim, str(tmp_path_factory.mktemp("replay") / "run.html"))
+
+
+def read(path) -> str:
+    with open(path, encoding="utf-8") as f:
+        return f.read()
+
+
+def meta(path):
+    text = read(path)
+    return json.loads(re.search(r'<script type="application/json" id="cs-meta">(.*?)</script>', text, re.S).group(1))
+
+
+def commands(path):
+    import umsgpack
+
+    text = read(path)
+    packed = json.loads(re.search(r'<script type="application/json" id="cs-commands">(.*?)</script>', text,
+                                  re.S).group(1))
+    return [umsgpack.unpackb(base64.b64decode(c)) for c in packed]
+
+
+def f32(ext):
+    return np.frombuffer(ext.data, dtype="<f4")
+
+
+def box_index(robot, name):
+    return [b.name for b in robot.boxes].index(name)
+
+
+# ---- without a browser ----
+
+def test_the_file_is_self_contained_licensed_and_small(page_path):
+    text = read(page_path)
+    size = os.path.getsize(page_path)
+    assert size < SIZE_BOUND, f"{size / 1e6:.2f} MB"
+    # nothing that a browser would fetch: no script or stylesheet from a URL, no remote url(), no @import
+    assert not re.search(r"<script[^>]*\ssrc\s*=", text, re.I)
+    assert not re.search(r"<link[^>]*\shref\s*=", text, re.I)
+    assert not re.search(r"""\b(src|href|action)\s*=\s*["']?\s*(https?:)?//""", text, re.I)
+    assert not re.search(r"""url\(\s*["']?\s*(https?:)?//""", text, re.I)
+    assert "@import" not in text
+    # the viewer is inside, with its licence notices
+    assert "MeshCat.Viewer" in text and "Copyright (c) 2018 Robin Deits" in text
+    assert "Three.js Authors" in text and "MIT" in text
+    for control in ('id="cs-play"', 'id="cs-scrub"', 'id="cs-speed" type="range" min="0" max="400"'):
+        assert control in text
+
+
+def test_frames_are_log_rows_at_the_chosen_rate(sim, tmp_path):
+    log = sim.log
+    m = meta(page_path := view.replay_html(sim, str(tmp_path / "a.html"), fps=10))
+    assert m["fps"] == 10 and m["t0"] == 0.0 and m["t1"] == pytest.approx(T_END)
+    assert len(m["frames"]) == int(T_END * 10) + 1
+    assert np.allclose(m["frames"], np.arange(21) / 10, atol=1e-12)
+    assert set(m["frames"]) <= set(np.asarray(log.t).tolist())
+    names = m["names"]
+    for n in ("robot0/link1", "robot1/fixed_jaw", "ghost0/link2", "ghost1/link6", "bodies/bar", "bodies/bar1",
+              "scenery/container_bottom", "floor"):
+        assert n in names
+    assert "ghost0/base" not in names       # the base never moves: no ghost of it
+    # a log coarser than the frame rate keeps all its rows; a part of the log
+    m = meta(view.replay_html(log, str(tmp_path / "b.html"), robots=sim.robots, world=sim.world, fps=1000,
+                              t_start=0.5, t_end=1.0))
+    assert np.allclose(m["frames"], np.asarray(log.t)[(log.t >= 0.5 - 1e-9) & (log.t <= 1.0 + 1e-9)])
+    assert os.path.getsize(page_path) < SIZE_BOUND
+
+
+def test_packed_keyframes_are_the_logs_poses(sim, page_path):
+    log, (r1, r2) = sim.log, sim.robots
+    m = meta(page_path)
+    rows = np.searchsorted(log.t, m["frames"])
+    assert np.allclose(np.asarray(log.t)[rows], m["frames"], atol=0, rtol=0)
+    anim = [c for c in commands(page_path) if c["type"] == "set_animation"]
+    assert len(anim) == 1
+    tracks = {a["path"]: a["clip"]["tracks"] for a in anim[0]["animations"]}
+
+    def keyed(path):
+        pos = f32(tracks[path][0]["values"]).reshape(-1, 3)
+        quat = f32(tracks[path][1]["values"]).reshape(-1, 4)
+        assert np.allclose(f32(tracks[path][0]["times"]), np.asarray(m["frames"]) - m["t0"], atol=1e-6)
+        return pos, quat
+
+    def rot(q):       # [x, y, z, w] -> R
+        x, y, z, w = q
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+    for i, r, box in ((0, r1, "link3"), (1, r2, "fixed_jaw")):
+        pos, quat = keyed(f"/coopsim/robot{i}/{box}")
+        gpos, _ = keyed(f"/coopsim/ghost{i}/{box}")
+        j = box_index(r, box)
+        for k in (0, len(rows) // 3, len(rows) - 1):
+            T = r.shapes(log[i].q[rows[k]])[0][j]
+            assert np.abs(pos[k] - T[:3, 3]).max() < TOL
+            assert np.abs(rot(quat[k]) - T[:3, :3]).max() < 1e-6
+            assert np.abs(gpos[k] - r.shapes(log[i].q_ref[rows[k]])[0][j][:3, 3]).max() < TOL
+    bar = log.bodies["bar1"].poses()
+    pos, _ = keyed("/coopsim/bodies/bar1")
+    assert np.abs(pos - bar[rows][:, :3, 3]).max() < TOL
+    assert pos[0, 2] > 0.39 and pos[-1, 2] < 0.011        # it fell
+    # what never moves has one fixed pose, no keyframes
+    assert not any(p.startswith(("/coopsim/scenery", "/coopsim/floor")) or p.endswith("/base") for p in tracks)
+
+
+def test_a_simulation_or_its_log_robots_and_world_give_the_same_replay(sim, tmp_path):
+    a = meta(view.replay_html(sim, str(tmp_path / "a.html")))
+    b = meta(view.replay_html(sim.log, tmp_path / "b.html", robots=sim.robots, world=sim.world))
+    assert a == b
+
+
+def test_bad_input_names_the_argument(sim, tmp_path):
+    p = str(tmp_path / "x.html")
+    with pytest.raises(ValueError, match="robots must be given"):
+        view.replay_html(sim.log, p)
+    with pytest.raises(ValueError, match="free bodies .*bar.*world"):
+        view.replay_html(sim.log, p, robots=sim.robots)
+    with pytest.raises(ValueError, match="2 robot"):
+        view.replay_html(sim.log, p, robots=sim.robots[:1], world=sim.world)
+    for kw, what in ((dict(fps=0), "fps"), (dict(fps="30"), "fps"), (dict(speed=4.5), "speed"),
+                     (dict(speed=-0.1), "speed"), (dict(t_start=1.0, t_end=0.5), "t_end"),
+                     (dict(t_start=1.001, t_end=1.002), "no log row"), (dict(colors=["red"]), "colors"),
+                     (dict(elev=120), "elev"), (dict(zoom=0), "zoom")):
+        with pytest.raises(ValueError, match=what):
+            view.replay_html(sim, p, **kw)
+    with pytest.raises(ValueError, match="log must be"):
+        view.replay_html("run.csv", p)
+    with pytest.raises(ValueError, match="path"):
+        view.replay_html(sim, None)
+    assert not os.path.exists(p)
+
+
+def test_a_robot_alone_without_a_world(tmp_path):
+    r = cs.robots.scara1()
+    s = cs.Simulation(dt=2e-4, log_every=50)
+    s.add_robot(r, cs.PID(50.0, 0.0, 5.0), trajectory(r, 0.5, 0.3))
+    s.run(0.5, progress=False)
+    m = meta(view.replay_html(s.log, str(tmp_path / "one.html"), robots=r, reference=False, speed=4))
+    assert m["speed"] == 4 and "floor" in m["names"] and not any(n.startswith("ghost") for n in m["names"])
+
+
+def test_a_world_without_robots_and_a_title_kept_as_text(tmp_path):
+    w = cs.World(floor=False)
+    w.add_free_box("box", [0.05, 0.05, 0.05], 1.0, position=[0.0, 0.0, 1.0])
+    s = cs.Simulation(dt=2e-4, world=w, log_every=50)
+    s.run(0.3, progress=False)
+    title = "a </script> <b>title</b> @COMMANDS@"
+    path = view.replay_html(s, str(tmp_path / "sub" / "fall.html"), title=title)
+    m = meta(path)
+    assert m["names"] == ["bodies/box"] and len(m["frames"]) == 10
+    text = read(path)
+    assert text.count("@COMMANDS@") == 2 and "&lt;/script&gt; &lt;b&gt;title&lt;/b&gt;" in text
+
+
+# ---- in a browser ----
+
+def _browser_or_skip():
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.skip("playwright is not installed (scripts/setup.sh installs it with the test extra)")
+    if CHROMIUM is None:
+        pytest.skip("Debian's chromium is not installed (scripts/setup.sh installs it)")
+    return sync_playwright
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_playwright = _browser_or_skip()
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+class Page:
+    """A page opened from file:// with every other request blocked; errors and blocked requests collected."""
+
+    def __init__(self, browser, path, width=1000, height=700):
+        self.errors, self.blocked = [], []
+        self.page = browser.new_page(viewport={"width": width, "height": height})
+        self.page.on("console", lambda msg: self.errors.append(f"console {msg.type}: {msg.text}")
+                     if msg.type == "error" else None)
+        self.page.on("pageerror", lambda exc: self.errors.append(f"page error: {exc}"))
+
+        def route(r):
+            if r.request.url.startswith(("file:", "data:", "blob:")):
+                r.continue_()
+            else:
+                self.blocked.append(r.request.url)
+                r.abort()
+
+        self.page.route("**/*", route)
+        self.page.goto("file://" + os.path.abspath(path))
+        self.page.wait_for_function("window.coopsim && window.coopsim.ready", timeout=30000)
+
+    def js(self, expr):
+        return self.page.evaluate(expr)
+
+    def pose(self, name):
+        p = self.js(f"window.coopsim.pose({json.dumps(name)})")
+        return None if p is None else np.array(p)
+
+    def pixels(self):
+        from PIL import Image
+
+        return np.asarray(Image.open(io.BytesIO(self.page.screenshot())).convert("RGB")).astype(int)
+
+    def close(self):
+        self.page.close()
+
+
+@pytest.fixture(scope="module")
+def page(browser, page_path):
+    p = Page(browser, page_path)
+    yield p
+    p.close()
+
+
+@pytest.mark.slow
+def test_the_page_opens_offline_without_errors(page):
+    assert page.js("typeof window.coopsim.seek") == "function"
+    assert page.js("window.coopsim.t1") == pytest.approx(T_END)
+    assert page.js("document.querySelector('canvas') !== null")
+    assert page.errors == [] and page.blocked == []
+
+
+@pytest.mark.slow
+def test_a_seek_shows_the_logs_poses(page, sim):
+    log, robots = sim.log, sim.robots
+    frames = page.js("window.coopsim.frames")
+    for k in (0, 17, 40, len(frames) - 1):
+        t = frames[k]
+        row = int(np.searchsorted(log.t, t))
+        assert page.js(f"window.coopsim.seek({t!r})") == pytest.approx(t)
+        assert page.js("window.coopsim.time()") == pytest.approx(t)
+        for i, r in enumerate(robots):
+            P, _ = r.shapes(log[i].q[row])
+            G, _ = r.shapes(log[i].q_ref[row])
+            for j, b in enumerate(r.boxes):
+                assert np.abs(page.pose(f"robot{i}/{b.name}") - P[j]).max() < TOL, (t, i, b.name)
+                if b.link != 0:
+                    assert np.abs(page.pose(f"ghost{i}/{b.name}") - G[j]).max() < TOL, (t, i, b.name)
+        for name in ("bar", "bar1"):
+            assert np.abs(page.pose(f"bodies/{name}") - log.bodies[name].poses()[row]).max() < TOL
+    # between frames, three.js interpolates: the falling bar is between its neighbouring frames' heights
+    t = 0.5 * (frames[8] + frames[9])
+    page.js(f"window.coopsim.seek({t})")
+    z = page.pose("bodies/bar1")[2, 3]
+    z8, z9 = (log.bodies["bar1"].poses()[np.searchsorted(log.t, f)][2, 3] for f in (frames[8], frames[9]))
+    assert min(z8, z9) - 1e-6 <= z <= max(z8, z9) + 1e-6 and abs(z8 - z9) > 1e-3
+    # clamped to the replay; static scenery where the world has it; unknown names give null
+    assert page.js("window.coopsim.seek(99)") == pytest.approx(T_END)
+    assert page.js("window.coopsim.seek(-1)") == 0
+    wall = next(b for b in (sim.world.body(n) for n in sim.world.body_names) if b["name"] == "container_top")
+    assert np.abs(page.pose("scenery/container_top") - wall["pose"]).max() < TOL
+    assert page.pose("robot7/link1") is None and page.pose("nothing") is None
+    assert page.errors == []
+
+
+@pytest.mark.slow
+def test_the_controls_play_pause_scrub_and_set_the_speed(page):
+    js = page.js
+    # the play button plays and pauses
+    js("window.coopsim.seek(0)")
+    page.page.click("#cs-play")
+    assert js("window.coopsim.playing()")
+    page.page.wait_for_timeout(300)
+    page.page.click("#cs-play")
+    assert not js("window.coopsim.playing()") and 0.29 < js("window.coopsim.time()") < T_END
+    # the replay's time runs at the speed times the wall time
+    played = """(speed) => new Promise((done) => {
+        const c = window.coopsim;
+        c.seek(0.1); c.setSpeed(speed);
+        const start = performance.now();
+        c.play();
+        setTimeout(() => { const t = c.time(); done([t - 0.1, (performance.now() - start) / 1000]); c.pause(); }, 120);
+    })"""
+    for speed in (1.0, 4.0, 0.5, 0.0):
+        dt, wall = page.page.evaluate(played, speed)
+        assert wall >= 0.12 and speed * (wall - 0.01) <= dt <= speed * wall + 1e-9, (speed, dt, wall)
+    # the speed slider: 0 to 400 %
+    slider = "(v) => { const s = document.getElementById('cs-speed'); s.value = v; s.dispatchEvent(new Event('input')); }"
+    page.page.evaluate(slider, 400)
+    assert js("window.coopsim.speed()") == 4 and js("document.getElementById('cs-speed-value').textContent") == "400 %"
+    page.page.evaluate(slider, 900)
+    assert js("window.coopsim.speed()") == 4
+    page.page.evaluate(slider, 25)
+    assert js("window.coopsim.speed()") == 0.25
+    js("window.coopsim.setSpeed(1)")
+    # played to the end it stops there; the space bar plays from the start again
+    js("window.coopsim.seek(1.95); window.coopsim.play()")
+    page.page.wait_for_function("!window.coopsim.playing()", timeout=5000)
+    assert js("window.coopsim.time()") == pytest.approx(T_END)
+    page.page.keyboard.press("Space")
+    assert js("window.coopsim.playing()") and js("window.coopsim.time()") < 1.0
+    page.page.keyboard.press("Space")
+    assert not js("window.coopsim.playing()")
+    # the scrubber seeks; the arrow keys step a frame
+    page.page.evaluate("(v) => { const s = document.getElementById('cs-scrub'); s.value = v; "
+                       "s.dispatchEvent(new Event('input')); }", 1.25)
+    assert js("window.coopsim.time()") == pytest.approx(1.25)
+    assert js("document.getElementById('cs-time').textContent") == "1.250 s / 2.000 s"
+    frames = js("window.coopsim.frames")
+    js("document.activeElement.blur()")
+    page.page.keyboard.press("ArrowRight")
+    assert js("window.coopsim.time()") == pytest.approx(min(f for f in frames if f > 1.25 + 1e-9))
+    page.page.keyboard.press("ArrowLeft")
+    assert js("window.coopsim.time()") == pytest.approx(max(f for f in frames if f < 1.25 - 1e-9))
+    assert page.errors == []
+
+
+@pytest.mark.slow
+def test_a_screenshot_shows_the_scene_and_the_bars_red(page, sim):
+    page.js("window.coopsim.seek(1.0)")
+    img = page.pixels()
+    assert img.std() > 20 and len(np.unique(img.reshape(-1, 3), axis=0)) > 500      # not blank
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    red = (r > 120) & (r > 2.2 * g) & (r > 2.2 * b)
+    assert red.sum() > 30, red.sum()           # the bars (the paper's red) are on screen
+    blue = (b > 1.3 * r) & (b > 1.2 * g) & (b > 120)
+    assert blue.sum() > 30                     # the ghost
+    orange = (r > 180) & (g > 100) & (g < 200) & (b < 110)
+    assert orange.sum() > 30                   # SCARA #1's links
+    # the bars' red is there because of the bars: hidden, it is gone
+    page.js("window.coopsim.viewer.scene_tree.children['coopsim'].children['bodies'].object.visible = false;"
+            "window.coopsim.seek(1.0)")
+    img = page.pixels()
+    page.js("window.coopsim.viewer.scene_tree.children['coopsim'].children['bodies'].object.visible = true;"
+            "window.coopsim.seek(1.0)")
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    assert ((r > 120) & (r > 2.2 * g) & (r > 2.2 * b)).sum() < 5
