@@ -537,6 +537,8 @@ which bundles three.js; their licence notices follow.
               padding: 2px 6px; border-radius: 3px; pointer-events: none; }
   #cs-bar { position: fixed; left: 0; right: 0; bottom: 0; display: flex; align-items: center; gap: 10px;
             padding: 6px 12px; background: rgba(250,250,252,0.92); border-top: 1px solid #c8ccd4; }
+  #cs-title, #cs-bar { user-select: none; -webkit-user-select: none; }
+  #cs-licences pre { user-select: text; -webkit-user-select: text; }
   #cs-bar button { width: 38px; height: 28px; font-size: 15px; cursor: pointer; }
   #cs-scrub { flex: 1; min-width: 120px; }
   #cs-speed { width: 130px; }
