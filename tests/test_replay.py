@@ -60,6 +60,21 @@ def page_path(sim, tmp_path_factory):
     return view.replay_html(sim, str(tmp_path_factory.mktemp("replay") / "run.html"))
 
 
+def holding_log(sim, begin=0.52, end=1.22):
+    """The run's log with SCARA #1 holding the bar from begin to end (s)."""
+    log = sim.log
+    held = np.where((log.t >= begin) & (log.t < end), "bar", "").astype(object)
+    robots = [cs.RobotLog(rl.name, rl.t, holding=held if i == 0 else None, **{k: getattr(rl, k) for k in cs.log.STORED})
+              for i, rl in enumerate(log.robots)]
+    return cs.SimulationLog(log.t, robots, bodies=list(log.bodies.values()))
+
+
+def hexcolor(c):
+    from matplotlib.colors import to_hex
+
+    return to_hex(c)
+
+
 def read(path) -> str:
     with open(path, encoding="utf-8") as f:
         return f.read()
@@ -163,6 +178,37 @@ def test_packed_keyframes_are_the_logs_poses(sim, page_path):
     assert not any(p.startswith(("/coopsim/scenery", "/coopsim/floor")) or p.endswith("/base") for p in tracks)
 
 
+def test_colours_the_bar_red_scenery_other_bodies_and_a_holding_robot_green(sim, tmp_path):
+    path = view.replay_html(holding_log(sim), str(tmp_path / "held.html"), robots=sim.robots, world=sim.world)
+    cmds = commands(path)
+    color = {c["path"]: "#%06x" % c["object"]["materials"][0]["color"] for c in cmds if c["type"] == "set_object"}
+    assert color["/coopsim/bodies/bar"] == color["/coopsim/bodies/bar1"] == view.COLORS["body"]
+    assert color["/coopsim/scenery/container_top"] == view.COLORS["scenery"]
+    assert color["/coopsim/robot0/link2"] == view.COLORS["robots"][0]
+    assert color["/coopsim/robot1/link2"] == view.COLORS["robots"][1]
+    assert color["/coopsim/robot0/base"] == view.COLORS["base"] and color["/coopsim/ghost0/link2"] == view.COLORS["ghost"]
+    tracks = {a["path"]: a["clip"]["tracks"] for a in next(c for c in cmds if c["type"] == "set_animation")["animations"]}
+    green = [t for t in tracks["/coopsim/robot0/link2"] if t["name"] == "box.material.color"]
+    assert len(green) == 1 and green[0]["interpolation"] == 2300
+    times, rgb = f32(green[0]["times"]), f32(green[0]["values"]).reshape(-1, 3)
+    frames = np.asarray(meta(path)["frames"])
+    assert np.allclose(times, [0.0, frames[frames >= 0.52][0], frames[frames >= 1.22][0], T_END], atol=1e-6)
+    assert [hexcolor(c) for c in rgb] == [view.COLORS["robots"][0], view.COLORS["holding"], view.COLORS["robots"][0],
+                                          view.COLORS["robots"][0]]
+    for p in ("/coopsim/robot0/base", "/coopsim/robot1/link2", "/coopsim/ghost0/link2"):
+        assert all(t["name"] != "box.material.color" for t in tracks.get(p, []))
+    # holding=False: no colour changes; given per robot
+    cmds = commands(view.replay_html(holding_log(sim), str(tmp_path / "off.html"), robots=sim.robots,
+                                     world=sim.world, holding=False))
+    anim = next(c for c in cmds if c["type"] == "set_animation")["animations"]
+    assert all(t["name"] != "box.material.color" for a in anim for t in a["clip"]["tracks"])
+    rows = len(sim.log.t)
+    cmds = commands(view.replay_html(sim, str(tmp_path / "given.html"), holding=[None, np.arange(rows) > rows // 2]))
+    anim = {a["path"]: a["clip"]["tracks"] for a in next(c for c in cmds if c["type"] == "set_animation")["animations"]}
+    assert any(t["name"] == "box.material.color" for t in anim["/coopsim/robot1/link1"])
+    assert all(t["name"] != "box.material.color" for t in anim["/coopsim/robot0/link1"])
+
+
 def test_a_simulation_or_its_log_robots_and_world_give_the_same_replay(sim, tmp_path):
     a = meta(view.replay_html(sim, str(tmp_path / "a.html")))
     b = meta(view.replay_html(sim.log, tmp_path / "b.html", robots=sim.robots, world=sim.world))
@@ -180,7 +226,8 @@ def test_bad_input_names_the_argument(sim, tmp_path):
     for kw, what in ((dict(fps=0), "fps"), (dict(fps="30"), "fps"), (dict(speed=4.5), "speed"),
                      (dict(speed=-0.1), "speed"), (dict(t_start=1.0, t_end=0.5), "t_end"),
                      (dict(t_start=1.001, t_end=1.002), "no log row"), (dict(colors=["red"]), "colors"),
-                     (dict(elev=120), "elev"), (dict(zoom=0), "zoom")):
+                     (dict(elev=120), "elev"), (dict(zoom=0), "zoom"), (dict(holding=[None]), "holding"),
+                     (dict(holding=[None, np.ones(3, bool)]), "holding\\[1\\]")):
         with pytest.raises(ValueError, match=what):
             view.replay_html(sim, p, **kw)
     with pytest.raises(ValueError, match="log must be"):
@@ -208,6 +255,8 @@ def test_a_world_without_robots_and_a_title_kept_as_text(tmp_path):
     path = view.replay_html(s, str(tmp_path / "sub" / "fall.html"), title=title)
     m = meta(path)
     assert m["names"] == ["bodies/box"] and len(m["frames"]) == 10
+    box = next(c for c in commands(path) if c["type"] == "set_object")
+    assert "#%06x" % box["object"]["materials"][0]["color"] == view.COLORS["free_body"]     # not a bar: not red
     text = read(path)
     assert text.count("@COMMANDS@") == 2 and "&lt;/script&gt; &lt;b&gt;title&lt;/b&gt;" in text
 
@@ -370,6 +419,26 @@ def test_the_controls_play_pause_scrub_and_set_the_speed(page):
     page.page.keyboard.press("ArrowLeft")
     assert js("window.coopsim.time()") == pytest.approx(max(f for f in frames if f < 1.25 - 1e-9))
     assert page.errors == []
+
+
+@pytest.mark.slow
+def test_a_robot_is_green_while_it_holds_something(browser, sim, tmp_path):
+    p = Page(browser, view.replay_html(holding_log(sim), str(tmp_path / "held.html"), robots=sim.robots,
+                                       world=sim.world), width=400, height=300)
+    try:
+        for t, expected in ((0.2, view.COLORS["robots"][0]), (0.6, view.COLORS["holding"]), (1.0, view.COLORS["holding"]),
+                            (1.25, view.COLORS["robots"][0]), (2.0, view.COLORS["robots"][0]), (0.7, view.COLORS["holding"])):
+            p.js(f"window.coopsim.seek({t})")
+            assert p.js("window.coopsim.color('robot0/link2')") == expected, t
+            assert p.js("window.coopsim.color('robot0/link6')") == (view.COLORS["holding"] if expected ==
+                                                                   view.COLORS["holding"] else view.COLORS["jaw"])
+            assert p.js("window.coopsim.color('robot0/base')") == view.COLORS["base"]
+            assert p.js("window.coopsim.color('robot1/link2')") == view.COLORS["robots"][1]
+        assert p.js("window.coopsim.color('bodies/bar')") == view.COLORS["body"]
+        assert p.js("window.coopsim.color('nothing')") is None
+        assert p.errors == [] and p.blocked == []
+    finally:
+        p.close()
 
 
 @pytest.mark.slow

@@ -36,6 +36,7 @@ the page (all times in the log's seconds, poses in the z-up world):
 - ``pose(name)``: the (4, 4) pose of a box as nested rows, or null:
   ``robot<i>/<box name>`` (e.g. ``robot0/link2``), ``ghost<i>/<box name>``,
   ``bodies/<name>`` (e.g. ``bodies/bar``), ``scenery/<name>``, ``floor``.
+- ``color(name)``: the box's colour now, "#rrggbb" (or null).
 - ``names()``: all such names. ``time()``, ``play()``, ``pause()``,
   ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``; ``t0``, ``t1``,
   ``frames`` (the frame times), ``fps``, ``ready`` (true once loaded),
@@ -61,9 +62,8 @@ __all__ = ["replay_html"]
 
 _GROUP = "coopsim"            # meshcat path of everything drawn here
 _FLOOR_THICKNESS = 0.01       # m, the floor slab under z = 0 (drawn)
-#: the static scenery's colour (the container); robots, ghosts and free bodies take theirs from COLORS
-SCENERY_COLOR = "#8fa1b8"
 _STILL = 1e-7                 # m (and rad): a box that moves less than this over the replay is drawn fixed
+_DISCRETE = 2300              # THREE.InterpolateDiscrete: a colour switches at its key, no blend
 _LOOP_ONCE = 2200             # THREE.LoopOnce: a seek to the end shows the end (LoopRepeat would wrap to 0)
 
 
@@ -137,7 +137,7 @@ def _object_json(kind: str, geometry: dict, material: dict) -> dict:
     return {"metadata": {"version": 4.5, "type": "Object"},
             "geometries": [dict(geometry, uuid=gid)],
             "materials": [dict(material, uuid=mid)],
-            "object": {"uuid": oid, "type": kind, "geometry": gid, "material": mid,
+            "object": {"uuid": oid, "type": kind, "name": "box", "geometry": gid, "material": mid,
                        "matrix": [1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0]}}
 
 
@@ -232,6 +232,15 @@ def _tracks(times: np.ndarray, poses: np.ndarray) -> list:
             {"name": ".quaternion", "type": "quaternion", "times": t, "values": _f32(quat.reshape(-1))}]
 
 
+def _color_track(times: np.ndarray, colors: np.ndarray) -> dict:
+    """A discrete colour track: (frames,) 0xRRGGBB, keyed where the colour changes (and at the end)."""
+    keep = np.flatnonzero(np.r_[True, colors[1:] != colors[:-1]])
+    keep = np.unique(np.append(keep, len(colors) - 1))
+    rgb = np.stack([(colors[keep] >> 16) & 255, (colors[keep] >> 8) & 255, colors[keep] & 255], axis=-1) / 255.0
+    return {"name": "box.material.color", "type": "color", "interpolation": _DISCRETE, "times": _f32(times[keep]),
+            "values": _f32(rgb.reshape(-1))}
+
+
 def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
     """Indices of the log rows shown: the row nearest each t0 + k / fps within [t0, t1], the last row in it."""
     lo = int(np.searchsorted(t, t0 - 1e-12, side="left"))
@@ -306,6 +315,33 @@ def _unpack_sources(log, robots, world):
     return log, robots, world
 
 
+def _holding(holding, log, rows: int) -> list:
+    """Per robot a (rows,) bool array (or None): whether it holds something in each log row."""
+    n = len(log.robots)
+    if holding is False:
+        return [None] * n
+    if holding is None or holding is True:
+        out = []
+        for rl in log.robots:
+            h = getattr(rl, "holding", None)       # per row the body held, '' for none
+            out.append(None if h is None or len(h) != rows else np.array([bool(x) for x in h], dtype=bool))
+        return out
+    items = list(holding) if isinstance(holding, (list, tuple)) else None
+    if items is None or len(items) != n:
+        raise ValueError(f"holding must be None, False or one (rows,) bool array (or None) per robot ({n}), "
+                         f"got {type(holding).__name__}")
+    out = []
+    for i, h in enumerate(items):
+        if h is None:
+            out.append(None)
+            continue
+        a = np.asarray(h)
+        if a.shape != (rows,) or not (a.dtype == bool or np.isin(a, (0, 1)).all()):
+            raise ValueError(f"holding[{i}] must be a ({rows},) bool array, one flag per log row, got shape {a.shape}")
+        out.append(a.astype(bool))
+    return out
+
+
 def _world_bodies(world) -> list:
     """The world's bodies as dicts (name, kind, half_extents, pose); [] without a world."""
     if world is None:
@@ -322,8 +358,8 @@ def _world_bodies(world) -> list:
 def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed: float = 1.0,
                 t_start: Optional[float] = None, t_end: Optional[float] = None, reference: bool = True,
                 floor: bool = True, title: Optional[str] = None, autoplay: bool = False,
-                colors=None, ghost_margin: float = 0.002, elev: float = 30.0, azim: float = -45.0,
-                zoom: float = 1.0) -> str:
+                holding=None, colors=None, ghost_margin: float = 0.002, elev: float = 30.0,
+                azim: float = -45.0, zoom: float = 1.0) -> str:
     """Write a replay of a simulation log as one self-contained HTML file; returns its path.
 
     log: a :class:`~coopsim.log.SimulationLog`, or a finished
@@ -340,7 +376,10 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     t_end: the part of the log to replay (s; default all). reference: draw
     the desired pose (``q_ref``) as a transparent blue ghost (robots whose
     reference is not finite get none). floor: draw the floor (z = 0) when
-    the world has one (or there is no world). title: the page's title.
+    the world has one (or there is no world). holding: a robot's moving
+    boxes are green while it holds something: None (default) from the log
+    (``log[i].holding``, the body held per row), False never, or per robot
+    a (rows,) bool array (or None). title: the page's title.
     autoplay: start playing when opened. colors: one colour per robot for
     its links (matplotlib colours; default :data:`COLORS`). ghost_margin:
     the ghost's boxes are this much smaller (m), so that a robot on its
@@ -391,20 +430,27 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     animations: List[dict] = []
     bounds: List[np.ndarray] = []          # points that should be in view
 
-    def add_box(name, half, color, opacity, poses):
-        """poses: (4, 4) fixed, or (frames, 4, 4) moving."""
+    def add_box(name, half, color, opacity, poses, colors_per_frame=None):
+        """poses: (4, 4) fixed, or (frames, 4, 4) moving; colors_per_frame: None, or (frames,) 0xRRGGBB."""
         p = f"/{_GROUP}/{name}"
         cmds.append(_set_object(p, _box_object(half, color, opacity)))
         poses = np.asarray(poses, float)
         first = poses if poses.ndim == 2 else poses[0]
         cmds.append(_set_transform(p, first))
+        tracks = []
         # still bodies (a bar resting on the floor creeps by 1e-10 m) get one pose: 0.1 um is below float32 here
         if poses.ndim == 3 and len(poses) > 1 and np.ptp(poses, axis=0).max() > _STILL:
-            animations.append({"path": p, "clip": {"fps": 1, "name": "default", "tracks": _tracks(clip_t, poses)}})
+            tracks += _tracks(clip_t, poses)
+        if colors_per_frame is not None and len(set(colors_per_frame)) > 1:
+            tracks.append(_color_track(clip_t, np.asarray(colors_per_frame)))
+        if tracks:
+            animations.append({"path": p, "clip": {"fps": 1, "name": "default", "tracks": tracks}})
         names.append(name)
 
-    # robots and ghosts
+    # robots (green while they hold something) and ghosts
     c = COLORS
+    held_rows = _holding(holding, log, len(t_log))
+    green = _hex(c["holding"])
     for i, (r, rl) in enumerate(zip(robots, log.robots)):
         q = np.asarray(rl.q, float)[rows]
         k = len(r.boxes)
@@ -423,7 +469,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
             used.add(nm)
             box_names.append(nm)
             col = base if b.link == 0 else jaw if ("jaw" in b.name or b.link == moving_jaw) else link
-            add_box(f"robot{i}/{nm}", H[j], col, 1.0, P[0, j] if b.link == 0 else P[:, j])
+            held = None if held_rows[i] is None or b.link == 0 else np.where(held_rows[i][rows], green, col)
+            add_box(f"robot{i}/{nm}", H[j], col, 1.0, P[0, j] if b.link == 0 else P[:, j], held)
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
         pts = np.einsum("fkab,kcb->fkca", P[:, :, :3, :3], corners[None] * H[:, None, :]) + P[:, :, None, :3, 3]
         bounds.append(pts.reshape(-1, 3))
@@ -448,7 +495,7 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
         if kind == "floor":
             has_floor = True
         elif kind == "static":
-            add_box(f"scenery/{_safe(name)}", b["half_extents"], _hex(SCENERY_COLOR), 1.0, b["pose"])
+            add_box(f"scenery/{_safe(name)}", b["half_extents"], _hex(c["scenery"]), 1.0, b["pose"])
             T = np.asarray(b["pose"], float)
             bounds.append((T[:3, :3] @ (np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
                                                    for sz in (-1, 1)]) * b["half_extents"]).T).T + T[:3, 3])
@@ -458,7 +505,9 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
                 poses = np.asarray(b["pose"], float)
             else:
                 poses = np.asarray(bl.poses(), float)[_nearest(np.asarray(bl.t, float), times)]
-            add_box(f"bodies/{_safe(name)}", b["half_extents"], _hex(c["body"]), 1.0, poses)
+            bar = str(name).startswith("bar")             # the bar red, other free bodies in their colour
+            add_box(f"bodies/{_safe(name)}", b["half_extents"], _hex(c["body"] if bar else c["free_body"]), 1.0,
+                    poses)
             pp = poses.reshape(-1, 4, 4)[:, :3, 3]
             bounds.append(pp)
     if free_logged:
@@ -467,13 +516,19 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
 
     allpts = np.concatenate(bounds) if bounds else np.zeros((1, 3))
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
-    # the camera looks at the middle of what moves and the scenery, from elev / azim, far enough to see it all
+    # the camera looks at the middle of what moves and the scenery, from elev / azim, just far enough to
+    # have all of it in meshcat's 75 deg vertical view (and in the horizontal one of a 4:3 or wider window)
     centre = (lo + hi) / 2
-    centre[2] = 0.4 * hi[2] + 0.6 * lo[2]
-    radius = max(0.2, float(np.max(np.linalg.norm(allpts - centre, axis=1))))
-    dist = 0.8 * radius / math.sin(math.radians(75.0 / 2)) / zoom      # meshcat's camera: 75 deg vertical view
     e, a = math.radians(elev), math.radians(azim)
-    d = dist * np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+    back = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])    # centre -> camera
+    right = np.cross(-back, [0.0, 0.0, 1.0])
+    right = right / np.linalg.norm(right) if np.linalg.norm(right) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    up = np.cross(right, -back)
+    rel = allpts - centre
+    tv = math.tan(math.radians(75.0 / 2))
+    need = rel @ back + np.maximum(np.abs(rel @ up) / tv, np.abs(rel @ right) / (4 / 3 * tv))
+    dist = max(0.2, 1.08 * float(need.max())) / zoom
+    d = dist * back
 
     # the floor: a slab whose top is z = 0, tiled by grid lines every 0.1 m
     if floor and has_floor:
@@ -654,6 +709,11 @@ which bundles three.js; their licence notices follow.
     playing: function () { return playing; },
     setSpeed: setSpeed,
     speed: function () { return speed; },
+    color: function (name) {
+      var obj = node(name), mesh = null;
+      if (obj) obj.traverse(function (o) { if (!mesh && o.material) mesh = o; });
+      return mesh ? "#" + mesh.material.color.getHexString() : null;
+    },
     pose: function (name) {
       var obj = node(name);
       if (!obj) return null;
