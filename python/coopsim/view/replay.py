@@ -4,7 +4,8 @@
     view.replay_html(log, "out/run.html", robots=sim.robots, world=sim.world, fps=30, speed=0.5)
 
 The page shows every box of every robot (``robot.shapes(q)``), the desired
-pose (the log's ``q_ref``) as a transparent blue ghost, the world's static
+pose (the log's ``q_ref``) as a transparent blue ghost, the robots green
+while they hold something (``log[i].holding``), the world's static
 scenery, its free bodies (the bar, in the paper's red) and the floor, with
 the colours of :data:`coopsim.view.COLORS`. It has an orbit camera (drag to
 turn, right-drag or shift-drag to pan, wheel to zoom), a play/pause button
