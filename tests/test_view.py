@@ -576,6 +576,149 @@ def test_the_task_scene_shows_the_container_and_the_bar_past_the_robots():
     assert (xy[:, 0] >= 0).all() and (xy[:, 0] < w_px).all() and (xy[:, 1] >= 0).all() and (xy[:, 1] < h_px).all()
 
 
+# ---- holding: green while both robots hold the bar ----
+
+@pytest.fixture(scope="module")
+def handover():
+    """test_grasp.py's two gantry grippers on one bar: a holds it from the start, b closes at 0.3 s, a opens
+    at 0.7 s (a second of simulated time)."""
+    from test_grasp import two_holders
+
+    sim = two_holders(-0.1, 0.12, close_b=0.3, open_a=0.7)
+    sim.run(1.0, progress=False)
+    return sim
+
+
+def test_holding_masks_from_the_log_are_the_dual_hold(handover):
+    sim = handover
+    log = sim.log
+    t = log.t
+    g = log.grasps
+    assert list(zip(g["robot"], g["event"])) == [(0, "grasp"), (1, "grasp"), (0, "release")]
+    # a row shows the grasp state at its time: both hold from b's grasp until a's release
+    t_b, t_a = g["t"].iloc[1], g["t"].iloc[2]
+    both = (t >= t_b) & (t < t_a)
+    assert 25 < both.sum() < 40 and not (np.abs(t - t_b).min() < 1e-9 or np.abs(t - t_a).min() < 1e-9)
+    masks = view.holding_from_log(log)
+    assert len(masks) == 2 and all(m.dtype == bool and m.shape == t.shape for m in masks)
+    np.testing.assert_array_equal(masks[0], both)
+    np.testing.assert_array_equal(masks[1], both)
+    for other in (view.holding_from_log(sim), view.holding_from_log(log, sim.robots)):
+        assert all(np.array_equal(a, b) for a, b in zip(masks, other))
+    # 'any': each robot whenever it holds the bar
+    a, b = view.holding_from_log(log, mode="any")
+    np.testing.assert_array_equal(a, (t >= g["t"].iloc[0]) & (t < t_a))
+    np.testing.assert_array_equal(b, t >= t_b)
+    np.testing.assert_array_equal(a, log[0].holding == "bar")
+    # two robots holding different bodies are not a dual hold
+    held = np.array([["bar", "box"], ["bar", "bar"], ["", ""]], dtype=object)
+    from coopsim.view.world import _held_masks
+
+    np.testing.assert_array_equal(_held_masks(held, "shared"), [[False, False], [True, True], [False, False]])
+    # now, in draw: at the end b holds alone, so nothing is green unless holding='any'
+    assert view.holding_now(sim) == [False, False] and view.holding_now(sim, mode="any") == [False, True]
+    with pytest.raises(ValueError, match="mode"):
+        view.holding_from_log(log, mode="both")
+    with pytest.raises(ValueError, match="robots must match"):
+        view.holding_from_log(log, [sim.robots[0]])
+
+
+def inside_boxes(scene, robot, q, pts_xy, boxes, margin=1.5):
+    """Whether each pixel (m, 2) lies in the picture of one of the robot's boxes at q (the convex hull of its
+    projected corners, widened by margin pixels)."""
+    from matplotlib.path import Path
+
+    P, H = robot.shapes(q)
+    inside = np.zeros(len(pts_xy), dtype=bool)
+    for k in boxes:
+        hull = Path(convex_hull(scene.project(corners(P[k], H[k]))))
+        # a positive or negative radius widens the path depending on its orientation: take both
+        inside |= hull.contains_points(pts_xy, radius=2 * margin) | hull.contains_points(pts_xy, radius=-2 * margin)
+    return inside
+
+
+def convex_hull(xy):
+    """The convex hull of points (m, 2) as a closed ring, counter-clockwise (Andrew's monotone chain)."""
+    pts = sorted(map(tuple, xy))
+
+    def half(points):
+        out = []
+        for p in points:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0])) <= 0:
+                out.pop()
+            out.append(p)
+        return out[:-1]
+
+    ring = half(pts) + half(pts[::-1])
+    return np.array(ring + ring[:1])
+
+
+def green_pixels(img):
+    """(m, 2) x, y of the pixels in the holding green (not the bar's red nor the jaws' dark grey)."""
+    g = (img[..., 1] > img[..., 0] + 40) & (img[..., 1] > img[..., 2] + 40)
+    y, x = np.nonzero(g)
+    return np.column_stack([x, y]).astype(float)
+
+
+def test_an_animation_shows_the_robots_green_during_the_dual_hold_and_only_on_their_links(handover):
+    sim = handover
+    log = sim.log
+    masks = view.holding_from_log(log)
+    anim = view.animate(sim, fps=10, figsize=(6.4, 4.8), dpi=80, reference=False, label=False)
+    for k in (2, 5, 9):                                   # a alone, both, b alone
+        anim.show_frame(k)
+        img = render(anim.fig)
+        row = int(np.flatnonzero(log.t <= anim.times[k] + 1e-9)[-1])
+        both = bool(masks[0][row])
+        assert both == (k == 5)
+        green = green_pixels(img)
+        if not both:
+            assert len(green) == 0, k
+            continue
+        # green on each robot's hand, where its face towards the camera is drawn, and nowhere else
+        for i, robot in enumerate(sim.robots):
+            q = np.interp(anim.times[k], log.t, log[i].q[:, 0]), np.interp(anim.times[k], log.t, log[i].q[:, 1])
+            hand = [b.name for b in robot.boxes].index("hand")
+            assert is_green(pixel(img, anim.scene, face_towards_camera(anim.scene, robot, np.array(q), hand)))
+        on_robot = np.zeros(len(green), dtype=bool)
+        for i, robot in enumerate(sim.robots):
+            q = np.array([np.interp(anim.times[k], log.t, log[i].q[:, j]) for j in range(robot.dof)])
+            on_robot |= inside_boxes(anim.scene, robot, q, green, range(len(robot.boxes)))
+        assert len(green) > 2000 and on_robot.all(), green[~on_robot][:10]
+    # holding='any': robot a green while it holds alone, b not
+    anim = view.animate(sim, fps=10, figsize=(6.4, 4.8), dpi=80, holding="any")
+    anim.show_frame(2)
+    assert anim.scene.colors("robot", 0, box=0)[0][1] > anim.scene.colors("robot", 0, box=0)[0][0] + 0.2
+    assert not anim.scene.colors("robot", 1, box=0)[0][1] > anim.scene.colors("robot", 1, box=0)[0][0] + 0.2
+    # False: never green
+    anim = view.animate(sim, fps=10, figsize=(2, 2), dpi=20, holding=False)
+    anim.show_frame(5)
+    assert all(anim.scene.colors("robot", i, box=0)[0][1] < anim.scene.colors("robot", i, box=0)[0][0] + 0.2
+               for i in (0, 1))
+
+
+def test_draw_from_a_simulation_colours_the_dual_hold_now():
+    from test_grasp import two_holders
+
+    sim = two_holders(-0.1, 0.1)
+    sim.run(0.1, progress=False)
+    assert sim.holding(0) == sim.holding(1) == "bar"
+    scene = view.draw(new_axes(), sim)
+    for i in (0, 1):
+        c = scene.colors("robot", i, box=0)[0]
+        assert c[1] > c[0] + 0.2 and c[1] > c[2] + 0.2
+    sim.release(1)                                        # a alone: green only with holding='any'
+    plain, anyone = view.draw(new_axes(), sim), view.draw(new_axes(), sim, holding="any")
+    assert all(plain.colors("robot", i, box=0)[0][1] < plain.colors("robot", i, box=0)[0][0] + 0.2 for i in (0, 1))
+    c = anyone.colors("robot", 0, box=0)[0]
+    assert c[1] > c[0] + 0.2
+    with pytest.raises(ValueError, match="holding"):
+        view.draw(new_axes(), sim.robots, [np.zeros(2)] * 2, holding="any")   # no Simulation to ask
+    with pytest.raises(ValueError, match="holding"):
+        view.draw(new_axes(), sim, holding="all")
+
+
 # ---- bad input ----
 
 def test_bad_input_names_the_argument(run_log, tmp_path):

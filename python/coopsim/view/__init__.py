@@ -1,7 +1,7 @@
 """Seeing it: robots as shaded boxes in matplotlib, still (:func:`draw`) or animated from a log (:func:`animate`).
 
 The paper's colour conventions (:data:`COLORS`): the desired pose as a
-transparent blue ghost, robots green while they hold something, collision
+transparent blue ghost, robots green while both hold a body (holding='any': while they hold anything), collision
 boxes green (free) or red (in contact), contact points as red lines along
 the normal, the bar (any extra :class:`Body`) red.
 
@@ -21,7 +21,9 @@ from .geometry import box_corners, box_faces
 from .replay import replay_html
 from .scene import COLORS, Body, Scene, draw
 from .world import colliding_from_log, contacts_from_log, world_bodies
+from .world import holding_from_log, holding_now
 
 __all__ = ["COLORS", "Animation", "Body", "Scene", "animate", "box_corners", "box_faces", "draw", "ffmpeg_path"]
 __all__ += ["colliding_from_log", "contacts_from_log", "world_bodies"]
 __all__ += ["replay_html"]
+__all__ += ["holding_from_log", "holding_now"]

@@ -293,8 +293,15 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     - reference: True (default) draws each robot's logged q_ref as a
       transparent blue ghost, False none, or per robot a (rows, n) array
       (None for no ghost of that robot).
-    - holding: per robot a (rows,) bool array (or None); the robot is green
-      while True. A (rows, robots) array is accepted too.
+    - holding: the robot's moving links are green while it holds. None
+      (default) or 'shared': from the log (``log[i].holding``), in the rows
+      where the robot holds a body that another robot holds too (the
+      paper's convention, its Fig. 18: green while both hold the bar);
+      'any': in the rows where it holds anything (one robot carrying a
+      body); see :func:`~coopsim.view.holding_from_log`. False: never, True:
+      always; or per robot a (rows,) bool array (or None). A (rows, robots)
+      array is accepted too. (With collision_boxes=True the boxes show
+      their contacts instead.)
     - collision_boxes: colour every box green (free) or red where colliding
       is True; colliding: per robot a (rows, boxes) bool mask in
       robot.boxes order (default: from the log's contact events, see
@@ -322,7 +329,8 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     arrays of the wrong shape, times outside the log, an unknown suffix, a
     world that is not a World or Simulation.
     """
-    from .world import colliding_from_log, contacts_from_log, resolve_world, world_bodies
+    from .world import (_holding_mode, colliding_from_log, contacts_from_log, holding_from_log, resolve_world,
+                        world_bodies)
 
     # ---- arguments ----
     sim = None
@@ -387,6 +395,11 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         given = _per_robot_rows(reference, n, rows, "reference", [(r.dof,) for r in robots])
         R = [None if g is None else _interp(t_log, g, times) for g in given]
     at = _rows_at(t_log, times)
+    if holding is None or isinstance(holding, str):
+        mode = _holding_mode("shared" if holding is None else holding, "holding")
+        holding = holding_from_log(log, mode=mode)
+    elif isinstance(holding, (bool, np.bool_)):
+        holding = [np.full(rows, bool(holding))] * n
     H = _per_robot_rows(holding, n, rows, "holding", [()] * n, dtype=bool)
     if colliding is not None and not collision_boxes:
         raise ValueError("colliding is shown only with collision_boxes=True")

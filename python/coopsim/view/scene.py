@@ -795,7 +795,12 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
     layout as q, is drawn as a transparent blue ghost of the moving links
     (boxes ghost_margin = 2 mm smaller, so a robot on its reference hides
     it and the ghost shows where the robot lags; None: none). holding:
-    bool or one per robot: that robot's links are green. collision_boxes:
+    bool or one per robot: that robot's moving links are green; with a
+    Simulation, None (default) or 'shared' makes a robot green when the
+    body it holds now (``sim.holding(i)``) is held by another robot too
+    (the paper's dual hold, its Fig. 18), 'any' when it holds anything (see
+    :func:`~coopsim.view.holding_now`); without one, None is not holding.
+    collision_boxes:
     every box green (free) or red where ``colliding`` (per robot a (boxes,)
     bool mask in robot.boxes order) is True. contacts: (m, 2, 3) array of
     (point, normal) pairs, m, drawn as red lines of contact_length m along
@@ -823,9 +828,15 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
 
     Raises ValueError naming the argument for wrong shapes or values.
     """
-    from .world import colliding_from_contacts, contact_lines, resolve_world, world_bodies
+    from .world import _holding_mode, colliding_from_contacts, contact_lines, holding_now, resolve_world, world_bodies
 
     sim = robots if _is_simulation(robots) else None
+    if isinstance(holding, str) or (holding is None and sim is not None):
+        mode = _holding_mode("shared" if holding is None else holding, "holding")
+        if sim is None:
+            raise ValueError(f"holding={holding!r} reads what the robots hold from a Simulation: pass the "
+                             "Simulation as robots, or give holding as bools")
+        holding = holding_now(sim, mode=mode)
     w, wsim = resolve_world(sim if world is None else world, "world")
     robots = _robot_list(robots, allow_empty=w is not None or bodies is not None)
     if q is None:

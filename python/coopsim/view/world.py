@@ -8,6 +8,10 @@ simulation's contacts or from its log.
   rows where one of the box's contact events is active.
 - :func:`contacts_from_log`: per log row the contact points and directions
   from ``log.contact_points`` (``log_contacts=True``).
+- :func:`holding_from_log`: per robot a (rows,) mask, True in the rows
+  where the robot holds a body that another robot holds too (the paper's
+  dual hold, its Fig. 18), or with ``mode='any'`` anything at all;
+  :func:`holding_now` the same for a simulation's state now.
 - :func:`colliding_from_contacts` and :func:`contact_lines`: the same from
   ``sim.contacts()``, for one picture of a simulation now.
 
@@ -26,8 +30,8 @@ import numpy as np
 
 from .scene import COLORS, Body
 
-__all__ = ["colliding_from_contacts", "colliding_from_log", "contact_lines", "contacts_from_log", "is_bar",
-           "world_bodies"]
+__all__ = ["colliding_from_contacts", "colliding_from_log", "contact_lines", "contacts_from_log", "holding_from_log",
+           "holding_now", "is_bar", "world_bodies"]
 
 
 def is_bar(name: str) -> bool:
@@ -243,3 +247,79 @@ def contacts_from_log(log) -> Optional[list]:
     return out
 
 
+
+
+# ---- holding ----
+
+#: The ways a robot counts as holding (``holding=`` of draw and animate, ``mode`` of holding_from_log):
+#: 'shared', a body that another robot holds too (the paper's green robots while both hold the bar), or
+#: 'any', any body at all (one robot carrying something).
+HOLDING_MODES = ("shared", "any")
+
+
+def _holding_mode(mode, what: str = "mode") -> str:
+    if not isinstance(mode, str) or mode not in HOLDING_MODES:
+        raise ValueError(f"{what} must be one of {', '.join(map(repr, HOLDING_MODES))}, got {mode!r}")
+    return mode
+
+
+def _held_masks(held: np.ndarray, mode: str) -> np.ndarray:
+    """(rows, robots) bool from (rows, robots) body names ('' for none)."""
+    held = np.asarray(held, dtype=object).astype(str)
+    some = held != ""
+    if mode == "any" or held.shape[1] == 0:
+        return some
+    out = np.zeros_like(some)
+    for i in range(held.shape[1]):
+        others = np.delete(held, i, axis=1)
+        out[:, i] = some[:, i] & (others == held[:, i:i + 1]).any(axis=1)
+    return out
+
+
+def holding_from_log(log, robots=None, *, mode: str = "shared") -> List[np.ndarray]:
+    """Per robot a (rows,) bool array: True in the log rows where the robot counts as holding, for
+    ``animate(..., holding=...)`` (which derives it itself when holding is not given).
+
+    log: a SimulationLog (its ``log[i].holding``: per row the name of the
+    body robot i holds, '' when none) or a Simulation (its log). robots:
+    not needed; if given (the Simulation's or a list), it must match the
+    log's robot count, as for :func:`colliding_from_log`. mode: 'shared'
+    (default, the paper's convention in its Fig. 18: robots green while both
+    hold the bar): a robot holds in a row when the body it holds is held by
+    another robot in that row too; 'any': whenever it holds anything (one
+    robot carrying a body). A row shows the grasp state at its time t[r].
+    """
+    mode = _holding_mode(mode)
+    if _is_simulation(log):
+        sim = log
+        log = sim.log
+        if robots is None:
+            robots = sim.robots
+    if not hasattr(log, "t") or not hasattr(log, "robots"):
+        raise ValueError(f"log must be a coopsim.SimulationLog or a Simulation, got {type(log).__name__}")
+    if robots is not None:
+        from .scene import _robot_list
+
+        robots = _robot_list(robots, allow_empty=True)
+        if len(robots) != len(log.robots):
+            raise ValueError(f"robots must match the log's robots: the log has {len(log.robots)}, got {len(robots)}")
+    rows = len(log.t)
+    held = np.full((rows, len(log.robots)), "", dtype=object)
+    for i, rl in enumerate(log.robots):
+        h = getattr(rl, "holding", None)
+        if h is not None and len(h):
+            if len(h) != rows:
+                raise ValueError(f"log robot {i} ({rl.name}) has {len(h)} holding rows, the log {rows}")
+            held[:, i] = h
+    masks = _held_masks(held, mode)
+    return [masks[:, i].copy() for i in range(len(log.robots))]
+
+
+def holding_now(sim, *, mode: str = "shared") -> List[bool]:
+    """Per robot whether it counts as holding now (``sim.holding(i)``), as :func:`holding_from_log`."""
+    mode = _holding_mode(mode)
+    if not _is_simulation(sim):
+        raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
+    n = sim.robot_count
+    held = np.array([[(sim.holding(i) or "") if sim.world is not None else "" for i in range(n)]], dtype=object)
+    return [bool(v) for v in _held_masks(held.reshape(1, n), mode)[0]]
