@@ -179,7 +179,13 @@ def test_packed_keyframes_are_the_logs_poses(sim, page_path):
 
 
 def test_colours_the_bar_red_scenery_other_bodies_and_a_holding_robot_green(sim, tmp_path):
-    path = view.replay_html(holding_log(sim), str(tmp_path / "held.html"), robots=sim.robots, world=sim.world)
+    # one holder: green with holding='any' (the default greens only a dual hold, as the views do)
+    path = view.replay_html(holding_log(sim), str(tmp_path / "held.html"), robots=sim.robots, world=sim.world,
+                            holding="any")
+    shared = commands(view.replay_html(holding_log(sim), str(tmp_path / "shared.html"), robots=sim.robots,
+                                       world=sim.world))
+    anim = next(c for c in shared if c["type"] == "set_animation")["animations"]
+    assert all(t["name"] != "box.material.color" for a in anim for t in a["clip"]["tracks"])
     cmds = commands(path)
     color = {c["path"]: "#%06x" % c["object"]["materials"][0]["color"] for c in cmds if c["type"] == "set_object"}
     assert color["/coopsim/bodies/bar"] == color["/coopsim/bodies/bar1"] == view.COLORS["body"]
@@ -423,7 +429,7 @@ def test_the_controls_play_pause_scrub_and_set_the_speed(page):
 
 @pytest.mark.slow
 def test_a_robot_is_green_while_it_holds_something(browser, sim, tmp_path):
-    p = Page(browser, view.replay_html(holding_log(sim), str(tmp_path / "held.html"), robots=sim.robots,
+    p = Page(browser, view.replay_html(holding_log(sim), str(tmp_path / "held.html"), robots=sim.robots, holding="any",
                                        world=sim.world), width=400, height=300)
     try:
         for t, expected in ((0.2, view.COLORS["robots"][0]), (0.6, view.COLORS["holding"]), (1.0, view.COLORS["holding"]),

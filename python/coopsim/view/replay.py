@@ -5,7 +5,7 @@
 
 The page shows every box of every robot (``robot.shapes(q)``), the desired
 pose (the log's ``q_ref``) as a transparent blue ghost, the robots green
-while they hold something (``log[i].holding``), the world's static
+while both hold a body (``log[i].holding``; 'any': while they hold something), the world's static
 scenery, its free bodies (the bar, in the paper's red) and the floor, with
 the colours of :data:`coopsim.view.COLORS`. It has an orbit camera (drag to
 turn, right-drag or shift-drag to pan, wheel to zoom), a play/pause button
@@ -321,12 +321,15 @@ def _holding(holding, log, rows: int) -> list:
     n = len(log.robots)
     if holding is False:
         return [None] * n
-    if holding is None or holding is True:
-        out = []
-        for rl in log.robots:
-            h = getattr(rl, "holding", None)       # per row the body held, '' for none
-            out.append(None if h is None or len(h) != rows else np.array([bool(x) for x in h], dtype=bool))
-        return out
+    if holding is None or holding is True or isinstance(holding, str):
+        # the views' rule: by default green while another robot holds the same body too (the paper's
+        # dual hold), 'any' while the robot holds anything
+        from .world import holding_from_log
+
+        mode = holding if isinstance(holding, str) else "shared"
+        if any(len(getattr(rl, "holding", ())) != rows for rl in log.robots):
+            return [None] * n
+        return list(holding_from_log(log, mode=mode))
     items = list(holding) if isinstance(holding, (list, tuple)) else None
     if items is None or len(items) != n:
         raise ValueError(f"holding must be None, False or one (rows,) bool array (or None) per robot ({n}), "
@@ -378,9 +381,11 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     the desired pose (``q_ref``) as a transparent blue ghost (robots whose
     reference is not finite get none). floor: draw the floor (z = 0) when
     the world has one (or there is no world). holding: a robot's moving
-    boxes are green while it holds something: None (default) from the log
-    (``log[i].holding``, the body held per row), False never, or per robot
-    a (rows,) bool array (or None). title: the page's title.
+    boxes are green while it holds: None (default) or 'shared' from the log
+    while another robot holds the same body too (the paper's dual hold,
+    :func:`~coopsim.view.holding_from_log`), 'any' while it holds anything,
+    False never, or per robot a (rows,) bool array (or None). title: the
+    page's title.
     autoplay: start playing when opened. colors: one colour per robot for
     its links (matplotlib colours; default :data:`COLORS`). ghost_margin:
     the ghost's boxes are this much smaller (m), so that a robot on its
