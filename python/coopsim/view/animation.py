@@ -122,32 +122,23 @@ class Animation:
         """
         suffix = _suffix(path)
         path = os.fspath(path)
-        folder = os.path.dirname(os.path.abspath(path))
-        os.makedirs(folder, exist_ok=True)
         if suffix == ".gif" and self.fps > 50:
             raise ValueError(f"fps must be <= 50 for a GIF (browsers slow down shorter frame delays), got {self.fps:g}")
         if quality is not None:
             quality = _number(quality, "quality")
             if not 0 <= quality <= 10:
                 raise ValueError(f"quality must be in 0 .. 10, got {quality!r}")
-        # write to a temporary file in the same folder, then rename: no half-written video under the name
-        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=suffix, dir=folder)
-        os.close(fd)
-        try:
+        from ..log import _atomic_write
+
+        def write(tmp):
             if suffix == ".mp4":
                 self._write_mp4(tmp, 7.0 if quality is None else quality)
             else:
                 self._write_gif(tmp)
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        self.path = path
-        return path
+
+        # a temporary file in the same folder, then renamed: no half-written video under the name
+        self.path = _atomic_write(path, suffix, write)
+        return self.path
 
     def _write_mp4(self, path: str, quality: float) -> None:
         import imageio_ffmpeg

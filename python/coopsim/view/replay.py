@@ -572,12 +572,13 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
               "COMMANDS": json.dumps([_pack(x) for x in cmds]), "META": json.dumps(meta).replace("</", "<\\/"),
               "MESHCAT_JS": js}
     page = re.sub(r"@([A-Z_]+)@", lambda m: values[m.group(1)], _TEMPLATE)     # one pass: no value is rescanned
-    d = os.path.dirname(os.path.abspath(path))
-    if d:
-        os.makedirs(d, exist_ok=True)
-    with open(path, "w", encoding="utf-8") as f:
-        f.write(page)
-    return path
+    from ..log import _atomic_write
+
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(page)
+
+    return _atomic_write(path, ".html", write)  # no half-written page under the name
 
 
 _TEMPLATE = r"""<!DOCTYPE html>
