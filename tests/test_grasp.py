@@ -329,3 +329,37 @@ def test_a_held_body_swinging_without_friction_or_gains_never_gains_energy():
     e = e_box + np.array([sum(r.energy(q, qd)) for q, qd in zip(log.q, log.qd)])
     assert e.max() <= e[0] * (1 + 1e-9)
     assert e[-1] > 0.8 * e[0]  # measured 0.937
+
+
+def test_grasp_matrix_load_split_and_internal_wrenches():
+    from coopsim import grasp
+
+    pts, c = np.array([[-0.1, 0.0, 0.0], [0.15, 0.0, 0.0]]), np.zeros(3)
+    G = grasp.grasp_matrix(pts, c)
+    w = np.array([0.0, 0.0, 1.962, 0.0, 0.05, 0.0])  # lift a bar's weight and a pitch moment
+    f = grasp.load_split(w, pts, c)
+    np.testing.assert_allclose(G @ f.reshape(-1), w, atol=1e-14)  # the shares make the net wrench
+    squeeze = np.array([[5.0, 0, 0, 0, 0, 0], [-5.0, 0, 0, 0, 0, 0]])
+    g = grasp.load_split(w, pts, c, internal=squeeze)
+    np.testing.assert_allclose(G @ g.reshape(-1), w, atol=1e-12)  # an internal part leaves it unchanged
+    np.testing.assert_allclose(grasp.internal_wrenches(g, pts, c), g - f, atol=1e-12)
+    np.testing.assert_allclose(grasp.internal_wrenches(g, pts, c).sum(axis=0)[:3], 0, atol=1e-12)
+    # a symmetric grasp shares a pure force equally
+    sym = grasp.load_split([0, 0, 2.0, 0, 0, 0], [[-0.1, 0, 0], [0.1, 0, 0]], c)
+    np.testing.assert_allclose(sym[:, 2], [1.0, 1.0], rtol=1e-12)
+    with pytest.raises(ValueError, match="points"):
+        grasp.grasp_matrix(np.zeros((2, 2)), c)
+
+
+def test_the_log_gives_the_internal_wrench_of_a_dual_hold():
+    sim = two_holders(-0.1, 0.1)
+    log = sim.run(1.0, progress=False)
+    iw = log.internal_wrench(0, 1)
+    both = (log[0].holding == "bar") & (log[1].holding == "bar")
+    assert both.any() and np.all(iw[~both] == 0)
+    np.testing.assert_allclose(iw[-1], (log[0].weld[-1] - log[1].weld[-1]) / 2)
+    # from the grasp module: both welds act at the bar's centre
+    c = sim.body_state("bar")["position"]
+    internal = cs.grasp.internal_wrenches(np.array([log[0].weld[-1], log[1].weld[-1]]), [c, c], c)
+    np.testing.assert_allclose(internal[0], iw[-1], atol=1e-12)
+    assert np.abs(iw[-1][:3]).max() < 1e-3  # symmetric and at rest: hardly any squeeze

@@ -26,7 +26,7 @@ from ._core import (
     integrate,
     rk4_step,
 )
-from . import robots
+from . import grasp, robots
 from .urdf import to_urdf
 from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
@@ -61,6 +61,7 @@ __all__ = [
     "forward_dynamics_batch",
     "integrate",
     "rk4_step",
+    "grasp",
     "robots",
     "to_urdf",
     "view",

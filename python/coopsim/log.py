@@ -175,6 +175,14 @@ class SimulationLog:
         self._contact_points = contact_points
         self._grasps = grasps
 
+    def internal_wrench(self, a: int = 0, b: int = 1) -> np.ndarray:
+        """The internal wrench (rows, 6) of robots a and b holding one body: in the rows where both hold
+        the same body, (w_a - w_b) / 2 of their welds' wrenches on it (N, N m; both act at the body's
+        centre, so this is the part that cancels on the body, see :mod:`coopsim.grasp`); zeros elsewhere."""
+        ra, rb = self.robots[a], self.robots[b]
+        both = (ra.holding != "") & (ra.holding == rb.holding)
+        return np.where(both[:, None], (ra.weld - rb.weld) / 2, 0.0)
+
     @property
     def grasps(self):
         """Grasps and releases as a pandas DataFrame: t (s), robot (index), body, event ('grasp' or
