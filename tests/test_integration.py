@@ -219,7 +219,7 @@ def test_divergence_is_reported_with_the_step():
     # absurd stiffness on the stop with a huge step makes the state blow up
     r = cs.robots.scara2(backend="numeric")
     q0 = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
-    with pytest.raises((RuntimeError, ValueError), match="step"):
+    with pytest.raises((RuntimeError, ValueError), match="step"), pytest.warns(RuntimeWarning, match="end stops"):
         cs.integrate(cs.Robot.from_dh(r.dh, r.com, r.masses, r.inertias, r.joint_types, q_limits=r.q_limits,
                                       end_stop_frequency=1e5), q0, np.zeros(6), np.zeros(6), dt=0.05,
                      steps=200)

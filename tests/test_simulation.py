@@ -359,9 +359,11 @@ def test_divergence_of_a_saturated_robot_against_its_end_stops():
     # actuators saturate, but a large step cannot integrate the stiff end stops
     r = cs.robots.scara1()
     sim = cs.Simulation(dt=2e-2)
-    sim.add_robot(r, cs.PID(1e6, 0.0, 1e4), r.q_limits[:, 1] + 0.5, q0=np.array([0, 0, 0.1, 0, 0.5, 0.02]))
-    with pytest.raises(cs.DivergenceError, match="step"):
+    with pytest.warns(RuntimeWarning, match=r"end stops of robot 'scara1' have omega \* dt = 10"):
+        sim.add_robot(r, cs.PID(1e6, 0.0, 1e4), r.q_limits[:, 1] + 0.5, q0=np.array([0, 0, 0.1, 0, 0.5, 0.02]))
+    with pytest.raises(cs.DivergenceError, match="step") as err:
         sim.run(2.0, progress=False)
+    assert "omega * dt = 10" in str(err.value) and "use dt <= 0.002 s" in str(err.value)
     log = sim.log
     assert len(log) >= 1 and all(np.all(np.isfinite(getattr(log, qty))) for qty in QTY)
     assert np.all(np.abs(log.tau) <= r.tau_limits)

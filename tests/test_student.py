@@ -71,3 +71,23 @@ def test_planning_errors_name_the_argument_and_what_is_wrong():
         cs.clamp_pose(r, [0, 0.2])
     with pytest.raises(ValueError, match=r"wrong shape for poses\[1\]: expected \(4, 4\), got \(3, 3\)"):
         cs.plan_cartesian(r, [np.eye(4), np.eye(3)], [0, 1])
+
+
+def test_a_step_too_large_for_the_end_stops_is_warned_about_and_named_in_the_error():
+    import pytest
+
+    arm = cs.robots.scara1()
+    q0 = np.array([0.3, 0.5, 0.24, 0.2, 1.0, 0.02])  # the quill near its lower stop
+    with pytest.warns(RuntimeWarning, match=r"omega \* dt = 2.5 at dt = 0.005 s.*use dt <= 0.002 s"):
+        cs.integrate(arm, q0, np.zeros(6), np.zeros(6), dt=5e-3, steps=10)
+    with pytest.warns(RuntimeWarning, match="end stops"):
+        cs.rk4_step(arm, q0, np.zeros(6), np.zeros(6), dt=5e-3)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cs.integrate(arm, q0, np.zeros(6), np.zeros(6), dt=1e-3, steps=10)  # omega dt = 0.5: quiet
+        cs.integrate(arm, q0, np.zeros(6), np.zeros(6), dt=5e-3, steps=10, end_stops=False)  # no stops: quiet
+    sim = cs.Simulation(dt=5e-3)
+    with pytest.warns(RuntimeWarning, match="end stops"):
+        sim.add_robot(arm, cs.PID(0.0, 0.0, 0.0), q0)

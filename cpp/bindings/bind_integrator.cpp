@@ -16,6 +16,7 @@ py::tuple step(const Robot& r, const py::object& q, const py::object& qd, const 
   VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd");
   const VecN tv = vec(tau, n, "tau");
   check_step_size(dt);
+  if (end_stops) warn_if(end_stop_step_warning(r, dt));
   VecN te;
   const double* tep = nullptr;
   if (!f_ext.is_none()) {
@@ -59,6 +60,8 @@ void bind_integrator(py::module_& m) {
            rows = static_cast<int>(steps);
          }
          const Method meth = method_from_name(method);
+         check_step_size(dt);
+         if (end_stops) warn_if(end_stop_step_warning(r, dt));
          IntegrationResult res;
          {
            py::gil_scoped_release nogil;

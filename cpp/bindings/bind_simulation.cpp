@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "convert.hpp"
+#include "coopsim/integrator.hpp"
 #include "coopsim/simulation.hpp"
 #include "coopsim/world.hpp"
 
@@ -193,6 +194,7 @@ torques between controller updates, the log and tracking metrics.)doc")
              if (!q0.is_none()) q0v = vec(q0, n, "q0");
              if (!qd0.is_none()) qd0v = vec(qd0, n, "qd0");
              auto ref = reference_arg(reference, n);
+             if (s.options().end_stops) warn_if(end_stop_step_warning(robot, s.options().dt));
              return s.add_robot(robot, std::move(controller), std::move(ref), q0.is_none() ? nullptr : q0v.data(),
                                 qd0.is_none() ? nullptr : qd0v.data());
            },

@@ -155,6 +155,13 @@ inline std::vector<ExternalWrench> wrenches_arg(const py::object& obj, const cha
   return {w};
 }
 
+// Issues a RuntimeWarning with `message` unless it is empty (an error if
+// warnings are errors).
+inline void warn_if(const std::string& message) {
+  if (message.empty()) return;
+  if (PyErr_WarnEx(PyExc_RuntimeWarning, message.c_str(), 1) != 0) throw py::error_already_set();
+}
+
 inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T);
 
 template <class Derived>

@@ -25,6 +25,18 @@ void check_step_size(double dt) {
   }
 }
 
+std::string end_stop_step_warning(const Robot& robot, double dt) {
+  bool limited = false;
+  for (const Link& L : robot.links()) limited = limited || std::isfinite(L.q_min) || std::isfinite(L.q_max);
+  const double w = robot.end_stop().frequency;
+  if (!limited || !(w * dt > kEndStopOmegaDtLimit)) return std::string();
+  std::ostringstream s;
+  s << "the end stops of robot '" << robot.name() << "' have omega * dt = " << w * dt << " at dt = " << dt
+    << " s, above " << kEndStopOmegaDtLimit << ": they will be inaccurate or unstable (energy grows); use dt <= "
+    << kEndStopOmegaDtLimit / w << " s, or end_stops=False";
+  return s.str();
+}
+
 void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, const double* tau,
           const double* tau_ext, double dt, bool end_stops, const VecN* qdd0) {
   VecN k1v;
@@ -126,6 +138,10 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
       std::ostringstream msg;
       msg << "integration diverged at step " << s + 1 << " (t = " << (s + 1) * dt << " s, dt = " << dt
           << " s): " << why << "; last good state q = [" << q.transpose() << "], qd = [" << qd.transpose() << "]";
+      if (end_stops) {
+        const std::string hint = end_stop_step_warning(robot, dt);
+        if (!hint.empty()) msg << "; " << hint;
+      }
       throw DivergenceError(msg.str(), s + 1, (s + 1) * dt, 0, q_bad, qd_bad);
     }
     if ((s + 1) % record_every == 0 || s + 1 == steps) record(s + 1);

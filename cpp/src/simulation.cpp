@@ -849,6 +849,10 @@ void Simulation::diverge_(int i, const std::string& why, bool in_step, bool stat
       << (state_is_result ? "state reached" : "state at the start of the step") << ": q = " << vec_str(q_bad)
       << ", qd = " << vec_str(qd_bad) << ", torque held = " << vec_str(bad.tau) << "; the log ends at t = "
       << (log_t_.rows() ? log_t_.back() : 0.0) << " s";
+  if (opt_.end_stops) {
+    const std::string hint = end_stop_step_warning(bad.robot, opt_.dt);
+    if (!hint.empty()) msg << "; " << hint;
+  }
   divergence_ = msg.str();
   throw DivergenceError(divergence_, step, step * opt_.dt, i, q_bad, qd_bad);
 }
