@@ -363,3 +363,29 @@ def test_the_log_gives_the_internal_wrench_of_a_dual_hold():
     internal = cs.grasp.internal_wrenches(np.array([log[0].weld[-1], log[1].weld[-1]]), [c, c], c)
     np.testing.assert_allclose(internal[0], iw[-1], atol=1e-12)
     assert np.abs(iw[-1][:3]).max() < 1e-3  # symmetric and at rest: hardly any squeeze
+
+
+def test_pressing_a_held_body_on_scenery_passes_the_scenery_force_to_the_robot():
+    # grasp the box on its pedestal, then push down 2 mm into it: the pedestal's force on the box
+    # reaches the robot through the weld, J^T (F_pedestal + m g) at the box's centre
+    r, w = scene(BOX * [1, 2 / 3, 1])
+    sim = cs.Simulation(dt=DT, world=w, log_every=25)
+    q1 = Q0.copy()
+    q1[5] = 0.019
+    q2 = q1.copy()
+    q2[2] += 0.002  # the quill 2 mm further down
+    traj = cs.CubicTrajectory([0.0, 0.02, 0.12, 0.2, 0.4], np.array([Q0, Q0, q1, q1, q2]))
+    sim.add_robot(r, cs.PID(**PID), traj)
+    sim.run(1.0, progress=False)
+    assert sim.holding(0) == "box"
+    on_box = sum(-c["force"] if c["b"] == "box" else c["force"] for c in sim.contacts()
+                 if "pedestal" in (c["a"], c["b"]) and "box" in (c["a"], c["b"]))
+    assert on_box[2] > 3.0  # pressed well beyond its weight (0.98 N): measured 4.9 N
+    F = sim.weld_wrench(0)
+    np.testing.assert_allclose(F[:3], -(on_box + [0, 0, -0.1 * 9.81]), rtol=1e-3, atol=1e-3)  # the box at rest
+    q, _ = sim.state(0)
+    link = r.clamp.fixed_link
+    c = sim.body_state("box")["position"]
+    tau = r.external_torques(q, [cs.Wrench(link, np.linalg.solve(r.frames(q)[link], [*c, 1.0])[:3],
+                                           np.r_[on_box + [0, 0, -0.1 * 9.81], -F[3:]])])
+    np.testing.assert_allclose(sim.applied(0)["tau_ext"][:5], tau[:5], rtol=1e-2, atol=1e-3)
