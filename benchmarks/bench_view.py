@@ -9,7 +9,9 @@ Both SCARAs follow cubic trajectories for 20 s under computed torque
   and with matplotlib's axes shown (axis=True), for comparison;
 - ms of ``Scene.update`` alone (the numpy and engine part of a frame);
 - wall time to write the whole 20 s log at 30 fps (601 frames) as MP4
-  (imageio-ffmpeg's ffmpeg, H.264) and as GIF (Pillow), and the file sizes.
+  (imageio-ffmpeg's ffmpeg, H.264) and as GIF (Pillow), and the file sizes;
+- the same for both SCARAs moving in the cooperative task's scene (its
+  world: floor, container, bar), with the browser replay (HTML) too.
 
 Each figure is the median over repeats. Target: a 20 s log at 30 fps to MP4
 in well under a minute on two cores.
@@ -48,6 +50,21 @@ def run(robots, t_end):
     for i, r in enumerate(robots):
         sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), trajectory(r, t_end, phase=1.7 * i))
     return sim.run(t_end, progress=False), sim.robots
+
+
+def run_task_scene(t_end):
+    """Both SCARAs of the cooperative task's scene (floor, container, bar) moving without collisions."""
+    import sys
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from bench_world import references  # noqa: E402  (the same collision-free motions as the world benchmark)
+    from coopsim.tasks import scene
+
+    sim = cs.Simulation(dt=2e-4, log_every=25, world=scene.world())
+    for robot, ref in references(t_end):
+        sim.add_robot(robot, cs.ComputedTorque(400.0, 40.0), ref)
+    sim.run(t_end, progress=False)
+    return sim
 
 
 def median_ms_per_frame(make_anim, frames, repeats, full=False):
@@ -99,6 +116,23 @@ def main():
             anim.show_frame(k)
         upd = (time.perf_counter() - t0) / n * 1e3
         print(f"{name + ' + ghosts':<28} {blit:>19.2f} {full:>10.2f} {axes:>11.2f} {upd:>12.2f}")
+
+    task = run_task_scene(T_END)
+    blit = median_ms_per_frame(lambda: view.animate(task, fps=30), frames, repeats)
+    full = median_ms_per_frame(lambda: view.animate(task, fps=30), frames, repeats, full=True)
+    print(f"{'task scene (world) + ghosts':<28} {blit:>19.2f} {full:>10.2f}")
+    with tempfile.TemporaryDirectory() as d:
+        for suffix in (".mp4", ".gif", ".html"):
+            path = os.path.join(d, "task" + suffix)
+            t0 = time.perf_counter()
+            if suffix == ".html":
+                view.replay_html(task, path, t_end=t_files)
+                n = int(t_files * 30) + 1
+            else:
+                n = len(view.animate(task, fps=30, t_end=t_files, path=path))
+            wall = time.perf_counter() - t0
+            print(f"task scene, {t_files:g} s at 30 fps -> {suffix[1:].upper()}: {n} frames in {wall:.2f} s, "
+                  f"{os.path.getsize(path) / 1e6:.2f} MB")
 
     log, robots = logs["both SCARAs"]
     with tempfile.TemporaryDirectory() as d:
