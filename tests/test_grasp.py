@@ -166,7 +166,7 @@ def test_opening_the_jaw_releases_and_the_body_falls():
     sim.run(1.5, progress=False)
     g = sim.log.grasps
     assert sim.holding(0) is None and list(g["event"]) == ["grasp", "release"], g
-    assert g["reason"].iloc[-1] == "opened" and 0.8 < g["t"].iloc[-1] < 0.9
+    assert g["reason"].iloc[-1] == "opened" and 0.9 < g["t"].iloc[-1] < 1.0  # opened at 0.8, let go over 0.1 s
     assert sim.body_state("box")["position"][2] < z_held - 0.04  # back down on the pedestal
 
 
@@ -244,8 +244,9 @@ def test_a_second_holder_takes_no_load_at_first_and_all_of_it_after_a_handover()
     t, ha, hb, fa, fb = map(np.array, zip(*history))
     k = int(np.flatnonzero(hb == "bar")[0])  # b's first held step
     assert abs(fb[k]) < 0.01 * G_BAR  # no jump when b attaches
-    settle = (t > t[k]) & (t < t[k] + 0.05)
-    assert np.abs(np.diff(fb[settle])).max() < 0.01 * G_BAR and np.abs(np.diff(fa[settle])).max() < 0.01 * G_BAR
+    # from b's attach on, through a's release (its weld fading out as its jaw opens), no force jumps
+    after = t > t[k]
+    assert np.abs(np.diff(fb[after])).max() < 0.01 * G_BAR and np.abs(np.diff(fa[after])).max() < 0.01 * G_BAR
     g = sim.log.grasps
     assert list(zip(g["robot"], g["event"])) == [(0, "grasp"), (1, "grasp"), (0, "release")]
     assert sim.holding(0) is None and sim.holding(1) == "bar"

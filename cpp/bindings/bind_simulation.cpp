@@ -166,7 +166,8 @@ torques between controller updates, the log and tracking metrics.)doc")
                double* field = k == "hold_time" ? &g.hold_time : k == "gap" ? &g.gap : k == "penetration" ? &g.penetration
                              : k == "angle" ? &g.angle : k == "speed" ? &g.speed : k == "angular_speed" ? &g.angular_speed
                              : k == "open_margin" ? &g.open_margin : k == "slip" ? &g.slip
-                             : k == "weld_omega_dt" ? &g.weld_omega_dt : nullptr;
+                             : k == "weld_omega_dt" ? &g.weld_omega_dt
+                             : k == "release_time" ? &g.release_time : nullptr;
                if (!field) throw py::value_error("grasp_options: unknown option '" + k + "'");
                if (!(v >= 0)) throw py::value_error("grasp_options: " + k + " must be >= 0");
                *field = v;
@@ -286,7 +287,7 @@ torques between controller updates, the log and tracking metrics.)doc")
              py::dict d;
              d["hold_time"] = g.hold_time; d["gap"] = g.gap; d["penetration"] = g.penetration; d["angle"] = g.angle;
              d["speed"] = g.speed; d["angular_speed"] = g.angular_speed; d["open_margin"] = g.open_margin;
-             d["slip"] = g.slip; d["weld_omega_dt"] = g.weld_omega_dt;
+             d["slip"] = g.slip; d["weld_omega_dt"] = g.weld_omega_dt; d["release_time"] = g.release_time;
              return d;
            })
       .def_property_readonly("grasp", [](const Simulation& s) { return s.options().grasp.enabled; })

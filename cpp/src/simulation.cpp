@@ -146,6 +146,8 @@ void Simulation::reset() {
     s.held = s.candidate = -1;
     s.candidate_since = -1;
     s.weld.setZero();
+    s.fade = 1.0;
+    s.releasing = false;
     s.k1_valid = false;
     s.updated_at = -1;
     for (LogColumn& c : s.log.columns) c.clear();
@@ -612,9 +614,19 @@ void Simulation::grasp_rule_(double h) {
       link.translation() = s.ws.o[l];
       const Eigen::Vector3d target = link * s.weld_X.translation();
       BodyState st = w.state(s.held);
-      if (s.q_ref[c.moving_joint - 1] > s.held_width + g.open_margin) {
-        release_(s, "opened");
-        changed = true;
+      if (s.releasing) {
+        // letting go by opening: the weld fades out, then the body is free (it moves on its own already)
+        s.release_progress = std::min(1.0, s.release_progress + (g.release_time > 0 ? h / g.release_time : 1.0));
+        const double p = s.release_progress;
+        s.fade = 1.0 - p * p * (3.0 - 2.0 * p);  // smooth at both ends: the load moves over without a jump
+        if (p >= 1.0 - 1e-12) {
+          release_(s, "opened", false);
+          changed = true;
+        }
+      } else if (s.q_ref[c.moving_joint - 1] > s.held_width + g.open_margin) {
+        s.releasing = true;
+        s.fade = 1.0;
+        s.release_progress = 0.0;
       } else if ((target - st.pose.translation()).norm() > g.slip) {
         release_(s, "slipped");
         changed = true;
@@ -667,14 +679,16 @@ void Simulation::ignore_held_() {
   world_->set_ignored(std::move(pairs));
 }
 
-void Simulation::release_(Slot& s, const std::string& why) {
+void Simulation::release_(Slot& s, const std::string& why, bool set_twist) {
   if (s.held < 0) return;
   const int l = s.robot.clamp().fixed_link;
   s.robot.kinematics(s.q.data(), s.ws);
   s.robot.frame_velocities(s.ws, s.qd.data(), s.frame_w.data(), s.frame_v.data());
   const BodyState st = world_->state(s.held);
   // the body leaves with the clamp's rigid twist at its centre of mass
-  world_->set_velocity(s.held, point_velocity(s, l, st.pose.translation()), s.frame_w[l]);
+  if (set_twist) world_->set_velocity(s.held, point_velocity(s, l, st.pose.translation()), s.frame_w[l]);
+  s.releasing = false;
+  s.fade = 1.0;
   grasp_events_.push_back(GraspEvent{time(), static_cast<int>(&s - slots_.data()), s.held, false, why});
   s.held = -1;
   s.weld.setZero();
@@ -707,8 +721,10 @@ void Simulation::welds_(double h) {
   for (Slot& s : slots_) {
     if (s.held < 0) continue;
     const int l = s.robot.clamp().fixed_link;
-    int holders = 0;
-    for (const Slot& o : slots_) holders += o.held == s.held;
+    // the damping is shared among the welds on the body, a fading one counting as much as it holds
+    double holders = 0.0;
+    for (const Slot& o : slots_)
+      if (o.held == s.held) holders += o.fade;
     const BodySpec& b = w.body(s.held);
     const BodyState st = w.state(s.held);
     Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
@@ -730,8 +746,8 @@ void Simulation::welds_(double h) {
     const Eigen::AngleAxisd e_r(target.linear() * st.pose.linear().transpose());
     const Eigen::Vector3d e_v = point_velocity(s, l, target.translation()) - st.velocity;
     const Eigen::Vector3d e_w = s.frame_w[l] - st.angular_velocity;
-    s.weld.head<3>() = m * omega * omega * e_p + 2.0 * m * omega / holders * e_v;
-    s.weld.tail<3>() = i * omega * omega * e_r.angle() * e_r.axis() + 2.0 * i * omega / holders * e_w;
+    s.weld.head<3>() = s.fade * (m * omega * omega * e_p + 2.0 * m * omega / holders * e_v);
+    s.weld.tail<3>() = s.fade * (i * omega * omega * e_r.angle() * e_r.axis() + 2.0 * i * omega / holders * e_w);
     w.apply_wrench(s.held, s.weld.head<3>(), s.weld.tail<3>());
   }
 }

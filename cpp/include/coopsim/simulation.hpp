@@ -75,7 +75,9 @@ namespace coopsim {
 // the body as a stop at the body's width. It is released when the jaw is
 // commanded open beyond the width plus open_margin, when the weld stretches
 // beyond `slip`, or by release(); the body then leaves with the clamp's
-// rigid twist at its centre of mass.
+// rigid twist at its centre of mass. Opening lets go over release_time: the
+// weld's gains fade smoothly to zero, so the load passes to another holder
+// or to the world without a jump; slip and release() let go at once.
 struct GraspOptions {
   bool enabled = true;
   double hold_time = 2e-3;        // s
@@ -87,6 +89,7 @@ struct GraspOptions {
   double open_margin = 1e-3;      // m
   double slip = 5e-3;             // m
   double weld_omega_dt = 0.2;
+  double release_time = 0.1;      // s
 };
 
 // The clamp rule's conditions for one robot and one body, and the measures behind them.
@@ -317,6 +320,9 @@ class Simulation {
     long candidate_since = -1;
     Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame
     double held_width = 0.0;   // m, the body's width between the jaws
+    double fade = 1.0;         // the weld's gain while letting go by opening (1: holding)
+    double release_progress = 0.0;
+    bool releasing = false;
     Vec6 weld = Vec6::Zero();  // force, moment on the body
     VecN q_ref, qd_ref, qdd_ref;
     VecN k1;  // qdd at (q, qd, tau), valid when k1_valid
@@ -342,7 +348,7 @@ class Simulation {
   void link_contacts_(double h);
   void ignore_held_();
   void welds_(double h);
-  void release_(Slot& s, const std::string& why);
+  void release_(Slot& s, const std::string& why, bool set_twist = true);
   GraspCheck grasp_check_(const Slot& s, const BodyState& st, int body) const;
   bool has_ext_(const Slot& s) const { return s.has_applied || s.has_contact; }
   static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
