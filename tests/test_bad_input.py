@@ -198,11 +198,16 @@ maybe_bad = st.one_of(good_vec, anything)
        dt=st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(2e-4)),
        link=st.integers(-10, 10), point=maybe_bad)
 def test_fuzz_steps_and_jacobians(robot, q, qd, tau, dt, link, point):
+    import warnings
+
     calls = [lambda: robot.jacobian(q, link, point), lambda: cs.integrate(robot, q, qd, tau, dt=dt, steps=3),
              lambda: cs.rk4_step(robot, q, qd, tau, dt), lambda: cs.euler_step(robot, q, qd, tau, dt)]
     for call in calls:
         try:
-            out = call()
+            with warnings.catch_warnings():
+                # a large dt is warned about (end stops too stiff for it): a valid answer here
+                warnings.filterwarnings("ignore", message="the end stops", category=RuntimeWarning)
+                out = call()
         except (ValueError, TypeError):
             continue
         except RuntimeError as e:  # divergence of a finite but absurd state, reported with its step

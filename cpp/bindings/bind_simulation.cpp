@@ -161,8 +161,12 @@ torques between controller updates, the log and tracking metrics.)doc")
              o.grasp.enabled = grasp;
              for (auto item : grasp_options) {
                const std::string k = item.first.cast<std::string>();
-               const double v = scalar_arg(item.second, k.c_str());
                GraspOptions& g = o.grasp;
+               if (k == "weld_moment") {
+                 g.weld_moment = item.second.cast<bool>();
+                 continue;
+               }
+               const double v = scalar_arg(item.second, k.c_str());
                double* field = k == "hold_time" ? &g.hold_time : k == "gap" ? &g.gap : k == "penetration" ? &g.penetration
                              : k == "angle" ? &g.angle : k == "speed" ? &g.speed : k == "angular_speed" ? &g.angular_speed
                              : k == "open_margin" ? &g.open_margin : k == "slip" ? &g.slip
@@ -288,6 +292,7 @@ torques between controller updates, the log and tracking metrics.)doc")
              d["hold_time"] = g.hold_time; d["gap"] = g.gap; d["penetration"] = g.penetration; d["angle"] = g.angle;
              d["speed"] = g.speed; d["angular_speed"] = g.angular_speed; d["open_margin"] = g.open_margin;
              d["slip"] = g.slip; d["weld_omega_dt"] = g.weld_omega_dt; d["release_time"] = g.release_time;
+             d["weld_moment"] = g.weld_moment;
              return d;
            })
       .def_property_readonly("grasp", [](const Simulation& s) { return s.options().grasp.enabled; })

@@ -466,7 +466,7 @@ void Simulation::contact_wrenches_(double h) {
     if (s.held < 0) continue;
     ExternalWrench wr;
     wr.link = s.robot.clamp().fixed_link;
-    wr.point = s.weld_X.translation();
+    wr.point = s.anchor_link;
     wr.wrench = -s.weld;
     s.contact_wrenches.push_back(wr);
   }
@@ -612,7 +612,7 @@ void Simulation::grasp_rule_(double h) {
       Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
       link.linear() = s.ws.R[l];
       link.translation() = s.ws.o[l];
-      const Eigen::Vector3d target = link * s.weld_X.translation();
+      const Eigen::Vector3d target = link * s.anchor_link;
       BodyState st = w.state(s.held);
       if (s.releasing) {
         // letting go by opening: the weld fades out, then the body is free (it moves on its own already)
@@ -627,7 +627,7 @@ void Simulation::grasp_rule_(double h) {
         s.releasing = true;
         s.fade = 1.0;
         s.release_progress = 0.0;
-      } else if ((target - st.pose.translation()).norm() > g.slip) {
+      } else if ((target - st.pose * s.anchor_body).norm() > g.slip) {
         release_(s, "slipped");
         changed = true;
       }
@@ -658,7 +658,13 @@ void Simulation::grasp_rule_(double h) {
     link.translation() = s.ws.o[l];
     s.held = found;
     s.held_width = width;
-    s.weld_X = link.inverse() * w.state(found).pose;
+    const Eigen::Isometry3d body = w.state(found).pose;
+    s.weld_X = link.inverse() * body;
+    // anchored midway between the pads' centres, where the clamp holds it
+    const Eigen::Isometry3d face = link * c.fixed_face;
+    const Eigen::Vector3d anchor = face * Eigen::Vector3d(0, 0, 0.5 * s.q[c.moving_joint - 1]);
+    s.anchor_link = link.inverse() * anchor;
+    s.anchor_body = body.inverse() * anchor;
     s.candidate = -1;
     grasp_events_.push_back(GraspEvent{time(), static_cast<int>(i), found, true, "grasp"});
     changed = true;
@@ -731,24 +737,31 @@ void Simulation::welds_(double h) {
     link.linear() = s.ws.R[l];
     link.translation() = s.ws.o[l];
     const Eigen::Isometry3d target = link * s.weld_X;
-    // the reduced mass and inertia between body and robot, in their stiffest direction
+    const Eigen::Vector3d p_target = link * s.anchor_link, p_body = st.pose * s.anchor_body;
+    const Eigen::Vector3d r = p_body - st.pose.translation();  // from the body's centre to the weld's point
+    // the reduced mass and inertia matrices between body and robot at the weld's point (operational
+    // space): every mode of the weld then rings at omega, critically damped
     Mat6N J;
-    s.robot.jacobian(s.ws, l, s.weld_X.translation(), J);
-    double inv_m = 0.0, inv_i = 0.0;
-    for (int a = 0; a < 3; ++a) {
-      inv_m = std::max(inv_m, inverse_mass_along(s, J.row(a).transpose()));
-      inv_i = std::max(inv_i, inverse_mass_along(s, J.row(3 + a).transpose()));
-    }
-    const Eigen::Matrix3d I = w.inertia(s.held);
-    const double i_body = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(I, Eigen::EigenvaluesOnly).eigenvalues()[0];
-    const double m = 1.0 / (1.0 / b.mass + inv_m), i = 1.0 / (1.0 / i_body + inv_i);
-    const Eigen::Vector3d e_p = target.translation() - st.pose.translation();
+    s.robot.jacobian(s.ws, l, s.anchor_link, J);
+    if (!s.M_valid) inverse_mass_along(s, VecN::Zero(s.robot.dof()));  // factor M once this step
+    Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxDof, 6> MinvJt(s.robot.dof(), 6);
+    for (int c = 0; c < 6; ++c) MinvJt.col(c) = s.M_ldlt.solve(VecN(J.row(c).transpose()));
+    const Eigen::Matrix<double, 6, 6> A_robot = J * MinvJt;
+    const Eigen::Matrix3d I_inv = w.inertia(s.held).inverse();
+    Eigen::Matrix3d rx;
+    rx << 0, -r.z(), r.y(), r.z(), 0, -r.x(), -r.y(), r.x(), 0;
+    const Eigen::Matrix3d A_lin = Eigen::Matrix3d::Identity() / b.mass - rx * I_inv * rx + A_robot.topLeftCorner<3, 3>();
+    const Eigen::Matrix3d A_rot = I_inv + A_robot.bottomRightCorner<3, 3>();
+    const Eigen::Matrix3d m = A_lin.inverse(), i = A_rot.inverse();
+    const Eigen::Vector3d e_p = p_target - p_body;
     const Eigen::AngleAxisd e_r(target.linear() * st.pose.linear().transpose());
-    const Eigen::Vector3d e_v = point_velocity(s, l, target.translation()) - st.velocity;
+    const Eigen::Vector3d e_v = point_velocity(s, l, p_target) - (st.velocity + st.angular_velocity.cross(r));
     const Eigen::Vector3d e_w = s.frame_w[l] - st.angular_velocity;
-    s.weld.head<3>() = s.fade * (m * omega * omega * e_p + 2.0 * m * omega / holders * e_v);
-    s.weld.tail<3>() = s.fade * (i * omega * omega * e_r.angle() * e_r.axis() + 2.0 * i * omega / holders * e_w);
-    w.apply_wrench(s.held, s.weld.head<3>(), s.weld.tail<3>());
+    s.weld.head<3>() = s.fade * (m * (omega * omega * e_p + 2.0 * omega / holders * e_v));
+    s.weld.tail<3>() = s.fade * (i * (omega * omega * e_r.angle() * e_r.axis() + 2.0 * omega / holders * e_w));
+    if (!opt_.grasp.weld_moment) s.weld.tail<3>().setZero();
+    // the force acts at the weld's point: about the body's centre it also turns it
+    w.apply_wrench(s.held, s.weld.head<3>(), s.weld.tail<3>() + r.cross(Eigen::Vector3d(s.weld.head<3>())));
   }
 }
 

@@ -66,7 +66,8 @@ class Simulation:
     5e-4), penetration (m, 1e-3), angle (rad, 10 deg), speed (m/s, 0.05),
     angular_speed (rad/s, 0.5), open_margin (m, 1e-3), slip (m, 5e-3),
     weld_omega_dt (0.2), release_time (s, 0.1: opening lets go by fading the
-    weld out over it, so the load passes on without a jump).
+    weld out over it, so the load passes on without a jump), weld_moment
+    (True; False: point welds that carry forces only).
 
     Arguments of the wrong type raise TypeError, values out of range
     ValueError naming the argument (checked once, in the engine).

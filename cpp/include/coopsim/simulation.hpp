@@ -67,7 +67,8 @@ namespace coopsim {
 // the pads' centre and does not reach into the palm beyond the pads; and
 // it moves with the clamp (relative speed below `speed`, relative angular
 // speed below `angular_speed`). The body is then tied to the clamp's link
-// by a soft weld at the pose it has at that instant: a 6-DOF spring-damper
+// by a soft weld at the pose it has at that instant, anchored at the point
+// midway between the pads' centres: a 6-DOF spring-damper
 // (stiffness from the reduced mass and inertia between body and robot so
 // that omega * h = weld_omega_dt for the world step h, critical damping
 // shared among the welds on the body) whose force and moment act on the
@@ -90,6 +91,7 @@ struct GraspOptions {
   double slip = 5e-3;             // m
   double weld_omega_dt = 0.2;
   double release_time = 0.1;      // s
+  bool weld_moment = true;        // false: point welds, forces only (a pin at the body's centre)
 };
 
 // The clamp rule's conditions for one robot and one body, and the measures behind them.
@@ -247,6 +249,7 @@ class Simulation {
   void release(int i);
   const std::vector<GraspEvent>& grasp_events() const { return grasp_events_; }
   // The weld's force and moment on the body held by robot i over the last world step, (6).
+  // (at the weld's point: midway between the pads' centres when it attached)
   const Vec6& weld_wrench(int i) const { return slot_(i).weld; }
   // The rule's conditions for robot i and free body `body` in the present state.
   GraspCheck grasp_check(int i, int body);
@@ -318,7 +321,9 @@ class Simulation {
     // grasp
     int held = -1, candidate = -1;
     long candidate_since = -1;
-    Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame
+    Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame at attach
+    Eigen::Vector3d anchor_link = Eigen::Vector3d::Zero();     // the weld's point: between the pads, in the link frame
+    Eigen::Vector3d anchor_body = Eigen::Vector3d::Zero();     // the same point in the body's frame
     double held_width = 0.0;   // m, the body's width between the jaws
     double fade = 1.0;         // the weld's gain while letting go by opening (1: holding)
     double release_progress = 0.0;
