@@ -6,8 +6,10 @@ every 5th step (contacts and their torques held in between). For each: the
 median wall time of a run, the real-time factor, and the time per step
 split into controllers, world (Bullet: collision detection and solver),
 contact mapping (penalty forces, J^T) and robots (RK4), measured with the
-simulation's own profiler in a separate run. Target: >= 50x real time with
-the world at least every 5th step.
+simulation's own profiler in a separate run. A last row has SCARA #1 holding
+a box (the clamp grasp) with the world every step, and the grasp's own cost
+(rule checking and the weld) within the world's. Target: >= 50x real time
+with the world at least every 5th step.
 
     python benchmarks/bench_world.py [--quick]
 """
@@ -50,6 +52,34 @@ def build(duration, world_every=None):
     return sim
 
 
+def build_holding(duration):
+    """The task's world plus a box held by SCARA #1 (closed on it from a pedestal, as in
+    tests/test_grasp.py, then lifted), SCARA #2 moving as in the other rows; world every step."""
+    r1, r2 = scene.scaras()
+    (_, ref2) = references(duration)[1]
+    q0 = np.array([0.3, 0.5, 0.15, 0.2, np.pi / 2, 0.03])
+    T = r1.fk(q0)
+    fixed, _ = r1.clamp_faces(q0)
+    he = np.array([0.05, 0.01, 0.01])
+    P = T.copy()
+    P[:3, 3] = fixed[:3, 3] + fixed[:3, 2] * (he[1] + 2e-4)
+    w = scene.world()
+    w.add_free_box("box", he, 0.1, P, friction=0.5)
+    ped = np.eye(4)
+    top = P[2, 3] - he[2]
+    ped[:3, 3] = [P[0, 3], P[1, 3], top / 2]
+    w.add_static_box("pedestal", [0.004, 0.004, top / 2], ped)
+    sim = cs.Simulation(DT, log_every=10, world=w)
+    q1 = q0.copy()
+    q1[5] = 0.019
+    q2 = q1.copy()
+    q2[2] -= 0.05
+    sim.add_robot(r1, cs.PID([400, 400, 2000, 20, 20, 500], [0] * 6, [40, 40, 100, 2, 2, 20]),
+                  cs.CubicTrajectory([0.0, 0.02, 0.12, 0.2, 0.5, duration], np.array([q0, q0, q1, q1, q2, q2])))
+    sim.add_robot(r2, cs.ComputedTorque(400.0, 40.0), ref2)
+    return sim
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="shorter runs, fewer repeats")
@@ -80,6 +110,22 @@ def main():
         rtf = t_end / wall
         rows[label] = rtf
         print(f"{label:<28}{wall:9.3f}{rtf:13.1f}{wall / steps * 1e6:9.2f}   {split}")
+    # the grasp's cost beside the world's: SCARA #1 holding a box for the whole run
+    walls = []
+    for _ in range(repeats):
+        sim = build_holding(t_end)
+        t0 = time.perf_counter()
+        sim.run(t_end, progress=False)
+        walls.append(time.perf_counter() - t0)
+    wall = statistics.median(walls)
+    sim = build_holding(t_end)
+    sim._core.set_profiling(True)
+    sim.run(t_end, progress=False)
+    assert sim.holding(0) == "box", "the benchmark's grasp failed"
+    p = sim._core.profile()
+    print(f"{'one SCARA holding a box':<28}{wall:9.3f}{t_end / wall:13.1f}{wall / steps * 1e6:9.2f}   "
+          + ", ".join(f"{p[k] / steps * 1e6:.2f}" for k in ("controllers", "world", "contacts", "robots"))
+          + f"; of the world's, the grasp (rule and weld) {p['grasp'] / steps * 1e6:.2f}")
     ok = rows["world every 5th step"] >= TARGET_RTF
     extra = (1 / rows["world every step"] - 1 / rows["robots only"]) / steps * t_end * 1e6
     print(f"target >= {TARGET_RTF:g}x real time with the world every 5th step: "

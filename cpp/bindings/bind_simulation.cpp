@@ -379,10 +379,11 @@ torques between controller updates, the log and tracking metrics.)doc")
              d["world"] = p.world;
              d["contacts"] = p.contacts;
              d["robots"] = p.robots;
+             d["grasp"] = p.grasp;
              d["world_steps"] = p.world_steps;
              return d;
-           }, "Seconds spent in the controllers, the world's step, the contact mapping and the robots' "
-              "integration since profiling was switched on (set_profiling).")
+           }, "Seconds spent in the controllers, the world's step (grasp included), the grasp rule and welds, the "
+              "contact mapping and the robots' integration since profiling was switched on (set_profiling).")
       .def("robot", [](const Simulation& s, int i) { return s.robot(i); }, py::arg("i"),
            "Robot i as simulated (robots are immutable: this equals the robot added).")
       .def("controller", [](const Simulation& s, int i) { return s.controller(i); }, py::arg("i"))

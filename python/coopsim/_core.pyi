@@ -838,7 +838,7 @@ class SimulationCore:
         """
     def profile(self) -> dict:
         """
-        Seconds spent in the controllers, the world's step, the contact mapping and the robots' integration since profiling was switched on (set_profiling).
+        Seconds spent in the controllers, the world's step (grasp included), the grasp rule and welds, the contact mapping and the robots' integration since profiling was switched on (set_profiling).
         """
     def reference(self, i: typing.SupportsInt | typing.SupportsIndex) -> Reference:
         ...

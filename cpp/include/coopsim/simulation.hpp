@@ -197,7 +197,7 @@ struct LoggedContact {
 
 // Time spent per part of the loop (with SimulationOptions profiling on), s.
 struct StepProfile {
-  double controllers = 0, world = 0, contacts = 0, robots = 0;
+  double controllers = 0, world = 0, contacts = 0, robots = 0, grasp = 0;  // grasp: the rule and the welds
   long steps = 0, world_steps = 0;
 };
 
