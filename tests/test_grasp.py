@@ -406,3 +406,52 @@ def test_an_asymmetric_point_grasp_follows_the_lever_rule():
     sim.run(1.0, progress=False)
     fa6 = sim.weld_wrench(0)[2] / G_BAR
     assert 0.5 < fa6 < 0.75 and sim.weld_wrench(0)[2] + sim.weld_wrench(1)[2] == pytest.approx(G_BAR, rel=1e-6)
+
+
+def test_a_pick_and_move_with_the_weld_follows_the_payload_oracle_within_the_welds_sag():
+    # grasp the box, lift it, swing the arm; then the same motion by the robot with the box lumped into its
+    # clamp link (the exact oracle), both under one control law (PID with the oracle's gravity model).
+    # The weld differs from the rigid payload only by its compliance: the clamp link's paths differ by at
+    # most the sag F / k of the weld at the peak force F, with k = m_red omega^2, omega = 0.2 / dt, and
+    # m_red the reduced mass of box and robot at the weld's point in its most compliant direction
+    he = BOX * [1, 2 / 3, 1]
+    gains = dict(kp=[400, 400, 2000, 20, 20, 500], ki=[0] * 6, kd=[40, 40, 100, 2, 2, 20])
+    q1 = Q0.copy()
+    q1[5] = 0.019
+    lifted = q1.copy()
+    lifted[2] -= 0.05
+    swung = lifted + [0.3, -0.2, 0, 0, 0, 0]
+    r, w = scene(he)
+    grasp_only = cs.Simulation(dt=DT, world=w)
+    grasp_only.add_robot(r, cs.PID(**gains), cs.CubicTrajectory([0, 0.02, 0.12], np.array([Q0, Q0, q1])))
+    grasp_only.run(0.15, progress=False)
+    q = grasp_only.state(0)[0]
+    X = np.linalg.solve(r.frames(q)[5], grasp_only.body_state("box")["pose"])
+    oracle = payload_robot(r, X, 0.1, he)
+
+    r, w = scene(he)
+    welded = cs.Simulation(dt=DT, world=w)
+    welded.add_robot(r, cs.PID(**gains, model=oracle),
+                     cs.CubicTrajectory([0, 0.02, 0.12, 0.2, 0.4, 0.9, 1.3], np.array([Q0, Q0, q1, q1, lifted, swung,
+                                                                                      swung])))
+    welded.run(0.4, progress=False)
+    assert welded.holding(0) == "box"
+    q_start, qd_start = welded.state(0)
+    rigid = cs.Simulation(dt=DT)
+    rigid.add_robot(oracle, cs.PID(**gains), cs.CubicTrajectory([0, 0.5, 0.9], np.array([lifted, swung, swung])),
+                    q0=q_start, qd0=qd_start)
+    lw, lr = welded.run(1.3, progress=False), rigid.run(0.9, progress=False)
+    k = lw.t >= 0.4 - 1e-9
+    Qw, Qr = lw.q[k][:len(lr.t)], lr.q
+    assert np.abs(Qw[-1] - swung)[:5].max() < 1e-3  # it did move
+    # the bound: the weld's sag at its peak force
+    F = np.linalg.norm(lw[0].weld[k][:, :3], axis=1).max()
+    link = r.clamp.fixed_link
+    c = np.linalg.solve(r.frames(q_start)[link], [*welded.body_state("box")["position"], 1.0])[:3]
+    J = r.jacobian(q_start, link, c)[:3]
+    robot_inv = np.linalg.eigvalsh(J @ np.linalg.solve(r.mass_matrix(q_start), J.T)).max()
+    m_red = 1.0 / (1.0 / 0.1 + robot_inv)
+    sag = F / (m_red * (0.2 / DT) ** 2)
+    diff = max(np.linalg.norm(r.frames(a)[link][:3, 3] - r.frames(b)[link][:3, 3]) for a, b in zip(Qw[::10], Qr[::10]))
+    assert diff <= sag, (diff, sag)
+    assert np.abs(Qw - Qr)[:, :5].max() < sag / 0.1  # joints: the sag over a lever of at least 10 cm
