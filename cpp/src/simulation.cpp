@@ -446,13 +446,16 @@ static VecN normal_jacobian(const Robot& r, const Workspace& ws, int link, const
 }
 
 // u^T M^-1 u for the slot's robot at its q (M factored once per world step).
+void Simulation::factor_mass_(Slot& s) {
+  if (s.M_valid) return;
+  MatN M;
+  s.robot.mass_matrix(s.q.data(), s.ws, M);
+  s.M_ldlt.compute(M);
+  s.M_valid = true;
+}
+
 double Simulation::inverse_mass_along(Slot& s, const VecN& u) {
-  if (!s.M_valid) {
-    MatN M;
-    s.robot.mass_matrix(s.q.data(), s.ws, M);
-    s.M_ldlt.compute(M);
-    s.M_valid = true;
-  }
+  factor_mass_(s);
   return u.dot(s.M_ldlt.solve(u));
 }
 
@@ -553,9 +556,7 @@ GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) 
   // the jaw commanded closing or closed
   out.closing = s.q_ref[j] <= opening + 1e-9 || s.qd_ref[j] < 0;
   const BodySpec& b = world_->body(id);
-  Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
-  link.linear() = s.ws.R[l];
-  link.translation() = s.ws.o[l];
+  const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
   const Eigen::Isometry3d F = link * c.fixed_face;  // x along the jaw, z the jaw axis, origin the pad centre
   const Eigen::Matrix3d A = F.linear().transpose() * st.pose.linear();  // the body's axes in F
   const Eigen::Vector3d p = F.inverse() * st.pose.translation();
@@ -609,9 +610,7 @@ void Simulation::grasp_rule_(double h) {
     if (!c.present()) continue;
     const int l = c.fixed_link;
     if (s.held >= 0) {
-      Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
-      link.linear() = s.ws.R[l];
-      link.translation() = s.ws.o[l];
+      const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
       const Eigen::Vector3d target = link * s.anchor_link;
       BodyState st = w.state(s.held);
       if (s.releasing) {
@@ -653,9 +652,7 @@ void Simulation::grasp_rule_(double h) {
     }
     if ((k_ - s.candidate_since) * opt_.dt < g.hold_time - 1e-12) continue;
     // attach where the body is now: no snapping
-    Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
-    link.linear() = s.ws.R[l];
-    link.translation() = s.ws.o[l];
+    const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
     s.held = found;
     s.held_width = width;
     const Eigen::Isometry3d body = w.state(found).pose;
@@ -733,9 +730,7 @@ void Simulation::welds_(double h) {
       if (o.held == s.held) holders += o.fade;
     const BodySpec& b = w.body(s.held);
     const BodyState st = w.state(s.held);
-    Eigen::Isometry3d link = Eigen::Isometry3d::Identity();
-    link.linear() = s.ws.R[l];
-    link.translation() = s.ws.o[l];
+    const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
     const Eigen::Isometry3d target = link * s.weld_X;
     const Eigen::Vector3d p_target = link * s.anchor_link, p_body = st.pose * s.anchor_body;
     const Eigen::Vector3d r = p_body - st.pose.translation();  // from the body's centre to the weld's point
@@ -743,7 +738,7 @@ void Simulation::welds_(double h) {
     // space): every mode of the weld then rings at omega, critically damped
     Mat6N J;
     s.robot.jacobian(s.ws, l, s.anchor_link, J);
-    if (!s.M_valid) inverse_mass_along(s, VecN::Zero(s.robot.dof()));  // factor M once this step
+    factor_mass_(s);  // once this world step
     Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxDof, 6> MinvJt(s.robot.dof(), 6);
     for (int c = 0; c < 6; ++c) MinvJt.col(c) = s.M_ldlt.solve(VecN(J.row(c).transpose()));
     const Eigen::Matrix<double, 6, 6> A_robot = J * MinvJt;

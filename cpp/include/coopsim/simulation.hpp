@@ -358,6 +358,7 @@ class Simulation {
   bool has_ext_(const Slot& s) const { return s.has_applied || s.has_contact; }
   static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
   double inverse_mass_along(Slot& s, const VecN& u);
+  void factor_mass_(Slot& s);  // M(q) of the slot's robot, LDL^T-factored once per world step
   void applied_changed_(Slot& s);
 
   SimulationOptions opt_;
