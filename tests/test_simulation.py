@@ -733,3 +733,33 @@ def test_a_log_too_large_for_memory_is_a_clear_error():
     assert sim.steps == 0
     log = sim.run(0.01, progress=False)  # nothing was lost or half-made
     assert len(log) == 51
+
+
+def test_a_reference_replaced_between_runs_acts_from_the_next_step():
+    r = cs.robots.scara1()
+    traj = trajectory(r)
+    whole = cs.Simulation(dt=DT)
+    whole.add_robot(r, pid(r), traj)
+    split = cs.Simulation(dt=DT)
+    split.add_robot(r, pid(r), cs.CubicTrajectory([0.0, 5.0], np.zeros((2, 6))), q0=traj.evaluate(0.0)[0])
+    split.set_reference(0, traj)  # before the first step: acts at once
+    split.run(0.3, progress=False)
+    split.set_reference(0, trajectory(r))  # the same motion, a new object
+    a, b = whole.run(1.0, progress=False), split.run(1.0, progress=False)
+    np.testing.assert_array_equal(a.to_array(), b.to_array())
+    # a new set point: the row at the switch shows the old reference, the next rows the new one
+    q_new = traj.evaluate(1.0)[0] + 0.1
+    q_new[5] = 0.03  # the jaw within its 5 cm
+    split.set_reference(0, q_new)
+    k = len(split.log.t)
+    log = split.run(2.0, progress=False)
+    np.testing.assert_array_equal(log.q_ref[k - 1], traj.evaluate(1.0)[0])
+    np.testing.assert_array_equal(log.q_ref[k:], np.broadcast_to(q_new, log.q_ref[k:].shape))
+    assert np.abs(log.q[-1] - q_new).max() < 2e-3
+    assert isinstance(split.references[0], cs.SetPoint)
+    with pytest.raises(ValueError, match="reference has 2 joints but robot 'scara1' has 6"):
+        split.set_reference(0, cs.CubicTrajectory([0.0, 1.0], np.zeros((2, 2))))
+    with pytest.raises(ValueError, match="reference"):
+        split.set_reference(0, np.zeros(3))
+    with pytest.raises(ValueError, match="robot must be an index"):
+        split.set_reference(1, q_new)

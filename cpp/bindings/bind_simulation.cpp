@@ -206,6 +206,11 @@ torques between controller updates, the log and tracking metrics.)doc")
            py::arg("robot"), py::arg("controller"), py::arg("reference"), py::arg("q0") = py::none(),
            py::arg("qd0") = py::none(), py::keep_alive<1, 3>(), py::keep_alive<1, 4>(),
            "Adds a robot (copied); returns its index.")
+      .def("set_reference", [](Simulation& s, int i, const py::object& reference) {
+             s.set_reference(i, reference_arg(reference, s.robot(i).dof()));
+           }, py::arg("i"), py::arg("reference"), py::keep_alive<1, 3>(),
+           "Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller "
+           "update.")
       .def("advance", [](Simulation& s, long n) {
              py::gil_scoped_release nogil;
              s.advance(n);

@@ -286,6 +286,15 @@ void Simulation::qdd_(Slot& s, VecN& out) {
                            out, opt_.end_stops);
 }
 
+void Simulation::set_reference(int i, std::shared_ptr<const Reference> reference) {
+  Slot& s = slot_(i);
+  if (!reference) throw std::invalid_argument("reference must not be None");
+  if (reference->dof() != s.robot.dof())
+    throw std::invalid_argument("reference has " + std::to_string(reference->dof()) + " joints but robot '" +
+                                s.robot.name() + "' has " + std::to_string(s.robot.dof()));
+  s.reference = std::move(reference);
+}
+
 void Simulation::set_applied_forces(int i, const VecN& forces) {
   Slot& s = slot_(i);
   const int n = s.robot.dof();

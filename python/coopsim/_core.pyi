@@ -864,6 +864,10 @@ class SimulationCore:
         """
     def set_profiling(self, on: bool) -> None:
         ...
+    def set_reference(self, i: typing.SupportsInt | typing.SupportsIndex, reference: typing.Any) -> None:
+        """
+        Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller update.
+        """
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
         (q, qd) of robot i now, each (n,).

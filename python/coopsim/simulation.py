@@ -219,6 +219,18 @@ class Simulation:
         """
         self._core.set_applied(_index(robot, self.robot_count), forces, wrenches)
 
+    def set_reference(self, robot: int, reference) -> None:
+        """Replaces a robot's reference: a coopsim.Reference (e.g. a CubicTrajectory with times in
+        the simulation's clock, s) or a set-point (n,) held from now on.
+
+        It acts from the next controller update: at once before the first step or after
+        :meth:`reset`; between runs, the torque already held over the step at the present time
+        stays and the new reference drives the next step on. Plan it to start at :attr:`time` with
+        the present reference's q and qd for a smooth switch (a task sequenced phase by phase does
+        this between ``run`` calls). The pickled description keeps the latest reference.
+        """
+        self._core.set_reference(_index(robot, self.robot_count), reference)
+
     def applied(self, robot: int = 0) -> dict:
         """A robot's applied inputs now: {'forces': (n,), 'wrenches': [Wrench], 'tau_ext': (n,)}."""
         i = _index(robot, self.robot_count)

@@ -225,6 +225,14 @@ class Simulation {
                 std::shared_ptr<const Reference> reference, const double* q0 = nullptr,
                 const double* qd0 = nullptr);
 
+  // Replaces robot i's reference (same number of joints). It is evaluated
+  // from the next controller update on: a change before the first step (or
+  // after reset()) acts at once; between runs, the torque already held over
+  // the step at the present time stays (the controller runs once per step),
+  // and the new reference acts from the next step. Plan it continuous with
+  // the old one at the present time for a smooth hand-over.
+  void set_reference(int i, std::shared_ptr<const Reference> reference);
+
   int robot_count() const { return static_cast<int>(slots_.size()); }
   const Robot& robot(int i) const { return slot_(i).robot; }
   const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).controller; }
