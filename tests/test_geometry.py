@@ -208,3 +208,59 @@ def test_scara_boxes_overlap_only_where_they_touch(make):
     q[quill] = 0.0
     extra = overlapping(robot, q) - TOUCHING
     assert extra and all(a in {"link2", "link3"} and b in {"link4", "link5"} for a, b in extra), extra
+
+
+def random_pose(rng, spread=0.3):
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    T[:3, 3] = rng.uniform(-spread, spread, 3)
+    return T
+
+
+def test_box_distance_is_the_nearest_points_gap_of_a_bounded_least_squares_problem():
+    # the reference: min |p_a - p_b| over points of both boxes, p = t + R u with |u_k| <= h_k, solved by
+    # scipy's bounded linear least squares; overlapping boxes give minus the separating-axis overlap
+    from scipy.optimize import lsq_linear
+
+    rng = np.random.default_rng(7)
+    apart = 0
+    for _ in range(300):
+        Ta, Tb = random_pose(rng), random_pose(rng)
+        ha, hb = rng.uniform(0.01, 0.15, 3), rng.uniform(0.01, 0.15, 3)
+        d = cs.box_distance(Ta, ha, Tb, hb)
+        A = np.hstack([Ta[:3, :3], -Tb[:3, :3]])
+        res = lsq_linear(A, Tb[:3, 3] - Ta[:3, 3], bounds=(-np.r_[ha, hb], np.r_[ha, hb]), tol=1e-14)
+        gap = np.linalg.norm(A @ res.x - (Tb[:3, 3] - Ta[:3, 3]))
+        if gap > 1e-9:
+            apart += 1
+            assert d == pytest.approx(gap, abs=1e-9)
+        else:
+            assert d <= 0.0
+    assert apart > 100
+    # analytic cases: faces 0.2 apart, an overlap of 5 cm, a corner gap, touching
+    I, T = np.eye(4), np.eye(4)
+    for p, want in (([0.5, 0, 0], 0.2), ([0.25, 0, 0], -0.05), ([0.5, 0.4, 0.3], np.linalg.norm([0.2, 0.2, 0.1])),
+                    ([0.3, 0.0, 0.0], 0.0)):
+        T[:3, 3] = p
+        assert cs.box_distance(I, [0.1, 0.1, 0.1], T, [0.2, 0.1, 0.1]) == pytest.approx(want, abs=1e-12)
+
+
+def test_box_distances_is_box_distance_for_every_pair_and_checks_its_arguments():
+    r = cs.robots.scara1()
+    P, H = r.shapes(np.array([0.3, 0.5, 0.1, 0.2, 1.0, 0.02]))
+    T = np.eye(4)
+    T[:3, 3] = [0.4, 0.2, 0.3]
+    D = cs.box_distances(P, H, np.array([T, np.eye(4)]), np.array([[0.05, 0.05, 0.05], [0.02, 0.02, 0.02]]))
+    assert D.shape == (len(P), 2)
+    for i in range(len(P)):
+        assert D[i, 0] == cs.box_distance(P[i], H[i], T, [0.05, 0.05, 0.05])
+    with pytest.raises(ValueError, match=r"wrong shape for half_b: expected \(2, 3\)"):
+        cs.box_distances(P, H, np.array([T, T]), np.ones((3, 3)))
+    with pytest.raises(ValueError, match="half_a: half extents must be finite and > 0"):
+        cs.box_distance(T, [0.1, 0.0, 0.1], T, [0.1, 0.1, 0.1])
+    bad = T.copy()
+    bad[0, 0] = 2.0
+    with pytest.raises(ValueError, match=r"poses_b\[1\] must be a rigid transform"):
+        cs.box_distances(P, H, np.array([T, bad]), np.ones((2, 3)))

@@ -58,7 +58,49 @@ py::dict body_state_dict(const BodyState& s) {
   return d;
 }
 
+std::vector<Eigen::Isometry3d> pose_list(const py::handle& obj, const char* name) {
+  Arr a = array(obj, {-1, 4, 4}, name);
+  std::vector<Eigen::Isometry3d> out;
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    py::array_t<double> one(std::vector<py::ssize_t>{4, 4}, a.data() + 16 * i);
+    out.push_back(pose(one, (std::string(name) + "[" + std::to_string(i) + "]").c_str()));
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector3d> half_list(const py::handle& obj, size_t n, const char* name) {
+  Arr a = array(obj, {static_cast<py::ssize_t>(n), 3}, name);
+  std::vector<Eigen::Vector3d> out;
+  for (size_t i = 0; i < n; ++i) out.emplace_back(a.data()[3 * i], a.data()[3 * i + 1], a.data()[3 * i + 2]);
+  return out;
+}
+
 void bind_world(py::module_& m) {
+  m.def("box_distance", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb) {
+          const Eigen::Isometry3d a = pose(pa, "pose_a"), b = pose(pb, "pose_b");
+          Arr x = array(ha, {3}, "half_a"), y = array(hb, {3}, "half_b");
+          return box_distance(a, Eigen::Vector3d(x.data()[0], x.data()[1], x.data()[2]), b,
+                              Eigen::Vector3d(y.data()[0], y.data()[1], y.data()[2]));
+        }, py::arg("pose_a"), py::arg("half_a"), py::arg("pose_b"), py::arg("half_b"),
+        "Distance between two boxes, m: the gap between their nearest points (> 0), or minus the depth of "
+        "their overlap (<= 0).\n\npose_a, pose_b: (4, 4) world poses of the box centres; half_a, half_b: (3,) "
+        "half extents (m, > 0). Bullet's GJK and EPA on exact boxes (no collision margin).");
+  m.def("box_distances", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb) {
+          const auto a = pose_list(pa, "poses_a"), b = pose_list(pb, "poses_b");
+          const auto x = half_list(ha, a.size(), "half_a"), y = half_list(hb, b.size(), "half_b");
+          py::array_t<double> out(std::vector<py::ssize_t>{static_cast<py::ssize_t>(a.size()),
+                                                           static_cast<py::ssize_t>(b.size())});
+          double* o = out.mutable_data();
+          {
+            py::gil_scoped_release nogil;
+            box_distances(a, x, b, y, o);
+          }
+          return out;
+        }, py::arg("poses_a"), py::arg("half_a"), py::arg("poses_b"), py::arg("half_b"),
+        "Distances (Na, Nb) between every box of one list and every box of another, m (as box_distance).\n\n"
+        "poses_a: (Na, 4, 4), half_a: (Na, 3); poses_b: (Nb, 4, 4), half_b: (Nb, 3). Robot.shapes(q) gives a "
+        "robot's boxes in this form.");
+
   py::class_<World, std::shared_ptr<World>>(m, "World", R"doc(A Bullet dynamics world: an optional floor (the plane z = 0), static boxes
 (scenery) and free boxes with mass. Give it to a Simulation (world=...),
 which brings every robot's link boxes into it as kinematic bodies; one world

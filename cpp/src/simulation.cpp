@@ -469,8 +469,6 @@ double Simulation::inverse_mass_along(Slot& s, const VecN& u) {
 }
 
 void Simulation::contact_wrenches_(double h) {
-  World& w = *world_;
-  std::vector<ContactPoint>& contacts = w.contacts();
   for (Slot& s : slots_) s.contact_wrenches.clear();
   if (opt_.contact_forces) link_contacts_(h);
   // a held body pulls on its holder's clamp link: the weld's wrench, opposite, at the body's centre

@@ -1,8 +1,13 @@
 // The Bullet world (see world.hpp and shared/design/world.md): the only part
 // of the engine's simulation that includes Bullet.
 #include "coopsim/world.hpp"
+#include "coopsim/robot.hpp"
 
 #include <btBulletDynamicsCommon.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
+#include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
+#include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
 
 #include <algorithm>
 #include <cmath>
@@ -467,6 +472,78 @@ void World::reset() {
   contacts_.clear();
   events_.clear();
   open_.clear();
+}
+
+namespace {
+
+btTransform bt_pose(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.rotation();
+  btTransform t;
+  t.setBasis(btMatrix3x3(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)));
+  t.setOrigin(btVector3(T.translation().x(), T.translation().y(), T.translation().z()));
+  return t;
+}
+
+void check_half(const Eigen::Vector3d& h, const char* what) {
+  if (!h.allFinite() || (h.array() <= 0.0).any())
+    throw std::invalid_argument(std::string(what) + ": half extents must be finite and > 0 m");
+}
+
+// The gap by GJK; overlapping boxes get minus the separating-axis overlap,
+// which for boxes is the exact penetration depth (the 15 axes hold every
+// candidate direction of the minimum translation), where EPA is not exact.
+double gjk_distance(const btBoxShape& a, const btTransform& ta, const btBoxShape& b, const btTransform& tb,
+                    const Eigen::Isometry3d& ea, const Eigen::Vector3d& ha, const Eigen::Isometry3d& eb,
+                    const Eigen::Vector3d& hb) {
+  btVoronoiSimplexSolver simplex;
+  btGjkEpaPenetrationDepthSolver epa;
+  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
+  btDiscreteCollisionDetectorInterface::ClosestPointInput in;
+  in.m_transformA = ta;
+  in.m_transformB = tb;
+  btPointCollector out;
+  gjk.getClosestPoints(in, out, nullptr);
+  if (out.m_hasResult && out.m_distance > 0.0) return out.m_distance;
+  return -std::max(box_penetration(ea, ha, eb, hb), 0.0);
+}
+
+btBoxShape zero_margin_box(const Eigen::Vector3d& h) {
+  btBoxShape box(btVector3(h.x(), h.y(), h.z()));
+  box.setMargin(0.0);  // keeps the half extents: the box is exact, not rounded
+  return box;
+}
+
+}  // namespace
+
+double box_distance(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+                    const Eigen::Vector3d& half_b) {
+  check_half(half_a, "half_a");
+  check_half(half_b, "half_b");
+  const btBoxShape ba = zero_margin_box(half_a), bb = zero_margin_box(half_b);
+  return gjk_distance(ba, bt_pose(a), bb, bt_pose(b), a, half_a, b, half_b);
+}
+
+void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
+                   const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
+                   double* out) {
+  if (a.size() != half_a.size() || b.size() != half_b.size())
+    throw std::invalid_argument("box_distances: as many half extents as poses are needed");
+  std::vector<btBoxShape> sa, sb;
+  std::vector<btTransform> ta, tb;
+  sa.reserve(a.size());
+  sb.reserve(b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    check_half(half_a[i], "half_a");
+    sa.push_back(zero_margin_box(half_a[i]));
+    ta.push_back(bt_pose(a[i]));
+  }
+  for (size_t j = 0; j < b.size(); ++j) {
+    check_half(half_b[j], "half_b");
+    sb.push_back(zero_margin_box(half_b[j]));
+    tb.push_back(bt_pose(b[j]));
+  }
+  for (size_t i = 0; i < a.size(); ++i)
+    for (size_t j = 0; j < b.size(); ++j) out[i * b.size() + j] = gjk_distance(sa[i], ta[i], sb[j], tb[j], a[i], half_a[i], b[j], half_b[j]);
 }
 
 }  // namespace coopsim

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -948,6 +948,18 @@ class SimulationCore:
     @property
     def world_every(self) -> int:
         ...
+def box_distance(pose_a: typing.Any, half_a: typing.Any, pose_b: typing.Any, half_b: typing.Any) -> float:
+    """
+    Distance between two boxes, m: the gap between their nearest points (> 0), or minus the depth of their overlap (<= 0).
+    
+    pose_a, pose_b: (4, 4) world poses of the box centres; half_a, half_b: (3,) half extents (m, > 0). Bullet's GJK and EPA on exact boxes (no collision margin).
+    """
+def box_distances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any, half_b: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+    """
+    Distances (Na, Nb) between every box of one list and every box of another, m (as box_distance).
+    
+    poses_a: (Na, 4, 4), half_a: (Na, 3); poses_b: (Nb, 4, 4), half_b: (Nb, 3). Robot.shapes(q) gives a robot's boxes in this form.
+    """
 def box_inertia(mass: typing.SupportsFloat | typing.SupportsIndex, lx: typing.SupportsFloat | typing.SupportsIndex, ly: typing.SupportsFloat | typing.SupportsIndex, lz: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
     Inertia tensor (3, 3) in kg m^2 of a solid box of `mass` kg and edges lx, ly, lz (m) along x, y, z, about its centre.

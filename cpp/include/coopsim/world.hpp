@@ -35,6 +35,16 @@ struct BodySpec;
 // "robot-body" (a link and a free body), "body-scenery", "body-body".
 const char* contact_kind(const BodySpec& a, const BodySpec& b);
 
+// Distance between two boxes (world poses of their centres, half extents), m:
+// > 0 the gap between their nearest points, <= 0 minus the depth of their
+// overlap (Bullet's GJK with EPA, margins zero, double precision). Rows i, j
+// of `out` (na x nb) for every pair of the two lists (box_distances).
+double box_distance(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+                    const Eigen::Vector3d& half_b);
+void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
+                   const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
+                   double* out);
+
 // A body of the world: the floor (the plane z = 0 within 100 m of the
 // origin: the top face of a static 200 m cube), a static box, a free box
 // (mass > 0), or a link box of a robot (kinematic; added by a simulation).
