@@ -70,6 +70,7 @@ CASES = {
                                          "aligned"),
     "wider than the opening": (dict(he=np.array([0.05, 0.017, 0.01]), centre=0.015), {}, "touching"),
     "outside the pads": (dict(he=BOX, shift=0.025), {}, "in_pads"),
+    "standing out 5 mm beyond the tips": (dict(he=BOX, shift=0.015), {}, None),
     "moving at 0.2 m/s": (dict(he=BOX, velocity=0.2, friction=0.0), {}, "slow"),
     "jaw commanded open": (dict(he=BOX), dict(jaw_ref=0.04), "closing"),
 }

@@ -581,10 +581,12 @@ GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) 
   out.gap_moving = opening - (p.z() + ez);
   out.touching = out.gap_fixed <= g.gap && out.gap_fixed >= -g.penetration && out.gap_moving <= g.gap &&
                  out.gap_moving >= -g.penetration;
-  // within the pads along the jaw (not beyond the tips, not into the palm), across their centre line
+  // between the pads: its centre within them along the jaw (x, towards the tips; a body may stand out
+  // beyond the tips, as a bar on the floor gripped above it does), not into the palm, and across their
+  // centre line
   const double ex = (A.row(0).cwiseAbs().transpose().array() * he.array()).sum();
   const double ey = (A.row(1).cwiseAbs().transpose().array() * he.array()).sum();
-  out.in_pads = p.x() - ex >= -c.jaw_length / 2 - 1e-9 && p.x() + ex <= c.jaw_length / 2 + 1e-9 &&
+  out.in_pads = std::abs(p.x()) <= c.jaw_length / 2 + 1e-9 && p.x() - ex >= -c.jaw_length / 2 - 1e-9 &&
                 std::abs(p.y()) <= ey;
   // moving with the clamp
   out.speed = (st.velocity - point_velocity(s, l, st.pose.translation())).norm();

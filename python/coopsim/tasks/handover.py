@@ -1,0 +1,398 @@
+"""The cooperative task (paper section 11.5, Figs. 17-18): two SCARAs hand a bar over and drop it into an
+inclined container.
+
+SCARA #2 picks a bar from the floor and carries it under SCARA #1's open clamp; #1 grasps it in the air
+(both hold it), #2 lets go, #1 turns the bar onto the container's axis, inserts it, opens and backs
+off; the bar slides down the tube by gravity. Both robots return and the next bar follows.
+
+Python sequences the phases; every step runs in the engine. Each phase plans both robots' motions from
+the state the previous phase left (the bar's pose in a clamp is measured after each grasp, so a grip
+that settled a millimetre off is carried into the plan), installs them with
+:meth:`Simulation.set_reference`, and advances the simulation with ``run``; grasps and releases
+happen only through the clamp rule (closing the jaws on the bar, opening them). Motions are the
+existing closed-form IK and cubic joint trajectories (:func:`coopsim.planning.plan_cartesian` for the
+straight tool lines).
+
+A cycle fails, with its step, time and reason, on a forbidden contact (robot-robot, robot-container,
+a robot's own links, or a bar touching anything but the jaws, the floor before pick-up, the container
+and the floor after release), a grasp that does not happen, a release that does not happen, or a bar
+that does not slide down the tube. The run stops at the first failure. :func:`run` returns a
+:class:`TaskResult` whose ``report`` holds, per cycle: durations per step, tracking errors (joint and
+tool), minimum clearances robot-robot and robot-container, peak weld and internal forces during the
+dual hold, every contact and grasp event, and success or the step and reason.
+
+Scene values: :mod:`coopsim.tasks.scene`. Planning values (m, rad, s) are the module constants below
+(``task.md``, "Geometry checked"): the handover bar centre (0.25, 0.25, 0.20), yaw 285 deg, #1 gripping
+0.075 m on one side of the centre and #2 0.125 m on the other; #2 picks the bar 0.125 m from its
+centre with the tool centre point 0.015 m above the bar's centre; #1 inserts at a clamp pitch of
+65 deg, arriving 0.10 m beside the axis, sliding onto it and pushing 0.20 m in, then backing off
+0.06 m along its approach.
+
+Command line: ``python -m coopsim.tasks.handover --out out/`` (``--help`` for the options).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+
+from .. import _core
+from .._core import ComputedTorque, CubicTrajectory, IKError
+from ..planning import plan_cartesian, rotz
+from ..simulation import Simulation
+from . import scene
+
+__all__ = ["REGION", "TaskResult", "TaskError", "default_bars", "random_bar", "run", "sweep"]
+
+DEG = math.pi / 180.0
+
+#: Region of randomised bar starts: centre x, y (m) and yaw (rad), all pickable by SCARA #2.
+REGION = dict(x=(0.90, 1.00), y=(0.25, 0.35), yaw=(15 * DEG, 45 * DEG))
+
+# ---- planning values (m, rad, s) ----
+HANDOVER_CENTRE = np.array([0.25, 0.25, 0.20])
+HANDOVER_YAW = 285 * DEG
+GRIP1 = -0.075           # #1's grip along the bar from its centre (the bar's +x end enters the tube first)
+GRIP2 = 0.125            # #2's grip along the bar from its centre
+PICK_HEIGHT = 0.015      # #2's tool centre point above the bar's centre at pick-up
+OPEN = 0.035             # jaw opening while approaching a bar (m)
+SQUEEZE = 0.012          # jaw reference while closing: the jaw stop holds it at the bar's width
+CLEAR_ABOVE = 0.08       # height of the approach / retreat above a grip
+INSERT_PITCH = 65 * DEG  # #1's clamp pitch theta5 during insertion
+BESIDE = 0.10            # #1 arrives this far beside the container's axis (horizontally, towards +x)
+BEFORE_MOUTH = 0.03      # the bar's leading end stops this far before the mouth before it goes in
+INSERT_DEPTH = 0.20      # how far the leading end goes into the tube
+BACK_OFF = 0.06          # #1 backs off along its approach after opening
+LINE_SPACING = 0.07      # bars lined up for repeated cycles, centre to centre
+
+# durations of the motions (s)
+TIMES = dict(approach=1.5, descend=0.6, close=0.15, lift=0.6, carry=2.4, enter=0.8, open=0.2, retreat=0.5,
+             home=1.2, to_container=2.4, slide_on=0.6, insert=1.2, back_off=0.5, settle=0.1)
+GRASP_TIMEOUT = 0.6      # s for a grasp or a release to happen once the jaws are commanded
+
+# gains of the computed-torque controllers: omega (rad/s) per joint
+OMEGA = np.array([30.0, 30.0, 30.0, 30.0, 30.0, 60.0])
+
+
+class TaskError(RuntimeError):
+    """A cycle of the task failed: `step` (name), `t` (s), `reason`, and the bodies involved."""
+
+    def __init__(self, step: str, t: float, reason: str, bodies: Sequence[str] = ()):
+        super().__init__(f"{step} at t = {t:.4f} s: {reason}")
+        self.step, self.t, self.reason, self.bodies = step, t, reason, tuple(bodies)
+
+
+@dataclasses.dataclass
+class TaskResult:
+    """What :func:`run` returns: the report (a dict of plain values, JSON-ready), the simulation and its log."""
+
+    report: dict
+    sim: Simulation
+    log: object
+
+    @property
+    def success(self) -> bool:
+        return bool(self.report["success"])
+
+
+def _pose(R, p) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = p
+    return T
+
+
+def bar_on_floor(x: float, y: float, yaw: float) -> np.ndarray:
+    """The pose (4, 4) of a bar lying on the floor with its centre at (x, y) m and a yaw (rad)."""
+    return scene.bar_pose(x, y, yaw)
+
+
+def default_bars(count: int = 3) -> List[np.ndarray]:
+    """`count` bars lined up near SCARA #2: the first at the scene's default, the others side by side,
+    LINE_SPACING m apart across the bar (towards SCARA #2's base line)."""
+    x, y, yaw = 0.95, 0.30, 30 * DEG
+    n = np.array([math.sin(yaw), -math.cos(yaw)])
+    return [bar_on_floor(x + k * LINE_SPACING * n[0], y + k * LINE_SPACING * n[1], yaw) for k in range(count)]
+
+
+def random_bar(seed: int) -> np.ndarray:
+    """A bar's start drawn uniformly from :data:`REGION` with a seeded generator: pose (4, 4)."""
+    rng = np.random.default_rng(seed)
+    return bar_on_floor(rng.uniform(*REGION["x"]), rng.uniform(*REGION["y"]), rng.uniform(*REGION["yaw"]))
+
+
+def _grip_down(s: float, height: float) -> np.ndarray:
+    """A clamp pointing down, gripping a horizontal bar s m along it from its centre, its TCP `height`
+    m above the bar's centre: the TCP pose in the bar's frame (tool x along the bar)."""
+    return _pose(np.diag([1.0, -1.0, -1.0]), [s, 0.0, height])
+
+
+def _bar_pose(centre, R) -> np.ndarray:
+    return _pose(R, centre)
+
+
+def _yaw_pitch(yaw: float, pitch: float = 0.0) -> np.ndarray:
+    """Rotation of a bar: yaw about the vertical, then its axis tilted down by `pitch` (rad)."""
+    c, s = math.cos(pitch), math.sin(pitch)
+    Ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    return rotz(yaw) @ Ry
+
+
+class _Runner:
+    """The task on one simulation: plans and runs the phases of every cycle, and scores them."""
+
+    def __init__(self, bars, *, dt, log_every, world_every, mouth, slope, handover_yaw, t_limit):
+        self.r1, self.r2 = scene.scaras()
+        self.bars = [np.asarray(b, float) for b in bars]
+        self.names = ["bar" if i == 0 else f"bar{i}" for i in range(len(self.bars))]
+        self.mouth = scene.CONTAINER["mouth"] if mouth is None else np.asarray(mouth, float)
+        self.slope = scene.CONTAINER["slope"] if slope is None else float(slope)
+        self.handover_yaw = HANDOVER_YAW if handover_yaw is None else float(handover_yaw)
+        self.axes = scene.container_axes(self.slope)
+        w = _core.World(floor=True, floor_friction=scene.FLOOR_FRICTION)
+        self.walls = scene.container_walls(self.mouth, self.slope)
+        for name, he, T in self.walls:
+            w.add_static_box(name, he, T, friction=scene.CONTAINER["friction"])
+        for name, T in zip(self.names, self.bars):
+            w.add_free_box(name, scene.BAR_HALF_EXTENTS, scene.BAR_MASS, T, friction=scene.BAR_FRICTION)
+        self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every)
+        self.t_limit = t_limit
+        # start: #1 waiting above its handover grip, #2 above its first pick
+        self.q1_wait = self._ik(0, self._wait1_pose(), OPEN, branch=-1)
+        self.q2_home = self._ik(1, self.bars[0] @ _grip_down(GRIP2, PICK_HEIGHT + CLEAR_ABOVE), OPEN)
+        kp = OMEGA ** 2
+        kd = 2.0 * OMEGA
+        self.sim.add_robot(self.r1, ComputedTorque(kp, kd), self.q1_wait)
+        self.sim.add_robot(self.r2, ComputedTorque(kp, kd), self.q2_home)
+        self.cycles: List[dict] = []
+        self.step = "start"
+        self.contact_seen = 0
+        self.state = {name: "floor" for name in self.names}   # floor -> held -> released
+
+    # ---- geometry ----
+
+    def _handover_bar(self) -> np.ndarray:
+        return _bar_pose(HANDOVER_CENTRE, rotz(self.handover_yaw))
+
+    def _wait1_pose(self) -> np.ndarray:
+        T = self._handover_bar() @ _grip_down(GRIP1, 0.0)
+        T[2, 3] += CLEAR_ABOVE
+        return T
+
+    def _ik(self, i, T, opening, q_near=None, branch=None):
+        r = (self.r1, self.r2)[i]
+        try:
+            return r.ik(T, opening=opening, q_near=q_near, branch=branch)
+        except IKError as e:
+            raise IKError(f"{('SCARA #1', 'SCARA #2')[i]}, {self.step}: {e}") from None
+
+    # ---- running ----
+
+    def q_ref(self, i) -> np.ndarray:
+        return self.sim.references[i].evaluate(self.sim.time)[0]
+
+    def move_joints(self, i, points, durations):
+        """Robot i through joint points (each (6,)) from its present reference, at rest at each."""
+        q0 = self.q_ref(i)
+        t0 = self.sim.time
+        times = [t0] + list(t0 + np.cumsum(durations))
+        self.sim.set_reference(i, CubicTrajectory(times, np.vstack([q0] + [np.asarray(p, float) for p in points])))
+        return times[-1]
+
+    def move_line(self, i, poses, durations, opening, intermediate=4):
+        """Robot i's tool along straight lines through `poses` from its present pose (opening: jaw, m)."""
+        r = (self.r1, self.r2)[i]
+        q0 = self.q_ref(i)
+        t0 = self.sim.time
+        times = [t0] + list(t0 + np.cumsum(durations))
+        P = [r.fk(q0)] + list(poses)
+        op = [q0[5]] + [opening] * len(poses)
+        try:
+            traj, info = plan_cartesian(r, P, times, opening=op, q_start=q0, intermediate=intermediate, info=True)
+        except IKError as e:
+            raise IKError(f"{('SCARA #1', 'SCARA #2')[i]}, {self.step}: {e}") from None
+        Q = info["q_points"]
+        Q[0] = q0
+        self.sim.set_reference(i, CubicTrajectory(info["times"], Q))
+        return times[-1]
+
+    def jaw(self, i, opening, duration):
+        q = self.q_ref(i).copy()
+        q[5] = opening
+        return self.move_joints(i, [q], [duration])
+
+    def run_to(self, t_end):
+        if t_end > self.t_limit:
+            raise TaskError(self.step, self.sim.time, f"the task would run past its time limit of {self.t_limit} s")
+        self.sim.run(t_end, progress=False)
+        self.check_contacts()
+
+    def wait_for(self, predicate, timeout, what):
+        """Runs in 10 ms chunks until predicate() holds, at most `timeout` s; TaskError with `what` if not."""
+        t_end = self.sim.time + timeout
+        while not predicate():
+            if self.sim.time >= t_end - 1e-12:
+                raise TaskError(self.step, self.sim.time, what)
+            self.run_to(min(self.sim.time + 0.01, t_end))
+
+    # ---- contacts ----
+
+    def allowed(self, a: str, b: str) -> bool:
+        """Whether a contact between bodies a and b is allowed now."""
+        for x, y in ((a, b), (b, a)):
+            if x in self.state:
+                st = self.state[x]
+                if y in self.state:   # bar on bar: both already dropped
+                    return st == "released" and self.state[y] == "released"
+                if y.endswith("/fixed_jaw") or y.endswith("/link6"):
+                    return st != "released" or True
+                if y == "floor":
+                    return st in ("floor", "released")
+                if y.startswith("container"):
+                    return st == "released"
+                return False
+        return False
+
+    def check_contacts(self):
+        ev = self.sim._core.contact_events()
+        if not ev:
+            return
+        n = len(ev["a"])
+        for k in range(self.contact_seen, n):
+            a, b = ev["a"][k], ev["b"][k]
+            if not self.allowed(a, b):
+                raise TaskError(self.step, float(ev["begin"][k]), f"forbidden contact between {a} and {b}", (a, b))
+        self.contact_seen = n
+
+    # ---- one cycle ----
+
+    def cycle(self, k):
+        name, sim = self.names[k], self.sim
+        steps: Dict[str, list] = {}
+
+        def mark(step):
+            self.step = step
+            steps[step] = [sim.time, None]
+
+        def done():
+            steps[self.step][1] = sim.time
+
+        T = TIMES
+        # 1. #2 above the bar, down to it, closes: the clamp rule grasps
+        mark("pick")
+        bar0 = sim.body_state(name)["pose"]
+        grip = bar0 @ _grip_down(GRIP2, PICK_HEIGHT)
+        above = grip.copy()
+        above[2, 3] += CLEAR_ABOVE
+        q_above = self._ik(1, above, OPEN, q_near=self.q_ref(1))
+        t = self.move_joints(1, [q_above], [T["approach"]])
+        self.run_to(t)
+        self.run_to(self.move_line(1, [grip], [T["descend"]], OPEN))
+        self.jaw(1, SQUEEZE, T["close"])
+        self.wait_for(lambda: sim.holding(1) == name, GRASP_TIMEOUT, f"SCARA #2 did not grasp {name}")
+        self.state[name] = "held"
+        done()
+        # 2. lift, carry under #1's open clamp
+        mark("carry")
+        G2 = np.linalg.solve(self.r2.fk(sim.state(1)[0]), sim.body_state(name)["pose"])   # bar in #2's tool
+        lifted = sim.body_state(name)["pose"].copy()
+        lifted[2, 3] += CLEAR_ABOVE
+        hand = self._handover_bar()
+        pre = hand.copy()
+        pre[:3, 3] += np.array([0.10, -0.10, 0.0])
+        self.run_to(self.move_line(1, [lifted @ np.linalg.inv(G2)], [T["lift"]], SQUEEZE))
+        q_pre = self._ik(1, pre @ np.linalg.inv(G2), SQUEEZE, q_near=self.q_ref(1))
+        self.run_to(self.move_joints(1, [q_pre], [T["carry"]]))
+        self.run_to(self.move_line(1, [hand @ np.linalg.inv(G2)], [T["enter"]], SQUEEZE))
+        done()
+        # 3. #1 descends onto the bar as it is held and closes: both hold
+        mark("grasp by #1")
+        held = sim.body_state(name)["pose"]
+        g1 = held @ _grip_down(GRIP1, 0.0)
+        self.run_to(self.move_line(0, [g1], [T["descend"]], OPEN))
+        self.jaw(0, SQUEEZE, T["close"])
+        self.wait_for(lambda: sim.holding(0) == name, GRASP_TIMEOUT, f"SCARA #1 did not grasp {name}")
+        self.run_to(sim.time + T["settle"])
+        done()
+        # 4. #2 opens and leaves
+        mark("release by #2")
+        self.jaw(1, OPEN, T["open"])
+        self.wait_for(lambda: sim.holding(1) is None, GRASP_TIMEOUT, "SCARA #2 did not let go")
+        up = self.r2.fk(self.q_ref(1))
+        up[2, 3] += CLEAR_ABOVE
+        self.run_to(self.move_line(1, [up], [T["retreat"]], OPEN))
+        nxt = self.names[k + 1] if k + 1 < len(self.names) else None
+        if nxt is not None:
+            home = sim.body_state(nxt)["pose"] @ _grip_down(GRIP2, PICK_HEIGHT + CLEAR_ABOVE)
+        else:
+            home = self.bars[0] @ _grip_down(GRIP2, PICK_HEIGHT + CLEAR_ABOVE)
+        self.run_to(self.move_joints(1, [self._ik(1, home, OPEN, q_near=self.q_ref(1))], [T["home"]]))
+        done()
+        # 5. #1 turns the bar onto the container's axis, beside it, then slides onto it
+        mark("to container")
+        G1 = np.linalg.solve(self.r1.fk(sim.state(0)[0]), sim.body_state(name)["pose"])
+        a = self.axes[:, 0]
+        R_axis = _yaw_pitch(math.atan2(a[1], a[0]), self.slope)
+        lead = scene.BAR_HALF_EXTENTS[0]
+        on_axis = _bar_pose(self.mouth - a * (lead + BEFORE_MOUTH), R_axis)
+        beside = on_axis.copy()
+        beside[:3, 3] += np.array([BESIDE, 0.0, 0.0])
+        lifted = sim.body_state(name)["pose"].copy()
+        lifted[2, 3] += 0.06
+        self.run_to(self.move_line(0, [lifted @ np.linalg.inv(G1)], [T["lift"]], SQUEEZE))
+        q_beside = self._ik(0, beside @ np.linalg.inv(G1), SQUEEZE, q_near=self.q_ref(0))
+        self.run_to(self.move_joints(0, [q_beside], [T["to_container"]]))
+        self.run_to(self.move_line(0, [on_axis @ np.linalg.inv(G1)], [T["slide_on"]], SQUEEZE))
+        done()
+        # 6. insert along the axis
+        mark("insert")
+        inside = on_axis.copy()
+        inside[:3, 3] += a * (BEFORE_MOUTH + INSERT_DEPTH)
+        self.run_to(self.move_line(0, [inside @ np.linalg.inv(G1)], [T["insert"]], SQUEEZE, intermediate=8))
+        done()
+        # 7. open, back off along the approach, return
+        mark("release")
+        self.jaw(0, OPEN, T["open"])
+        self.wait_for(lambda: sim.holding(0) is None, GRASP_TIMEOUT, "SCARA #1 did not let go")
+        self.state[name] = "released"
+        T1 = self.r1.fk(self.q_ref(0))
+        T1[:3, 3] -= T1[:3, 2] * BACK_OFF
+        self.run_to(self.move_line(0, [T1], [T["back_off"]], OPEN))
+        done()
+        mark("return")
+        self.run_to(self.move_joints(0, [self.q1_wait], [T["home"]]))
+        done()
+        return steps
+
+
+def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, dt: float = 2e-4,
+        log_every: int = 25, world_every: int = 1, mouth=None, slope=None, handover_yaw=None,
+        t_limit: float = 120.0) -> TaskResult:
+    """Runs the task and scores it.
+
+    bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars`), or None
+    with `seed`: one bar drawn from :data:`REGION`. cycles: how many bars to move (default: all).
+    dt (s), log_every, world_every: the simulation's. mouth (3,) m, slope (rad): the container
+    (default scene.CONTAINER). handover_yaw (rad): the bar's yaw at the handover. t_limit: s of
+    simulated time after which the run stops as failed.
+    """
+    if bars is None:
+        bars = [random_bar(seed)] if seed is not None else default_bars(3 if cycles is None else cycles)
+    cycles = len(bars) if cycles is None else int(cycles)
+    runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, mouth=mouth, slope=slope,
+                     handover_yaw=handover_yaw, t_limit=t_limit)
+    results = []
+    for k in range(cycles):
+        t0 = runner.sim.time
+        try:
+            steps = runner.cycle(k)
+            results.append(dict(cycle=k, bar=runner.names[k], success=True, t_start=t0, t_end=runner.sim.time,
+                                steps=steps))
+        except TaskError as e:
+            results.append(dict(cycle=k, bar=runner.names[k], success=False, t_start=t0, t_end=runner.sim.time,
+                                failed_step=e.step, failed_at=e.t, reason=e.reason, bodies=list(e.bodies)))
+            break
+    report = dict(success=all(c["success"] for c in results) and len(results) == cycles, cycles=results)
+    return TaskResult(report, runner.sim, runner.sim.log)
