@@ -256,6 +256,11 @@ def test_box_distances_is_box_distance_for_every_pair_and_checks_its_arguments()
     assert D.shape == (len(P), 2)
     for i in range(len(P)):
         assert D[i, 0] == cs.box_distance(P[i], H[i], T, [0.05, 0.05, 0.05])
+    k = np.arange(len(P))[::-1]
+    np.testing.assert_array_equal(cs.box_distances(P, H, P[k], H[k], pairwise=True),
+                                  [cs.box_distance(P[i], H[i], P[j], H[j]) for i, j in zip(range(len(P)), k)])
+    with pytest.raises(ValueError, match="pairwise: poses_a and poses_b must have the same length"):
+        cs.box_distances(P, H, P[:2], H[:2], pairwise=True)
     with pytest.raises(ValueError, match=r"wrong shape for half_b: expected \(2, 3\)"):
         cs.box_distances(P, H, np.array([T, T]), np.ones((3, 3)))
     with pytest.raises(ValueError, match="half_a: half extents must be finite and > 0"):

@@ -85,19 +85,29 @@ void bind_world(py::module_& m) {
         "Distance between two boxes, m: the gap between their nearest points (> 0), or minus the depth of "
         "their overlap (<= 0).\n\npose_a, pose_b: (4, 4) world poses of the box centres; half_a, half_b: (3,) "
         "half extents (m, > 0). Bullet's GJK and EPA on exact boxes (no collision margin).");
-  m.def("box_distances", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb) {
+  m.def("box_distances", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb,
+                            bool pairwise) {
           const auto a = pose_list(pa, "poses_a"), b = pose_list(pb, "poses_b");
           const auto x = half_list(ha, a.size(), "half_a"), y = half_list(hb, b.size(), "half_b");
-          py::array_t<double> out(std::vector<py::ssize_t>{static_cast<py::ssize_t>(a.size()),
-                                                           static_cast<py::ssize_t>(b.size())});
+          if (pairwise && a.size() != b.size())
+            throw py::value_error("pairwise: poses_a and poses_b must have the same length, got " +
+                                  std::to_string(a.size()) + " and " + std::to_string(b.size()));
+          std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(a.size())};
+          if (!pairwise) shape.push_back(static_cast<py::ssize_t>(b.size()));
+          py::array_t<double> out(shape);
           double* o = out.mutable_data();
           {
             py::gil_scoped_release nogil;
-            box_distances(a, x, b, y, o);
+            if (pairwise) {
+              for (size_t i = 0; i < a.size(); ++i) o[i] = box_distance(a[i], x[i], b[i], y[i]);
+            } else {
+              box_distances(a, x, b, y, o);
+            }
           }
           return out;
-        }, py::arg("poses_a"), py::arg("half_a"), py::arg("poses_b"), py::arg("half_b"),
-        "Distances (Na, Nb) between every box of one list and every box of another, m (as box_distance).\n\n"
+        }, py::arg("poses_a"), py::arg("half_a"), py::arg("poses_b"), py::arg("half_b"), py::arg("pairwise") = false,
+        "Distances between boxes, m (as box_distance): (Na, Nb) for every box of one list with every box of "
+        "the other, or with pairwise=True (N,) for box i of one with box i of the other.\n\n"
         "poses_a: (Na, 4, 4), half_a: (Na, 3); poses_b: (Nb, 4, 4), half_b: (Nb, 3). Robot.shapes(q) gives a "
         "robot's boxes in this form.");
 

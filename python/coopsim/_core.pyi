@@ -954,9 +954,9 @@ def box_distance(pose_a: typing.Any, half_a: typing.Any, pose_b: typing.Any, hal
     
     pose_a, pose_b: (4, 4) world poses of the box centres; half_a, half_b: (3,) half extents (m, > 0). Bullet's GJK and EPA on exact boxes (no collision margin).
     """
-def box_distances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any, half_b: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+def box_distances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any, half_b: typing.Any, pairwise: bool = False) -> numpy.typing.NDArray[numpy.float64]:
     """
-    Distances (Na, Nb) between every box of one list and every box of another, m (as box_distance).
+    Distances between boxes, m (as box_distance): (Na, Nb) for every box of one list with every box of the other, or with pairwise=True (N,) for box i of one with box i of the other.
     
     poses_a: (Na, 4, 4), half_a: (Na, 3); poses_b: (Nb, 4, 4), half_b: (Nb, 3). Robot.shapes(q) gives a robot's boxes in this form.
     """

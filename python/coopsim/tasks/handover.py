@@ -58,22 +58,34 @@ GRIP1 = -0.075           # #1's grip along the bar from its centre (the bar's +x
 GRIP2 = 0.125            # #2's grip along the bar from its centre
 PICK_HEIGHT = 0.015      # #2's tool centre point above the bar's centre at pick-up
 OPEN = 0.035             # jaw opening while approaching a bar (m)
+FIXED_GAP = 0.001        # the fixed jaw's gap to the bar when the clamp arrives (m)
+CLOSE_SPEED = 0.02       # mean closing speed of the jaw near the bar (m/s)
 SQUEEZE = 0.012          # jaw reference while closing: the jaw stop holds it at the bar's width
 CLEAR_ABOVE = 0.08       # height of the approach / retreat above a grip
 INSERT_PITCH = 65 * DEG  # #1's clamp pitch theta5 during insertion
 BESIDE = 0.10            # #1 arrives this far beside the container's axis (horizontally, towards +x)
 BEFORE_MOUTH = 0.03      # the bar's leading end stops this far before the mouth before it goes in
 INSERT_DEPTH = 0.20      # how far the leading end goes into the tube
+RETREAT2 = 0.04          # #2 rises this far off the bar after letting go (its quill stroke then stays above
+                         # 0.03 m, where its clamp body clears its own forearm)
 BACK_OFF = 0.06          # #1 backs off along its approach after opening
 LINE_SPACING = 0.07      # bars lined up for repeated cycles, centre to centre
 
 # durations of the motions (s)
-TIMES = dict(approach=1.5, descend=0.6, close=0.15, lift=0.6, carry=2.4, enter=0.8, open=0.2, retreat=0.5,
-             home=1.2, to_container=2.4, slide_on=0.6, insert=1.2, back_off=0.5, settle=0.1)
-GRASP_TIMEOUT = 0.6      # s for a grasp or a release to happen once the jaws are commanded
+TIMES = dict(approach=1.5, descend=0.6, close=0.2, lift=0.6, carry=2.4, enter=0.8, open=0.2, retreat=0.5,
+             home=1.2, to_container=2.4, slide_on=0.6, insert=1.2, back_off=0.5, settle=0.3)
+GRASP_TIMEOUT = 1.0      # s for a grasp or a release to happen once the jaws are commanded
+
+#: elbow branches (sign of theta2) of SCARA #1 and #2 throughout: #1's elbow out to the left keeps its
+#: forearm clear of #2's quill at the handover; #2's the other way
+BRANCH = (-1, +1)
+#: SCARA #1's elbow branch for the insertion (the only one that reaches along the container's axis): it
+#: turns its elbow over on the way from the handover
+INSERT_BRANCH = +1
 
 # gains of the computed-torque controllers: omega (rad/s) per joint
-OMEGA = np.array([30.0, 30.0, 30.0, 30.0, 30.0, 60.0])
+#: (the wrist joints higher: a held bar multiplies their inertia, which the controllers' models leave out)
+OMEGA = (np.array([30.0, 30.0, 30.0, 60.0, 60.0, 60.0]), np.array([30.0, 30.0, 30.0, 30.0, 60.0, 60.0]))
 
 
 class TaskError(RuntimeError):
@@ -123,10 +135,13 @@ def random_bar(seed: int) -> np.ndarray:
     return bar_on_floor(rng.uniform(*REGION["x"]), rng.uniform(*REGION["y"]), rng.uniform(*REGION["yaw"]))
 
 
-def _grip_down(s: float, height: float) -> np.ndarray:
-    """A clamp pointing down, gripping a horizontal bar s m along it from its centre, its TCP `height`
-    m above the bar's centre: the TCP pose in the bar's frame (tool x along the bar)."""
-    return _pose(np.diag([1.0, -1.0, -1.0]), [s, 0.0, height])
+def _grip_down(s: float, height: float, opening: float = OPEN) -> np.ndarray:
+    """A clamp pointing down over a horizontal bar, s m along it from its centre, its TCP `height` m above
+    the bar's centre, open by `opening` m with the fixed jaw FIXED_GAP m from the bar's side (so closing
+    the moving jaw does not push the bar across the floor): the TCP pose in the bar's frame (tool x along
+    the bar, tool y = -bar y)."""
+    shift = (opening - 2.0 * scene.BAR_HALF_EXTENTS[1]) / 2.0 - FIXED_GAP   # the TCP off the bar's centre line
+    return _pose(np.diag([1.0, -1.0, -1.0]), [s, -shift, height])
 
 
 def _bar_pose(centre, R) -> np.ndarray:
@@ -160,16 +175,15 @@ class _Runner:
         self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every)
         self.t_limit = t_limit
         # start: #1 waiting above its handover grip, #2 above its first pick
-        self.q1_wait = self._ik(0, self._wait1_pose(), OPEN, branch=-1)
-        self.q2_home = self._ik(1, self.bars[0] @ _grip_down(GRIP2, PICK_HEIGHT + CLEAR_ABOVE), OPEN)
-        kp = OMEGA ** 2
-        kd = 2.0 * OMEGA
-        self.sim.add_robot(self.r1, ComputedTorque(kp, kd), self.q1_wait)
-        self.sim.add_robot(self.r2, ComputedTorque(kp, kd), self.q2_home)
+        self.q1_wait = self._ik(0, self._wait1_pose(), OPEN)
+        self.q2_home = self._ik(1, self._above(*self.pick_grip(self.bars[0])), OPEN)
+        self.sim.add_robot(self.r1, ComputedTorque(OMEGA[0] ** 2, 2.0 * OMEGA[0]), self.q1_wait)
+        self.sim.add_robot(self.r2, ComputedTorque(OMEGA[1] ** 2, 2.0 * OMEGA[1]), self.q2_home)
         self.cycles: List[dict] = []
         self.step = "start"
         self.contact_seen = 0
         self.state = {name: "floor" for name in self.names}   # floor -> held -> released
+        self.label: Dict[str, np.ndarray] = {}   # the task's frame of each bar in its body frame
 
     # ---- geometry ----
 
@@ -181,10 +195,32 @@ class _Runner:
         T[2, 3] += CLEAR_ABOVE
         return T
 
+    @staticmethod
+    def _reachable(i, T) -> np.ndarray:
+        """The clamp pose nearest T that robot i can take: the jaw axis (tool y) horizontal for both, the
+        approach (tool z) straight down for #2. Poses planned from a measured grip carry the bar's slight
+        tilt in the jaws (its weight, the weld's sag), which the clamps cannot follow."""
+        R = T[:3, :3]
+        y = np.array([R[0, 1], R[1, 1], 0.0])
+        y /= np.linalg.norm(y)
+        z = np.array([0.0, 0.0, -1.0]) if i == 1 else R[:, 2] - y * (y @ R[:, 2])
+        z /= np.linalg.norm(z)
+        out = T.copy()
+        out[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+        return out
+
+    @staticmethod
+    def _above(bar, G):
+        """The TCP pose CLEAR_ABOVE m above the grip G on a bar at `bar`."""
+        T = bar @ G
+        T[2, 3] += CLEAR_ABOVE
+        return T
+
     def _ik(self, i, T, opening, q_near=None, branch=None):
         r = (self.r1, self.r2)[i]
+        T = self._reachable(i, T)
         try:
-            return r.ik(T, opening=opening, q_near=q_near, branch=branch)
+            return r.ik(T, opening=opening, q_near=q_near, branch=BRANCH[i] if branch is None else branch)
         except IKError as e:
             raise IKError(f"{('SCARA #1', 'SCARA #2')[i]}, {self.step}: {e}") from None
 
@@ -201,16 +237,17 @@ class _Runner:
         self.sim.set_reference(i, CubicTrajectory(times, np.vstack([q0] + [np.asarray(p, float) for p in points])))
         return times[-1]
 
-    def move_line(self, i, poses, durations, opening, intermediate=4):
+    def move_line(self, i, poses, durations, opening, intermediate=4, branch=None):
         """Robot i's tool along straight lines through `poses` from its present pose (opening: jaw, m)."""
         r = (self.r1, self.r2)[i]
         q0 = self.q_ref(i)
         t0 = self.sim.time
         times = [t0] + list(t0 + np.cumsum(durations))
-        P = [r.fk(q0)] + list(poses)
+        P = [r.fk(q0)] + [self._reachable(i, T) for T in poses]
         op = [q0[5]] + [opening] * len(poses)
         try:
-            traj, info = plan_cartesian(r, P, times, opening=op, q_start=q0, intermediate=intermediate, info=True)
+            traj, info = plan_cartesian(r, P, times, opening=op, q_start=q0, intermediate=intermediate, info=True,
+                                        branch=BRANCH[i] if branch is None else branch)
         except IKError as e:
             raise IKError(f"{('SCARA #1', 'SCARA #2')[i]}, {self.step}: {e}") from None
         Q = info["q_points"]
@@ -222,6 +259,45 @@ class _Runner:
         q = self.q_ref(i).copy()
         q[5] = opening
         return self.move_joints(i, [q], [duration])
+
+    def bar(self, name) -> np.ndarray:
+        """A bar's pose now in the task's frame for it (see pick_grip), (4, 4)."""
+        return self.sim.body_state(name)["pose"] @ self.label.get(name, np.eye(4))
+
+    def pick_grip(self, bar):
+        """How #2 takes a bar lying at `bar` (4, 4): the bar's frame relabelled so that #2's grip is GRIP2
+        along +x (the bar is symmetric: either end may become its +x end), and #2's TCP in that frame
+        (tool x along +x or -x). Of the four, the one within the joint limits at the pick and at the
+        handover with the least joint travel between them."""
+        best, cost_best = None, math.inf
+        hand = self._handover_bar()
+        for label in (0.0, math.pi):
+            Tb = bar @ _pose(rotz(label), np.zeros(3))
+            for flip in (0.0, math.pi):
+                G = _grip_down(GRIP2, PICK_HEIGHT) @ _pose(rotz(flip), np.zeros(3))
+                try:
+                    qa = self._ik(1, Tb @ G, OPEN)
+                    qb = self._ik(1, hand @ _grip_down(GRIP2, PICK_HEIGHT) @ _pose(rotz(flip), np.zeros(3)), OPEN,
+                                  q_near=qa)
+                except IKError:
+                    continue
+                cost = float(np.abs(qb - qa)[[0, 1, 2, 4]].sum())
+                if cost < cost_best:
+                    best, cost_best = (Tb, G), cost
+        if best is None:
+            raise IKError(f"SCARA #2, {self.step}: no grip on the bar at {np.round(bar[:3, 3], 4).tolist()} is "
+                          f"reachable both there and at the handover")
+        return best
+
+    def close(self, i):
+        """Robot i's jaw closes fast to 2 mm over the bar's width, then slowly (CLOSE_SPEED) on to SQUEEZE:
+        the moving jaw meets the bar at a speed the clamp rule takes as 'moving with the clamp'."""
+        q = self.q_ref(i)
+        near = q.copy()
+        near[5] = 2.0 * scene.BAR_HALF_EXTENTS[1] + 0.002
+        shut = q.copy()
+        shut[5] = SQUEEZE
+        return self.move_joints(i, [near, shut], [TIMES["close"], (near[5] - SQUEEZE) / CLOSE_SPEED])
 
     def run_to(self, t_end):
         if t_end > self.t_limit:
@@ -236,6 +312,19 @@ class _Runner:
             if self.sim.time >= t_end - 1e-12:
                 raise TaskError(self.step, self.sim.time, what)
             self.run_to(min(self.sim.time + 0.01, t_end))
+
+    def wait_grasp(self, i, name):
+        """Runs until robot i holds `name` (GRASP_TIMEOUT s at most); else TaskError naming the clamp
+        rule's conditions that failed at the end."""
+        try:
+            self.wait_for(lambda: self.sim.holding(i) == name, GRASP_TIMEOUT, "")
+        except TaskError:
+            c = self.sim.grasp_check(i, name)
+            failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not c[k]]
+            detail = (f"angle {c['angle'] / DEG:.1f} deg, gaps {c['gap_fixed'] * 1e3:.1f} and "
+                      f"{c['gap_moving'] * 1e3:.1f} mm, speed {c['speed']:.3f} m/s")
+            raise TaskError(self.step, self.sim.time, f"SCARA #{i + 1} did not grasp {name}: the clamp rule's "
+                            f"{', '.join(failed) or 'hold time'} failed ({detail})") from None
 
     # ---- contacts ----
 
@@ -282,22 +371,23 @@ class _Runner:
         T = TIMES
         # 1. #2 above the bar, down to it, closes: the clamp rule grasps
         mark("pick")
-        bar0 = sim.body_state(name)["pose"]
-        grip = bar0 @ _grip_down(GRIP2, PICK_HEIGHT)
+        bar0, G = self.pick_grip(sim.body_state(name)["pose"])
+        self.label[name] = np.linalg.solve(sim.body_state(name)["pose"], bar0)
+        grip = bar0 @ G
         above = grip.copy()
         above[2, 3] += CLEAR_ABOVE
         q_above = self._ik(1, above, OPEN, q_near=self.q_ref(1))
         t = self.move_joints(1, [q_above], [T["approach"]])
         self.run_to(t)
         self.run_to(self.move_line(1, [grip], [T["descend"]], OPEN))
-        self.jaw(1, SQUEEZE, T["close"])
-        self.wait_for(lambda: sim.holding(1) == name, GRASP_TIMEOUT, f"SCARA #2 did not grasp {name}")
+        self.close(1)
+        self.wait_grasp(1, name)
         self.state[name] = "held"
         done()
         # 2. lift, carry under #1's open clamp
         mark("carry")
-        G2 = np.linalg.solve(self.r2.fk(sim.state(1)[0]), sim.body_state(name)["pose"])   # bar in #2's tool
-        lifted = sim.body_state(name)["pose"].copy()
+        G2 = np.linalg.solve(self.r2.fk(sim.state(1)[0]), self.bar(name))   # bar in #2's tool
+        lifted = self.bar(name)
         lifted[2, 3] += CLEAR_ABOVE
         hand = self._handover_bar()
         pre = hand.copy()
@@ -306,14 +396,15 @@ class _Runner:
         q_pre = self._ik(1, pre @ np.linalg.inv(G2), SQUEEZE, q_near=self.q_ref(1))
         self.run_to(self.move_joints(1, [q_pre], [T["carry"]]))
         self.run_to(self.move_line(1, [hand @ np.linalg.inv(G2)], [T["enter"]], SQUEEZE))
+        self.run_to(sim.time + T["settle"])
         done()
         # 3. #1 descends onto the bar as it is held and closes: both hold
         mark("grasp by #1")
-        held = sim.body_state(name)["pose"]
+        held = self.bar(name)
         g1 = held @ _grip_down(GRIP1, 0.0)
         self.run_to(self.move_line(0, [g1], [T["descend"]], OPEN))
-        self.jaw(0, SQUEEZE, T["close"])
-        self.wait_for(lambda: sim.holding(0) == name, GRASP_TIMEOUT, f"SCARA #1 did not grasp {name}")
+        self.close(0)
+        self.wait_grasp(0, name)
         self.run_to(sim.time + T["settle"])
         done()
         # 4. #2 opens and leaves
@@ -321,36 +412,34 @@ class _Runner:
         self.jaw(1, OPEN, T["open"])
         self.wait_for(lambda: sim.holding(1) is None, GRASP_TIMEOUT, "SCARA #2 did not let go")
         up = self.r2.fk(self.q_ref(1))
-        up[2, 3] += CLEAR_ABOVE
+        up[2, 3] += RETREAT2
         self.run_to(self.move_line(1, [up], [T["retreat"]], OPEN))
         nxt = self.names[k + 1] if k + 1 < len(self.names) else None
-        if nxt is not None:
-            home = sim.body_state(nxt)["pose"] @ _grip_down(GRIP2, PICK_HEIGHT + CLEAR_ABOVE)
-        else:
-            home = self.bars[0] @ _grip_down(GRIP2, PICK_HEIGHT + CLEAR_ABOVE)
+        home = self._above(*self.pick_grip(sim.body_state(nxt)["pose"] if nxt else self.bars[0]))
         self.run_to(self.move_joints(1, [self._ik(1, home, OPEN, q_near=self.q_ref(1))], [T["home"]]))
         done()
         # 5. #1 turns the bar onto the container's axis, beside it, then slides onto it
         mark("to container")
-        G1 = np.linalg.solve(self.r1.fk(sim.state(0)[0]), sim.body_state(name)["pose"])
+        G1 = np.linalg.solve(self.r1.fk(sim.state(0)[0]), self.bar(name))
         a = self.axes[:, 0]
         R_axis = _yaw_pitch(math.atan2(a[1], a[0]), self.slope)
         lead = scene.BAR_HALF_EXTENTS[0]
         on_axis = _bar_pose(self.mouth - a * (lead + BEFORE_MOUTH), R_axis)
         beside = on_axis.copy()
         beside[:3, 3] += np.array([BESIDE, 0.0, 0.0])
-        lifted = sim.body_state(name)["pose"].copy()
+        lifted = self.bar(name)
         lifted[2, 3] += 0.06
         self.run_to(self.move_line(0, [lifted @ np.linalg.inv(G1)], [T["lift"]], SQUEEZE))
-        q_beside = self._ik(0, beside @ np.linalg.inv(G1), SQUEEZE, q_near=self.q_ref(0))
+        q_beside = self._ik(0, beside @ np.linalg.inv(G1), SQUEEZE, q_near=self.q_ref(0), branch=INSERT_BRANCH)
         self.run_to(self.move_joints(0, [q_beside], [T["to_container"]]))
-        self.run_to(self.move_line(0, [on_axis @ np.linalg.inv(G1)], [T["slide_on"]], SQUEEZE))
+        self.run_to(self.move_line(0, [on_axis @ np.linalg.inv(G1)], [T["slide_on"]], SQUEEZE, branch=INSERT_BRANCH))
         done()
         # 6. insert along the axis
         mark("insert")
         inside = on_axis.copy()
         inside[:3, 3] += a * (BEFORE_MOUTH + INSERT_DEPTH)
-        self.run_to(self.move_line(0, [inside @ np.linalg.inv(G1)], [T["insert"]], SQUEEZE, intermediate=8))
+        self.run_to(self.move_line(0, [inside @ np.linalg.inv(G1)], [T["insert"]], SQUEEZE, intermediate=8,
+                                   branch=INSERT_BRANCH))
         done()
         # 7. open, back off along the approach, return
         mark("release")
@@ -359,7 +448,7 @@ class _Runner:
         self.state[name] = "released"
         T1 = self.r1.fk(self.q_ref(0))
         T1[:3, 3] -= T1[:3, 2] * BACK_OFF
-        self.run_to(self.move_line(0, [T1], [T["back_off"]], OPEN))
+        self.run_to(self.move_line(0, [T1], [T["back_off"]], OPEN, branch=INSERT_BRANCH))
         done()
         mark("return")
         self.run_to(self.move_joints(0, [self.q1_wait], [T["home"]]))
