@@ -69,6 +69,9 @@ INSERT_DEPTH = 0.20      # how far the leading end goes into the tube
 RETREAT2 = 0.04          # #2 rises this far off the bar after letting go (its quill stroke then stays above
                          # 0.03 m, where its clamp body clears its own forearm)
 BACK_OFF = 0.06          # #1 backs off along its approach after opening
+SLIDE_MIN = 0.05         # a released bar must slide at least this far down the tube's axis (m)
+RELEASE_FADE = 0.1       # s: the weld fades out over this after the jaw opens (the simulation's release_time)
+SLIDE_BACK = 0.02        # ... and never move back up it faster than this (m/s)
 LINE_SPACING = 0.07      # bars lined up for repeated cycles, centre to centre
 
 # durations of the motions (s)
@@ -103,6 +106,8 @@ class TaskResult:
     report: dict
     sim: Simulation
     log: object
+    series: Optional[dict] = None  # t (rows,), clearance_robots, clearance_container (m), tool_error (rows, 2) m,
+    #                                 weld_force (rows, 2) N, internal_force (rows,) N
 
     @property
     def success(self) -> bool:
@@ -155,10 +160,48 @@ def _yaw_pitch(yaw: float, pitch: float = 0.0) -> np.ndarray:
     return rotz(yaw) @ Ry
 
 
+def clearances(PA, HA, PB, HB):
+    """The smallest distance between two sets of boxes in each of N rows (m; < 0: overlap depth) and the
+    pair that has it.
+
+    PA: (N, ka, 4, 4) poses, HA: (ka, 3) half extents; PB: (N, kb, 4, 4) or (kb, 4, 4) for boxes that do
+    not move, HB: (kb, 3). Returns (d (N,), ia (N,), ib (N,)). Exact (box_distances) on the pairs that
+    bounding spheres cannot rule out: in each row the pair with the nearest spheres first, then only
+    the pairs whose spheres are nearer than that pair's boxes.
+    """
+    PA, HA, PB, HB = (np.asarray(x, float) for x in (PA, HA, PB, HB))
+    N = len(PA)
+    if PB.ndim == 3:
+        PB = np.broadcast_to(PB, (N,) + PB.shape)
+    ca, cb = PA[..., :3, 3], PB[..., :3, 3]
+    ra, rb = np.linalg.norm(HA, axis=-1), np.linalg.norm(HB, axis=-1)
+    dc = np.linalg.norm(ca[:, :, None, :] - cb[:, None, :, :], axis=-1)            # (N, ka, kb)
+    lower = dc - ra[None, :, None] - rb[None, None, :]
+    # first the pair of each row with the smallest lower bound: its distance bounds the row's minimum above
+    flat = lower.reshape(N, -1).argmin(axis=1)
+    i0, j0 = np.unravel_index(flat, lower.shape[1:])
+    r0 = np.arange(N)
+    d0 = _core.box_distances(PA[r0, i0], HA[i0], PB[r0, j0], HB[j0], pairwise=True) if N else np.zeros(0)
+    # then every other pair whose spheres are nearer than that
+    cand = lower <= d0[:, None, None]
+    cand[r0, i0, j0] = False
+    rows, i, j = np.nonzero(cand)
+    d = _core.box_distances(PA[rows, i], HA[i], PB[rows, j], HB[j], pairwise=True) if len(rows) else np.zeros(0)
+    rows, i, j, d = np.r_[r0, rows], np.r_[i0, i], np.r_[j0, j], np.r_[d0, d]
+    out = np.full(N, np.inf)
+    ia = np.zeros(N, int)
+    ib = np.zeros(N, int)
+    order = np.lexsort((-d, rows))            # per row, the smallest distance last
+    last = np.r_[rows[order][1:] != rows[order][:-1], True] if len(rows) else np.zeros(0, bool)
+    k = order[last]
+    out[rows[k]], ia[rows[k]], ib[rows[k]] = d[k], i[k], j[k]
+    return out, ia, ib
+
+
 class _Runner:
     """The task on one simulation: plans and runs the phases of every cycle, and scores them."""
 
-    def __init__(self, bars, *, dt, log_every, world_every, mouth, slope, handover_yaw, t_limit):
+    def __init__(self, bars, *, dt, log_every, world_every, control_every, mouth, slope, handover_yaw, t_limit):
         self.r1, self.r2 = scene.scaras()
         self.bars = [np.asarray(b, float) for b in bars]
         self.names = ["bar" if i == 0 else f"bar{i}" for i in range(len(self.bars))]
@@ -172,10 +215,14 @@ class _Runner:
             w.add_static_box(name, he, T, friction=scene.CONTAINER["friction"])
         for name, T in zip(self.names, self.bars):
             w.add_free_box(name, scene.BAR_HALF_EXTENTS, scene.BAR_MASS, T, friction=scene.BAR_FRICTION)
-        self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every)
+        self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every,
+                              control_every=control_every)
         self.t_limit = t_limit
         # start: #1 waiting above its handover grip, #2 above its first pick
         self.q1_wait = self._ik(0, self._wait1_pose(), OPEN)
+        for k, T in enumerate(self.bars):   # every bar pickable where it lies: checked before the run
+            self.step = f"planning the pick of {self.names[k]}"
+            self.pick_grip(T)
         self.q2_home = self._ik(1, self._above(*self.pick_grip(self.bars[0])), OPEN)
         self.sim.add_robot(self.r1, ComputedTorque(OMEGA[0] ** 2, 2.0 * OMEGA[0]), self.q1_wait)
         self.sim.add_robot(self.r2, ComputedTorque(OMEGA[1] ** 2, 2.0 * OMEGA[1]), self.q2_home)
@@ -184,6 +231,7 @@ class _Runner:
         self.contact_seen = 0
         self.state = {name: "floor" for name in self.names}   # floor -> held -> released
         self.label: Dict[str, np.ndarray] = {}   # the task's frame of each bar in its body frame
+        self.outcome: Dict[str, str] = {}
 
     # ---- geometry ----
 
@@ -269,7 +317,7 @@ class _Runner:
         along +x (the bar is symmetric: either end may become its +x end), and #2's TCP in that frame
         (tool x along +x or -x). Of the four, the one within the joint limits at the pick and at the
         handover with the least joint travel between them."""
-        best, cost_best = None, math.inf
+        best, cost_best, why = None, math.inf, []
         hand = self._handover_bar()
         for label in (0.0, math.pi):
             Tb = bar @ _pose(rotz(label), np.zeros(3))
@@ -279,14 +327,15 @@ class _Runner:
                     qa = self._ik(1, Tb @ G, OPEN)
                     qb = self._ik(1, hand @ _grip_down(GRIP2, PICK_HEIGHT) @ _pose(rotz(flip), np.zeros(3)), OPEN,
                                   q_near=qa)
-                except IKError:
+                except IKError as e:
+                    why.append(str(e).split(": ", 2)[-1])
                     continue
                 cost = float(np.abs(qb - qa)[[0, 1, 2, 4]].sum())
                 if cost < cost_best:
                     best, cost_best = (Tb, G), cost
         if best is None:
             raise IKError(f"SCARA #2, {self.step}: no grip on the bar at {np.round(bar[:3, 3], 4).tolist()} is "
-                          f"reachable both there and at the handover")
+                          f"reachable both there and at the handover ({why[0] if why else ''})")
         return best
 
     def close(self, i):
@@ -451,37 +500,140 @@ class _Runner:
         self.run_to(self.move_line(0, [T1], [T["back_off"]], OPEN, branch=INSERT_BRANCH))
         done()
         mark("return")
+        t_release = sim.time
         self.run_to(self.move_joints(0, [self.q1_wait], [T["home"]]))
         done()
+        self.step = "slide"
+        self.check_slide(name, steps["release"][0])
         return steps
+
+    def check_slide(self, name, t_release):
+        """The bar, since its release (once the weld has faded out), slid down the tube: its centre within the tube's section while in it,
+        never moving back up the axis faster than SLIDE_BACK m/s, at least SLIDE_MIN m further down, and
+        now inside the tube or out of its lower mouth."""
+        b = self.sim.log.bodies[name]
+        k = b.t >= t_release + RELEASE_FADE
+        rel = b.position[k] - self.mouth
+        a = self.axes[:, 0]
+        s = rel @ a
+        lateral = np.linalg.norm(rel - s[:, None] * a, axis=1)
+        v = b.velocity[k] @ a
+        L = scene.CONTAINER["length"]
+        inside = (s >= 0.0) & (s <= L)
+        t = b.t[k]
+        if np.any(lateral[inside] > scene.CONTAINER["inner"] / 2):
+            j = int(np.argmax(inside & (lateral > scene.CONTAINER["inner"] / 2)))
+            raise TaskError("slide", float(t[j]), f"{name} left the tube's section: its centre {lateral[j] * 1e3:.1f} mm "
+                            f"off the axis")
+        if np.any(v[inside] < -SLIDE_BACK):
+            j = int(np.argmax(inside & (v < -SLIDE_BACK)))
+            raise TaskError("slide", float(t[j]), f"{name} moved back up the tube at {-v[j]:.3f} m/s")
+        if s[-1] - s[0] < SLIDE_MIN:
+            raise TaskError("slide", float(t[-1]), f"{name} did not slide down the tube: it moved "
+                            f"{(s[-1] - s[0]) * 1e3:.1f} mm along the axis")
+        if s[-1] < 0.0:
+            raise TaskError("slide", float(t[-1]), f"{name} ended above the tube's upper mouth")
+        self.outcome[name] = "inside the container" if s[-1] <= L else "out of the lower mouth"
+
+
+def _cycle_window(log, t0, t1):
+    return (log.t >= t0 - 1e-12) & (log.t <= t1 + 1e-12)
+
+
+def _score(runner: "_Runner", results: List[dict]) -> dict:
+    """Per-cycle scores from the log (see the module's docstring); also the series behind the plots."""
+    sim, log = runner.sim, runner.sim.log
+    robots = (runner.r1, runner.r2)
+    shapes = [np.array([r.shapes(q)[0] for q in rl.q]) for r, rl in zip(robots, log.robots)]
+    halves = [r.shapes(rl.q[0])[1] for r, rl in zip(robots, log.robots)]
+    names = [[f"{r.name}/{b.name}" for b in r.boxes] for r in robots]
+    walls = [w[0] for w in runner.walls]
+    PW = np.array([w[2] for w in runner.walls])
+    HW = np.array([w[1] for w in runner.walls])
+    d_rr, i_rr, j_rr = clearances(shapes[0], halves[0], shapes[1], halves[1])
+    cont = [clearances(P, H, PW, HW) for P, H in zip(shapes, halves)]
+    d_rc = np.minimum(cont[0][0], cont[1][0])
+    tcp_err = np.column_stack([np.linalg.norm(np.array([r.fk(q)[:3, 3] - r.fk(qr)[:3, 3] for q, qr in zip(rl.q, rl.q_ref)]),
+                                              axis=1) if len(rl.q) else np.zeros(0)
+                               for r, rl in zip(robots, log.robots)])
+    weld = np.column_stack([np.linalg.norm(rl.weld[:, :3], axis=1) for rl in log.robots])
+    internal = np.linalg.norm(log.internal_wrench(0, 1)[:, :3], axis=1)
+    grasps, contacts = log.grasps, log.contacts
+    for c in results:
+        m = _cycle_window(log, c["t_start"], c["t_end"])
+        c["duration"] = c["t_end"] - c["t_start"]
+        if not m.any():
+            continue
+        c["tracking"] = [dict(robot=rl.name, rms_joint=np.sqrt((rl.error[m] ** 2).mean(axis=0)).tolist(),
+                              max_joint=np.abs(rl.error[m]).max(axis=0).tolist(),
+                              rms_tool=float(np.sqrt((tcp_err[m, i] ** 2).mean())),
+                              max_tool=float(tcp_err[m, i].max()))
+                         for i, rl in enumerate(log.robots)]
+        k = np.flatnonzero(m)[np.argmin(d_rr[m])]
+        c["clearance_robots"] = dict(min=float(d_rr[k]), t=float(log.t[k]), between=[names[0][i_rr[k]],
+                                                                                     names[1][j_rr[k]]])
+        k = np.flatnonzero(m)[np.argmin(d_rc[m])]
+        r = 0 if cont[0][0][k] <= cont[1][0][k] else 1
+        c["clearance_container"] = dict(min=float(d_rc[k]), t=float(log.t[k]),
+                                        between=[names[r][cont[r][1][k]], walls[cont[r][2][k]]])
+        c["peak_weld_force"] = [float(weld[m, i].max()) for i in range(2)]
+        both = m & (log[0].holding != "") & (log[0].holding == log[1].holding)
+        c["dual_hold"] = float(both.sum() * (log.t[1] - log.t[0])) if len(log.t) > 1 else 0.0
+        c["peak_internal_force"] = float(internal[both].max()) if both.any() else 0.0
+        g = grasps[(grasps.t >= c["t_start"]) & (grasps.t <= c["t_end"])]
+        c["grasp_events"] = [dict(t=float(e.t), robot=int(e.robot), body=e.body, event=e.event, reason=e.reason)
+                             for e in g.itertuples()]
+        e = contacts[(contacts.begin >= c["t_start"] - 1e-12) & (contacts.begin <= c["t_end"])]
+        c["contact_events"] = [dict(a=x.a, b=x.b, kind=x.kind, begin=float(x.begin),
+                                    end=None if np.isnan(x.end) else float(x.end), peak_force=float(x.peak_force))
+                               for x in e.itertuples()]
+        c["outcome"] = runner.outcome.get(c["bar"])
+    series = dict(t=log.t, clearance_robots=d_rr, clearance_container=d_rc, tool_error=tcp_err, weld_force=weld,
+                  internal_force=internal)
+    return series
 
 
 def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, dt: float = 2e-4,
-        log_every: int = 25, world_every: int = 1, mouth=None, slope=None, handover_yaw=None,
-        t_limit: float = 120.0) -> TaskResult:
+        log_every: int = 25, world_every: int = 5, control_every: int = 1, mouth=None, slope=None,
+        handover_yaw=None, t_limit: float = 120.0, score: bool = True) -> TaskResult:
     """Runs the task and scores it.
 
-    bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars`), or None
-    with `seed`: one bar drawn from :data:`REGION`. cycles: how many bars to move (default: all).
-    dt (s), log_every, world_every: the simulation's. mouth (3,) m, slope (rad): the container
-    (default scene.CONTAINER). handover_yaw (rad): the bar's yaw at the handover. t_limit: s of
-    simulated time after which the run stops as failed.
+    bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars` of
+    `cycles`, 3), or None with `seed`: one bar drawn from :data:`REGION`. cycles: how many bars to
+    move (default: all). dt (s), log_every, world_every, control_every: the simulation's (by default
+    the robots step at 5 kHz, the world and its contacts at 1 kHz). mouth (3,) m, slope (rad): the
+    container (default scene.CONTAINER). handover_yaw (rad): the bar's yaw at the handover. t_limit:
+    simulated seconds after which a cycle fails. score: compute the per-cycle scores (clearances,
+    tracking errors, forces, events; a little slower than the run itself).
+
+    Returns a :class:`TaskResult`. Raises coopsim.IKError, naming the bar and what is out of reach,
+    when a bar cannot be picked where it lies (checked before the run starts).
     """
     if bars is None:
         bars = [random_bar(seed)] if seed is not None else default_bars(3 if cycles is None else cycles)
     cycles = len(bars) if cycles is None else int(cycles)
-    runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, mouth=mouth, slope=slope,
-                     handover_yaw=handover_yaw, t_limit=t_limit)
+    if not 0 < cycles <= len(bars):
+        raise ValueError(f"cycles must be 1 .. {len(bars)} (one per bar), got {cycles}")
+    runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
+                     mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit)
     results = []
     for k in range(cycles):
         t0 = runner.sim.time
+        c = dict(cycle=k, bar=runner.names[k], success=True, t_start=t0)
+        results.append(c)
         try:
-            steps = runner.cycle(k)
-            results.append(dict(cycle=k, bar=runner.names[k], success=True, t_start=t0, t_end=runner.sim.time,
-                                steps=steps))
+            c["steps"] = runner.cycle(k)
+            c["t_end"] = runner.sim.time
         except TaskError as e:
-            results.append(dict(cycle=k, bar=runner.names[k], success=False, t_start=t0, t_end=runner.sim.time,
-                                failed_step=e.step, failed_at=e.t, reason=e.reason, bodies=list(e.bodies)))
+            c.update(success=False, t_end=runner.sim.time, failed_step=e.step, failed_at=e.t, reason=e.reason,
+                     bodies=list(e.bodies))
             break
-    report = dict(success=all(c["success"] for c in results) and len(results) == cycles, cycles=results)
-    return TaskResult(report, runner.sim, runner.sim.log)
+        except (IKError, _core.DivergenceError) as e:
+            c.update(success=False, t_end=runner.sim.time, failed_step=runner.step, failed_at=runner.sim.time,
+                     reason=f"{type(e).__name__}: {e}", bodies=[])
+            break
+    series = _score(runner, results) if score else None
+    report = dict(success=len(results) == cycles and all(c["success"] for c in results), cycles_planned=cycles,
+                  cycles=results, bars=[np.round(b, 12).tolist() for b in runner.bars[:cycles]],
+                  simulated_time=runner.sim.time, dt=dt, world_every=world_every, control_every=control_every)
+    return TaskResult(report, runner.sim, runner.sim.log, series)
