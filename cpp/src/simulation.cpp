@@ -631,7 +631,9 @@ void Simulation::grasp_rule_(double h) {
           release_(s, "opened", false);
           changed = true;
         }
-      } else if (s.q_ref[c.moving_joint - 1] > s.held_width + g.open_margin) {
+      } else if (s.qd_ref[c.moving_joint - 1] >= 0.0 && s.q_ref[c.moving_joint - 1] > s.held_width + g.open_margin) {
+        // opening: the jaw's reference above the body's width and not closing (a grasp made while the
+        // reference still closes towards the body is kept)
         s.releasing = true;
         s.fade = 1.0;
         s.release_progress = 0.0;

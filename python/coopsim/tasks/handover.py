@@ -201,7 +201,8 @@ def clearances(PA, HA, PB, HB):
 class _Runner:
     """The task on one simulation: plans and runs the phases of every cycle, and scores them."""
 
-    def __init__(self, bars, *, dt, log_every, world_every, control_every, mouth, slope, handover_yaw, t_limit):
+    def __init__(self, bars, *, dt, log_every, world_every, control_every, mouth, slope, handover_yaw, t_limit,
+                 container_shift=None, grip1_turn=0.0):
         self.r1, self.r2 = scene.scaras()
         self.bars = [np.asarray(b, float) for b in bars]
         self.names = ["bar" if i == 0 else f"bar{i}" for i in range(len(self.bars))]
@@ -210,7 +211,9 @@ class _Runner:
         self.handover_yaw = HANDOVER_YAW if handover_yaw is None else float(handover_yaw)
         self.axes = scene.container_axes(self.slope)
         w = _core.World(floor=True, floor_friction=scene.FLOOR_FRICTION)
-        self.walls = scene.container_walls(self.mouth, self.slope)
+        placed = self.mouth if container_shift is None else self.mouth + np.asarray(container_shift, float)
+        self.walls = scene.container_walls(placed, self.slope)
+        self.grip1_turn = float(grip1_turn)
         for name, he, T in self.walls:
             w.add_static_box(name, he, T, friction=scene.CONTAINER["friction"])
         for name, T in zip(self.names, self.bars):
@@ -229,7 +232,7 @@ class _Runner:
         self.cycles: List[dict] = []
         self.step = "start"
         self.contact_seen = 0
-        self.state = {name: "floor" for name in self.names}   # floor -> held -> released
+        self.state = {name: "floor" for name in self.names}   # floor -> grasped -> held (lifted) -> released
         self.label: Dict[str, np.ndarray] = {}   # the task's frame of each bar in its body frame
         self.outcome: Dict[str, str] = {}
 
@@ -385,9 +388,9 @@ class _Runner:
                 if y in self.state:   # bar on bar: both already dropped
                     return st == "released" and self.state[y] == "released"
                 if y.endswith("/fixed_jaw") or y.endswith("/link6"):
-                    return st != "released" or True
+                    return True
                 if y == "floor":
-                    return st in ("floor", "released")
+                    return st in ("floor", "grasped", "released")
                 if y.startswith("container"):
                     return st == "released"
                 return False
@@ -431,7 +434,7 @@ class _Runner:
         self.run_to(self.move_line(1, [grip], [T["descend"]], OPEN))
         self.close(1)
         self.wait_grasp(1, name)
-        self.state[name] = "held"
+        self.state[name] = "grasped"   # still on the floor until lifted
         done()
         # 2. lift, carry under #1's open clamp
         mark("carry")
@@ -442,6 +445,7 @@ class _Runner:
         pre = hand.copy()
         pre[:3, 3] += np.array([0.10, -0.10, 0.0])
         self.run_to(self.move_line(1, [lifted @ np.linalg.inv(G2)], [T["lift"]], SQUEEZE))
+        self.state[name] = "held"
         q_pre = self._ik(1, pre @ np.linalg.inv(G2), SQUEEZE, q_near=self.q_ref(1))
         self.run_to(self.move_joints(1, [q_pre], [T["carry"]]))
         self.run_to(self.move_line(1, [hand @ np.linalg.inv(G2)], [T["enter"]], SQUEEZE))
@@ -450,7 +454,7 @@ class _Runner:
         # 3. #1 descends onto the bar as it is held and closes: both hold
         mark("grasp by #1")
         held = self.bar(name)
-        g1 = held @ _grip_down(GRIP1, 0.0)
+        g1 = held @ _grip_down(GRIP1, 0.0) @ _pose(rotz(self.grip1_turn), np.zeros(3))
         self.run_to(self.move_line(0, [g1], [T["descend"]], OPEN))
         self.close(0)
         self.wait_grasp(0, name)
@@ -595,7 +599,8 @@ def _score(runner: "_Runner", results: List[dict]) -> dict:
 
 def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, dt: float = 2e-4,
         log_every: int = 25, world_every: int = 5, control_every: int = 1, mouth=None, slope=None,
-        handover_yaw=None, t_limit: float = 120.0, score: bool = True) -> TaskResult:
+        handover_yaw=None, t_limit: float = 120.0, score: bool = True, container_shift=None,
+        grip1_turn: float = 0.0) -> TaskResult:
     """Runs the task and scores it.
 
     bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars` of
@@ -606,6 +611,10 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     simulated seconds after which a cycle fails. score: compute the per-cycle scores (clearances,
     tracking errors, forces, events; a little slower than the run itself).
 
+    Faults, to see failures reported: container_shift (3,) m moves the container in the world by that
+    much while the plan still aims at the container where it should be; grip1_turn (rad) turns SCARA
+    #1's clamp about its approach when it comes down on the bar at the handover.
+
     Returns a :class:`TaskResult`. Raises coopsim.IKError, naming the bar and what is out of reach,
     when a bar cannot be picked where it lies (checked before the run starts).
     """
@@ -615,7 +624,8 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     if not 0 < cycles <= len(bars):
         raise ValueError(f"cycles must be 1 .. {len(bars)} (one per bar), got {cycles}")
     runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
-                     mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit)
+                     mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit,
+                     container_shift=container_shift, grip1_turn=grip1_turn)
     results = []
     for k in range(cycles):
         t0 = runner.sim.time
@@ -637,3 +647,195 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
                   cycles=results, bars=[np.round(b, 12).tolist() for b in runner.bars[:cycles]],
                   simulated_time=runner.sim.time, dt=dt, world_every=world_every, control_every=control_every)
     return TaskResult(report, runner.sim, runner.sim.log, series)
+
+
+def sweep(seeds: Sequence[int], *, threads: int = 2, **options) -> dict:
+    """The task once per seed, each with one bar drawn from :data:`REGION` (:func:`random_bar`), on
+    `threads` threads (the engine releases the GIL while it steps). options go to :func:`run`
+    (score=False by default: the success and failure reasons only).
+
+    Returns dict(success_rate, runs=[dict(seed, bar=[x, y, yaw], success, step, reason, simulated_time)],
+    failures=[the runs that failed]).
+    """
+    import concurrent.futures
+
+    options.setdefault("score", False)
+
+    def one(seed):
+        bar = random_bar(seed)
+        x, y, yaw = bar[0, 3], bar[1, 3], math.atan2(bar[1, 0], bar[0, 0])
+        entry = dict(seed=int(seed), bar=[float(x), float(y), float(yaw)])
+        try:
+            res = run([bar], **options)
+        except IKError as e:
+            return dict(entry, success=False, step="planning", reason=f"IKError: {e}", simulated_time=0.0)
+        c = res.report["cycles"][-1]
+        return dict(entry, success=res.success, step=c.get("failed_step"), reason=c.get("reason"),
+                    simulated_time=res.report["simulated_time"])
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, int(threads))) as pool:
+        runs = list(pool.map(one, seeds))
+    return dict(success_rate=sum(r["success"] for r in runs) / max(1, len(runs)), runs=runs,
+                failures=[r for r in runs if not r["success"]])
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def write_report(report: dict, path) -> str:
+    """The report as JSON, written atomically (a temporary file renamed into place); returns the path."""
+    import json
+
+    from ..log import _atomic_write
+
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(_jsonable(report), f, indent=1)
+
+    return _atomic_write(path, ".json", write)
+
+
+def summary(report: dict) -> str:
+    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure."""
+    lines = []
+    for c in report["cycles"]:
+        head = f"cycle {c['cycle']} ({c['bar']}): "
+        if not c["success"]:
+            lines.append(head + f"FAILED in {c['failed_step']} at t = {c['failed_at']:.3f} s: {c['reason']}")
+            continue
+        lines.append(head + f"success in {c['duration']:.2f} s, the bar {c.get('outcome')}")
+        if "tracking" in c:
+            tr = ", ".join(f"{x['robot']} {x['rms_tool'] * 1e3:.2f} / {x['max_tool'] * 1e3:.2f} mm"
+                           for x in c["tracking"])
+            lines.append(f"  tool tracking error RMS / max: {tr}")
+            cr, cc = c["clearance_robots"], c["clearance_container"]
+            lines.append(f"  min clearance robot-robot {cr['min'] * 1e3:.1f} mm ({' - '.join(cr['between'])}, "
+                         f"t = {cr['t']:.2f} s), robot-container {cc['min'] * 1e3:.1f} mm "
+                         f"({' - '.join(cc['between'])})")
+            lines.append(f"  dual hold {c['dual_hold']:.3f} s; peak weld force #1 {c['peak_weld_force'][0]:.2f} N, "
+                         f"#2 {c['peak_weld_force'][1]:.2f} N; peak internal force {c['peak_internal_force']:.2f} N; "
+                         f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
+    ok = sum(c["success"] for c in report["cycles"])
+    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded")
+    return "\n".join(lines)
+
+
+def plot_report(result: TaskResult, out_dir) -> List[str]:
+    """The plots of a run into out_dir: joints with references (one PNG per robot), tracking errors, and
+    clearances with forces over time. Returns the paths."""
+    import os
+
+    import matplotlib.pyplot as plt
+
+    from ..plotting import plot_log
+
+    os.makedirs(out_dir, exist_ok=True)
+    log, series, paths = result.log, result.series, []
+    for i, rl in enumerate(log.robots):
+        fig, axes = plt.subplots(rl.dof, 1, figsize=(9, 1.6 * rl.dof), sharex=True)
+        plot_log(log, robot=i, quantity="q", axes=axes, title=f"{rl.name}: joints (solid) and references (dashed)")
+        p = os.path.join(out_dir, f"joints_{rl.name}.png")
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+    cycles = [(c["t_start"], c.get("t_end", c["t_start"])) for c in result.report["cycles"]]
+
+    def bounds(ax):
+        for t0, _ in cycles[1:]:
+            ax.axvline(t0, color="0.6", lw=0.8, ls=":")
+
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
+    for i, rl in enumerate(log.robots):
+        axes[0].plot(series["t"], series["tool_error"][:, i] * 1e3, label=rl.name)
+        axes[1].plot(log.t, np.abs(rl.error).max(axis=1), label=rl.name)
+    axes[0].set_ylabel("tool position error (mm)")
+    axes[1].set_ylabel("largest joint error\n(rad or m)")
+    axes[1].set_xlabel("t (s)")
+    for ax in axes:
+        ax.legend(loc="upper right")
+        bounds(ax)
+    fig.suptitle("Tracking errors")
+    p = os.path.join(out_dir, "tracking.png")
+    fig.savefig(p, dpi=90)
+    plt.close(fig)
+    paths.append(p)
+
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
+    axes[0].plot(series["t"], series["clearance_container"] * 1e3, label="robot - container")
+    axes[0].set_ylabel("clearance (mm)")
+    axes[0].set_ylim(0, 300)
+    for i, rl in enumerate(log.robots):
+        axes[1].plot(series["t"], series["weld_force"][:, i], label=f"weld force, {rl.name}")
+    axes[1].plot(series["t"], series["internal_force"], label="internal force (dual hold)", color="k", lw=1)
+    axes[1].set_ylabel("force (N)")
+    axes[1].set_xlabel("t (s)")
+    for ax in axes:
+        ax.legend(loc="upper right")
+        bounds(ax)
+    fig.suptitle("Clearances and grasp forces")
+    p = os.path.join(out_dir, "clearance_forces.png")
+    fig.savefig(p, dpi=90)
+    plt.close(fig)
+    paths.append(p)
+    return paths
+
+
+def main(argv=None) -> int:
+    """``python -m coopsim.tasks.handover``: runs the task, writes its outputs, prints the summary."""
+    import argparse
+    import os
+    import time
+
+    ap = argparse.ArgumentParser(prog="python -m coopsim.tasks.handover", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="out", help="folder for the outputs (default out/)")
+    ap.add_argument("--cycles", type=int, default=3, help="bars moved, one per cycle (default 3)")
+    ap.add_argument("--seed", type=int, default=None, help="one bar drawn from the stated region with this seed")
+    ap.add_argument("--sweep", type=int, default=0, metavar="N", help="also run seeds 0 .. N-1 and report the rate")
+    ap.add_argument("--threads", type=int, default=2, help="threads for the sweep (default 2)")
+    ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
+    ap.add_argument("--speed", type=float, default=2.0, help="simulated seconds per video second (default 2)")
+    args = ap.parse_args(argv)
+    os.makedirs(args.out, exist_ok=True)
+    t0 = time.perf_counter()
+    res = run(seed=args.seed) if args.seed is not None else run(cycles=args.cycles)
+    wall = time.perf_counter() - t0
+    rep = res.report
+    rep["wall_time"] = wall
+    print(summary(rep))
+    print(f"simulated {rep['simulated_time']:.2f} s in {wall:.2f} s of wall time (scoring included): "
+          f"{rep['simulated_time'] / wall:.1f}x real time")
+    paths = [write_report(rep, os.path.join(args.out, "report.json")),
+             res.log.to_csv(os.path.join(args.out, "task.csv")),
+             res.log.to_excel(os.path.join(args.out, "task.xlsx"))]
+    paths += plot_report(res, args.out)
+    if not args.no_video:
+        from .. import view
+
+        paths.append(view.replay_html(res.sim, os.path.join(args.out, "task_replay.html"),
+                                      title="coopsim: the cooperative bar handover"))
+        anim = view.animate(res.sim, speed=args.speed, fps=20, path=os.path.join(args.out, "task.mp4"))
+        paths.append(anim.path)
+    if args.sweep:
+        t1 = time.perf_counter()
+        sw = sweep(range(args.sweep), threads=args.threads)
+        print(f"sweep of {args.sweep} seeds in {time.perf_counter() - t1:.1f} s: success rate "
+              f"{sw['success_rate'] * 100:.0f} %")
+        for f in sw["failures"]:
+            print(f"  seed {f['seed']} (bar at {np.round(f['bar'], 3).tolist()}): {f['step']}: {f['reason']}")
+        paths.append(write_report(sw, os.path.join(args.out, "sweep.json")))
+    print("wrote " + ", ".join(paths))
+    return 0 if rep["success"] else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
