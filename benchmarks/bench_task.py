@@ -1,0 +1,60 @@
+"""The cooperative task headless (coopsim.tasks.handover, 3 cycles of the default scene): simulated time,
+wall time and real-time factor of the run alone and with its scoring, the time per step split into
+controllers, world (Bullet, the grasp included), grasp, contact mapping and robots (RK4) from the
+simulation's own profiler, and the seeded sweep of 20 bars on 2 threads.
+
+Targets: >= 50x real time for the task (the paper ran it at 1x); the sweep of 20 seeds in under a minute.
+
+    python benchmarks/bench_task.py [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+# numpy's OpenBLAS threads spin after each call and take a core from the run being timed
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from coopsim.tasks import handover as H  # noqa: E402
+
+TARGET_RTF = 50.0
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="one cycle, 4 seeds")
+    args = ap.parse_args()
+    cycles, seeds = (1, 4) if args.quick else (3, 20)
+    print(f"{'run':<34}{'simulated s':>12}{'wall s':>9}{'x real time':>13}")
+    for label, kw in (("task, world every 5th step", dict(score=False)),
+                      ("task, world every step", dict(score=False, world_every=1)),
+                      ("task + scoring", dict(score=True))):
+        best = None
+        for _ in range(3):
+            t = time.perf_counter()
+            res = H.run(cycles=cycles, **kw)
+            w = time.perf_counter() - t
+            best = w if best is None else min(best, w)
+        assert res.success, H.summary(res.report)
+        st = res.report["simulated_time"]
+        print(f"{label:<34}{st:>12.2f}{best:>9.3f}{st / best:>12.1f}x")
+    # the per-step split, from the engine's profiler in a separate run (the timers cost a little)
+    runner = H._Runner(H.default_bars(1), dt=2e-4, log_every=25, world_every=5, control_every=1, mouth=None,
+                       slope=None, handover_yaw=None, t_limit=120.0)
+    runner.sim._core.set_profiling(True)
+    runner.cycle(0)
+    p, n = runner.sim._core.profile(), runner.sim.steps
+    split = ", ".join(f"{k} {p[k] / n * 1e6:.2f}" for k in ("controllers", "world", "grasp", "contacts", "robots"))
+    print(f"per step (us), world every 5th step: {split} (grasp within world)")
+    t = time.perf_counter()
+    sw = H.sweep(range(seeds), threads=2)
+    w = time.perf_counter() - t
+    print(f"sweep of {seeds} seeds on 2 threads: {w:.1f} s wall, success rate {sw['success_rate'] * 100:.0f} %"
+          f" (target: 20 seeds under 60 s)")
+    for f in sw["failures"]:
+        print(f"  seed {f['seed']}: {f['step']}: {f['reason']}")
+
+
+if __name__ == "__main__":
+    main()
