@@ -2,8 +2,7 @@
 
 The engine is C++ (Eigen, Bullet) in the compiled module ``coopsim._core``;
 this package re-exports it and adds robot definitions, planning, plotting,
-views, and the cooperative task's scene (the task's sequence is still to
-come). SI units and radians throughout; arrays are numpy float64.
+views, and the cooperative task (:mod:`coopsim.tasks.handover`). SI units and radians throughout; arrays are numpy float64.
 """
 from . import _core
 from ._core import (
