@@ -53,10 +53,12 @@ def test_an_output_folder_is_made_for_the_log(tmp_path):
     assert cs.SimulationLog.read_csv(path).t.shape == log.t.shape
 
 
-def test_the_package_does_not_claim_the_task_before_it_is_there():
+def test_what_the_package_says_of_the_task_is_there():
+    import importlib
     import os
 
-    assert "task's sequence is still" in cs.__doc__
+    assert ":mod:`coopsim.tasks.handover`" in cs.__doc__
+    assert callable(importlib.import_module("coopsim.tasks.handover").run)
     with open(os.path.join(os.path.dirname(cs.robots.__file__), "robots.py"), encoding="utf-8") as f:
         assert "shared/design" not in f.read()
 
