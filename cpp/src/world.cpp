@@ -54,15 +54,74 @@ void check_pose(const Eigen::Isometry3d& T, const std::string& who) {
 
 bool static_like(BodyKind k) { return k == BodyKind::Floor || k == BodyKind::Static; }
 
+// A body's own bounding box in the world, without Bullet's contact margin
+// (kept by KinematicWorld::updateAabbs, reached through the body's user pointer).
+struct Bounds {
+  btVector3 lo{0, 0, 0}, hi{0, 0, 0};
+};
+
 // The world whose kinematic bodies keep the twist coopsim sets: the base
 // class would overwrite it with a one-step-late finite difference.
 class KinematicWorld : public btDiscreteDynamicsWorld {
  public:
   using btDiscreteDynamicsWorld::btDiscreteDynamicsWorld;
 
+  // btCollisionWorld::updateAabbs and updateSingleAabb, the same arithmetic,
+  // also keeping each moving body's own box (its Bounds) for near_callback
+  void updateAabbs() override {
+    const btVector3 margin(gContactBreakingThreshold, gContactBreakingThreshold, gContactBreakingThreshold);
+    btBroadphaseInterface* bp = getBroadphase();
+    for (int i = 0; i < m_collisionObjects.size(); ++i) {
+      btCollisionObject* o = m_collisionObjects[i];
+      if (!(m_forceUpdateAllAabbs || o->isActive())) continue;
+      Bounds& b = *static_cast<Bounds*>(o->getUserPointer());
+      o->getCollisionShape()->getAabb(o->getWorldTransform(), b.lo, b.hi);
+      btVector3 lo = b.lo - margin, hi = b.hi + margin;
+      if (getDispatchInfo().m_useContinuous && o->getInternalType() == btCollisionObject::CO_RIGID_BODY &&
+          !o->isStaticOrKinematicObject()) {
+        btVector3 lo2, hi2;
+        o->getCollisionShape()->getAabb(o->getInterpolationWorldTransform(), lo2, hi2);
+        lo2 -= margin;
+        hi2 += margin;
+        lo.setMin(lo2);
+        hi.setMax(hi2);
+      }
+      if (o->isStaticObject() || (hi - lo).length2() < btScalar(1e12))
+        bp->setAabb(o->getBroadphaseHandle(), lo, hi, m_dispatcher1);
+      else
+        o->setActivationState(DISABLE_SIMULATION);  // as Bullet: something went badly wrong
+    }
+  }
+
  protected:
   void saveKinematicState(btScalar) override {}
 };
+
+// Bullet's near callback, skipping the narrow phase of a pair whose own boxes
+// are apart (by more than a micrometre) and whose manifold holds no point:
+// the narrow phase of two such boxes finds nothing and changes nothing. The
+// broad phase keeps pairs within Bullet's contact margin plus its tree's
+// margin (several centimetres): most of them are such pairs.
+void near_callback(btBroadphasePair& pair, btCollisionDispatcher& dispatcher, const btDispatcherInfo& info) {
+  if (pair.m_algorithm) {
+    const auto* a = static_cast<const btCollisionObject*>(pair.m_pProxy0->m_clientObject);
+    const auto* b = static_cast<const btCollisionObject*>(pair.m_pProxy1->m_clientObject);
+    const Bounds& A = *static_cast<const Bounds*>(a->getUserPointer());
+    const Bounds& B = *static_cast<const Bounds*>(b->getUserPointer());
+    constexpr btScalar gap = 1e-6;  // m
+    const bool apart = A.lo.x() > B.hi.x() + gap || B.lo.x() > A.hi.x() + gap || A.lo.y() > B.hi.y() + gap ||
+                       B.lo.y() > A.hi.y() + gap || A.lo.z() > B.hi.z() + gap || B.lo.z() > A.hi.z() + gap;
+    if (apart) {
+      thread_local btManifoldArray manifolds;
+      manifolds.resize(0);
+      pair.m_algorithm->getAllContactManifolds(manifolds);
+      bool empty = true;
+      for (int m = 0; m < manifolds.size(); ++m) empty = empty && manifolds[m]->getNumContacts() == 0;
+      if (empty) return;
+    }
+  }
+  btCollisionDispatcher::defaultNearCallback(pair, dispatcher, info);
+}
 
 }  // namespace
 
@@ -116,6 +175,7 @@ struct World::Impl {
   PairFilter filter;
   std::vector<std::unique_ptr<btCollisionShape>> shapes;
   std::vector<std::unique_ptr<btRigidBody>> bodies;  // by body id
+  std::vector<Bounds> bounds;                         // by body id
 
   ~Impl() {
     for (auto& b : bodies) world.removeRigidBody(b.get());
@@ -279,6 +339,8 @@ void World::build_() {
   I.filter.exclusions = &exclusions_;
   I.filter.ignored = &ignored_;
   I.world.getPairCache()->setOverlapFilterCallback(&I.filter);
+  I.dispatcher.setNearCallback(near_callback);
+  I.bounds.resize(specs_.size());
   I.world.setGravity(bt(options_.gravity));
   // static bodies keep their bounding boxes: only moving ones are updated
   I.world.setForceUpdateAllAabbs(false);
@@ -311,6 +373,8 @@ void World::build_() {
                                                          : bt(s.pose);
     auto body = std::make_unique<btRigidBody>(ci);
     body->setUserIndex(static_cast<int>(id));
+    body->setUserPointer(&I.bounds[id]);
+    shape->getAabb(body->getWorldTransform(), I.bounds[id].lo, I.bounds[id].hi);
     if (s.kind == BodyKind::Link) body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
     if (s.kind == BodyKind::Free) {
       body->setLinearVelocity(bt(s.velocity));
