@@ -166,8 +166,19 @@ struct PairFilter : public btOverlapFilterCallback {
   }
 };
 
+// Bullet's pools for manifolds and collision algorithms: its default of 4096
+// each is about 7 MB written when the world is built (a millisecond of page
+// faults); a few dozen pairs ever touch here, and more than the pool holds
+// come from the heap.
+static btDefaultCollisionConstructionInfo pool_sizes() {
+  btDefaultCollisionConstructionInfo info;
+  info.m_defaultMaxPersistentManifoldPoolSize = 256;
+  info.m_defaultMaxCollisionAlgorithmPoolSize = 256;
+  return info;
+}
+
 struct World::Impl {
-  btDefaultCollisionConfiguration config;
+  btDefaultCollisionConfiguration config{pool_sizes()};
   btCollisionDispatcher dispatcher{&config};
   btDbvtBroadphase broadphase;
   btSequentialImpulseConstraintSolver solver;
