@@ -97,28 +97,37 @@ class KinematicWorld : public btDiscreteDynamicsWorld {
   void saveKinematicState(btScalar) override {}
 };
 
-// Bullet's near callback, skipping the narrow phase of a pair whose own boxes
-// are apart (by more than a micrometre) and whose manifold holds no point:
-// the narrow phase of two such boxes finds nothing and changes nothing. The
-// broad phase keeps pairs within Bullet's contact margin plus its tree's
-// margin (several centimetres): most of them are such pairs.
+// How far apart two bodies' boxes are along the world axes (m; <= 0: they overlap).
+btScalar separation(const Bounds& A, const Bounds& B) {
+  btVector3 d = A.lo - B.hi;
+  d.setMax(B.lo - A.hi);
+  return btMax(btMax(d.x(), d.y()), d.z());
+}
+
+// Bullet's near callback, for the pairs its broad phase keeps: those within
+// its contact margin (2 cm) plus its tree's margin (5 cm), most of them far
+// from touching.
+// - No collision algorithm and manifold is made for a pair whose boxes are
+//   more than the contact margin apart: an empty manifold with a robot's link
+//   wakes the free body every step (Bullet's islands), so that a body at rest
+//   with an arm moving a few centimetres away would never sleep.
+// - The narrow phase is skipped for a pair whose boxes are apart (by more than
+//   a micrometre) and whose manifold holds no point: it would find nothing and
+//   change nothing.
 void near_callback(btBroadphasePair& pair, btCollisionDispatcher& dispatcher, const btDispatcherInfo& info) {
-  if (pair.m_algorithm) {
-    const auto* a = static_cast<const btCollisionObject*>(pair.m_pProxy0->m_clientObject);
-    const auto* b = static_cast<const btCollisionObject*>(pair.m_pProxy1->m_clientObject);
-    const Bounds& A = *static_cast<const Bounds*>(a->getUserPointer());
-    const Bounds& B = *static_cast<const Bounds*>(b->getUserPointer());
-    constexpr btScalar gap = 1e-6;  // m
-    const bool apart = A.lo.x() > B.hi.x() + gap || B.lo.x() > A.hi.x() + gap || A.lo.y() > B.hi.y() + gap ||
-                       B.lo.y() > A.hi.y() + gap || A.lo.z() > B.hi.z() + gap || B.lo.z() > A.hi.z() + gap;
-    if (apart) {
-      thread_local btManifoldArray manifolds;
-      manifolds.resize(0);
-      pair.m_algorithm->getAllContactManifolds(manifolds);
-      bool empty = true;
-      for (int m = 0; m < manifolds.size(); ++m) empty = empty && manifolds[m]->getNumContacts() == 0;
-      if (empty) return;
-    }
+  const auto* a = static_cast<const btCollisionObject*>(pair.m_pProxy0->m_clientObject);
+  const auto* b = static_cast<const btCollisionObject*>(pair.m_pProxy1->m_clientObject);
+  const btScalar apart = separation(*static_cast<const Bounds*>(a->getUserPointer()),
+                                    *static_cast<const Bounds*>(b->getUserPointer()));
+  if (!pair.m_algorithm) {
+    if (apart > gContactBreakingThreshold) return;
+  } else if (apart > 1e-6) {
+    thread_local btManifoldArray manifolds;
+    manifolds.resize(0);
+    pair.m_algorithm->getAllContactManifolds(manifolds);
+    bool empty = true;
+    for (int m = 0; m < manifolds.size(); ++m) empty = empty && manifolds[m]->getNumContacts() == 0;
+    if (empty) return;
   }
   btCollisionDispatcher::defaultNearCallback(pair, dispatcher, info);
 }
