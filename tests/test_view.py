@@ -522,7 +522,8 @@ def test_an_animation_follows_a_moving_bar_frame_by_frame():
         img = render(anim.fig)
         drawn = anim.scene.faces("body", anim.scene.body_index("bar")).reshape(-1, 3)
         assert on_box(drawn, bar.poses()[row], np.array([0.1, 0.03, 0.03]))
-        assert not on_box(drawn, bar.poses()[row - 2], np.array([0.1, 0.03, 0.03]))
+        if np.linalg.norm(bar.position[row] - bar.position[row - 2]) > 1e-6:  # by frame 9 it has landed and rests
+            assert not on_box(drawn, bar.poses()[row - 2], np.array([0.1, 0.03, 0.03]))
         p = bar.position[row]
         positions.append(p)
         assert is_red(pixel(img, anim.scene, p)), (k, pixel(img, anim.scene, p))
