@@ -311,60 +311,6 @@ def test_fuzz_forward_dynamics_batch(robot, rows, data):
 
 
 @settings(max_examples=100, deadline=None)
-@given(kinds=st.lists(st.sampled_from(["box", "sphere", "set_pose", "read"]), max_size=6), data=st.data())
-def test_fuzz_collision_world(kinds, data):
-    world = cs.CollisionWorld()
-    shapes = []  # (kind, size, pose, name) of the shapes added
-    for kind in kinds:
-        some_id = st.integers(0, max(len(shapes) - 1, 0))
-        if kind in ("box", "sphere"):
-            size = vectors(3, 0.01, 2) if kind == "box" else finite_floats(0.01, 2)
-            bad_size = st.one_of(hnp.arrays(np.float64, 3, elements=sizes), anything) if kind == "box" else sizes
-            args, spoiled = draw_arguments(data, {"size": size, "pose": rigid_poses(), "name": xml_text},
-                                           {"size": bad_size, "pose": anything}, max_spoiled=1)
-            add = world.add_box if kind == "box" else world.add_sphere
-            i = valid_or_value_error(lambda: add(args["size"], args["pose"], args["name"]))
-            assert i is not None or spoiled
-            if i is not None:
-                assert i == len(shapes) and len(world) == len(shapes) + 1
-                # unnamed shapes are named by their id
-                shapes.append((kind, args["size"], args["pose"], args["name"] or f"shape{i}"))
-                np.testing.assert_array_equal(world.pose(i), args["pose"])
-        elif kind == "set_pose":
-            args, spoiled = draw_arguments(data, {"id": some_id, "pose": rigid_poses()},
-                                           {"id": c_int, "pose": anything}, max_spoiled=1)
-            if valid_or_value_error(lambda: world.set_pose(args["id"], args["pose"]) or True):
-                np.testing.assert_array_equal(world.pose(args["id"]), args["pose"])
-                shapes[args["id"]] = shapes[args["id"]][:2] + (args["pose"],) + shapes[args["id"]][3:]
-            else:
-                assert spoiled or not shapes
-        else:
-            i = data.draw(st.one_of(some_id, c_int), label="id")
-            name = valid_or_value_error(lambda: world.name(i))
-            assert (name is not None) == (0 <= i < len(shapes))
-            if name is not None:
-                assert name == shapes[i][3]
-        assert len(world) == len(shapes)
-    contacts = world.contacts()
-    for c in contacts:
-        assert 0 <= c.a < len(shapes) and 0 <= c.b < len(shapes) and c.a != c.b
-        check_output((c.depth, c.normal, c.point_a, c.point_b))
-    # between spheres the depth is the centres' distance less the radii, and
-    # every pair that overlaps is reported
-    found = {frozenset((c.a, c.b)): c for c in contacts}
-    spheres = [i for i, sh in enumerate(shapes) if sh[0] == "sphere"]
-    for k, i in enumerate(spheres):
-        for j in spheres[k + 1:]:
-            distance = np.linalg.norm(shapes[i][2][:3, 3] - shapes[j][2][:3, 3])
-            depth = distance - shapes[i][1] - shapes[j][1]
-            scale = max(1.0, distance + shapes[i][1] + shapes[j][1])  # round-off of the sizes
-            if depth < -1e-6 * scale:
-                assert frozenset((i, j)) in found
-            if frozenset((i, j)) in found:
-                assert found[frozenset((i, j))].depth == pytest.approx(depth, abs=1e-9 * scale)
-
-
-@settings(max_examples=100, deadline=None)
 @given(robot=st.sampled_from(ROBOTS), data=st.data())
 def test_fuzz_with_base(robot, data):
     args, spoiled = draw_arguments(data, {"position": vectors(3), "yaw": finite_floats(-10, 10)},
@@ -565,19 +511,6 @@ def test_ik_scalar_arguments_are_checked():
                      (dict(method="numeric", locked="ab"), "locked"), (dict(method="numeric", locked=[6]), "locked")):
         with pytest.raises(ValueError, match=word):
             r.ik(T, **kw)
-
-
-def test_collision_shapes_within_bullets_range():
-    w = cs.CollisionWorld()
-    for bad in ([1e5, 1, 1], [1e-5, 1, 1]):
-        with pytest.raises(ValueError, match="half_extents must be in 1e-4 .. 1e4 m"):
-            w.add_box(bad, np.eye(4))
-    with pytest.raises(ValueError, match="radius must be in"):
-        w.add_sphere(2e4, np.eye(4))
-    far = np.eye(4)
-    far[0, 3] = 2e6
-    with pytest.raises(ValueError, match="within 1e6 m"):
-        w.add_sphere(1.0, far)
 
 
 def test_joint_types_must_be_ascii_letters():

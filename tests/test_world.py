@@ -405,7 +405,8 @@ def test_bodies_at_rest_are_solved_to_convergence_and_do_not_creep():
 
 BAD_BODIES = [
     ("sizes", lambda w: w.add_static_box("a", [0.1, 0.0, 0.1], np.eye(4)), "half_extents"),
-    ("sizes", lambda w: w.add_free_box("a", [0.1, 1e5, 0.1], 1.0, np.eye(4)), "half_extents"),
+    ("sizes", lambda w: w.add_free_box("a", [0.1, 1e5, 0.1], 1.0, np.eye(4)), "half_extents must be in 1e-4 .. 1e4 m"),
+    ("sizes", lambda w: w.add_free_box("a", [0.1, 1e-5, 0.1], 1.0, np.eye(4)), "half_extents must be in 1e-4 .. 1e4 m"),
     ("masses", lambda w: w.add_free_box("a", [0.1, 0.1, 0.1], 0.0, np.eye(4)), "mass"),
     ("masses", lambda w: w.add_free_box("a", [0.1, 0.1, 0.1], np.nan, np.eye(4)), "mass"),
     ("friction", lambda w: w.add_static_box("a", [0.1, 0.1, 0.1], np.eye(4), friction=-0.1), "friction"),

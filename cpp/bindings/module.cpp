@@ -5,7 +5,6 @@ namespace py = pybind11;
 
 void bind_robot(py::module_& m);
 void bind_integrator(py::module_& m);
-void bind_collision(py::module_& m);
 void bind_codegen(py::module_& m);
 void bind_trajectory(py::module_& m);
 void bind_ik(py::module_& m);
@@ -22,7 +21,6 @@ PYBIND11_MODULE(_core, m) {
 #endif
   bind_robot(m);
   bind_integrator(m);
-  bind_collision(m);
   bind_codegen(m);
   bind_trajectory(m);
   bind_ik(m);

@@ -7,8 +7,6 @@ views, and the cooperative task (:mod:`coopsim.tasks.handover`). SI units and ra
 from . import _core
 from ._core import (
     Clamp,
-    CollisionWorld,
-    Contact,
     CubicTrajectory,
     IKError,
     LinkBox,
@@ -42,8 +40,6 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Clamp",
-    "CollisionWorld",
-    "Contact",
     "CubicTrajectory",
     "IKError",
     "LinkBox",
