@@ -403,6 +403,17 @@ def test_bodies_at_rest_are_solved_to_convergence_and_do_not_creep():
         np.testing.assert_allclose(f, carried(longer)[pair], rtol=0, atol=1e-12 * weights[pair])
 
 
+def test_a_body_resting_on_a_pedestal_is_one_contact_event():
+    # the solver holds a resting box a round-off (1e-14 m) in or out of the pedestal: it touches all the time
+    w = cs.World()
+    w.add_static_box("pedestal", [0.004, 0.004, 0.05], position=[0, 0, 0.05])
+    w.add_free_box("box", [0.05, 0.01, 0.01], 0.1, position=[0, 0, 0.11], friction=0.5)
+    sim, log = world_only(w, 1.0, log_every=0)
+    events = log.contacts
+    assert len(events) == 1 and list(events[["a", "b"]].iloc[0]) == ["pedestal", "box"]
+    assert np.isnan(events["end"].iloc[0]) and events["steps"].iloc[0] == 5001
+
+
 BAD_BODIES = [
     ("sizes", lambda w: w.add_static_box("a", [0.1, 0.0, 0.1], np.eye(4)), "half_extents"),
     ("sizes", lambda w: w.add_free_box("a", [0.1, 1e5, 0.1], 1.0, np.eye(4)), "half_extents must be in 1e-4 .. 1e4 m"),

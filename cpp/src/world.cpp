@@ -539,7 +539,9 @@ void World::record_events(double t) {
   // their total force and deepest point
   touching_.clear();
   for (const ContactPoint& c : contacts_) {
-    if (c.depth < 0) continue;
+    // touching: in contact, or carrying a force (the solver holds a body resting a round-off
+    // apart, 1e-14 m, as firmly as one resting a round-off in)
+    if (c.depth < 0 && c.force.squaredNorm() == 0.0) continue;
     if (touching_.empty() || touching_.back().a != c.a || touching_.back().b != c.b) {
       ContactEvent e;
       e.a = c.a;
