@@ -553,6 +553,9 @@ void Simulation::link_contacts_(double h) {
   }
 }
 
+// The grasp rule's first condition: the jaw commanded closing or closed.
+static bool jaw_closing(double q_ref, double q, double qd_ref) { return q_ref <= q + 1e-9 || qd_ref < 0; }
+
 GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) const {
   const GraspOptions& g = opt_.grasp;
   const Robot& r = s.robot;
@@ -561,7 +564,7 @@ GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) 
   const double opening = s.q[j];
   GraspCheck out;
   // the jaw commanded closing or closed
-  out.closing = s.q_ref[j] <= opening + 1e-9 || s.qd_ref[j] < 0;
+  out.closing = jaw_closing(s.q_ref[j], opening, s.qd_ref[j]);
   const BodySpec& b = world_->body(id);
   const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
   const Eigen::Isometry3d F = link * c.fixed_face;  // x along the jaw, z the jaw axis, origin the pad centre
@@ -645,6 +648,11 @@ void Simulation::grasp_rule_(double h) {
     }
     int found = -1;
     double width = 0.0;
+    const int j = c.moving_joint - 1;
+    if (!jaw_closing(s.q_ref[j], s.q[j], s.qd_ref[j])) {  // nothing to check while the jaw opens
+      s.candidate = -1;
+      continue;
+    }
     for (size_t b = 0; b < free_ids_.size(); ++b) {
       const GraspCheck c = grasp_check_(s, body_now_[b], free_ids_[b]);
       if (c.ok()) {
