@@ -103,6 +103,22 @@ def test_the_grasp_happens_through_the_rule_and_never_snaps():
     assert sim.holding(0) is None and len(sim.log.grasps) == 0
 
 
+def test_a_grasp_leaves_resting_contacts_whole():
+    # the grasp changes which pairs collide (the held body and its clamp): only the held body's pairs are
+    # made again, and a body made again while it rests keeps its contact (contacts settle 1e-11 m deep)
+    r, w = scene(BOX * [1, 2 / 3, 1])
+    w.add_free_box("bar", [0.175, 0.01, 0.01], 0.15, position=[-0.3, -0.3, 0.01], friction=0.5)
+    sim = closing(r, w)
+    sim.run(0.3, progress=False)
+    assert sim.holding(0) == "box"
+    events = sim.log.contacts
+    for pair in (("floor", "bar"), ("box", "pedestal")):
+        e = events[(events["a"] == pair[0]) & (events["b"] == pair[1])]
+        assert len(e) == 1 and np.isnan(e["end"].iloc[0]) and e["steps"].iloc[0] == 1501, e
+    bar = [c for c in sim.contacts() if c["b"] == "bar"]
+    assert sum(c["force"] for c in bar)[2] == pytest.approx(-0.15 * 9.81, rel=1e-9)
+
+
 @pytest.mark.parametrize("case", ["one jaw touching", "jaw commanded open", "moving at 0.2 m/s"])
 def test_no_grasp_when_a_condition_stays_false(case):
     scene_kw, sim_kw, _ = CASES[case]
