@@ -4,6 +4,7 @@
 #include "coopsim/robot.hpp"
 
 #include <btBulletDynamicsCommon.h>
+#include <BulletCollision/CollisionDispatch/btBoxBoxCollisionAlgorithm.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -128,6 +129,61 @@ class RestingSolver : public btSequentialImpulseConstraintSolver {
   }
 };
 
+// Bullet's box-box narrow phase, not run again for a pair while neither box
+// has moved more than kStill (m, and the same in rotation) since it last ran:
+// it would find the same points (a body at rest on another; moving bodies run
+// it every step). The points kept are refreshed with the boxes' poses all the
+// same, so their positions and depths stay exact.
+constexpr btScalar kStill = 1e-12;
+
+bool still(const btTransform& a, const btTransform& b) {
+  const btVector3 d = a.getOrigin() - b.getOrigin();
+  if (btMax(btMax(btFabs(d.x()), btFabs(d.y())), btFabs(d.z())) > kStill) return false;
+  for (int i = 0; i < 3; ++i) {
+    const btVector3 r = a.getBasis()[i] - b.getBasis()[i];
+    if (btMax(btMax(btFabs(r.x()), btFabs(r.y())), btFabs(r.z())) > kStill) return false;
+  }
+  return true;
+}
+
+class BoxBox : public btBoxBoxCollisionAlgorithm {
+ public:
+  using btBoxBoxCollisionAlgorithm::btBoxBoxCollisionAlgorithm;
+
+  void processCollision(const btCollisionObjectWrapper* a, const btCollisionObjectWrapper* b,
+                        const btDispatcherInfo& info, btManifoldResult* out) override {
+    const btTransform& A = a->getWorldTransform();
+    const btTransform& B = b->getWorldTransform();
+    if (manifold_ && still(A, a_) && still(B, b_)) {
+      out->setPersistentManifold(manifold_);
+      out->refreshContactPoints();
+      return;
+    }
+    btBoxBoxCollisionAlgorithm::processCollision(a, b, info, out);
+    a_ = A;
+    b_ = B;
+    if (!manifold_) {
+      thread_local btManifoldArray manifolds;
+      manifolds.resize(0);
+      getAllContactManifolds(manifolds);
+      if (manifolds.size() == 1) manifold_ = manifolds[0];
+    }
+  }
+
+  struct CreateFunc : public btCollisionAlgorithmCreateFunc {
+    btCollisionAlgorithm* CreateCollisionAlgorithm(btCollisionAlgorithmConstructionInfo& ci,
+                                                   const btCollisionObjectWrapper* a,
+                                                   const btCollisionObjectWrapper* b) override {
+      void* mem = ci.m_dispatcher1->allocateCollisionAlgorithm(sizeof(BoxBox));
+      return new (mem) BoxBox(nullptr, ci, a, b);
+    }
+  };
+
+ private:
+  btPersistentManifold* manifold_ = nullptr;  // set once the narrow phase has run
+  btTransform a_, b_;                          // the boxes' poses when it last ran
+};
+
 // How far apart two bodies' boxes are along the world axes (m; <= 0: they overlap).
 btScalar separation(const Bounds& A, const Bounds& B) {
   btVector3 d = A.lo - B.hi;
@@ -214,6 +270,7 @@ static btDefaultCollisionConstructionInfo pool_sizes() {
   btDefaultCollisionConstructionInfo info;
   info.m_defaultMaxPersistentManifoldPoolSize = 256;
   info.m_defaultMaxCollisionAlgorithmPoolSize = 256;
+  info.m_customCollisionAlgorithmMaxElementSize = sizeof(BoxBox);  // the pool's blocks must hold one
   return info;
 }
 
@@ -391,6 +448,8 @@ void World::build_() {
   I.filter.ignored = &ignored_;
   I.world.getPairCache()->setOverlapFilterCallback(&I.filter);
   I.dispatcher.setNearCallback(near_callback);
+  static BoxBox::CreateFunc box_box;
+  I.dispatcher.registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE, &box_box);
   I.bounds.resize(specs_.size());
   I.world.setGravity(bt(options_.gravity));
   // static bodies keep their bounding boxes: only moving ones are updated
