@@ -494,12 +494,15 @@ void World::build_() {
     body->setUserIndex(static_cast<int>(id));
     body->setUserPointer(&I.bounds[id]);
     shape->getAabb(body->getWorldTransform(), I.bounds[id].lo, I.bounds[id].hi);
-    if (s.kind == BodyKind::Link) body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+    // a robot's base boxes (link 0) never move: they stay static bodies, which Bullet never
+    // updates; the others are kinematic, moved every step
+    const bool moving_link = s.kind == BodyKind::Link && s.link != 0;
+    if (moving_link) body->setCollisionFlags(body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
     if (s.kind == BodyKind::Free) {
       body->setLinearVelocity(bt(s.velocity));
       body->setAngularVelocity(bt(s.angular_velocity));
     }
-    if (s.kind == BodyKind::Link) body->setActivationState(DISABLE_DEACTIVATION);
+    if (moving_link) body->setActivationState(DISABLE_DEACTIVATION);
     // a free body at rest (below 0.1 mm/s and 1 mrad/s) for Bullet's 2 s sleeps: it costs nothing
     // then, keeps the contact forces it last had, and wakes when touched or pushed
     if (s.kind == BodyKind::Free) body->setSleepingThresholds(kRestSpeed, kRestTurn);
@@ -513,6 +516,7 @@ void World::set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3
                      const Eigen::Vector3d& angular_velocity) {
   if (!impl_) build_();
   btRigidBody& b = *impl_->bodies[id];
+  if (!b.isKinematicObject()) return;  // a base box: where it was built, at rest
   const btTransform T = bt(pose);
   b.setWorldTransform(T);
   b.setInterpolationWorldTransform(T);

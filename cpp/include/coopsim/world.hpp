@@ -134,7 +134,8 @@ class World {
   std::vector<int> free_bodies() const;     // ids of the free bodies, in order added
 
   // ---- stepping (by the owning simulation) ----
-  // Sets a link body's pose and twist (velocity of the box centre).
+  // Sets a link body's pose and twist (velocity of the box centre); a base box (link 0) stays
+  // where it was added.
   void set_link(int id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& velocity,
                 const Eigen::Vector3d& angular_velocity);
   // A force (N, at the centre) and moment (N m) on a free body over the next step.
