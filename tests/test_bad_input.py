@@ -53,10 +53,11 @@ def test_non_numeric_input():
 
 
 def test_non_physical_masses():
-    for bad in (0.0, -1.0):
+    # a link without mass is allowed (tests/test_published_data.py); a negative one is not
+    for bad in (-1.0, np.nan, np.inf):
         t = good_tables()
         t["masses"] = np.array([1.0, bad])
-        with pytest.raises(ValueError, match=r"link 2: mass must be finite and > 0"):
+        with pytest.raises(ValueError, match=r"link 2: mass must be finite and >= 0|masses must be finite"):
             cs.Robot.from_dh(**t)
     with pytest.raises(ValueError, match="masses"):
         cs.robots.scara1(masses=[1.0, 1.0, 1.0, -0.1, 1.0, 1.0])
@@ -77,10 +78,16 @@ def test_inertia_not_positive_semidefinite():
 
 
 def test_inertia_violates_triangle_inequality():
+    # published data has such tensors: a warning by default, an error on request
     t = good_tables()
     t["inertias"][0] = np.diag([0.01, 0.01, 0.05])
-    with pytest.raises(ValueError, match="triangle inequality"):
-        cs.Robot.from_dh(**t)
+    with pytest.warns(cs.InertiaWarning, match="link 1: inertia tensor breaks the triangle inequality"):
+        r = cs.Robot.from_dh(**t)
+    assert len(r.inertia_warnings) == 1
+    with pytest.raises(ValueError, match="link 1: inertia tensor breaks the triangle inequality"):
+        cs.Robot.from_dh(**t, inertia_check="error")
+    with pytest.raises(ValueError, match="inertia_check must be"):
+        cs.Robot.from_dh(**t, inertia_check="strict")
 
 
 def test_limits_out_of_order_and_bad_actuator_limits():

@@ -61,9 +61,10 @@ def _mismatches(gen, num, n_states=N_STATES, seed=0):
             "C": (C, num.coriolis(q, qd)),
             "C_matrix": (gen.coriolis_matrix(q, qd), num.coriolis_matrix(q, qd)),
             "G": (G, num.gravity(q)),
-            # the generated friction: h = C qd + G + K qd of the generated dynamics
-            # (inverse dynamics at qdd = 0) less the generated C and G
-            "friction": (gen.inverse_dynamics(q, qd, np.zeros(n)) - C - G, K * qd),
+            # the generated friction: h = C qd + G + K qd + F_c tanh(qd / v_c) of the generated
+            # dynamics (inverse dynamics at qdd = 0) less the generated C and G
+            "friction": (gen.inverse_dynamics(q, qd, np.zeros(n)) - C - G,
+                         K * qd + num.coulomb * np.tanh(qd / num.coulomb_width)),
             "forward": (gen.forward_dynamics(q, qd, tau), num.forward_dynamics(q, qd, tau)),
             "inverse": (gen.inverse_dynamics(q, qd, qdd), num.inverse_dynamics(q, qd, qdd)),
         }
@@ -268,10 +269,12 @@ def test_pendulum_textbook():
         sp.Symbol("Izz_1", real=True), sp.Symbol("g_y", real=True)
     g = sp.Symbol("g", positive=True)
     sub = {gy: -g, sp.Symbol("g_x", real=True): 0, sp.Symbol("g_z", real=True): 0}
-    assert _zero(m.in_trig(m.M[0, 0]) - (mass * lc**2 + Izz))
+    Ia, K, Fc, vc = (sp.Symbol(f"{k}_1", real=True) for k in ("Ia", "K", "Fc", "vc"))
+    # the rotor's reflected inertia (armature) adds to the link's
+    assert _zero(m.in_trig(m.M[0, 0]) - (mass * lc**2 + Izz + Ia))
     assert m.C[0] == 0 and m.C_matrix[0, 0] == 0
     assert _zero(m.in_trig(m.G[0]).subs(sub) - mass * g * lc * sp.cos(q))
-    assert m.friction[0] == sp.Symbol("K_1", real=True) * qd
+    assert m.friction[0] == K * qd + Fc * sp.tanh(qd / vc)
 
 
 def test_two_link_planar_arm_textbook():
@@ -295,7 +298,8 @@ def test_two_link_planar_arm_textbook():
         assert _zero(m.in_trig(m.G[i]).subs(sub) - G[i])
         assert _zero(m.in_trig(m.C[i]) - (C * sp.Matrix([qd1, qd2]))[i])
         for j in range(2):
-            assert _zero(m.in_trig(m.M[i, j]) - M[i, j])
+            rotor = S(f"Ia_{i + 1}") if i == j else 0  # the rotors' armature on the diagonal
+            assert _zero(m.in_trig(m.M[i, j]) - M[i, j] - rotor)
             assert _zero(m.in_trig(m.C_matrix[i, j]) - C[i, j])
 
 
@@ -449,7 +453,7 @@ def test_friction_check_detects_wrong_friction(tmp_path):
         body = _functions(text)["coopsim_gen_dynamics"]
         mutated = body
         for k in range(s.dof):
-            term = f"p[{16 * k + 15}]*qd[{k}]"
+            term = f"p[{19 * k + 15}]*qd[{k}]"
             assert text.count(term) == body.count(term) == 1, term  # K qd only in h of dynamics
             mutated = mutated.replace(term, f"{factor}*{term}")
         src, lib = tmp_path / f"{s.name}.cpp", tmp_path / f"{s.name}.so"

@@ -63,12 +63,36 @@ Robot with_generated_name(const Robot& r, const std::string& name) {
                                                                    [](const GeneratedDynamics*) {}));
 }
 
+// per-joint values: None (the default), a number for every joint, or (n,)
+bool per_joint(const py::object& obj, int n, const char* name, std::vector<double>& out) {
+  if (obj.is_none()) return false;
+  Arr a = as_array(obj, name);
+  if (a.ndim() == 0) {
+    check_finite(a.data(), 1, name);
+    out.assign(n, a.data()[0]);
+    return true;
+  }
+  a = array(obj, {n}, name);
+  out.assign(a.data(), a.data() + n);
+  return true;
+}
+
+py::object inertia_warning_category() {
+  static py::object cat = py::reinterpret_steal<py::object>(
+      PyErr_NewException("coopsim._core.InertiaWarning", PyExc_UserWarning, nullptr));
+  return cat;
+}
+
 Robot make_robot(const py::object& dh, const py::object& com, const py::object& masses,
                  const py::object& inertias, const std::string& joint_types, const py::object& friction,
                  const py::object& q_limits, const py::object& tau_limits, const py::object& gravity,
                  const py::object& base_position, double base_yaw, const py::object& tool,
                  const std::string& name, double end_stop_frequency, double end_stop_damping_ratio,
-                 const py::object& boxes, const py::object& clamp, const py::object& dimensions) {
+                 const py::object& boxes, const py::object& clamp, const py::object& dimensions,
+                 const py::object& armature, const py::object& coulomb, const py::object& coulomb_width,
+                 const py::object& base_orientation, const std::string& inertia_check) {
+  if (inertia_check != "warn" && inertia_check != "error" && inertia_check != "ignore")
+    throw py::value_error("inertia_check must be 'warn', 'error' or 'ignore', got '" + inertia_check + "'");
   Arr D = array(dh, {-1, 4}, "dh");
   const int n = static_cast<int>(D.shape(0));
   if (n < 1 || n > kMaxDof)
@@ -77,7 +101,10 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
   if (static_cast<int>(joint_types.size()) != n)
     throw py::value_error("joint_types must have one letter per DH row: expected " + std::to_string(n) +
                           ", got " + std::to_string(joint_types.size()));
-  Arr C = array(com, {n, 4}, "com");
+  Arr C = as_array(com, "com");
+  const bool com_vectors = C.ndim() == 2 && C.shape(0) == n && C.shape(1) == 3;
+  if (!com_vectors) C = array(com, {n, 4}, "com");
+  else check_finite(C.data(), static_cast<size_t>(C.size()), "com");
   Arr Ms = array(masses, {n}, "masses");
   Arr I = as_array(inertias, "inertias");
   if (!(I.ndim() == 3 && I.shape(0) == n && I.shape(1) == 3 && I.shape(2) == 3) &&
@@ -90,11 +117,13 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
   Arr K = hasK ? array(friction, {n}, "friction") : Arr();
   Arr QL = hasQL ? array(q_limits, {n, 2}, "q_limits", false) : Arr();
   Arr TL = hasTL ? array(tau_limits, {n}, "tau_limits", false) : Arr();
+  std::vector<double> Ia, Fc, Vc;
+  const bool hasIa = per_joint(armature, n, "armature", Ia), hasFc = per_joint(coulomb, n, "coulomb", Fc),
+             hasVc = per_joint(coulomb_width, n, "coulomb_width", Vc);
   for (int k = 0; k < n; ++k) {
     Link& L = links[k];
     L.type = joint_type(joint_types[k], k);
     L.dh = dh_row(D.data() + 4 * k);
-    L.com = dh_row(C.data() + 4 * k);
     L.mass = Ms.data()[k];
     if (I.ndim() == 3) {
       L.inertia = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I.data() + 9 * k);
@@ -102,6 +131,17 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
       const double* v = I.data() + 6 * k;
       L.inertia << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
     }
+    if (com_vectors) {
+      // CoM position in DH frame i, inertia in frame i's axes: to the paper's CoM row
+      const Eigen::Matrix3d Ilink = L.inertia;
+      com_row_from_vector(L.type, L.dh, Eigen::Vector3d(C.data()[3 * k], C.data()[3 * k + 1], C.data()[3 * k + 2]),
+                          Ilink, L.com, L.inertia);
+    } else {
+      L.com = dh_row(C.data() + 4 * k);
+    }
+    if (hasIa) L.armature = Ia[k];
+    if (hasFc) L.coulomb = Fc[k];
+    if (hasVc) L.coulomb_width = Vc[k];
     if (hasK) L.friction = K.data()[k];
     if (hasQL) {
       L.q_min = QL.data()[2 * k];
@@ -113,7 +153,21 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
   const Eigen::Vector3d bp = vecx(base_position, 3, "base_position");
   if (!std::isfinite(base_yaw)) throw py::value_error("base_yaw must be finite");
   EndStop es{end_stop_frequency, end_stop_damping_ratio};
-  Robot r(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es);
+  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
+  if (!base_orientation.is_none()) {
+    Arr B = array(base_orientation, {3, 3}, "base_orientation");
+    R0 = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(B.data());
+    if ((R0.transpose() * R0 - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || R0.determinant() <= 0)
+      throw py::value_error("base_orientation must be a rotation matrix (orthonormal, determinant +1)");
+  }
+  Robot r(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es, R0);
+  if (!r.inertia_warnings().empty() && inertia_check != "ignore") {
+    if (inertia_check == "error") throw py::value_error(r.inertia_warnings().front() + " (inertia_check='error')");
+    for (const std::string& w : r.inertia_warnings())
+      if (PyErr_WarnEx(inertia_warning_category().ptr(), (w + " (allowed; inertia_check='error' refuses it)").c_str(),
+                       1) < 0)
+        throw py::error_already_set();
+  }
   if (!boxes.is_none() || !clamp.is_none()) r = r.with_geometry(boxes_arg(boxes), clamp_arg(clamp));
   if (!dimensions.is_none()) r = r.with_dimensions(dimensions.cast<std::map<std::string, double>>());
   return r;
@@ -153,7 +207,7 @@ py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
 
 py::tuple robot_state(const Robot& r) {
   const int n = r.dof();
-  py::array_t<double> dh({n, 4}), com({n, 4}), m(n), I({n, 3, 3}), K(n), ql({n, 2}), tl(n);
+  py::array_t<double> dh({n, 4}), com({n, 4}), m(n), I({n, 3, 3}), K(n), ql({n, 2}), tl(n), Ia(n), Fc(n), Vc(n);
   for (int k = 0; k < n; ++k) {
     const Link& L = r.links()[k];
     double* d = dh.mutable_data() + 4 * k;
@@ -166,8 +220,11 @@ py::tuple robot_state(const Robot& r) {
     ql.mutable_data()[2 * k] = L.q_min;
     ql.mutable_data()[2 * k + 1] = L.q_max;
     tl.mutable_data()[k] = L.tau_max;
+    Ia.mutable_data()[k] = L.armature;
+    Fc.mutable_data()[k] = L.coulomb;
+    Vc.mutable_data()[k] = L.coulomb_width;
   }
-  return py::make_tuple(dh, com, m, I, r.joint_types(), K, ql, tl);
+  return py::make_tuple(dh, com, m, I, r.joint_types(), K, ql, tl, Ia, Fc, Vc);
 }
 
 }  // namespace
@@ -346,21 +403,40 @@ jaw_length (along x) and pad_width (along y): the pads' size, m.)doc")
                py::arg("end_stop_frequency") = EndStop().frequency,
                py::arg("end_stop_damping_ratio") = EndStop().damping_ratio, py::arg("boxes") = py::none(),
                py::arg("clamp") = py::none(), py::arg("dimensions") = py::none(),
+               py::arg("armature") = py::none(), py::arg("coulomb") = py::none(),
+               py::arg("coulomb_width") = py::none(), py::arg("base_orientation") = py::none(),
+               py::arg("inertia_check") = "warn",
                R"doc(Defines a serial robot from tables.
 
 dh: (n, 4) standard DH rows [theta, d, a, alpha] (rad, m, m, rad); q_i is added
     to theta_i (revolute) or d_i (prismatic), which are offsets.
 com: (n, 4) centre-of-mass rows, same parameters, from frame i-1 to the CoM
-    frame of link i, q_i added in the same slot.
-masses: (n,) kg, > 0.
+    frame of link i, q_i added in the same slot (the paper's table); or
+    (n, 3) CoM positions (m) in DH frame i, the convention of URDF, the
+    Robotics Toolbox and Corke's data, converted exactly to CoM rows
+    (Robot.com; a CoM on the joint axis included).
+masses: (n,) kg, >= 0 (a link without mass is allowed; M(q) must still be
+    positive definite, which forward dynamics checks, naming q if not).
 inertias: (n, 3, 3) or (n, 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], kg m^2, about
-    the CoM in the CoM frame; symmetric, positive semi-definite, triangle
-    inequality.
+    the CoM: in the CoM frame for (n, 4) CoM rows, in DH frame i's axes for
+    (n, 3) CoM vectors; symmetric, positive semi-definite. One that breaks
+    the triangle inequality (I1 + I2 >= I3; published data has them) is
+    allowed with a coopsim.InertiaWarning, or refused (ValueError) with
+    inertia_check='error' ('ignore': neither).
 joint_types: string of 'R' / 'P', one per row, e.g. "RRPRRP".
 friction: (n,) viscous K (N m s/rad or N s/m), default 0.
+armature: (n,) or one value: rotor inertia reflected through the gear,
+    J_m G^2 (kg m^2, or kg for a prismatic joint), added to M_ii; default 0.
+coulomb: (n,) or one value: Coulomb friction F_c (N m or N), default 0,
+    acting as F_c tanh(qd / v_c) (smooth, never adding energy);
+    coulomb_width: v_c (rad/s or m/s, > 0), (n,) or one value, default 0.01.
+    Below |qd| ~ v_c it is a damper of F_c / v_c: keep dt F_c / (v_c M_ii)
+    under about 2.5 for RK4.
 q_limits: (n, 2) [q_min, q_max] (rad or m), default unbounded (+-inf).
 tau_limits: (n,) actuator limits |tau_i| <= tau_max (N m or N), default inf.
-gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad.
+gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad;
+    base_orientation: (3, 3) rotation after the yaw (default identity), for a
+    first joint axis that is not vertical: base = T(p) Rz(yaw) R.
 tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
 end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
     used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
@@ -379,6 +455,29 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                              "(n, 3, 3) kg m^2 about each CoM in its CoM frame.")
       .def_property_readonly("friction_coefficients", [](const Robot& r) { return py::object(robot_state(r)[5]); },
                              "(n,) viscous K.")
+      .def_property_readonly("armature", [](const Robot& r) { return py::object(robot_state(r)[8]); },
+                             "(n,) reflected rotor inertia J_m G^2 on M's diagonal, kg m^2 or kg.")
+      .def_property_readonly("coulomb", [](const Robot& r) { return py::object(robot_state(r)[9]); },
+                             "(n,) Coulomb friction F_c, N m or N.")
+      .def_property_readonly("coulomb_width", [](const Robot& r) { return py::object(robot_state(r)[10]); },
+                             "(n,) v_c of F_c tanh(qd / v_c), rad/s or m/s.")
+      .def_property_readonly("com_positions", [](const Robot& r) {
+             py::array_t<double> out({r.dof(), 3});
+             for (int i = 1; i <= r.dof(); ++i)
+               Eigen::Map<Eigen::RowVector3d>(out.mutable_data() + 3 * (i - 1)) = r.com_position(i).transpose();
+             return out;
+           }, "(n, 3) CoM of each link in its DH frame i, m (the Robotics Toolbox's and URDF's convention).")
+      .def_property_readonly("link_inertias", [](const Robot& r) {
+             py::array_t<double> out({r.dof(), 3, 3});
+             for (int i = 1; i <= r.dof(); ++i)
+               Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(out.mutable_data() + 9 * (i - 1)) =
+                   r.link_inertia(i);
+             return out;
+           }, "(n, 3, 3) inertia of each link about its CoM in DH frame i's axes, kg m^2.")
+      .def_property_readonly("inertia_warnings", &Robot::inertia_warnings,
+                             "Links whose inertia tensor breaks the triangle inequality, one message each.")
+      .def_property_readonly("base_orientation", [](const Robot& r) { return to_numpy(Eigen::MatrixXd(r.base_orientation())); },
+                             "(3, 3) fixed rotation of the base after its yaw.")
       .def_property_readonly("q_limits", [](const Robot& r) { return py::object(robot_state(r)[6]); },
                              "(n, 2) [q_min, q_max].")
       .def_property_readonly("tau_limits", [](const Robot& r) { return py::object(robot_state(r)[7]); }, "(n,) N m or N.")
@@ -405,8 +504,9 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                                const auto& p = r.parameter_vector();
                                return to_numpy(Eigen::Map<const Eigen::VectorXd>(p.data(), p.size()));
                              },
-                             "(16 n + 3,) parameters read by generated code: per link [theta d a alpha, "
-                             "com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K], then gravity in frame 0.")
+                             "(19 n + 3,) parameters read by generated code: per link [theta d a alpha, "
+                             "com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K, armature, F_c, v_c], then "
+                             "gravity in frame 0.")
       .def_property_readonly("backend", &Robot::backend, "'generated' or 'numeric'.")
       .def_property_readonly("has_generated", &Robot::has_generated)
       .def("with_backend", &Robot::with_backend, py::arg("backend"),
@@ -418,6 +518,13 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
              return r.with_geometry(boxes_arg(boxes), clamp_arg(clamp));
            }, py::arg("boxes") = py::none(), py::arg("clamp") = py::none(),
            "A copy with other link boxes (None: the default boxes) and clamp (None: none).")
+      .def("with_base_orientation", [](const Robot& r, const py::object& R) {
+             Arr B = array(R, {3, 3}, "base_orientation");
+             const Eigen::Matrix3d M = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(B.data());
+             if ((M.transpose() * M - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || M.determinant() <= 0)
+               throw py::value_error("base_orientation must be a rotation matrix (orthonormal, determinant +1)");
+             return r.with_base_orientation(M);
+           }, py::arg("base_orientation"), "A copy with another fixed base rotation (3, 3) after the yaw.")
       .def("with_base", [](const Robot& r, const py::object& position, double yaw) {
              if (!std::isfinite(yaw)) throw py::value_error("yaw must be finite");
              return r.with_base(vecx(position, 3, "position"), yaw);
@@ -507,8 +614,11 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
          return out;
        }, py::arg("q"), "dM/dq (n, n, n); [k] is the derivative with respect to q_k.")
       .def("friction", [](const Robot& r, const py::object& qd) {
-         return checked(VecN(r.friction_coefficients().cwiseProduct(vec(qd, r.dof(), "qd"))), "friction");
-       }, py::arg("qd"), "Viscous friction torques K qd (n,).")
+         const VecN v = vec(qd, r.dof(), "qd");
+         VecN t;
+         r.friction_torques(v.data(), t);
+         return checked(t, "friction");
+       }, py::arg("qd"), "Friction torques (n,): viscous and Coulomb, K qd + F_c tanh(qd / v_c) (N m or N).")
       .def("external_torques", [](const Robot& r, const py::object& q, const py::object& f_ext) {
          At at(r, q);
          VecN t;
@@ -525,7 +635,7 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
          r.inverse_dynamics(at.q.data(), qdv.data(), qddv.data(), f_ext.is_none() ? nullptr : te.data(), at.ws, tau);
          return checked(tau, "inverse_dynamics");
        }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(),
-       "Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + K qd.")
+       "Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + friction(qd) (M with the armature).")
       .def("forward_dynamics", [](const Robot& r, const py::object& q, const py::object& qd, const py::object& tau,
                                   const py::object& f_ext) {
          At at(r, q, false);
@@ -534,7 +644,8 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
          r.forward_dynamics(at.q.data(), qdv.data(), tv.data(), f_ext.is_none() ? nullptr : te.data(), at.ws, qdd);
          return checked(qdd, "forward_dynamics");
        }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(),
-       "Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - K qd), solved by Cholesky.")
+       "Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - friction(qd)), solved by Cholesky (M with the "
+       "armature); ValueError naming q where M is not positive definite.")
       .def("end_stop_torques", [](const Robot& r, const py::object& q, const py::object& qd) {
          At at(r, q, false);
          MatN M;
@@ -565,7 +676,8 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                                   r.base_yaw(), py::cast(r.tool()), r.name(), r.end_stop().frequency,
                                   r.end_stop().damping_ratio, r.backend(),
                                   r.has_generated() ? r.generated()->name : std::string(), boxes,
-                                  r.clamp().present() ? py::cast(r.clamp()) : py::none(), r.dimensions());
+                                  r.clamp().present() ? py::cast(r.clamp()) : py::none(), r.dimensions(),
+                                  to_numpy(Eigen::MatrixXd(r.base_orientation())));
           },
           [](py::tuple t) {
             py::tuple s = t[0];
@@ -573,7 +685,7 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
             Robot r = make_robot(s[0], s[1], s[2], s[3], s[4].cast<std::string>(), s[5], s[6], s[7], t[1], t[2],
                                  t[3].cast<double>(), t[4], t[5].cast<std::string>(), t[6].cast<double>(),
                                  t[7].cast<double>(), py::len(boxes) ? py::object(boxes) : py::object(py::none()),
-                                 t[11], t[12]);
+                                 t[11], t[12], s[8], s[9], s[10], t[13], "ignore");
             const std::string gen = t[9].cast<std::string>();
             if (!gen.empty()) {
               if (!find_generated(gen))
@@ -583,6 +695,7 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
             return r;
           }));
 
+  m.attr("InertiaWarning") = inertia_warning_category();
   m.def("compiled_generated_names", &compiled_generated_names,
         "Names of the robots whose generated dynamics are compiled into this build.");
 }

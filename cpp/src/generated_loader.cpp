@@ -48,6 +48,9 @@ std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::strin
   g->joint_types = library_symbol<const char* (*)()>(h, path, "coopsim_gen_joint_types")();
   if (g->dof < 1 || g->dof > kMaxDof || static_cast<int>(g->joint_types.size()) != g->dof)
     throw std::invalid_argument(path + " describes a malformed structure");
+  // the parameter layout it reads (libraries of older generators lack the symbol: rebuilt)
+  if (library_symbol<int (*)()>(h, path, "coopsim_gen_params_per_link")() != kParamsPerLink)
+    throw std::invalid_argument(path + " reads another parameter layout (built by another coopsim.codegen)");
   const double* angles = library_symbol<const double* (*)()>(h, path, "coopsim_gen_angles")();
   g->angles.assign(angles, angles + 4 * g->dof);
   g->generator_version = library_symbol<const char* (*)()>(h, path, "coopsim_gen_version")();

@@ -62,12 +62,32 @@ Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz) {
   return I;
 }
 
+void com_row_from_vector(JointType type, const DHParams& dh, const Eigen::Vector3d& r, const Eigen::Matrix3d& I,
+                         DHParams& com, Eigen::Matrix3d& I_com) {
+  // the CoM seen from frame i-1 turned back by theta: Tz(d) Tx(a) Rx(alpha) r
+  // (for a prismatic joint q adds to d on both sides, so the same holds)
+  const double ca = std::cos(dh.alpha), sa = std::sin(dh.alpha);
+  const Eigen::Vector3d p(dh.a + r.x(), ca * r.y() - sa * r.z(), dh.d + sa * r.y() + ca * r.z());
+  const double rho = std::hypot(p.x(), p.y());
+  const double delta = rho > 0 ? std::atan2(p.y(), p.x()) : 0.0;
+  com = DHParams{dh.theta + delta, p.z(), rho, 0.0};
+  // CoM frame axes in frame i: Rx(alpha)^T Rz(delta)
+  Eigen::Matrix3d Rx, Rz;
+  Rx << 1, 0, 0, 0, ca, -sa, 0, sa, ca;
+  const double cd = std::cos(delta), sd = std::sin(delta);
+  Rz << cd, -sd, 0, sd, cd, 0, 0, 0, 1;
+  const Eigen::Matrix3d R = Rx.transpose() * Rz;
+  I_com = R.transpose() * I * R;
+  I_com = 0.5 * (I_com + I_com.transpose());
+}
+
 Robot::Robot(std::vector<Link> links, Eigen::Vector3d gravity, Eigen::Vector3d base_position,
-             double base_yaw, Tool tool, std::string name, EndStop end_stop)
+             double base_yaw, Tool tool, std::string name, EndStop end_stop, Eigen::Matrix3d base_orientation)
     : links_(std::move(links)),
       gravity_(gravity),
       base_p_(base_position),
       base_yaw_(base_yaw),
+      base_R_(base_orientation),
       tool_(tool),
       name_(std::move(name)),
       end_stop_(end_stop) {
@@ -81,6 +101,7 @@ void Robot::build_() {
     s << "a robot needs 1 to " << kMaxDof << " joints, got " << n_;
     require(n_ >= 1 && n_ <= kMaxDof, s.str());
   }
+  inertia_warnings_.clear();
   for (size_t k = 0; k < links_.size(); ++k) {
     const Link& L = links_[k];
     const std::string who = link_name(k);
@@ -88,7 +109,7 @@ void Robot::build_() {
             who + ": joint type must be 'R' or 'P'");
     require(finite_dh(L.dh), who + ": DH parameters must be finite");
     require(finite_dh(L.com), who + ": centre-of-mass parameters must be finite");
-    require(std::isfinite(L.mass) && L.mass > 0, who + ": mass must be finite and > 0 kg");
+    require(std::isfinite(L.mass) && L.mass >= 0, who + ": mass must be finite and >= 0 kg");
     require(L.inertia.allFinite(), who + ": inertia tensor must be finite");
     const double scale = L.inertia.cwiseAbs().maxCoeff();
     const double tol = 1e-9 * std::max(scale, 1e-300);
@@ -97,15 +118,26 @@ void Robot::build_() {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(L.inertia, Eigen::EigenvaluesOnly);
     const Eigen::Vector3d ev = es.eigenvalues();  // ascending
     require(ev(0) >= -tol, who + ": inertia tensor must be positive semi-definite");
-    require(ev(0) + ev(1) >= ev(2) - tol,
-            who + ": inertia tensor violates the triangle inequality (I1 + I2 >= I3)");
+    if (ev(0) + ev(1) < ev(2) - tol) {
+      std::ostringstream w;
+      w << who << ": inertia tensor breaks the triangle inequality of its principal moments (I1 + I2 >= I3): "
+        << ev(0) << " + " << ev(1) << " < " << ev(2) << " kg m^2 (no rigid body has it)";
+      inertia_warnings_.push_back(w.str());
+    }
     require(std::isfinite(L.friction) && L.friction >= 0, who + ": friction K must be finite and >= 0");
+    require(std::isfinite(L.armature) && L.armature >= 0, who + ": armature must be finite and >= 0");
+    require(std::isfinite(L.coulomb) && L.coulomb >= 0, who + ": Coulomb friction must be finite and >= 0");
+    require(std::isfinite(L.coulomb_width) && L.coulomb_width > 0,
+            who + ": Coulomb friction width must be finite and > 0");
     require(!std::isnan(L.q_min) && !std::isnan(L.q_max) && L.q_min < L.q_max,
             who + ": joint limits must satisfy q_min < q_max");
     require(!std::isnan(L.tau_max) && L.tau_max > 0, who + ": actuator limit tau_max must be > 0");
   }
   require(gravity_.allFinite(), "gravity must be finite");
   require(base_p_.allFinite() && std::isfinite(base_yaw_), "base position and yaw must be finite");
+  require(base_R_.allFinite() && (base_R_.transpose() * base_R_ - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
+              base_R_.determinant() > 0,
+          "base orientation must be a rotation matrix (orthonormal, determinant +1)");
   require(std::isfinite(end_stop_.frequency) && end_stop_.frequency >= 0 &&
               std::isfinite(end_stop_.damping_ratio) && end_stop_.damping_ratio >= 0,
           "end stop frequency and damping ratio must be finite and >= 0");
@@ -121,7 +153,7 @@ void Robot::build_() {
   }
 
   base_ = Eigen::Isometry3d::Identity();
-  base_.linear() = Eigen::AngleAxisd(base_yaw_, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  base_.linear() = Eigen::AngleAxisd(base_yaw_, Eigen::Vector3d::UnitZ()).toRotationMatrix() * base_R_;
   base_.translation() = base_p_;
 
   pre_.resize(n_);
@@ -148,6 +180,9 @@ void Robot::build_() {
     b[kIxx] = L.inertia(0, 0); b[kIyy] = L.inertia(1, 1); b[kIzz] = L.inertia(2, 2);
     b[kIxy] = L.inertia(0, 1); b[kIxz] = L.inertia(0, 2); b[kIyz] = L.inertia(1, 2);
     b[kFriction] = L.friction;
+    b[kArmature] = L.armature;
+    b[kCoulomb] = L.coulomb;
+    b[kCoulombWidth] = L.coulomb_width;
   }
   const Eigen::Vector3d g0 = base_.linear().transpose() * gravity_;
   params_[kParamsPerLink * n_ + 0] = g0.x();
@@ -193,10 +228,25 @@ VecN Robot::friction_coefficients() const {
   return v;
 }
 
+void Robot::friction_torques(const double* qd, VecN& tau) const {
+  tau.resize(n_);
+  for (int k = 0; k < n_; ++k) {
+    const Link& L = links_[k];
+    tau[k] = L.friction * qd[k] + (L.coulomb > 0 ? L.coulomb * std::tanh(qd[k] / L.coulomb_width) : 0.0);
+  }
+}
+
 Robot Robot::with_base(const Eigen::Vector3d& position, double yaw) const {
   Robot r = *this;
   r.base_p_ = position;
   r.base_yaw_ = yaw;
+  r.build_();
+  return r;
+}
+
+Robot Robot::with_base_orientation(const Eigen::Matrix3d& R) const {
+  Robot r = *this;
+  r.base_R_ = R;
   r.build_();
   return r;
 }
@@ -382,7 +432,9 @@ void Robot::mass_matrix_kin_(Workspace& ws, MatN& M) const {
       ws.cm_I[k] = ws.Iw[k];
     } else {
       const double mc = m + ws.cm_m[k + 1];
-      const Eigen::Vector3d cc = (m * ws.c[k] + ws.cm_m[k + 1] * ws.cm_c[k + 1]) / mc;
+      // links without mass: any point will do as the (massless) composite's CoM
+      const Eigen::Vector3d cc = mc > 0 ? Eigen::Vector3d((m * ws.c[k] + ws.cm_m[k + 1] * ws.cm_c[k + 1]) / mc)
+                                        : ws.c[k];
       ws.cm_I[k] = ws.Iw[k] + m * shift_inertia(ws.c[k] - cc) + ws.cm_I[k + 1] +
                    ws.cm_m[k + 1] * shift_inertia(ws.cm_c[k + 1] - cc);
       ws.cm_m[k] = mc;
@@ -415,6 +467,7 @@ void Robot::mass_matrix_kin_(Workspace& ws, MatN& M) const {
       M(j, k) = v;
       M(k, j) = v;
     }
+    M(k, k) += links_[k].armature;
   }
 }
 
@@ -442,8 +495,10 @@ void Robot::rnea(const double* q, const double* qd, const double* qdd, Workspace
       generated_->gravity(p, q, tmp.data());
       tau += gravity_scale * tmp;
     }
-    if (with_friction)
-      for (int k = 0; k < n_; ++k) tau[k] += links_[k].friction * qd[k];
+    if (with_friction) {
+      friction_torques(qd, tmp);
+      tau += tmp;
+    }
     return;
   }
   kinematics(q, ws);
@@ -479,7 +534,11 @@ void Robot::rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& 
     F += ws.f[k];
     const Eigen::Vector3d z = ws.R[k].col(2);
     tau[k] = links_[k].type == JointType::Revolute ? z.dot(N) : z.dot(F);
-    if (with_friction) tau[k] += links_[k].friction * qd[k];
+    if (qdd) tau[k] += links_[k].armature * qdd[k];
+    if (with_friction) {
+      const Link& L = links_[k];
+      tau[k] += L.friction * qd[k] + (L.coulomb > 0 ? L.coulomb * std::tanh(qd[k] / L.coulomb_width) : 0.0);
+    }
   }
 }
 
@@ -655,7 +714,14 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
     if (!M.allFinite() || !rhs.allFinite())
       throw std::domain_error("forward_dynamics: the mass matrix or the forces overflow for this state (values out "
                               "of range?)");
-    throw std::domain_error("forward_dynamics: mass matrix is not positive definite for this q (values out of range?)");
+    std::ostringstream s;
+    s.precision(17);
+    s << "forward_dynamics: the mass matrix is not positive definite at q = [";
+    for (int k = 0; k < n_; ++k) s << (k ? ", " : "") << q[k];
+    s << "] of robot '" << name_
+      << "': some joint moves no mass or inertia there (links without mass or inertia?), or values are out of "
+         "range";
+    throw std::domain_error(s.str());
   }
 }
 
@@ -666,9 +732,11 @@ namespace {
 template <int N>
 bool solve_spd_fixed(double* a, const double* b, double* x) {
   for (int j = 0; j < N; ++j) {
-    double d = a[j + j * N];
+    const double d0 = a[j + j * N];
+    double d = d0;
     for (int k = 0; k < j; ++k) d -= a[j + k * N] * a[j + k * N];
-    if (!(d > 0.0)) return false;
+    // a pivot lost to rounding is as singular as a zero one
+    if (!(d > 1e-13 * d0)) return false;
     d = std::sqrt(d);
     a[j + j * N] = d;
     const double inv = 1.0 / d;

@@ -1,6 +1,6 @@
 // Interface between the engine and closed-form dynamics emitted by the
 // symbolic generator (python/coopsim/codegen). Generated code reads every
-// length, mass, inertia, friction and gravity value from the robot's
+// length, mass, inertia, armature, friction and gravity value from the robot's
 // parameter vector p (see Robot::parameter_vector), so that changing a
 // dimension or a mass at run time needs no regeneration. Joint types and the
 // angle parameters (DH and CoM theta offsets and alpha) are structural: they
@@ -28,7 +28,8 @@ struct GeneratedDynamics {
   void (*coriolis)(const double* p, const double* q, const double* qd, double* c) = nullptr;
   void (*coriolis_matrix)(const double* p, const double* q, const double* qd, double* C) = nullptr;
   void (*gravity)(const double* p, const double* q, double* g) = nullptr;
-  // optional: M and h = C(q, qd) qd + G(q) + K qd in one pass (shared sin/cos)
+  // optional: M and h = C(q, qd) qd + G(q) + K qd + F_c tanh(qd / v_c) in one
+  // pass (shared sin/cos); M always includes the armature on its diagonal
   void (*dynamics)(const double* p, const double* q, const double* qd, double* M, double* h) = nullptr;
   // optional: x <- M^-1 x by an unrolled LDL^T that skips M's structural
   // zeros; false if M is not positive definite (x is then undefined)
@@ -36,12 +37,12 @@ struct GeneratedDynamics {
 };
 
 // Per link parameter block length and offsets into the parameter vector.
-constexpr int kParamsPerLink = 16;
+constexpr int kParamsPerLink = 19;
 enum ParamOffset : int {
   kDhTheta = 0, kDhD = 1, kDhA = 2, kDhAlpha = 3,
   kComTheta = 4, kComD = 5, kComA = 6, kComAlpha = 7,
   kMass = 8, kIxx = 9, kIyy = 10, kIzz = 11, kIxy = 12, kIxz = 13, kIyz = 14,
-  kFriction = 15
+  kFriction = 15, kArmature = 16, kCoulomb = 17, kCoulombWidth = 18
 };
 // Gravity (gx, gy, gz) in frame 0 follows the n link blocks.
 

@@ -10,7 +10,9 @@
 //   slot as in the DH row, so the CoM frame moves with its link.
 // - Link i (1-based) is the body moved by joint i; link 0 is the fixed base.
 // - The inertia tensor of link i is about its CoM, expressed in its CoM frame.
-// - Frame 0 is the base frame, placed in the world by a position and a yaw.
+// - Frame 0 is the base frame, placed in the world by a position, a yaw and
+//   (for a first joint axis that is not vertical) a fixed base orientation:
+//   base = T(position) Rz(yaw) R_orientation.
 #pragma once
 
 #include <Eigen/Core>
@@ -51,9 +53,19 @@ struct Link {
   JointType type = JointType::Revolute;
   DHParams dh;                 // joint frame i-1 -> frame i (q added to theta or d)
   DHParams com;                // frame i-1 -> CoM frame of link i (q in the same slot)
-  double mass = 1.0;           // kg, > 0
+  double mass = 1.0;           // kg, >= 0 (0: a link that only carries the next joint)
   Eigen::Matrix3d inertia = Eigen::Matrix3d::Identity() * 1e-3;  // kg m^2 about CoM, CoM frame
   double friction = 0.0;       // viscous K_i: N m s/rad or N s/m, >= 0
+  // rotor inertia reflected through the gear, J_m G^2 (kg m^2, or kg for a
+  // prismatic joint), >= 0: added to M_ii (MuJoCo's and Pinocchio's armature)
+  double armature = 0.0;
+  // Coulomb friction F_c (N m or N), >= 0, regularised as F_c tanh(qd / v_c)
+  // with v_c = coulomb_width (rad/s or m/s), > 0: smooth, odd, and its power
+  // qd F_c tanh(qd / v_c) >= 0, so it never adds energy. Within |qd| < v_c it
+  // acts as a damper of about F_c / v_c: RK4 stays stable for
+  // dt F_c / (v_c M_ii) below about 2.5.
+  double coulomb = 0.0;
+  double coulomb_width = 0.01;
   double q_min = -kInf;        // rad or m (may be -inf)
   double q_max = kInf;         // rad or m (may be +inf)
   double tau_max = kInf;       // actuator limit |tau_i| <= tau_max: N m or N, > 0
@@ -151,7 +163,8 @@ class Robot {
   // Validates every field; throws std::invalid_argument naming what is wrong.
   Robot(std::vector<Link> links, Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81),
         Eigen::Vector3d base_position = Eigen::Vector3d::Zero(), double base_yaw = 0.0,
-        Tool tool = Tool(), std::string name = "robot", EndStop end_stop = EndStop());
+        Tool tool = Tool(), std::string name = "robot", EndStop end_stop = EndStop(),
+        Eigen::Matrix3d base_orientation = Eigen::Matrix3d::Identity());
 
   int dof() const { return n_; }
   const std::string& name() const { return name_; }
@@ -161,6 +174,8 @@ class Robot {
   const Eigen::Vector3d& gravity_acceleration() const { return gravity_; }
   const Eigen::Vector3d& base_position() const { return base_p_; }
   double base_yaw() const { return base_yaw_; }
+  // Fixed rotation after the yaw (identity unless the first joint axis is tilted).
+  const Eigen::Matrix3d& base_orientation() const { return base_R_; }
   const Eigen::Isometry3d& base() const { return base_; }
   const Tool& tool() const { return tool_; }
   const EndStop& end_stop() const { return end_stop_; }
@@ -168,6 +183,17 @@ class Robot {
   VecN q_max() const;
   VecN tau_max() const;
   VecN friction_coefficients() const;
+  // Friction torques K qd + F_c tanh(qd / v_c) (n), N m or N.
+  void friction_torques(const double* qd, VecN& tau) const;
+  // Links whose inertia tensor breaks the triangle inequality (I1 + I2 >= I3
+  // of its principal moments), one message each: allowed, since published
+  // data has them; the bindings warn or refuse on request.
+  const std::vector<std::string>& inertia_warnings() const { return inertia_warnings_; }
+  // CoM position (3) in DH frame i and inertia about the CoM in DH frame i's
+  // axes (3 x 3) of link i = 1..n: the convention of URDF and the Robotics
+  // Toolbox, equivalent to the CoM row.
+  Eigen::Vector3d com_position(int i) const { return pre_.at(i - 1).p_com; }
+  Eigen::Matrix3d link_inertia(int i) const { return pre_.at(i - 1).I_local; }
 
   // A robot is immutable once built; these make changed copies (all else
   // equal): another base placement, gravity, shapes and clamp, dimensions
@@ -175,6 +201,7 @@ class Robot {
   // structure, and selected; std::invalid_argument when the structure
   // differs) or backend ("generated", if attached, or "numeric").
   Robot with_base(const Eigen::Vector3d& position, double yaw) const;
+  Robot with_base_orientation(const Eigen::Matrix3d& R) const;
   Robot with_gravity(const Eigen::Vector3d& gravity) const;
   Robot with_geometry(std::vector<LinkBox> boxes, Clamp clamp) const;
   Robot with_dimensions(std::map<std::string, double> dimensions) const;
@@ -217,7 +244,8 @@ class Robot {
   void clamp_faces(const Workspace& ws, const double* q, Eigen::Isometry3d& fixed,
                    Eigen::Isometry3d& moving) const;
   // Parameter vector read by generated code: per link [theta d a alpha,
-  // com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K] then gravity in frame 0.
+  // com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K, armature, F_c, v_c]
+  // then gravity in frame 0.
   const std::vector<double>& parameter_vector() const { return params_; }
 
   // ---- kinematics (all poses in the world frame) ----
@@ -232,9 +260,12 @@ class Robot {
   void jacobian(const Workspace& ws, int link, const Eigen::Vector3d& point, Mat6N& J) const;
   void tool_jacobian(const Workspace& ws, Mat6N& J) const;
 
-  // ---- dynamics: tau + J^T F = M qdd + C(q, qd) + G(q) + K qd ----
+  // ---- dynamics: tau + J^T F = M qdd + C(q, qd) + G(q) + K qd + F_c tanh(qd / v_c) ----
+  // M includes the armature on its diagonal. A link may have no mass; M
+  // must still be positive definite, which forward_dynamics checks (a
+  // std::domain_error naming q when it is not).
   void mass_matrix(const double* q, Workspace& ws, MatN& M) const;
-  // Recursive Newton-Euler: M qdd + C + G (+ K qd if with_friction), gravity
+  // Recursive Newton-Euler: M qdd + C + G (+ friction if with_friction), gravity
   // scaled by gravity_scale (0 to leave it out).
   void rnea(const double* q, const double* qd, const double* qdd, Workspace& ws, VecN& tau,
             double gravity_scale, bool with_friction) const;
@@ -277,6 +308,8 @@ class Robot {
   Eigen::Vector3d gravity_;
   Eigen::Vector3d base_p_;
   double base_yaw_ = 0.0;
+  Eigen::Matrix3d base_R_ = Eigen::Matrix3d::Identity();
+  std::vector<std::string> inertia_warnings_;
   Eigen::Isometry3d base_;
   Tool tool_;
   std::string name_;
@@ -313,5 +346,16 @@ bool solve_spd(MatN& A, const VecN& b, VecN& x);
 Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz);
 // Homogeneous transform of one DH row with the joint variable already added.
 Eigen::Isometry3d dh_transform(double theta, double d, double a, double alpha);
+
+// The paper's CoM row (frame i-1 -> CoM frame, q in the joint's slot) and the
+// inertia about the CoM in that CoM frame, for a link given the Robotics
+// Toolbox's / URDF's way: CoM position r (m) in DH frame i and inertia I
+// (kg m^2) about the CoM in DH frame i's axes; `dh` is the link's DH row. The
+// CoM frame chosen has its x axis along the CoM's offset from the joint axis
+// (theta_c, d_c, a_c in the DH row's slots, a_c >= 0, alpha_c = 0); a CoM on
+// the joint axis gets theta_c = theta. Exact for both joint types: the CoM
+// frame's pose in frame i is constant and its origin is r.
+void com_row_from_vector(JointType type, const DHParams& dh, const Eigen::Vector3d& r, const Eigen::Matrix3d& I,
+                         DHParams& com, Eigen::Matrix3d& I_com);
 
 }  // namespace coopsim

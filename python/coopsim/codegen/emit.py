@@ -2,7 +2,7 @@
 
 Every emitted function has the signature of ``coopsim::GeneratedDynamics``
 (``cpp/include/coopsim/generated.hpp``): p is the robot's parameter vector
-(16 per link, then gravity in frame 0), q and qd have n entries, matrices are
+(19 per link, then gravity in frame 0), q and qd have n entries, matrices are
 n x n column-major. Output is deterministic: same structure, generator and
 sympy version give the same bytes.
 """
@@ -14,7 +14,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.precedence import precedence
 
-from .symbolic import SymbolicModel, _cse_ops
+from .symbolic import Coulomb, SymbolicModel, _cse_ops
 
 __all__ = ["EmittedFunction", "emit_functions", "emit_solve", "FUNCTIONS"]
 
@@ -58,6 +58,10 @@ class _Printer(C99CodePrinter):
             body = self.parenthesize(rest, precedence(expr))
             return body if float(c) > 0 else f"-{body}"
         return super()._print_Mul(expr)
+
+    def _print_Coulomb(self, expr):
+        Fc, qd, vc = (self._print(a) for a in expr.args)
+        return f"({Fc} > 0.0 ? {Fc}*std::tanh({qd}/{vc}) : 0.0)"
 
     def _print_Rational(self, expr):
         return repr(float(expr))
@@ -168,7 +172,7 @@ def emit_functions(model: SymbolicModel) -> list:
     n = model.n
     # fixed order of derivation keeps kappa numbering, hence the output, deterministic
     M, G = model.M_kappa, model.G_kappa
-    C, Cm, F = model.C_kappa, model.C_matrix_kappa, model.friction
+    C, Cm, F = model.C_kappa, model.C_matrix_kappa, model.friction_emitted
     # C and G link by link (base-frame Jacobians, shared) are the same vectors;
     # they always win in the Jacobian form and on some collected robots
     links = [model.C_links[k] + model.G_links[k] for k in range(n)]
@@ -176,6 +180,7 @@ def emit_functions(model: SymbolicModel) -> list:
         C, G = model.C_links, model.G_links
     if model.form == "jacobian":
         M = model.M_links
+    M = M + model.armature  # reflected rotor inertia on the diagonal
     names = _names(model)
 
     def mat(target, A):

@@ -4,13 +4,13 @@ from __future__ import annotations
 import sympy as sp
 
 from .emit import emit_functions, emit_solve
-from .symbolic import Structure, SymbolicModel
+from .symbolic import PARAMS_PER_LINK, Structure, SymbolicModel
 
 __all__ = ["GENERATOR_VERSION", "COMMAND", "SYMPY_VERSION", "builtin_sources", "registry_source", "runtime_source",
            "header_line"]
 
 #: Bump when the emitted code changes for the same structure.
-GENERATOR_VERSION = "1.1.0"
+GENERATOR_VERSION = "1.2.0"
 #: The documented command that regenerates cpp/generated.
 COMMAND = "python -m coopsim.codegen"
 #: The sympy version the committed files were generated with (pyproject pins it).
@@ -31,8 +31,8 @@ def _describe(s: Structure, funcs, solve_ops) -> str:
     return (f"// Closed-form Lagrange-Euler dynamics of '{s.name}' ({s.joint_types}), from its DH and\n"
             f"// centre-of-mass tables. Structural angles per link (dh theta, dh alpha, com theta,\n"
             f"// com alpha): {_angles_literal(s)}.\n"
-            f"// Lengths, masses, inertias, friction and gravity are read from p (16 per link, then\n"
-            f"// gravity in frame 0). Operations per function (after cse, sin/cos counted once): {ops}.\n")
+            f"// Lengths, masses, inertias, armatures, friction and gravity are read from p (19 per\n"
+            f"// link, then gravity in frame 0). Operations per function (after cse, sin/cos counted once): {ops}.\n")
 
 
 def _operation_count(funcs) -> int:
@@ -99,6 +99,7 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
             f"const double* coopsim_gen_angles() {{\n  static const double a[] = {{{_angles_literal(s)}}};\n"
             f"  return a;\n}}\n"
             f"const char* coopsim_gen_version() {{ return \"{GENERATOR_VERSION}\"; }}\n"
+            f"int coopsim_gen_params_per_link() {{ return {PARAMS_PER_LINK}; }}\n"
             f"long coopsim_gen_operation_count() {{ return {ops}; }}\n")
     text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
             f"{meta}\n{defs}\n\n}}  // extern \"C\"\n")

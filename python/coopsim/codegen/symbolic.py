@@ -2,8 +2,9 @@
 
 Only the joint types and the angle columns (DH theta and alpha, CoM theta and
 alpha) are fixed: they are the robot's *structure*. Every length (DH and CoM
-d, a), mass, inertia entry, friction coefficient and the gravity vector (in
-frame 0) stays a symbol, so generated code reads them at run time.
+d, a), mass, inertia entry, armature, friction coefficient (viscous K, Coulomb
+F_c and its width v_c) and the gravity vector (in frame 0) stays a symbol, so
+generated code reads them at run time.
 
 Conventions are those of ``coopsim.Robot`` (``cpp/include/coopsim/robot.hpp``):
 A_i = Rz(theta_i [+ q_i]) Tz(d_i [+ q_i]) Tx(a_i) Rx(alpha_i); the CoM row of
@@ -23,6 +24,7 @@ to be found by simplification:
     M = sum_l m_l Jv_l^T Jv_l + Jw_l^T R_l I_l R_l^T Jw_l
     Gamma_ijk = (dM_kj/dq_i + dM_ki/dq_j - dM_ij/dq_k) / 2,  C_kj = sum_i Gamma_ijk qd_i
     G = dV/dq,  V = -sum_l m_l g . c_l
+    M += diag(armature),  friction = K qd + F_c tanh(qd / v_c)
 
 Emitted form (``SymbolicModel.form``): on robots like the SCARAs each entry is
 expanded, reduced with s_i^2 = 1 - c_i^2 and collected by monomial in the
@@ -41,9 +43,19 @@ import sympy as sp
 __all__ = ["Structure", "SymbolicModel", "exact_angle", "structure_of", "derive"]
 
 # per link block of the parameter vector (cpp/include/coopsim/generated.hpp)
-PARAMS_PER_LINK = 16
+PARAMS_PER_LINK = 19
 OFFSETS = dict(dh_theta=0, d=1, a=2, dh_alpha=3, com_theta=4, dc=5, ac=6, com_alpha=7, m=8,
-               Ixx=9, Iyy=10, Izz=11, Ixy=12, Ixz=13, Iyz=14, K=15)
+               Ixx=9, Iyy=10, Izz=11, Ixy=12, Ixz=13, Iyz=14, K=15, Ia=16, Fc=17, vc=18)
+
+
+class Coulomb(sp.Function):
+    """Coulomb(F_c, qd, v_c) = F_c tanh(qd / v_c), emitted so that a joint without Coulomb
+    friction (F_c = 0) costs no tanh."""
+
+    nargs = 3
+
+    def _eval_rewrite_as_tanh(self, Fc, qd, vc, **kwargs):
+        return Fc * sp.tanh(qd / vc)
 
 
 def exact_angle(x: float) -> sp.Expr:
@@ -158,15 +170,18 @@ class _Link:
     m: sp.Symbol
     I: sp.Matrix
     K: sp.Symbol
+    Ia: sp.Symbol    # armature
+    Fc: sp.Symbol    # Coulomb friction and its width
+    vc: sp.Symbol
 
 
 class SymbolicModel:
     """Lagrange-Euler model of one structure with symbolic parameters.
 
     Attributes (sympy; cos/sin of joint i are the symbols c_i, s_i, see
-    ``in_trig``): M (n, n) inertia matrix; C (n,) Coriolis/centrifugal vector
-    C(q, qd) qd; C_matrix (n, n) Christoffel form; G (n,) gravity vector;
-    friction (n,) K qd; q, qd joint symbols; parameters: symbol -> index in
+    ``in_trig``): M (n, n) inertia matrix, armature included; C (n,)
+    Coriolis/centrifugal vector C(q, qd) qd; C_matrix (n, n) Christoffel form;
+    G (n,) gravity vector; friction (n,) K qd + F_c tanh(qd / v_c); q, qd joint symbols; parameters: symbol -> index in
     the robot's parameter vector. The *_kappa forms name each parameter
     polynomial once (``kappa``), as the emitted code does.
     """
@@ -199,6 +214,7 @@ class SymbolicModel:
         d, a = self._sym("d", i, "d"), self._sym("a", i, "a")
         dc, ac = self._sym("dc", i, "dc"), self._sym("ac", i, "ac")
         m, K = self._sym("m", i, "m"), self._sym("K", i, "K")
+        Ia, Fc, vc = self._sym("Ia", i, "Ia"), self._sym("Fc", i, "Fc"), self._sym("vc", i, "vc")
         Ixx, Iyy, Izz = (self._sym(k, i, k) for k in ("Ixx", "Iyy", "Izz"))
         Ixy, Ixz, Iyz = (self._sym(k, i, k) for k in ("Ixy", "Ixz", "Iyz"))
         I = sp.Matrix([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
@@ -221,7 +237,7 @@ class SymbolicModel:
         rx_t = _rx(ca, sa).T
         Rc = rx_t * _rz(cd, sd) * _rx(_trig_const(sp.cos, alc_x), _trig_const(sp.sin, alc_x))
         pc = rx_t * sp.Matrix([ac * cd - a, ac * sd, dc - d])
-        return _Link(kind, q, qd, c, s, ca, sa, dq, a, Rc, pc, m, I, K)
+        return _Link(kind, q, qd, c, s, ca, sa, dq, a, Rc, pc, m, I, K, Ia, Fc, vc)
 
     def _chain(self, i):
         """Frames i..n expressed in DH frame i (0 = base): lists R[k], p[k] for k = i..n."""
@@ -556,9 +572,19 @@ class SymbolicModel:
         return sp.Matrix(out)
 
     @cached_property
+    def friction_emitted(self) -> sp.Matrix:
+        """K qd + Coulomb(F_c, qd, v_c) (n,), as emitted."""
+        return sp.Matrix([L.K * L.qd + Coulomb(L.Fc, L.qd, L.vc) for L in self.links])
+
+    @cached_property
     def friction(self) -> sp.Matrix:
-        """K qd (n,)."""
-        return sp.Matrix([L.K * L.qd for L in self.links])
+        """K qd + F_c tanh(qd / v_c) (n,)."""
+        return sp.Matrix([L.K * L.qd + L.Fc * sp.tanh(L.qd / L.vc) for L in self.links])
+
+    @cached_property
+    def armature(self) -> sp.Matrix:
+        """diag(armature) (n, n): reflected rotor inertia added to M."""
+        return sp.diag(*[L.Ia for L in self.links])
 
     def explicit(self, expr):
         """expr with every kappa_m replaced by its parameter polynomial and e_k by d_k + q_k."""
@@ -566,8 +592,8 @@ class SymbolicModel:
 
     @cached_property
     def M(self) -> sp.Matrix:
-        """Inertia matrix (n, n)."""
-        return self.explicit(self.M_kappa)
+        """Inertia matrix (n, n), armature included."""
+        return self.explicit(self.M_kappa) + self.armature
 
     @cached_property
     def G(self) -> sp.Matrix:
