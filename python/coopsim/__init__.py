@@ -27,7 +27,7 @@ from ._core import (
     rk4_step,
 )
 from . import grasp, robots
-from .urdf import to_urdf
+from .urdf import from_urdf, to_urdf
 from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
 from .log import BodyLog, RobotLog, SimulationLog
@@ -36,6 +36,7 @@ from .batch import run_batch, simulate
 from . import view
 
 Robot.to_urdf = to_urdf
+Robot.from_urdf = staticmethod(from_urdf)
 
 __version__ = "0.1.0"
 
@@ -64,6 +65,7 @@ __all__ = [
     "rk4_step",
     "grasp",
     "robots",
+    "from_urdf",
     "to_urdf",
     "view",
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501

@@ -153,13 +153,56 @@ class Robot:
         dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
+    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn'):
+        """
+        A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
+        
+            Joints: revolute, continuous (unbounded) and prismatic ones make the
+            chain, in order from the root link; fixed joints merge their child link
+            (mass, CoM, inertia, boxes) into its parent. Each joint's origin and axis
+            (any direction) become a standard DH row; frame 0 lies on the first axis
+            (z0 along it, nearest the root's origin) and is the robot's base
+            (position, yaw and, for a first axis that is not the root's z, a
+            base_orientation); the tip link's frame is the tool (Robot.tool offset
+            from DH frame n). q = 0 is the URDF's zero and q has the URDF's sign.
+            Inertials are carried over as CoM vectors and link-frame inertias;
+            links without one have no mass. Limits: lower/upper (rad or m), effort
+            as tau_limits (none or 0: unbounded; limits and efforts of 1e9 or more,
+            which to_urdf writes for none, too); dynamics damping as the viscous K,
+            friction as Coulomb F_c (with `coulomb_width` v_c, rad/s or m/s); a
+            ``<transmission>`` actuator's ``drake:rotor_inertia`` times
+            ``drake:gear_ratio`` squared as the armature. ``<collision>`` boxes (or
+            ``<visual>`` ones when a link has no collision) become the robot's
+            boxes; meshes are left out (a robot without boxes gets the default ones).
+        
+            tip: the last link of the chain (default: the end of the only chain of
+                movable joints, followed down single fixed joints). Movable joints
+                off the root-to-tip path are cut with their subtrees (e.g. gripper
+                fingers).
+            locked: {joint name: position} joints held fixed at that position (rad
+                or m) and merged like fixed joints (e.g. fingers kept with their mass).
+            name: the robot's name (default the URDF's). gravity: (3,) m/s^2 in the
+                root link's frame. inertia_check: as Robot.from_dh.
+        
+            Raises ValueError naming the element for malformed URDF, a link that is
+            the child of two joints (a closed loop), several roots, floating or
+            planar joints, mimic joints in the chain, branches of movable joints (a
+            tree; pass tip= or locked=) or no movable joint.
+            
+        """
+    @staticmethod
     def to_urdf(robot, name: str | None = None) -> str:
         """
-        URDF text (str) for `robot`, with its kinematics, masses, inertias, axes and limits.
+        URDF text (str) for `robot`, with its kinematics, masses, inertias, axes, limits and boxes.
         
-            Revolute joints with infinite limits become ``continuous``; joint effort
-            limits are the actuator limits, velocity limits are not modelled and set
-            to a large number. Friction K is written as the joint ``damping``.
+            Revolute joints with infinite limits become ``continuous`` (Pinocchio:
+            nq = 2 for each, cos and sin); joint effort limits are the actuator
+            limits, velocity limits are not modelled and set to a large number.
+            Friction: viscous K as the joint ``damping`` (N m s/rad or N s/m),
+            Coulomb F_c as its ``friction`` (N m or N; its width v_c has no URDF
+            field). The armature goes in a ``<transmission>`` as Drake's
+            ``drake:rotor_inertia`` with ``drake:gear_ratio`` 1. Links without mass
+            carry an explicit zero ``<inertial>``. See the module's docstring.
             
         """
     def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float]]:
