@@ -161,6 +161,36 @@ def test_com_vectors_on_joint_axes(types):
         np.testing.assert_allclose(V, -np.sum(masses * (c @ r.gravity_acceleration)), rtol=1e-13)
 
 
+@pytest.mark.parametrize("types", ["RRR", "RPR", "PRP"])
+def test_com_vectors_equal_hand_written_table_with_coms_on_axes(types):
+    """The paper's CoM table written by hand, two of its CoMs on their joint axes (a_c = 0) and one
+    anywhere, its vectors and link-frame inertias computed here with dh_transform; the robot given
+    the vectors equals the robot given the table to 1e-13."""
+    dh = np.array([[0.2, 0.1, 0.3, np.pi / 2], [-0.4, 0.05, 0.25, -0.7], [0.3, 0.0, 0.2, 0.0]])
+    table = np.array([[0.2, 0.1, 0.0, np.pi / 2],     # on axis z0: the CoM frame is frame 1 slid back by a
+                      [0.1, 0.08, 0.1, 0.3],           # anywhere
+                      [0.3, 0.12, 0.0, 0.0]])          # on axis z2
+    rng = np.random.default_rng(8)
+    from conftest import random_inertia
+    masses = np.array([1.5, 2.0, 0.7])
+    I_com = np.array([random_inertia(rng, m) for m in masses])  # in the CoM frames
+    vec, I_link = [], []
+    for i in range(3):
+        # frame i -> CoM frame, q in the same slot of both rows (q = 0 here: the transform is constant)
+        X = np.linalg.inv(cs.dh_transform(*dh[i])) @ cs.dh_transform(*table[i])
+        vec.append(X[:3, 3])
+        I_link.append(X[:3, :3] @ I_com[i] @ X[:3, :3].T)
+    a = cs.Robot.from_dh(dh, table, masses, I_com, types)
+    b = cs.Robot.from_dh(dh, np.array(vec), masses, np.array(I_link), types)
+    for _ in range(10):
+        q, qd, qdd = random_state(a, rng)
+        for f, args in (("mass_matrix", (q,)), ("gravity", (q,)), ("coriolis", (q, qd)),
+                        ("inverse_dynamics", (q, qd, qdd))):
+            x, y = getattr(b, f)(*args), getattr(a, f)(*args)
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-13 * max(1.0, np.abs(y).max()), err_msg=f)
+        np.testing.assert_allclose(b.com_frames(q)[:, :3, 3], a.com_frames(q)[:, :3, 3], rtol=0, atol=1e-15)
+
+
 def test_com_vectors_bad_shape():
     with pytest.raises(ValueError, match="wrong shape for com"):
         cs.Robot.from_dh(np.zeros((2, 4)), np.zeros((2, 2)), [1, 1], np.array([np.eye(3)] * 2) * 0.01, "RR")
