@@ -347,8 +347,10 @@ def check_urdf(robot, name=None):
 
     root = ET.fromstring(cs.to_urdf(robot, name))
     assert root.get("name") == (name or robot.name)
-    got = [float(m.get("value")) for m in root.iter("mass")]
+    got = [float(root.find(f"link[@name='link{i + 1}']/inertial/mass").get("value")) for i in range(robot.dof)]
     np.testing.assert_array_equal(got, robot.masses)
+    # world, base_link and flange: explicit zero masses
+    assert [float(m.get("value")) for m in root.iter("mass")] == [0.0, 0.0, *robot.masses, 0.0]
 
 
 @settings(max_examples=100, deadline=None)
