@@ -124,7 +124,8 @@ def test_real_robots_against_pinocchio(which):
         # the tool is the tip link's frame
         tip = "wrist_3_link" if which == "ur5" else "panda_hand"
         pin.framesForwardKinematics(m, d, q)
-        assert _rel(r.fk(q), d.oMf[m.getFrameId(tip)].homogeneous) <= 1e-12
+        # (1e-10: the import reads the UR5's 1.57079632679 as pi/2, see test_snap_...)
+        assert _rel(r.fk(q), d.oMf[m.getFrameId(tip)].homogeneous) <= 1e-10
 
 
 def test_panda_tip_and_cut_fingers():
@@ -143,7 +144,7 @@ def test_panda_tip_and_cut_fingers():
     m = _pin_model(UR5)
     d = m.createData()
     pin.framesForwardKinematics(m, d, q[:6])
-    np.testing.assert_allclose(ur5_tool.fk(q[:6]), d.oMf[m.getFrameId("tool0")].homogeneous, atol=1e-14)
+    np.testing.assert_allclose(ur5_tool.fk(q[:6]), d.oMf[m.getFrameId("tool0")].homogeneous, atol=1e-10)
 
 
 GENERAL = """<?xml version="1.0"?>
@@ -280,3 +281,36 @@ def test_import_bad_arguments(tmp_path):
     path = tmp_path / "ur5.urdf"
     path.write_text(Path(UR5).read_text())
     assert cs.Robot.from_urdf(path).dof == 6  # a PathLike too
+
+
+def test_snap_reads_eleven_digit_right_angles():
+    """The UR5's URDF writes pi/2 as 1.57079632679: read as pi/2 by default (snap = 1e-9 rad), so
+    the DH and CoM angles come out as exact multiples of pi/2 (CoMs on their axes, to rounding,
+    have none); snap=0 reads the angles as written. Both equal Pinocchio's dynamics to 1e-10."""
+    exact, raw = cs.Robot.from_urdf(UR5), cs.Robot.from_urdf(UR5, snap=0.0)
+    for angles in (exact.dh[:, [0, 3]], exact.com[:, [0, 3]]):
+        k = angles / (np.pi / 2)
+        assert np.abs(k - np.round(k)).max() <= 1e-12  # structural for generated code (codegen.exact_angle)
+    assert np.abs(raw.dh[:, [0, 3]] / (np.pi / 2) - np.round(raw.dh[:, [0, 3]] / (np.pi / 2))).max() > 1e-12
+    m = _pin_model(UR5)
+    d = m.createData()
+    q, qd = np.linspace(-1, 1, 6), np.linspace(0.5, -0.5, 6)
+    for r in (exact, raw):
+        assert _rel(r.mass_matrix(q), _full_pin(pin.crba(m, d, q))) <= 1e-10
+        assert _rel(r.coriolis(q, qd) + r.gravity(q), pin.nonLinearEffects(m, d, q, qd)) <= 1e-10
+    with pytest.raises(ValueError, match="snap must be in"):
+        cs.Robot.from_urdf(UR5, snap=-1.0)
+
+
+def _full_pin(A):
+    return np.triu(A) + np.triu(A, 1).T
+
+
+def test_com_on_the_axis_to_rounding_has_no_angle():
+    """A CoM off its joint axis by rounding noise only (1e-17 m) is on the axis: a_c = 0 and the
+    CoM row's theta is the DH row's, not an angle of the noise (axis z0 is y of frame 1 here)."""
+    dh = np.array([[0.3, 0.1, 0.0, np.pi / 2], [0.0, 0.0, 0.4, 0.0]])
+    com = np.array([[1e-17, 0.05, -2e-17], [-0.2, 0.0, 0.0]])
+    r = cs.Robot.from_dh(dh, com, [1.0, 2.0], np.array([np.eye(3) * 0.01] * 2), "RR")
+    np.testing.assert_array_equal(r.com[:, 2], [0.0, 0.2])
+    np.testing.assert_array_equal(r.com[:, 0], [0.3, 0.0])

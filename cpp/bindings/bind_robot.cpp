@@ -132,10 +132,15 @@ Robot make_robot(const py::object& dh, const py::object& com, const py::object& 
       L.inertia << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
     }
     if (com_vectors) {
-      // CoM position in DH frame i, inertia in frame i's axes: to the paper's CoM row
+      // CoM position in DH frame i, inertia in frame i's axes: to the paper's CoM row; the robot's
+      // size sets what rounding noise is
+      double scale = 0.0;
+      for (int j = 0; j < n; ++j)
+        scale += std::abs(D.data()[4 * j + 1]) + std::abs(D.data()[4 * j + 2]) +
+                 Eigen::Map<const Eigen::Vector3d>(C.data() + 3 * j).norm();
       const Eigen::Matrix3d Ilink = L.inertia;
       com_row_from_vector(L.type, L.dh, Eigen::Vector3d(C.data()[3 * k], C.data()[3 * k + 1], C.data()[3 * k + 2]),
-                          Ilink, L.com, L.inertia);
+                          Ilink, L.com, L.inertia, scale);
     } else {
       L.com = dh_row(C.data() + 4 * k);
     }

@@ -63,13 +63,18 @@ Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz) {
 }
 
 void com_row_from_vector(JointType type, const DHParams& dh, const Eigen::Vector3d& r, const Eigen::Matrix3d& I,
-                         DHParams& com, Eigen::Matrix3d& I_com) {
+                         DHParams& com, Eigen::Matrix3d& I_com, double scale) {
   // the CoM seen from frame i-1 turned back by theta: Tz(d) Tx(a) Rx(alpha) r
   // (for a prismatic joint q adds to d on both sides, so the same holds)
   const double ca = std::cos(dh.alpha), sa = std::sin(dh.alpha);
   const Eigen::Vector3d p(dh.a + r.x(), ca * r.y() - sa * r.z(), dh.d + sa * r.y() + ca * r.z());
-  const double rho = std::hypot(p.x(), p.y());
-  const double delta = rho > 0 ? std::atan2(p.y(), p.x()) : 0.0;
+  // an offset from the axis at the level of rounding is none: the CoM is on the axis (an angle of
+  // that noise would be no angle at all, and would cost generated code its structure)
+  const double noise = 16 * std::numeric_limits<double>::epsilon() * std::max(std::abs(dh.a) + r.norm(), scale);
+  double rho = std::hypot(p.x(), p.y());
+  double delta = 0.0;
+  if (rho > noise) delta = std::atan2(p.y(), p.x());
+  else rho = 0.0;
   com = DHParams{dh.theta + delta, p.z(), rho, 0.0};
   // CoM frame axes in frame i: Rx(alpha)^T Rz(delta)
   Eigen::Matrix3d Rx, Rz;

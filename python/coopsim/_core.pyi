@@ -153,7 +153,7 @@ class Robot:
         dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
-    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn'):
+    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09):
         """
         A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
         
@@ -183,6 +183,10 @@ class Robot:
                 or m) and merged like fixed joints (e.g. fingers kept with their mass).
             name: the robot's name (default the URDF's). gravity: (3,) m/s^2 in the
                 root link's frame. inertia_check: as Robot.from_dh.
+            snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
+                read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
+                5e-12 rad would make every derived angle general (and generated code
+                larger); 0 reads them as written.
         
             Raises ValueError naming the element for malformed URDF, a link that is
             the child of two joints (a closed loop), several roots, floating or

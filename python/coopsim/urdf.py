@@ -188,13 +188,15 @@ def _floats(text, count, what):
     return v
 
 
-def _pose(el, what) -> np.ndarray:
-    """4x4 of an element's <origin> (identity when absent)."""
+def _pose(el, what, snap=0.0) -> np.ndarray:
+    """4x4 of an element's <origin> (identity when absent); rpy angles within `snap` rad of a
+    multiple of pi/12 taken as that multiple."""
     T = np.eye(4)
     o = el.find("origin") if el is not None else None
     if o is not None:
         T[:3, 3] = _floats(o.get("xyz", "0 0 0"), 3, f"{what} origin xyz")
-        T[:3, :3] = _matrix_from_rpy(*_floats(o.get("rpy", "0 0 0"), 3, f"{what} origin rpy"))
+        rpy = _floats(o.get("rpy", "0 0 0"), 3, f"{what} origin rpy")
+        T[:3, :3] = _matrix_from_rpy(*(_snap_angle(v, snap) for v in rpy))
     return T
 
 
@@ -213,13 +215,13 @@ def _attr(el, key, what, default=None):
     return x
 
 
-def _inertial(link):
+def _inertial(link, snap):
     """(mass, CoM (3,), inertia about the CoM (3, 3)) of a <link>, in the link frame."""
     what = f"link {link.get('name')!r}"
     el = link.find("inertial")
     if el is None:
         return 0.0, np.zeros(3), np.zeros((3, 3))
-    T = _pose(el, f"{what} inertial")
+    T = _pose(el, f"{what} inertial", snap)
     m = _attr(el.find("mass"), "value", f"{what} inertial mass", default=0.0)
     i = el.find("inertia")
     if m < 0 or not math.isfinite(m):
@@ -248,9 +250,9 @@ def _unit(v):
     return v / np.linalg.norm(v)
 
 
-def _snap_angle(x):
+def _snap_angle(x, tol=1e-12):
     k = round(x / (math.pi / 12))
-    return k * math.pi / 12 if abs(x - k * math.pi / 12) <= 1e-12 else x
+    return k * math.pi / 12 if abs(x - k * math.pi / 12) <= tol else x
 
 
 def _dh_from_axes(points, axes):
@@ -325,7 +327,7 @@ _UNBOUNDED = 1e9
 
 
 def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None,
-              gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn"):
+              gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn", snap: float = 1e-9):
     """A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
 
     Joints: revolute, continuous (unbounded) and prismatic ones make the
@@ -354,6 +356,10 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         or m) and merged like fixed joints (e.g. fingers kept with their mass).
     name: the robot's name (default the URDF's). gravity: (3,) m/s^2 in the
         root link's frame. inertia_check: as Robot.from_dh.
+    snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
+        read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
+        5e-12 rad would make every derived angle general (and generated code
+        larger); 0 reads them as written.
 
     Raises ValueError naming the element for malformed URDF, a link that is
     the child of two joints (a closed loop), several roots, floating or
@@ -362,6 +368,9 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     """
     from ._core import LinkBox, Robot
 
+    snap = float(snap)
+    if not 0.0 <= snap < 0.1:
+        raise ValueError(f"snap must be in [0, 0.1) rad, got {snap!r}")
     root = _read(source)
     links = {}
     for el in root.findall("link"):
@@ -462,7 +471,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         for jn in children[ln]:
             el = joints[jn]
             c = el.find("child").get("link")
-            T = pose[ln] @ _pose(el, f"joint {jn!r}")
+            T = pose[ln] @ _pose(el, f"joint {jn!r}", snap)
             if el.get("type") in _MOVABLE:
                 M, u = motion(jn, float(locked.get(jn, 0.0)))
                 if movable(jn) and jn not in chain:
@@ -498,7 +507,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     for ln in order:
         b = body_of[ln]
         X = np.linalg.inv(F[b]) @ pose[ln]  # link frame in the body's DH frame (frame 0 for the base)
-        m, c, I = _inertial(links[ln])
+        m, c, I = _inertial(links[ln], snap)
         R = X[:3, :3]
         parts[b].append((m, R @ c + X[:3, 3], R @ I @ R.T))
         shapes = links[ln].findall("collision") or links[ln].findall("visual")
@@ -509,7 +518,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
             size = _floats(box.get("size"), 3, f"link {ln!r} box size")
             if min(size) <= 0:
                 raise ValueError(f"link {ln!r}: box sizes must be > 0, got {size}")
-            box_list.append(LinkBox(b, 0.5 * np.array(size), X @ _pose(sh, f"link {ln!r} {sh.tag}"),
+            box_list.append(LinkBox(b, 0.5 * np.array(size), X @ _pose(sh, f"link {ln!r} {sh.tag}", snap),
                                     sh.get("name") or f"{ln}_{k}"))
     bodies = [_combine(p) for p in parts[1:]]
     masses = np.array([b[0] for b in bodies])

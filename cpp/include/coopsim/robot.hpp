@@ -353,9 +353,10 @@ Eigen::Isometry3d dh_transform(double theta, double d, double a, double alpha);
 // (kg m^2) about the CoM in DH frame i's axes; `dh` is the link's DH row. The
 // CoM frame chosen has its x axis along the CoM's offset from the joint axis
 // (theta_c, d_c, a_c in the DH row's slots, a_c >= 0, alpha_c = 0); a CoM on
-// the joint axis gets theta_c = theta. Exact for both joint types: the CoM
-// frame's pose in frame i is constant and its origin is r.
+// the joint axis to rounding (within 16 eps max(|a| + |r|, scale), scale
+// the robot's size in m) gets theta_c = theta. Exact for both joint types:
+// the CoM frame's pose in frame i is constant and its origin is r.
 void com_row_from_vector(JointType type, const DHParams& dh, const Eigen::Vector3d& r, const Eigen::Matrix3d& I,
-                         DHParams& com, Eigen::Matrix3d& I_com);
+                         DHParams& com, Eigen::Matrix3d& I_com, double scale = 0.0);
 
 }  // namespace coopsim
