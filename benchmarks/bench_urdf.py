@@ -6,8 +6,10 @@ each: the cost of coopsim.codegen.compile (cold: sympy + g++, or cached),
 then ns per forward-dynamics call from Python (coopsim numeric, coopsim
 generated, pin.aba; each a single call with its Python overhead) and ns per
 state of coopsim's batch forward dynamics (N states in one call, one
-thread: the engine's own cost). Medians over repeats; ratios within this
-run. The results' agreement is checked before timing.
+thread: the engine's own cost). The three are timed in turn within each
+repeat and each figure is its fastest repeat (on a shared machine the
+least disturbed one); ratios within this run. The results' agreement is
+checked before timing.
 
     python benchmarks/bench_urdf.py [--calls 20000] [--repeats 5]
 """
@@ -38,29 +40,29 @@ ROBOTS = {
 }
 
 
-def per_call_ns(fn, calls, repeats):
-    out = []
+def fastest_ns(fns, per, repeats):
+    """ns per unit of each fn (called once per repeat, `per` units per call), timed in turn within
+    each repeat; the fastest repeat of each."""
+    best = [np.inf] * len(fns)
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        for k, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            fn()
+            best[k] = min(best[k], (time.perf_counter() - t0) / per * 1e9)
+    return best
+
+
+def loop(fn, calls):
+    def run():
         for _ in range(calls):
             fn()
-        out.append((time.perf_counter() - t0) / calls * 1e9)
-    return float(np.median(out))
-
-
-def batch_ns(robot, Q, QD, T, repeats):
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        cs.forward_dynamics_batch(robot, Q, QD, T, threads=1)
-        out.append((time.perf_counter() - t0) / len(Q) * 1e9)
-    return float(np.median(out))
+    return run
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--calls", type=int, default=20000)
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
     print(f"{'robot':6} {'what':34} {'ns':>9}")
     for name, (path, locked) in ROBOTS.items():
@@ -83,13 +85,15 @@ def main():
             err = np.abs(r.forward_dynamics(q, qd, tau + r.friction(qd)) - ref).max() / np.abs(ref).max()
             assert err < 1e-10, (name, r.backend, err)
         print(f"{name:6} {'compile (s; cached if < 1)':34} {t_compile:9.2f}   operations {info['operation_count']}")
-        t_num = per_call_ns(lambda: num.forward_dynamics(q, qd, tau), args.calls, args.repeats)
-        t_gen = per_call_ns(lambda: gen.forward_dynamics(q, qd, tau), args.calls, args.repeats)
-        t_pin = per_call_ns(lambda: pin.aba(model, data, q, qd, tau), args.calls, args.repeats)
+        t_num, t_gen, t_pin = fastest_ns([loop(lambda: num.forward_dynamics(q, qd, tau), args.calls),
+                                          loop(lambda: gen.forward_dynamics(q, qd, tau), args.calls),
+                                          loop(lambda: pin.aba(model, data, q, qd, tau), args.calls)],
+                                         args.calls, args.repeats)
         N = 100_000
         Q = rng.uniform(lim[:, 0], lim[:, 1], (N, n))
         QD, T = rng.normal(size=(N, n)), rng.normal(size=(N, n)) * 5
-        b_num, b_gen = batch_ns(num, Q, QD, T, args.repeats), batch_ns(gen, Q, QD, T, args.repeats)
+        b_num, b_gen = fastest_ns([lambda: cs.forward_dynamics_batch(num, Q, QD, T, threads=1),
+                                   lambda: cs.forward_dynamics_batch(gen, Q, QD, T, threads=1)], N, args.repeats)
         print(f"{name:6} {'FD from Python, numeric':34} {t_num:9.0f}")
         print(f"{name:6} {'FD from Python, generated':34} {t_gen:9.0f}")
         print(f"{name:6} {'pin.aba from Python':34} {t_pin:9.0f}")
