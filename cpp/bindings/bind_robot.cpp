@@ -398,7 +398,7 @@ jaw_length (along x) and pad_width (along y): the pads' size, m.)doc")
   py::class_<Robot> R(m, "Robot",
                       "A serial robot: standard DH table, centre-of-mass table, mass properties, friction, "
                       "limits and link shapes, placed in the world. Immutable: with_base, with_backend, ... "
-                      "make changed copies. Build one with Robot.from_dh or coopsim.robots.");
+                      "make changed copies. Build one with Robot.from_dh, Robot.from_urdf or coopsim.robots.");
   R.def_static("from_dh", &make_robot, py::arg("dh"), py::arg("com"), py::arg("masses"), py::arg("inertias"),
                py::arg("joint_types"), py::arg("friction") = py::none(), py::arg("q_limits") = py::none(),
                py::arg("tau_limits") = py::none(),

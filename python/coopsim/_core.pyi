@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -123,26 +123,42 @@ class Clamp:
         ...
 class Robot:
     """
-    A serial robot: standard DH table, centre-of-mass table, mass properties, friction, limits and link shapes, placed in the world. Immutable: with_base, with_backend, ... make changed copies. Build one with Robot.from_dh or coopsim.robots.
+    A serial robot: standard DH table, centre-of-mass table, mass properties, friction, limits and link shapes, placed in the world. Immutable: with_base, with_backend, ... make changed copies. Build one with Robot.from_dh, Robot.from_urdf or coopsim.robots.
     """
     @staticmethod
-    def from_dh(dh: typing.Any, com: typing.Any, masses: typing.Any, inertias: typing.Any, joint_types: str, friction: typing.Any = None, q_limits: typing.Any = None, tau_limits: typing.Any = None, gravity: typing.Any = (0.0, 0.0, -9.81), base_position: typing.Any = (0.0, 0.0, 0.0), base_yaw: typing.SupportsFloat | typing.SupportsIndex = 0.0, tool: typing.Any = None, name: str = 'robot', end_stop_frequency: typing.SupportsFloat | typing.SupportsIndex = 500.0, end_stop_damping_ratio: typing.SupportsFloat | typing.SupportsIndex = 1.0, boxes: typing.Any = None, clamp: typing.Any = None, dimensions: typing.Any = None) -> Robot:
+    def from_dh(dh: typing.Any, com: typing.Any, masses: typing.Any, inertias: typing.Any, joint_types: str, friction: typing.Any = None, q_limits: typing.Any = None, tau_limits: typing.Any = None, gravity: typing.Any = (0.0, 0.0, -9.81), base_position: typing.Any = (0.0, 0.0, 0.0), base_yaw: typing.SupportsFloat | typing.SupportsIndex = 0.0, tool: typing.Any = None, name: str = 'robot', end_stop_frequency: typing.SupportsFloat | typing.SupportsIndex = 500.0, end_stop_damping_ratio: typing.SupportsFloat | typing.SupportsIndex = 1.0, boxes: typing.Any = None, clamp: typing.Any = None, dimensions: typing.Any = None, armature: typing.Any = None, coulomb: typing.Any = None, coulomb_width: typing.Any = None, base_orientation: typing.Any = None, inertia_check: str = 'warn') -> Robot:
         """
         Defines a serial robot from tables.
         
         dh: (n, 4) standard DH rows [theta, d, a, alpha] (rad, m, m, rad); q_i is added
             to theta_i (revolute) or d_i (prismatic), which are offsets.
         com: (n, 4) centre-of-mass rows, same parameters, from frame i-1 to the CoM
-            frame of link i, q_i added in the same slot.
-        masses: (n,) kg, > 0.
+            frame of link i, q_i added in the same slot (the paper's table); or
+            (n, 3) CoM positions (m) in DH frame i, the convention of URDF, the
+            Robotics Toolbox and Corke's data, converted exactly to CoM rows
+            (Robot.com; a CoM on the joint axis included).
+        masses: (n,) kg, >= 0 (a link without mass is allowed; M(q) must still be
+            positive definite, which forward dynamics checks, naming q if not).
         inertias: (n, 3, 3) or (n, 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], kg m^2, about
-            the CoM in the CoM frame; symmetric, positive semi-definite, triangle
-            inequality.
+            the CoM: in the CoM frame for (n, 4) CoM rows, in DH frame i's axes for
+            (n, 3) CoM vectors; symmetric, positive semi-definite. One that breaks
+            the triangle inequality (I1 + I2 >= I3; published data has them) is
+            allowed with a coopsim.InertiaWarning, or refused (ValueError) with
+            inertia_check='error' ('ignore': neither).
         joint_types: string of 'R' / 'P', one per row, e.g. "RRPRRP".
         friction: (n,) viscous K (N m s/rad or N s/m), default 0.
+        armature: (n,) or one value: rotor inertia reflected through the gear,
+            J_m G^2 (kg m^2, or kg for a prismatic joint), added to M_ii; default 0.
+        coulomb: (n,) or one value: Coulomb friction F_c (N m or N), default 0,
+            acting as F_c tanh(qd / v_c) (smooth, never adding energy);
+            coulomb_width: v_c (rad/s or m/s, > 0), (n,) or one value, default 0.01.
+            Below |qd| ~ v_c it is a damper of F_c / v_c: keep dt F_c / (v_c M_ii)
+            under about 2.5 for RK4.
         q_limits: (n, 2) [q_min, q_max] (rad or m), default unbounded (+-inf).
         tau_limits: (n,) actuator limits |tau_i| <= tau_max (N m or N), default inf.
-        gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad.
+        gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad;
+            base_orientation: (3, 3) rotation after the yaw (default identity), for a
+            first joint axis that is not vertical: base = T(p) Rz(yaw) R.
         tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
         end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
             used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
@@ -209,7 +225,7 @@ class Robot:
             carry an explicit zero ``<inertial>``. See the module's docstring.
             
         """
-    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float]]:
+    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float], numpy.typing.NDArray[numpy.float64]]:
         ...
     def __repr__(self) -> str:
         ...
@@ -253,7 +269,7 @@ class Robot:
         """
     def forward_dynamics(self, q: typing.Any, qd: typing.Any, tau: typing.Any, f_ext: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - K qd), solved by Cholesky.
+        Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - friction(qd)), solved by Cholesky (M with the armature); ValueError naming q where M is not positive definite.
         """
     def frames(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -261,7 +277,7 @@ class Robot:
         """
     def friction(self, qd: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Viscous friction torques K qd (n,).
+        Friction torques (n,): viscous and Coulomb, K qd + F_c tanh(qd / v_c) (N m or N).
         """
     def gravity(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -307,7 +323,7 @@ class Robot:
         """
     def inverse_dynamics(self, q: typing.Any, qd: typing.Any, qdd: typing.Any, f_ext: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + K qd.
+        Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + friction(qd) (M with the armature).
         """
     def jacobian(self, q: typing.Any, link: typing.SupportsInt | typing.SupportsIndex = -1, point: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -337,6 +353,10 @@ class Robot:
         """
         A copy placed at `position` (3,) m with `yaw` rad.
         """
+    def with_base_orientation(self, base_orientation: typing.Any) -> Robot:
+        """
+        A copy with another fixed base rotation (3, 3) after the yaw.
+        """
     def with_generated(self, name: str) -> Robot:
         """
         A copy with the generated dynamics `name` attached (structure checked) and selected: code compiled into the engine (compiled_generated_names()) or built by coopsim.codegen.compile.
@@ -350,6 +370,11 @@ class Robot:
         A copy with another gravity vector (3,) m/s^2.
         """
     @property
+    def armature(self) -> typing.Any:
+        """
+        (n,) reflected rotor inertia J_m G^2 on M's diagonal, kg m^2 or kg.
+        """
+    @property
     def backend(self) -> str:
         """
         'generated' or 'numeric'.
@@ -358,6 +383,11 @@ class Robot:
     def base(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (4, 4) pose of DH frame 0 in the world.
+        """
+    @property
+    def base_orientation(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (3, 3) fixed rotation of the base after its yaw.
         """
     @property
     def base_position(self) -> numpy.typing.NDArray[numpy.float64]:
@@ -379,6 +409,21 @@ class Robot:
     def com(self) -> typing.Any:
         """
         (n, 4) CoM rows.
+        """
+    @property
+    def com_positions(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n, 3) CoM of each link in its DH frame i, m (the Robotics Toolbox's and URDF's convention).
+        """
+    @property
+    def coulomb(self) -> typing.Any:
+        """
+        (n,) Coulomb friction F_c, N m or N.
+        """
+    @property
+    def coulomb_width(self) -> typing.Any:
+        """
+        (n,) v_c of F_c tanh(qd / v_c), rad/s or m/s.
         """
     @property
     def dh(self) -> typing.Any:
@@ -420,6 +465,11 @@ class Robot:
         'scara1' or 'scara2' when the closed-form IK fits this robot's structure, else None.
         """
     @property
+    def inertia_warnings(self) -> list[str]:
+        """
+        Links whose inertia tensor breaks the triangle inequality, one message each.
+        """
+    @property
     def inertias(self) -> typing.Any:
         """
         (n, 3, 3) kg m^2 about each CoM in its CoM frame.
@@ -428,6 +478,11 @@ class Robot:
     def joint_types(self) -> str:
         """
         e.g. 'RRPRRP'.
+        """
+    @property
+    def link_inertias(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n, 3, 3) inertia of each link about its CoM in DH frame i's axes, kg m^2.
         """
     @property
     def masses(self) -> typing.Any:
@@ -440,7 +495,7 @@ class Robot:
     @property
     def parameter_vector(self) -> numpy.typing.NDArray[numpy.float64]:
         """
-        (16 n + 3,) parameters read by generated code: per link [theta d a alpha, com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K], then gravity in frame 0.
+        (19 n + 3,) parameters read by generated code: per link [theta d a alpha, com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K, armature, F_c, v_c], then gravity in frame 0.
         """
     @property
     def q_limits(self) -> typing.Any:
@@ -454,6 +509,58 @@ class Robot:
         """
     @property
     def tool(self) -> Tool:
+        ...
+class InertiaWarning(UserWarning):
+    pass
+class Contact:
+    """
+    A contact point between shapes a and b (ids); normal points from b to a; depth < 0 is penetration (m).
+    """
+    def __repr__(self) -> str:
+        ...
+    @property
+    def a(self) -> int:
+        ...
+    @property
+    def b(self) -> int:
+        ...
+    @property
+    def depth(self) -> float:
+        ...
+    @property
+    def normal(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def point_a(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def point_b(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+class CollisionWorld:
+    """
+    Shapes in the world, checked for contact by Bullet.
+    """
+    def __init__(self) -> None:
+        ...
+    def __len__(self) -> int:
+        ...
+    def add_box(self, half_extents: typing.Any, pose: typing.Any, name: str = '') -> int:
+        """
+        Adds a box with half extents (3,) m at pose (4, 4); returns its id.
+        """
+    def add_sphere(self, radius: typing.SupportsFloat | typing.SupportsIndex, pose: typing.Any, name: str = '') -> int:
+        """
+        Adds a sphere; returns its id.
+        """
+    def contacts(self) -> list[Contact]:
+        """
+        Contact points (list of Contact) of all pairs of touching or penetrating shapes.
+        """
+    def name(self, id: typing.SupportsInt | typing.SupportsIndex) -> str:
+        ...
+    def pose(self, id: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    def set_pose(self, id: typing.SupportsInt | typing.SupportsIndex, pose: typing.Any) -> None:
         ...
 class Reference:
     """
