@@ -6,6 +6,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+if [ "${COOPSIM_SKIP_SETUP:-0}" = 1 ]; then
+  # a test of a private build (PYTHONPATH) must not install this tree over the environment's coopsim
+  echo "setup: skipped (COOPSIM_SKIP_SETUP=1)"
+  exit 0
+fi
+
 export PIP_ROOT_USER_ACTION=ignore PIP_DISABLE_PIP_VERSION_CHECK=1
 PY=${PYTHON:-python3}
 
