@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'CollisionWorld', 'ComputedTorque', 'Contact', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -512,56 +512,6 @@ class Robot:
         ...
 class InertiaWarning(UserWarning):
     pass
-class Contact:
-    """
-    A contact point between shapes a and b (ids); normal points from b to a; depth < 0 is penetration (m).
-    """
-    def __repr__(self) -> str:
-        ...
-    @property
-    def a(self) -> int:
-        ...
-    @property
-    def b(self) -> int:
-        ...
-    @property
-    def depth(self) -> float:
-        ...
-    @property
-    def normal(self) -> numpy.typing.NDArray[numpy.float64]:
-        ...
-    @property
-    def point_a(self) -> numpy.typing.NDArray[numpy.float64]:
-        ...
-    @property
-    def point_b(self) -> numpy.typing.NDArray[numpy.float64]:
-        ...
-class CollisionWorld:
-    """
-    Shapes in the world, checked for contact by Bullet.
-    """
-    def __init__(self) -> None:
-        ...
-    def __len__(self) -> int:
-        ...
-    def add_box(self, half_extents: typing.Any, pose: typing.Any, name: str = '') -> int:
-        """
-        Adds a box with half extents (3,) m at pose (4, 4); returns its id.
-        """
-    def add_sphere(self, radius: typing.SupportsFloat | typing.SupportsIndex, pose: typing.Any, name: str = '') -> int:
-        """
-        Adds a sphere; returns its id.
-        """
-    def contacts(self) -> list[Contact]:
-        """
-        Contact points (list of Contact) of all pairs of touching or penetrating shapes.
-        """
-    def name(self, id: typing.SupportsInt | typing.SupportsIndex) -> str:
-        ...
-    def pose(self, id: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
-        ...
-    def set_pose(self, id: typing.SupportsInt | typing.SupportsIndex, pose: typing.Any) -> None:
-        ...
 class Reference:
     """
     A joint-space reference: desired q, qd, qdd at any time; holds its end point after t_end. Subclass it in Python by defining dof, t_start, t_end and evaluate(t) -> (q, qd, qdd), each (n,).
