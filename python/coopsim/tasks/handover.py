@@ -19,7 +19,10 @@ and the floor after release), a grasp that does not happen, a release that does 
 that does not slide down the tube. The run stops at the first failure. :func:`run` returns a
 :class:`TaskResult` whose ``report`` holds, per cycle: durations per step, tracking errors (joint and
 tool), minimum clearances robot-robot and robot-container, peak weld and internal forces during the
-dual hold, every contact and grasp event, and success or the step and reason.
+dual hold (the internal force is the part of the two welds' forces that cancels on the bar,
+``log.internal_wrench``; with both welds at the bar's centre it is the uneven split of its weight: #1
+grasps a bar #2 holds still, so its weld starts unstretched and #2 carries the load until it opens,
+giving m g / 2), every contact and grasp event, and success or the step and reason.
 
 Scene values: :mod:`coopsim.tasks.scene`. Planning values (m, rad, s) are the module constants below
 (``task.md``, "Geometry checked"): the handover bar centre (0.25, 0.25, 0.20), yaw 285 deg, #1 gripping
