@@ -93,3 +93,40 @@ def test_a_step_too_large_for_the_end_stops_is_warned_about_and_named_in_the_err
     sim = cs.Simulation(dt=5e-3)
     with pytest.warns(RuntimeWarning, match="end stops"):
         sim.add_robot(arm, cs.PID(0.0, 0.0, 0.0), q0)
+
+
+def test_a_numeric_cartesian_plan_keeps_its_branch_or_refuses_the_flip():
+    # issue: plan_cartesian(..., method="numeric") flipped the elbow mid-line and the tool drew a loop.
+    # Random lines of SCARA #1: every plan that succeeds moves its arm joints in small steps between knots;
+    # where the line leaves the first knot's branch, the plan refuses, naming the pose and why
+    import pytest
+
+    r = cs.robots.scara1()
+    rng = np.random.default_rng(1)
+    refused = planned = 0
+    for trial in range(30):
+        q0, q1 = rng.uniform(r.q_limits[:, 0], r.q_limits[:, 1], (2, 6))
+        q0[4] = q1[4] = np.pi / 2
+        A, B = r.fk(q0), r.fk(q1)
+        B[:3, :3] = A[:3, :3]
+        try:
+            _, info = cs.plan_cartesian(r, [A, B], [0, 1], method="numeric", intermediate=10, q_start=q0, info=True)
+        except cs.IKError as e:
+            refused += "to keep its branch" in str(e)
+            continue
+        planned += 1
+        assert np.abs(np.diff(info["q_points"][:, :2], axis=0)).max() < 1.0
+        assert trial != 4, "trial 4 leaves its branch mid-line: it must be refused"
+    assert planned >= 10 and refused >= 4
+    # the flip itself, on request: trial 4 again with keep_branch=False jumps by more than 4 rad in theta2
+    rng = np.random.default_rng(1)
+    for trial in range(5):
+        q0, q1 = rng.uniform(r.q_limits[:, 0], r.q_limits[:, 1], (2, 6))
+    q0[4] = q1[4] = np.pi / 2
+    A, B = r.fk(q0), r.fk(q1)
+    B[:3, :3] = A[:3, :3]
+    with pytest.raises(cs.IKError, match=r"the straight-line pose at t = .* s: .*to keep its branch"):
+        cs.plan_cartesian(r, [A, B], [0, 1], method="numeric", intermediate=10, q_start=q0)
+    _, info = cs.plan_cartesian(r, [A, B], [0, 1], method="numeric", intermediate=10, q_start=q0, info=True,
+                                keep_branch=False)
+    assert np.abs(np.diff(info["q_points"][:, 1])).max() > 4.0

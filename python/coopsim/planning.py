@@ -238,17 +238,25 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
         kw = dict(ik_options)
         if o is not None:
             kw["opening"] = o
+        local = not analytic and keep_branch and i > 0 and "restarts" not in ik_options
         if analytic:
             b = first_branch if (i == 0 or keep_branch) else None
             kw["branch"] = b
             kw["info"] = True
+        elif local:
+            # the numeric IK from the previous knot only: it stays on that knot's branch; a random restart
+            # could land on another one, and the tool would swing off the path between the knots
+            kw["restarts"] = 0
         try:
             res = robot.ik(T, q_near=q_prev, method=method, **kw)
         except IKError as e:
             which = f"pose {given[:i + 1].count(True) - 1}" if given[i] else \
                 f"the straight-line pose at t = {knot_t[i]:.6g} s"
             extra = f" on elbow branch {first_branch:+d}" if analytic and keep_branch and first_branch else ""
-            raise IKError(f"{which}{extra}: {e}") from None
+            hint = (" (solved from the previous knot only, to keep its branch: the path leaves that branch's reach; "
+                    "a solution on another branch would flip the arm between the knots. Move the path, add "
+                    "poses, or pass keep_branch=False to allow the jump)") if local else ""
+            raise IKError(f"{which}{extra}: {e}{hint}") from None
         if analytic:
             q, d = res
             if i == 0 and first_branch is None:
