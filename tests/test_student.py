@@ -130,3 +130,30 @@ def test_a_numeric_cartesian_plan_keeps_its_branch_or_refuses_the_flip():
     _, info = cs.plan_cartesian(r, [A, B], [0, 1], method="numeric", intermediate=10, q_start=q0, info=True,
                                 keep_branch=False)
     assert np.abs(np.diff(info["q_points"][:, 1])).max() > 4.0
+
+
+def test_a_time_law_along_a_cartesian_line_gives_the_tool_a_smooth_speed():
+    # issue: along a straight line with evenly spaced knots the tool's speed overshoots at the ends.
+    # With time_law='cubic' or 'quintic' the tool's speed follows L s'(tau) / T within 1 % of its peak
+    import pytest
+
+    r = cs.robots.scara1()
+    q0 = np.array([0.3, 1.2, 0.1, 0.0, np.pi / 2, 0.02])
+    A, B = r.fk(q0), r.fk(q0 + [0.5, 0.3, 0.05, 0, 0, 0])
+    B[:3, :3] = A[:3, :3]
+    L, T = np.linalg.norm(B[:3, 3] - A[:3, 3]), 2.0
+    t = np.linspace(0.0, T, 2001)
+    tau = t / T
+    laws = {"uniform": np.full_like(t, L / T), "cubic": L / T * 6 * tau * (1 - tau),
+            "quintic": L / T * 30 * tau ** 2 * (1 - tau) ** 2}
+    for law, want in laws.items():
+        traj = cs.plan_cartesian(r, [A, B], [0.0, T], intermediate=20, time_law=law, q_start=q0)
+        P = np.array([r.fk(traj.evaluate(x)[0])[:3, 3] for x in t])
+        v = np.linalg.norm(np.gradient(P, t, axis=0), axis=1)
+        if law == "uniform":
+            assert v.max() > 1.3 * want.max()          # the overshoot of evenly spaced knots from rest
+        else:
+            assert np.abs(v - want).max() < 0.01 * want.max(), law
+        np.testing.assert_allclose(r.fk(traj.evaluate(T)[0]), B, atol=1e-9)
+    with pytest.raises(ValueError, match="time_law must be one of 'uniform', 'cubic', 'quintic', got 'trapezoid'"):
+        cs.plan_cartesian(r, [A, B], [0.0, T], time_law="trapezoid")

@@ -133,6 +133,14 @@ def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
     return out
 
 
+#: the time laws of plan_cartesian: the fraction of a segment's way reached at the fraction tau of its time
+_TIME_LAWS = {
+    "uniform": lambda tau: tau,
+    "cubic": lambda tau: tau * tau * (3.0 - 2.0 * tau),
+    "quintic": lambda tau: tau ** 3 * (10.0 + tau * (-15.0 + 6.0 * tau)),
+}
+
+
 def _poses_arg(poses) -> np.ndarray:
     if isinstance(poses, (list, tuple)):
         for i, T in enumerate(poses):
@@ -154,7 +162,8 @@ def _poses_arg(poses) -> np.ndarray:
 
 def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, branch=None,
                    intermediate: int = 0, spline: bool = False, qd_start=None, qd_end=None,
-                   method: str = "auto", keep_branch: bool = True, info: bool = False, **ik_options):
+                   method: str = "auto", keep_branch: bool = True, info: bool = False, time_law: str = "uniform",
+                   **ik_options):
     """Joint trajectory whose tool passes through `poses` at `times`.
 
     robot: the Robot. poses: (N, 4, 4) TCP poses in the world, N >= 2.
@@ -170,6 +179,14 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
         consecutive given poses, at evenly spaced times (interpolate_poses:
         position linear; orientation 'clamp' for the SCARAs, else
         'geodesic'); more points, closer to the line.
+    time_law: how the tool moves along each straight segment between given
+        poses, through the fraction of the way s(tau) reached at the fraction
+        tau of the segment's time (the intermediate poses are placed at
+        s(tau) for evenly spaced tau): 'uniform' (s = tau), 'cubic'
+        (3 tau^2 - 2 tau^3: starts and stops with zero speed) or 'quintic'
+        (10 tau^3 - 15 tau^4 + 6 tau^5: zero speed and acceleration at both
+        ends). With enough intermediate poses the tool's speed follows
+        L s'(tau) / T for a segment of length L and duration T.
     spline, qd_start, qd_end: passed to CubicTrajectory (C2 spline instead
         of the averaged-slope rule; end velocities, default rest).
     method and further keywords (tol, weights, locked, restarts, ...) go to
@@ -213,15 +230,19 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
         if q_start.shape != (robot.dof,) or not np.all(np.isfinite(q_start)):
             raise ValueError(f"wrong shape for q_start: expected ({robot.dof},) finite, got {q_start.shape}")
 
-    # knots: the given poses plus straight-line poses between them
+    # knots: the given poses plus straight-line poses between them, at evenly spaced times and at the
+    # fractions of the way the time law gives
+    if time_law not in _TIME_LAWS:
+        raise ValueError(f"time_law must be one of {', '.join(map(repr, _TIME_LAWS))}, got {time_law!r}")
     knot_t, knot_T, knot_op, given = [], [], [], []
     s = np.linspace(0.0, 1.0, intermediate + 2)
+    way = _TIME_LAWS[time_law](s)
     for k in range(N - 1):
-        seg = interpolate_poses(P[k], P[k + 1], s[:-1], mode)
+        seg = interpolate_poses(P[k], P[k + 1], way[:-1], mode)
         for j, sj in enumerate(s[:-1]):
             knot_t.append(t[k] + sj * (t[k + 1] - t[k]))
             knot_T.append(seg[j])
-            knot_op.append(None if op is None else (1.0 - sj) * op[k] + sj * op[k + 1])
+            knot_op.append(None if op is None else (1.0 - way[j]) * op[k] + way[j] * op[k + 1])
             given.append(j == 0)
     knot_t.append(t[-1])
     knot_T.append(P[-1])
