@@ -14,6 +14,7 @@ without cse, per function.
 from __future__ import annotations
 
 import difflib
+import hashlib
 import os
 import pickle
 import re
@@ -515,3 +516,46 @@ def test_structure_mismatch_is_refused():
     r = cs.robots.scara1(backend="numeric")
     with pytest.raises(ValueError, match="joint types|joints"):
         r.with_base([0, 0, 0], 0.0).with_generated("scara2")
+
+
+def test_compile_loads_only_the_library_it_built_and_no_name_reaches_the_code(tmp_path):
+    """Code generation compiles user input: a hostile robot name never reaches the C++ (the library is named
+    by its structure key); a cached library replaced by another one (foreign, or damaged) is built anew, not
+    loaded; the engine refuses a library others may write, or one in a folder others may write to."""
+    import shutil
+    import stat
+
+    hostile = '"); system("touch pwned"); //\n#include </etc/passwd>'
+    a = _arm2()
+    arm = cs.Robot.from_dh(a.dh, a.com, a.masses, a.inertias, joint_types="RR", friction=[0.3, 0.7],
+                           q_limits=a.q_limits, gravity=(0.3, -0.2, -9.81), name=hostile)
+    r = codegen.compile(arm, cache=tmp_path)
+    assert r.name == hostile and not (tmp_path / "pwned").exists()
+    for src in tmp_path.glob("*.cpp"):
+        text = src.read_text()
+        assert "system" not in text and "pwned" not in text and "passwd" not in text
+    _compare(r, arm, n_states=20)
+    lib = next(tmp_path.glob("coopsim_gen_*.so"))
+    assert (tmp_path / (lib.name + ".sha256")).read_text().strip() == hashlib.sha256(lib.read_bytes()).hexdigest()
+    # a foreign library in its place (another structure's build, which would load): rebuilt, not loaded
+    other = codegen.compile(_arm2(joint_types="RP"), cache=tmp_path)
+    other_lib = tmp_path / f"coopsim_{cs._core.generated_info(other)['name']}.so"
+    lib.unlink()   # (not written over in place: this process has it mapped)
+    shutil.copy(other_lib, lib)
+    r = codegen.compile(arm, cache=tmp_path)
+    assert cs._core.generated_info(r)["joint_types"] == "RR"
+    _compare(r, arm, n_states=20)
+    assert hashlib.sha256(lib.read_bytes()).hexdigest() != hashlib.sha256(other_lib.read_bytes()).hexdigest()
+    # the engine's own check, before loading: writable by others, or in a folder others may write to
+    lib.chmod(lib.stat().st_mode | stat.S_IWOTH)
+    with pytest.raises(ValueError, match="refusing to load .*: other users may write to it"):
+        cs._core.load_generated_library(str(lib))
+    lib.chmod(lib.stat().st_mode & ~stat.S_IWOTH)
+    open_dir = tmp_path / "open"
+    open_dir.mkdir()
+    shutil.copy(lib, open_dir / lib.name)
+    open_dir.chmod(0o777)
+    with pytest.raises(ValueError, match="its folder .* may be written to by other users"):
+        cs._core.load_generated_library(str(open_dir / lib.name))
+    open_dir.chmod(0o777 | stat.S_ISVTX)   # sticky, like /tmp: others cannot replace what is ours
+    assert cs._core.load_generated_library(str(open_dir / lib.name)).startswith("gen_")

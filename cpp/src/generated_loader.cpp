@@ -3,6 +3,7 @@
 // pickled robot gets its code back in another process.
 #include <dlfcn.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <stdexcept>
@@ -21,6 +22,26 @@ F library_symbol(void* handle, const std::string& path, const char* name) {
   return reinterpret_cast<F>(s);
 }
 
+// Loading a library runs its code: only a file that this user (or root) owns and that no one else may
+// write, in a folder no one else may write to (or a sticky one, like /tmp), is loaded. A library another
+// user could have placed or changed is refused before dlopen.
+void check_trusted(const std::string& path) {
+  struct stat f, d;
+  if (stat(path.c_str(), &f) != 0 || !S_ISREG(f.st_mode))
+    throw std::invalid_argument("cannot load " + path + ": not a regular file");
+  const uid_t me = geteuid();
+  if (f.st_uid != me && f.st_uid != 0)
+    throw std::invalid_argument("refusing to load " + path + ": it belongs to another user");
+  if (f.st_mode & (S_IWGRP | S_IWOTH))
+    throw std::invalid_argument("refusing to load " + path + ": other users may write to it");
+  const size_t slash = path.find_last_of('/');
+  const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
+  if (stat(dir.c_str(), &d) != 0) throw std::invalid_argument("cannot load " + path + ": no folder " + dir);
+  if ((d.st_mode & S_IWOTH) && !(d.st_mode & S_ISVTX))
+    throw std::invalid_argument("refusing to load " + path + ": its folder " + dir +
+                                " may be written to by other users (and is not sticky)");
+}
+
 bool is_file(const std::string& path) {
   struct stat st;
   return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
@@ -36,6 +57,7 @@ std::string generated_cache_dir() {
 }
 
 std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::string& path) {
+  check_trusted(path);
   // kept open for the process lifetime: robots may hold its functions
   void* h = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!h) {

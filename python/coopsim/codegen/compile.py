@@ -70,10 +70,29 @@ def _build(s: Structure, cxx: str, folder: Path, lib: Path, verbose: bool) -> No
         if res.returncode != 0:
             raise RuntimeError(f"building generated dynamics failed ({cxx}):\n{res.stderr[-4000:]}")
         shutil.copy(src, folder / src.name)  # kept next to the library for inspection
+        digest = Path(tmp) / "digest"
+        digest.write_text(_digest(out) + "\n", encoding="ascii")
         os.replace(out, lib)  # atomic: concurrent builds of one key are harmless
+        os.replace(digest, _digest_path(lib))
     if verbose:
         print(f"coopsim.codegen: generated in {t1 - t0:.1f} s, built in {time.perf_counter() - t1:.1f} s: {lib}",
               file=sys.stderr)
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _digest_path(lib: Path) -> Path:
+    return lib.with_name(lib.name + ".sha256")
+
+
+def _is_ours(lib: Path) -> bool:
+    """Whether `lib` is the library this cache built: its SHA-256 equals the one recorded at the build."""
+    try:
+        return _digest_path(lib).read_text(encoding="ascii").strip() == _digest(lib)
+    except OSError:
+        return False
 
 
 def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = False):  # noqa: A001
@@ -96,7 +115,13 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     selected, ``backend == "generated"`` (robots are immutable: the one
     given is unchanged; ``with_backend("numeric")`` makes a numeric copy). Raises ValueError for a
     robot that is not a coopsim.Robot, RuntimeError if the build fails. A
-    cached library that no longer loads is built again.
+    cached library that no longer loads, or whose SHA-256 differs from the
+    one recorded when it was built (``<library>.sha256``: damaged, replaced
+    or foreign), is built again rather than loaded. The engine loads no
+    library that another user owns or may write, or that lies in a folder
+    others may write to (unless sticky); such a cache gives ValueError.
+    Nothing of the robot but its joint types and angle columns reaches the
+    generated C++ (its name does not: the library is named by the key).
 
     Cost of the first build of a structure, measured on a 2-core machine
     (sympy dominates; g++ -O2 takes 2-5 s, about 20 s for general angles): a
@@ -119,7 +144,9 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     folder = Path(cache) if cache is not None else cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
     lib = folder / f"coopsim_{s.name}.so"
-    if not lib.exists():
+    if not lib.exists() or not _is_ours(lib):
+        # none yet, or a library this cache did not build (damaged, replaced, or foreign): built anew,
+        # never loaded
         _build(s, cxx, folder, lib, verbose)
     try:
         name = _core.load_generated_library(str(lib))
