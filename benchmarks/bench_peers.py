@@ -1,0 +1,641 @@
+"""coopsim against the simulators people would pick instead, in one run.
+
+Same robot (SCARA #1), same states, same job. Peers are loaded from
+coopsim's URDF export (PyBullet, MuJoCo, Pinocchio) or built from its DH
+table (the Robotics Toolbox); a peer that is not installed is skipped with a
+note (``pip install .[peers]`` installs them). Before anything is timed,
+every peer's numbers are compared with coopsim's on random states: a peer
+that disagrees by more than 1e-9 (relative) gets no ratio, only the reason.
+
+Part 1, dynamics from Python, ns per call: forward dynamics, inverse
+dynamics, the mass matrix, one RK4 step (0.2 ms) and batch forward dynamics
+(ns per state: coopsim's batch call and MuJoCo's ``mujoco.batch`` on one
+thread, Python loops for the others). Friction: coopsim's viscous K is
+MuJoCo's joint damping (read from the URDF); Pinocchio, PyBullet and the
+Toolbox get K qd in their torques. RK4: MuJoCo's ``mj_step`` with its RK4
+integrator; Pinocchio, PyBullet and the Toolbox have none, so theirs is the
+classic RK4 written in Python over their forward dynamics (four calls).
+
+Part 2, closed loop: SCARA #1 tracking a cubic under the same PID
+(derivative on the measured position, gravity compensation, saturation at
+the actuator limits), 5 s at 0.2 ms: coopsim's ``Simulation.run``; MuJoCo
+RK4 with the PID in Python driving motor actuators (gravity compensation by
+MuJoCo's own ``gravcomp``); MuJoCo RK4 with native actuators (the PID's
+proportional and derivative parts with velocity feed-forward as an affine
+actuator, no integral: MuJoCo actuators cannot integrate the error) stepped
+by ``mujoco.rollout``; PyBullet (semi-implicit Euler, its only integrator)
+with the PID in Python. The tracking error is printed beside the speed: it
+shows that each did the same job.
+
+Timings are interleaved (each repeat times every peer in turn) and each
+figure is the median over repeats; ratios are taken within this run. Set
+OPENBLAS_NUM_THREADS=1 on a shared machine.
+
+    python benchmarks/bench_peers.py [--quick] [--part dynamics|loop|all]
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import coopsim as cs
+
+DT = 2e-4
+TOL = 1e-9          # relative agreement required before a ratio is printed
+T_LOOP = 5.0        # s simulated in the closed loop
+OPS = ["forward dynamics", "inverse dynamics", "mass matrix", "RK4 step", "batch forward dynamics"]
+#: per peer, the callables timed in place of the checked ones where the check needs extra arithmetic or copies
+TIMED: dict = {}
+TARGETS = {"forward dynamics": 0.5, "closed loop": 10.0}  # coopsim <= 0.5x aba and mj_forward; >= 10x MuJoCo RK4
+
+
+def rel(x, y):
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    return float(np.abs(x - y).max() / max(1.0, np.abs(y).max()))
+
+
+def rk4(fd, q, qd, tau, dt=DT):
+    """The classic RK4 step on (q, qd) under tau held constant, as coopsim's."""
+    k1q, k1v = qd, fd(q, qd, tau)
+    k2q, k2v = qd + dt / 2 * k1v, fd(q + dt / 2 * k1q, qd + dt / 2 * k1v, tau)
+    k3q, k3v = qd + dt / 2 * k2v, fd(q + dt / 2 * k2q, qd + dt / 2 * k2v, tau)
+    k4q, k4v = qd + dt * k3v, fd(q + dt * k3q, qd + dt * k3v, tau)
+    return np.concatenate([q + dt / 6 * (k1q + 2 * k2q + 2 * k3q + k4q), qd + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)])
+
+
+def loop_batch(fd):
+    def batch(Q, QD, TAU):
+        return np.array([fd(q, qd, tau) for q, qd, tau in zip(Q, QD, TAU)])
+    return batch
+
+
+def urdf_file(robot):
+    f = tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False)
+    f.write(robot.to_urdf())
+    f.close()
+    return f.name
+
+
+# ---------------------------------------------------------------- peers
+# Each returns (label, version, {op: fn}) or raises ImportError / names its problem.
+
+def peer_coopsim(robot, label="coopsim"):
+    """coopsim's calls; the single-state ones are timed as the bound methods themselves (see TIMED)."""
+    TIMED[label] = {"forward dynamics": robot.forward_dynamics, "inverse dynamics": robot.inverse_dynamics,
+                    "mass matrix": robot.mass_matrix,
+                    "RK4 step": functools.partial(cs.rk4_step, robot, dt=DT, end_stops=False)}
+    return {
+        "forward dynamics": lambda q, qd, tau: robot.forward_dynamics(q, qd, tau),
+        "inverse dynamics": lambda q, qd, qdd: robot.inverse_dynamics(q, qd, qdd),
+        "mass matrix": lambda q: robot.mass_matrix(q),
+        "RK4 step": lambda q, qd, tau: np.concatenate(cs.rk4_step(robot, q, qd, tau, DT, end_stops=False)),
+        "batch forward dynamics": lambda Q, QD, TAU: cs.forward_dynamics_batch(robot, Q, QD, TAU, threads=1),
+    }
+
+
+def mujoco_model(text, *, contacts=False):
+    import mujoco
+    model = mujoco.MjSpec.from_string(text).compile()
+    model.opt.timestep = DT
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    if not contacts:  # the dynamics alone: no collision detection, no limits (the states are inside them)
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    return model
+
+
+def peer_mujoco(robot):
+    import mujoco
+    import mujoco.batch
+    m = mujoco_model(robot.to_urdf())
+    d = mujoco.MjData(m)
+    n = m.nv
+    M = np.zeros((n, n))
+
+    def fd(q, qd, tau):
+        d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, qd, tau
+        mujoco.mj_forward(m, d)
+        return d.qacc.copy()
+
+    def inv(q, qd, qdd):
+        d.qpos[:], d.qvel[:], d.qacc[:] = q, qd, qdd
+        mujoco.mj_inverse(m, d)
+        return d.qfrc_inverse.copy()
+
+    def mass(q):
+        d.qpos[:] = q
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mj_fullM(m, d, M)
+        return M.copy()
+
+    def step(q, qd, tau):
+        d.time = 0.0
+        d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, qd, tau
+        mujoco.mj_step(m, d)
+        return np.concatenate([d.qpos, d.qvel])
+
+    batches = {}
+
+    def batch(Q, QD, TAU):
+        if len(Q) not in batches:
+            b = mujoco.batch.Batch(m, nsim=len(Q), nthread=1)
+            batches[len(Q)] = b, b.bind("qacc")  # bound before the calls: refreshed by each
+        b, qacc = batches[len(Q)]
+        b.qpos, b.qvel, b.qfrc_applied = Q, QD, TAU
+        b.forward()
+        return qacc.copy()
+
+    def fd_timed(q, qd, tau):  # what a user writes: the state in, mj_forward, qacc read in place
+        d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, qd, tau
+        mujoco.mj_forward(m, d)
+        return d.qacc
+
+    def inv_timed(q, qd, qdd):
+        d.qpos[:], d.qvel[:], d.qacc[:] = q, qd, qdd
+        mujoco.mj_inverse(m, d)
+        return d.qfrc_inverse
+
+    def step_timed(q, qd, tau):
+        d.time = 0.0
+        d.qpos[:], d.qvel[:], d.qfrc_applied[:] = q, qd, tau
+        mujoco.mj_step(m, d)
+        return d.qpos, d.qvel
+
+    TIMED["MuJoCo"] = {"forward dynamics": fd_timed, "inverse dynamics": inv_timed, "RK4 step": step_timed}
+    return mujoco.__version__, {"forward dynamics": fd, "inverse dynamics": inv, "mass matrix": mass,
+                                "RK4 step": step, "batch forward dynamics": batch}
+
+
+def peer_pinocchio(robot):
+    import pinocchio as pin
+    model = pin.buildModelFromXML(robot.to_urdf())
+    data = model.createData()
+    K = robot.friction_coefficients
+
+    def fd(q, qd, tau):
+        return pin.aba(model, data, q, qd, tau - K * qd)
+
+    # timed without the friction term's numpy arithmetic: ABA's own cost from Python
+    TIMED["Pinocchio"] = {"forward dynamics": functools.partial(pin.aba, model, data),
+                          "inverse dynamics": functools.partial(pin.rnea, model, data),
+                          "mass matrix": functools.partial(pin.crba, model, data)}
+
+    return pin.__version__, {
+        "forward dynamics": fd,
+        "inverse dynamics": lambda q, qd, qdd: pin.rnea(model, data, q, qd, qdd) + K * qd,
+        "mass matrix": lambda q: pin.crba(model, data, q),  # upper triangle: compared as such
+        "RK4 step": lambda q, qd, tau: rk4(fd, q, qd, tau),
+        "batch forward dynamics": loop_batch(fd),
+    }
+
+
+def peer_pybullet(robot):
+    import pybullet as pb
+    path = urdf_file(robot)
+    c = pb.connect(pb.DIRECT)
+    try:
+        pb.setGravity(*robot.gravity_acceleration, physicsClientId=c)
+        body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
+    finally:
+        os.unlink(path)
+    K = robot.friction_coefficients
+    zero = [0.0] * robot.dof
+
+    def fd(q, qd, tau):  # PyBullet has no forward dynamics call: M, C qd + G, and a solve
+        q, qd = q.tolist(), qd.tolist()
+        M = np.array(pb.calculateMassMatrix(body, q, physicsClientId=c))
+        h = np.array(pb.calculateInverseDynamics(body, q, qd, zero, physicsClientId=c))
+        return np.linalg.solve(M, tau - K * np.asarray(qd) - h)
+
+    def inv(q, qd, qdd):
+        return np.array(pb.calculateInverseDynamics(body, q.tolist(), qd.tolist(), qdd.tolist(),
+                                                    physicsClientId=c)) + K * qd
+
+    version = f"{pb.getAPIVersion(physicsClientId=c)} (API)"
+    try:
+        import importlib.metadata
+        version = importlib.metadata.version("pybullet")
+    except Exception:  # noqa: BLE001 - a version string only
+        pass
+    return version, {
+        "forward dynamics": fd, "inverse dynamics": inv,
+        "mass matrix": lambda q: np.array(pb.calculateMassMatrix(body, q.tolist(), physicsClientId=c)),
+        "RK4 step": lambda q, qd, tau: rk4(fd, q, qd, tau),
+        "batch forward dynamics": loop_batch(fd),
+    }
+
+
+def rtb_robot(robot):
+    """The Robotics Toolbox's DHRobot from coopsim's DH table, CoM vectors and inertias (its convention)."""
+    import roboticstoolbox as rtb
+    from spatialmath import SE3
+    links = []
+    for i, (theta, d, a, alpha) in enumerate(robot.dh):
+        kw = dict(a=a, alpha=alpha, m=robot.masses[i], r=robot.com_positions[i], I=robot.link_inertias[i],
+                  B=robot.friction_coefficients[i], G=1.0, Jm=0.0, Tc=[0.0, 0.0], qlim=robot.q_limits[i])
+        if robot.joint_types[i] == "R":
+            links.append(rtb.RevoluteDH(d=d, offset=theta, **kw))
+        else:
+            links.append(rtb.PrismaticDH(theta=theta, offset=d, **kw))
+    base = SE3(*robot.base_position) * SE3.Rz(robot.base_yaw)
+    return rtb.DHRobot(links, name=robot.name, base=base, gravity=np.asarray(robot.gravity_acceleration))
+
+
+def peer_rtb(robot):
+    import roboticstoolbox as rtb
+    r = rtb_robot(robot)
+
+    def fd(q, qd, tau):
+        return np.asarray(r.accel(q, qd, tau)).ravel()
+
+    return rtb.__version__, {
+        "forward dynamics": fd,
+        "inverse dynamics": lambda q, qd, qdd: np.asarray(r.rne(q, qd, qdd)).ravel(),
+        "mass matrix": lambda q: np.asarray(r.inertia(q)),
+        "RK4 step": lambda q, qd, tau: rk4(fd, q, qd, tau),
+        "batch forward dynamics": loop_batch(fd),
+    }
+
+
+PEERS = {  # label: (module to import, the extra's package, builder)
+    "MuJoCo": ("mujoco", "mujoco", peer_mujoco),
+    "Pinocchio": ("pinocchio", "pin", peer_pinocchio),
+    "PyBullet": ("pybullet", "pybullet", peer_pybullet),
+    "Robotics Toolbox": ("roboticstoolbox", "roboticstoolbox-python", peer_rtb),
+}
+CALL_NAMES = {  # what each peer's row calls
+    "MuJoCo": {"forward dynamics": "mj_forward", "inverse dynamics": "mj_inverse",
+               "mass matrix": "mj_fwdPosition + mj_fullM", "RK4 step": "mj_step (RK4)",
+               "batch forward dynamics": "mujoco.batch.Batch.forward"},
+    "Pinocchio": {"forward dynamics": "aba", "inverse dynamics": "rnea", "mass matrix": "crba",
+                  "RK4 step": "RK4 in Python, 4 aba", "batch forward dynamics": "loop of aba"},
+    "PyBullet": {"forward dynamics": "M + ID + solve", "inverse dynamics": "calculateInverseDynamics",
+                 "mass matrix": "calculateMassMatrix", "RK4 step": "RK4 in Python, 4 FD",
+                 "batch forward dynamics": "loop of M + ID + solve"},
+    "Robotics Toolbox": {"forward dynamics": "accel", "inverse dynamics": "rne", "mass matrix": "inertia",
+                         "RK4 step": "RK4 in Python, 4 accel", "batch forward dynamics": "loop of accel"},
+}
+
+
+def load_peers(robot, only=None):
+    """({label: (version, ops)}, [notes]) for the peers that import; a note for each that does not."""
+    peers, notes = {}, []
+    for label, (module, package, build) in PEERS.items():
+        if only is not None and label not in only:
+            continue
+        try:
+            __import__(module)
+        except ImportError as e:
+            notes.append(f"{label} skipped: not installed ({e}); pip install {package}, or .[peers]")
+            continue
+        try:
+            peers[label] = build(robot)
+        except Exception as e:  # noqa: BLE001 - a peer that cannot load the robot is reported, not fatal
+            notes.append(f"{label} skipped: could not load the robot: {type(e).__name__}: {e}")
+    return peers, notes
+
+
+def states(robot, count, seed=0):
+    rng = np.random.default_rng(seed)
+    lim = robot.q_limits
+    out = []
+    for _ in range(count):
+        q = rng.uniform(lim[:, 0], lim[:, 1])
+        out.append((q, rng.normal(size=robot.dof) * 2, rng.normal(size=robot.dof) * 5, rng.normal(size=robot.dof)))
+    return out
+
+
+def inputs(op, state):
+    q, qd, tau, qdd = state
+    return {"forward dynamics": (q, qd, tau), "inverse dynamics": (q, qd, qdd), "mass matrix": (q,),
+            "RK4 step": (q, qd, tau)}[op]
+
+
+def agreement(robot, ours, peers, count=5, batch=8):
+    """{label: {op: relative difference}}: each peer against coopsim on `count` random states (and a batch)."""
+    ss = states(robot, count, seed=1)
+    Q, QD, TAU, _ = (np.array(x) for x in zip(*states(robot, batch, seed=2)))
+    out = {}
+    for label, (_, ops) in peers.items():
+        out[label] = {}
+        for op in OPS:
+            try:
+                if op == "batch forward dynamics":
+                    err = rel(ops[op](Q, QD, TAU), ours[op](Q, QD, TAU))
+                else:
+                    err = 0.0
+                    for s in ss:
+                        a, b = ops[op](*inputs(op, s)), ours[op](*inputs(op, s))
+                        if op == "mass matrix" and label == "Pinocchio":
+                            a, b = np.triu(a), np.triu(b)
+                        err = max(err, rel(a, b))
+            except Exception as e:  # noqa: BLE001 - a failing call is a disagreement, reported
+                err = f"{type(e).__name__}: {e}"
+            out[label][op] = err
+    return out
+
+
+def agrees(err):
+    return isinstance(err, float) and err <= TOL
+
+
+def per_call(fn, args, target_s=0.01):
+    """How many calls of fn(*args) make about target_s seconds."""
+    t0 = time.perf_counter()
+    fn(*args)
+    one = max(time.perf_counter() - t0, 1e-7)
+    return max(1, int(target_s / one))
+
+
+def interleaved(entries, repeats, target_s):
+    """entries: [(key, fn, args, units per call)] -> {key: median ns per unit}, every entry timed in turn per repeat."""
+    plan = []
+    for key, fn, args, units in entries:
+        fn(*args)
+        plan.append((key, fn, args, units, per_call(fn, args, target_s)))
+    times = {key: [] for key, *_ in plan}
+    for r in range(repeats):
+        order = plan[r % len(plan):] + plan[:r % len(plan)]  # rotate who goes first
+        for key, fn, args, units, calls in order:
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                fn(*args)
+            times[key].append((time.perf_counter() - t0) / (calls * units) * 1e9)
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
+def dynamics_part(robot, peers, notes, repeats, batch_n, loop_n, target_s):
+    ours = peer_coopsim(robot)
+    numeric = peer_coopsim(robot.with_backend("numeric"), "coopsim numeric")
+    print(f"\n## Dynamics from Python: {robot.name} ({robot.dof} joints), coopsim backend '{robot.backend}'; "
+          f"batches on 1 thread (Python loops: first {loop_n} states)")
+    err = agreement(robot, ours, {"coopsim numeric": ("", numeric), **peers})
+    print(f"agreement with coopsim before timing (max relative difference; <= {TOL:g} required for a ratio):")
+    for label, row in err.items():
+        cells = ", ".join(f"{op}: {v:.1e}" if isinstance(v, float) else f"{op}: {v}" for op, v in row.items())
+        print(f"  {label:16} {cells}")
+    s = states(robot, 1, seed=3)[0]
+    Q, QD, TAU, _ = (np.array(x) for x in zip(*states(robot, batch_n, seed=4)))
+    Ql, QDl, TAUl = Q[:loop_n], QD[:loop_n], TAU[:loop_n]
+    results = {}
+    everyone = {"coopsim": ours, "coopsim numeric": numeric, **{k: v[1] for k, v in peers.items()}}
+    for op in OPS:
+        entries = []
+        for label, ops in everyone.items():
+            if label in err and not agrees(err[label][op]):
+                continue
+            if op == "batch forward dynamics":
+                native = label in ("coopsim", "coopsim numeric", "MuJoCo")
+                args = (Q, QD, TAU) if native else (Ql, QDl, TAUl)
+                entries.append((label, ops[op], args, len(args[0])))
+            else:
+                entries.append((label, TIMED.get(label, {}).get(op, ops[op]), inputs(op, s), 1))
+        results[op] = interleaved(entries, repeats, target_s)
+    print(f"\n{'what':24} {'peer':18} {'call':34} {'ns':>11} {'x coopsim':>10}")
+    for op in OPS:
+        base = results[op]["coopsim"]
+        for label in everyone:
+            call = {"coopsim": "Robot method / cs function", "coopsim numeric": "same, numeric backend"}.get(
+                label) or CALL_NAMES[label][op]
+            if op == "batch forward dynamics" and label.startswith("coopsim"):
+                call = f"forward_dynamics_batch, N={batch_n}"
+            if label not in results[op]:
+                e = err[label][op]
+                print(f"{op:24} {label:18} {call:34} {'no ratio: disagrees (' + (f'{e:.1e}' if isinstance(e, float) else e) + ')'}")
+                continue
+            ns = results[op][label]
+            print(f"{op:24} {label:18} {call:34} {ns:11.0f} {ns / base:10.2f}")
+    fd = results["forward dynamics"]
+    for label in ("Pinocchio", "MuJoCo"):
+        if label in fd:
+            ratio = fd["coopsim"] / fd[label]
+            met = ratio <= TARGETS["forward dynamics"]
+            print(f"# target: coopsim forward dynamics <= {TARGETS['forward dynamics']}x {CALL_NAMES[label]['forward dynamics']}: "
+                  f"{ratio:.2f}x -> {'met' if met else 'NOT met'}")
+    return results
+
+
+# ---------------------------------------------------------------- closed loop
+
+def trajectory(robot, duration):
+    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
+    mid, span = (lo + hi) / 2, hi - lo
+    pts = np.array([mid + f * span for f in (-0.1, 0.15, -0.2, 0.05)])
+    return cs.CubicTrajectory(np.linspace(0.0, duration, 4), pts)
+
+
+def gains(robot, traj):
+    """The PID of bench_simulation.py: per-joint kp, ki, kd from M's diagonal at the start, omega = 50 rad/s."""
+    J = np.maximum(np.diag(robot.mass_matrix(traj.evaluate(0.0)[0])), 0.01)
+    w = 50.0
+    return J * w * w, J * w ** 3 / 10, 2 * J * w
+
+
+class PythonPID:
+    """coopsim's PID (derivative on the measured position by backward difference, unfiltered; anti-windup;
+    saturation), in Python, for the peers; gravity comes from the caller (the peer's own)."""
+
+    def __init__(self, kp, ki, kd, tau_max, h):
+        self.kp, self.ki, self.kd, self.tau_max, self.h = kp, ki, kd, tau_max, h
+        self.I = np.zeros_like(kp)
+        self.q_prev = None
+        self.imax = np.where(ki > 0, tau_max / np.where(ki > 0, ki, 1.0), np.inf)
+
+    def __call__(self, q, qd, q_ref, qd_ref, g):
+        v = qd if self.q_prev is None else (q - self.q_prev) / self.h
+        self.q_prev = q.copy()
+        e = q_ref - q
+        u0 = self.kp * e + self.kd * (qd_ref - v) + g
+        I = self.I + e * self.h
+        u = u0 + self.ki * I
+        hold = ((u > self.tau_max) & (e > 0)) | ((u < -self.tau_max) & (e < 0))
+        I = np.clip(np.where(hold, self.I, I), -self.imax, self.imax)
+        self.I = I
+        return np.clip(u0 + self.ki * I, -self.tau_max, self.tau_max)
+
+
+def tracking(Q, Qref, joint_types):
+    """Max |q - q_ref| over the run: revolute joints (mrad), prismatic joints (mm)."""
+    e = np.abs(np.asarray(Q) - np.asarray(Qref)).max(axis=0) * 1e3
+    rev = np.array([t == "R" for t in joint_types])
+    return f"{e[rev].max():.3f} mrad / {e[~rev].max():.3f} mm"
+
+
+def loop_coopsim(robot, traj, kp, ki, kd, steps):
+    sim = cs.Simulation(DT)
+    sim.add_robot(robot, cs.PID(kp, ki, kd), traj)
+    t0 = time.perf_counter()
+    log = sim.run(steps * DT, progress=False)
+    wall = time.perf_counter() - t0
+    return wall, log[0].q, log[0].q_ref
+
+
+def mujoco_spec_with(robot, kind, kp=None, kd=None):
+    """The URDF in MjSpec with gravity compensation (gravcomp) and one actuator per joint: 'motor' (ctrl = torque)
+    or 'pd' (affine: kp ctrl - kp q - kd qd, with ctrl = q_ref + kd/kp qd_ref), limited to the actuator limits."""
+    import mujoco
+    spec = mujoco.MjSpec.from_string(robot.to_urdf())
+    for b in spec.bodies:
+        b.gravcomp = 1.0
+    for i, j in enumerate([j for j in spec.joints]):
+        a = spec.add_actuator()
+        a.name, a.target, a.trntype = f"act_{j.name}", j.name, mujoco.mjtTrn.mjTRN_JOINT
+        a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        a.forcerange = [-robot.tau_limits[i], robot.tau_limits[i]]
+        a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        a.gainprm[0] = 1.0 if kind == "motor" else kp[i]
+        if kind == "pd":
+            a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            a.biasprm[0], a.biasprm[1], a.biasprm[2] = 0.0, -kp[i], -kd[i]
+    m = spec.compile()
+    m.opt.timestep = DT
+    m.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT  # as coopsim's Simulation without a world
+    return m
+
+
+def loop_mujoco_python(robot, traj, kp, ki, kd, steps):
+    import mujoco
+    m = mujoco_spec_with(robot, "motor")
+    d = mujoco.MjData(m)
+    t = np.arange(steps + 1) * DT
+    q_ref, qd_ref, _ = traj.evaluate(t)
+    d.qpos[:], d.qvel[:] = q_ref[0], qd_ref[0]
+    pid = PythonPID(kp, ki, kd, robot.tau_limits, DT)
+    zero = np.zeros(robot.dof)
+    Q = np.empty((steps + 1, robot.dof))
+    t0 = time.perf_counter()
+    for k in range(steps):
+        q, qd = d.qpos.copy(), d.qvel.copy()
+        Q[k] = q
+        d.ctrl[:] = pid(q, qd, q_ref[k], qd_ref[k], zero)  # gravity: MuJoCo's gravcomp
+        mujoco.mj_step(m, d)
+    Q[steps] = d.qpos
+    return time.perf_counter() - t0, Q, q_ref
+
+
+def loop_mujoco_rollout(robot, traj, kp, ki, kd, steps):
+    import mujoco
+    from mujoco import rollout
+    m = mujoco_spec_with(robot, "pd", kp, kd)
+    d = mujoco.MjData(m)
+    t = np.arange(steps + 1) * DT
+    q_ref, qd_ref, _ = traj.evaluate(t)
+    d.qpos[:], d.qvel[:] = q_ref[0], qd_ref[0]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    x0 = np.zeros(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, x0, spec)
+    ctrl = (q_ref[:steps] + kd / kp * qd_ref[:steps])[None]
+    t0 = time.perf_counter()
+    state, _ = rollout.rollout(m, d, x0[None], ctrl)
+    wall = time.perf_counter() - t0
+    nq = m.nq
+    Q = np.vstack([q_ref[:1], state[0, :, 1:1 + nq]])  # state rows after each step; column 0 is time
+    return wall, Q, q_ref
+
+
+def loop_pybullet(robot, traj, kp, ki, kd, steps):
+    import pybullet as pb
+    path = urdf_file(robot)
+    c = pb.connect(pb.DIRECT)
+    try:
+        pb.setGravity(*robot.gravity_acceleration, physicsClientId=c)
+        body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
+    finally:
+        os.unlink(path)
+    try:
+        pb.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, physicsClientId=c)
+        joints = [j for j in range(pb.getNumJoints(body, physicsClientId=c))
+                  if pb.getJointInfo(body, j, physicsClientId=c)[2] != pb.JOINT_FIXED]
+        t = np.arange(steps + 1) * DT
+        q_ref, qd_ref, _ = traj.evaluate(t)
+        for k, j in enumerate(joints):
+            pb.resetJointState(body, j, q_ref[0, k], qd_ref[0, k], physicsClientId=c)
+        for j in range(-1, pb.getNumJoints(body, physicsClientId=c)):
+            pb.changeDynamics(body, j, linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
+        pb.setJointMotorControlArray(body, joints, pb.VELOCITY_CONTROL, forces=[0.0] * len(joints),
+                                     physicsClientId=c)  # free the joints of the default motors
+        pid = PythonPID(kp, ki, kd, robot.tau_limits, DT)
+        zero = [0.0] * robot.dof
+        Q = np.empty((steps + 1, robot.dof))
+        t0 = time.perf_counter()
+        for k in range(steps):
+            js = pb.getJointStates(body, joints, physicsClientId=c)
+            q, qd = np.array([s[0] for s in js]), np.array([s[1] for s in js])
+            Q[k] = q
+            g = np.array(pb.calculateInverseDynamics(body, q.tolist(), zero, zero, physicsClientId=c))
+            tau = pid(q, qd, q_ref[k], qd_ref[k], g)
+            pb.setJointMotorControlArray(body, joints, pb.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=c)
+            pb.stepSimulation(physicsClientId=c)
+        Q[steps] = [s[0] for s in pb.getJointStates(body, joints, physicsClientId=c)]
+        return time.perf_counter() - t0, Q, q_ref
+    finally:
+        pb.disconnect(c)
+
+
+def loop_part(robot, peers, repeats, t_end):
+    steps = round(t_end / DT)
+    traj = trajectory(robot, t_end)
+    kp, ki, kd = gains(robot, traj)
+    runs = [("coopsim", "Simulation.run, PID in C++, RK4", loop_coopsim)]
+    if "MuJoCo" in peers:
+        runs += [("MuJoCo", "mj_step RK4, PID in Python, motors", loop_mujoco_python),
+                 ("MuJoCo", "rollout RK4, native PD+ff actuators", loop_mujoco_rollout)]
+    if "PyBullet" in peers:
+        runs += [("PyBullet", "stepSimulation (semi-impl. Euler), PID in Python", loop_pybullet)]
+    walls = {i: [] for i in range(len(runs))}
+    errors = {}
+    for r in range(repeats):
+        for i, (label, how, fn) in enumerate(runs):
+            wall, Q, Qref = fn(robot, traj, kp, ki, kd, steps)
+            walls[i].append(wall)
+            errors[i] = tracking(Q, Qref, robot.joint_types)
+    print(f"\n## Closed loop: {robot.name} tracking a cubic under PID (gravity compensation), {t_end:g} s at "
+          f"{DT * 1e3:g} ms ({steps} steps), median of {repeats}")
+    print(f"{'peer':10} {'how':50} {'ms':>9} {'real-time x':>12} {'coopsim / it':>13}  max tracking error")
+    base = statistics.median(walls[0])
+    rtf = {}
+    for i, (label, how, _) in enumerate(runs):
+        w = statistics.median(walls[i])
+        rtf[(label, how)] = t_end / w
+        print(f"{label:10} {how:50} {w * 1e3:9.1f} {t_end / w:12.1f} {w / base:13.1f}  {errors[i]}")
+    for (label, how), x in rtf.items():
+        if label == "MuJoCo":
+            ratio = rtf[runs[0][:2]] / x
+            print(f"# target: coopsim >= {TARGETS['closed loop']:g}x the real-time factor of MuJoCo ({how}): "
+                  f"{ratio:.1f}x -> {'met' if ratio >= TARGETS['closed loop'] else 'NOT met'}")
+    return rtf
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repeats, a shorter closed loop")
+    ap.add_argument("--part", choices=["dynamics", "loop", "all"], default="all")
+    args = ap.parse_args(argv)
+    repeats = 3 if args.quick else 9
+    robot = cs.robots.scara1()
+    print(f"# coopsim {cs.__version__} (optimised build: {cs._core.build_optimised}), numpy {np.__version__}, "
+          f"Python {platform.python_version()}, {platform.machine()}, {os.cpu_count()} cores, "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+    peers, notes = load_peers(robot)
+    for label, (version, _) in peers.items():
+        print(f"# {label} {version}")
+    for note in notes:
+        print(f"# {note}")
+    if args.part in ("dynamics", "all"):
+        dynamics_part(robot, peers, notes, repeats, batch_n=2000 if args.quick else 20000,
+                      loop_n=200 if args.quick else 1000, target_s=0.005 if args.quick else 0.02)
+    if args.part in ("loop", "all"):
+        loop_part(robot, peers, 1 if args.quick else 3, 1.0 if args.quick else T_LOOP)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
