@@ -582,9 +582,11 @@ def loop_pybullet(robot, traj, kp, ki, kd, steps):
 
 def loop_part(robot, peers, repeats, t_end):
     steps = round(t_end / DT)
-    traj = trajectory(robot, t_end)
+    traj = trajectory(robot, T_LOOP)  # --quick runs its first second
     kp, ki, kd = gains(robot, traj)
-    runs = [("coopsim", "Simulation.run, PID in C++, RK4", loop_coopsim)]
+    runs = [("coopsim", "Simulation.run, PID in C++, RK4", loop_coopsim),
+            ("coopsim", "the same, ki = 0 (the native actuators' PD)",
+             lambda r, tr, kp, ki, kd, n: loop_coopsim(r, tr, kp, 0 * ki, kd, n))]
     if "MuJoCo" in peers:
         runs += [("MuJoCo", "mj_step RK4, PID in Python, motors", loop_mujoco_python),
                  ("MuJoCo", "rollout RK4, native PD+ff actuators", loop_mujoco_rollout)]
@@ -599,18 +601,23 @@ def loop_part(robot, peers, repeats, t_end):
             errors[i] = tracking(Q, Qref, robot.joint_types)
     print(f"\n## Closed loop: {robot.name} tracking a cubic under PID (gravity compensation), {t_end:g} s at "
           f"{DT * 1e3:g} ms ({steps} steps), median of {repeats}")
-    print(f"{'peer':10} {'how':50} {'ms':>9} {'real-time x':>12} {'coopsim / it':>13}  max tracking error")
+    print(f"{'peer':10} {'how':50} {'ms':>9} {'real-time x':>12} {'x coopsim':>10}  max tracking error")
     base = statistics.median(walls[0])
     rtf = {}
     for i, (label, how, _) in enumerate(runs):
         w = statistics.median(walls[i])
         rtf[(label, how)] = t_end / w
-        print(f"{label:10} {how:50} {w * 1e3:9.1f} {t_end / w:12.1f} {w / base:13.1f}  {errors[i]}")
+        print(f"{label:10} {how:50} {w * 1e3:9.1f} {t_end / w:12.1f} {w / base:10.1f}  {errors[i]}")
     for (label, how), x in rtf.items():
         if label == "MuJoCo":
             ratio = rtf[runs[0][:2]] / x
+            met = ratio >= TARGETS["closed loop"]
             print(f"# target: coopsim >= {TARGETS['closed loop']:g}x the real-time factor of MuJoCo ({how}): "
-                  f"{ratio:.1f}x -> {'met' if ratio >= TARGETS['closed loop'] else 'NOT met'}")
+                  f"{ratio:.1f}x -> {'met' if met else 'NOT met'}")
+            if not met and "rollout" in how:
+                print("#   why: with native actuators and rollout MuJoCo's loop has no Python in it either; what is "
+                      "left is its per-step cost (RK4 = four mj_forward with actuation and gravcomp, against "
+                      "coopsim's closed-form dynamics), the ratio of the RK4 step row above")
     return rtf
 
 

@@ -1,0 +1,73 @@
+"""benchmarks/bench_peers.py cannot rot: every peer that is installed loads coopsim's URDF export (or DH
+table) and computes coopsim's numbers before anything is timed, and the closed-loop runs track the
+same cubic under the same PID (a short run, no timing asserted)."""
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "benchmarks"))
+import bench_peers  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return cs.robots.scara1()
+
+
+@pytest.fixture(scope="module")
+def peers(robot):
+    peers, notes = bench_peers.load_peers(robot)
+    for label, (module, _, _) in bench_peers.PEERS.items():
+        if importlib.util.find_spec(module) is not None:  # installed: it must load, not be skipped
+            assert label in peers, notes
+        else:
+            assert any(n.startswith(label + " skipped") for n in notes)
+    return peers
+
+
+def test_every_installed_peer_agrees_before_timing(robot, peers):
+    ours = bench_peers.peer_coopsim(robot)
+    numeric = bench_peers.peer_coopsim(robot.with_backend("numeric"), "coopsim numeric")
+    err = bench_peers.agreement(robot, ours, {"coopsim numeric": ("", numeric), **peers}, count=2, batch=3)
+    for label, row in err.items():
+        assert set(row) == set(bench_peers.OPS)
+        for op, e in row.items():
+            assert bench_peers.agrees(e), (label, op, e)
+
+
+def test_a_disagreeing_peer_gets_no_ratio(robot):
+    ours = bench_peers.peer_coopsim(robot)
+    off = {op: (lambda f: lambda *a: f(*a) * (1 + 1e-6))(fn) for op, fn in ours.items()}
+    err = bench_peers.agreement(robot, ours, {"off": ("", off)}, count=1, batch=2)
+    assert not any(bench_peers.agrees(e) for e in err["off"].values())
+
+
+def test_timing_is_interleaved_medians():
+    out = bench_peers.interleaved([("a", lambda: None, (), 1), ("b", lambda x: x, (1,), 2)], 3, 1e-4)
+    assert set(out) == {"a", "b"} and all(v > 0 for v in out.values())
+
+
+def test_closed_loops_do_the_same_job(robot, peers):
+    """0.1 s of the closed loop: coopsim and each installed peer follow the same reference, and the
+    PID-in-Python peers land on coopsim's trajectory (the same controller; integrators differ)."""
+    steps = 500
+    traj = bench_peers.trajectory(robot, bench_peers.T_LOOP)
+    kp, ki, kd = bench_peers.gains(robot, traj)
+    _, Q0, R0 = bench_peers.loop_coopsim(robot, traj, kp, ki, kd, steps)
+    runs = []
+    if "MuJoCo" in peers:
+        runs += [(bench_peers.loop_mujoco_python, 1e-6), (bench_peers.loop_mujoco_rollout, 2e-3)]
+    if "PyBullet" in peers:
+        runs += [(bench_peers.loop_pybullet, 1e-4)]
+    for fn, tol in runs:
+        _, Q, R = fn(robot, traj, kp, ki, kd, steps)
+        assert Q.shape == Q0.shape == (steps + 1, robot.dof)
+        np.testing.assert_allclose(R, R0, atol=1e-12)
+        assert np.abs(Q - Q0).max() <= tol, fn.__name__
