@@ -27,11 +27,21 @@ by ``mujoco.rollout``; PyBullet (semi-implicit Euler, its only integrator)
 with the PID in Python. The tracking error is printed beside the speed: it
 shows that each did the same job.
 
+Part 3, the cooperative scene: one cycle of the task (``handover.run``,
+computed torque, controllers and world at every 0.2 ms RK4 step) against
+the same scene in MuJoCo (an MjSpec built from our robots' URDF export and
+``coopsim.tasks.scene``: both SCARAs, floor, container walls, the bar free,
+a weld per robot switched on and off at coopsim's grasp and release times),
+RK4 at 0.2 ms with contacts every step, replaying coopsim's references under
+native PD + feed-forward actuators; real-time factors, and where each puts
+the bar. MuJoCo's friction is the larger of two geoms' and coopsim's (Bullet's)
+the product: the MJCF gives the bar 0 and what it touches the product.
+
 Timings are interleaved (each repeat times every peer in turn) and each
 figure is the median over repeats; ratios are taken within this run. Set
 OPENBLAS_NUM_THREADS=1 on a shared machine.
 
-    python benchmarks/bench_peers.py [--quick] [--part dynamics|loop|all] [--repeats N]
+    python benchmarks/bench_peers.py [--quick] [--part dynamics|loop|scene|all] [--repeats N]
 """
 from __future__ import annotations
 
@@ -625,10 +635,152 @@ def loop_part(robot, peers, repeats, t_end):
     return rtf
 
 
+# ---------------------------------------------------------------- the cooperative scene
+
+def mujoco_quat(R):
+    import mujoco
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
+    return q
+
+
+def mujoco_scene(robots, gains_kp, gains_kd):
+    """The task's scene as an MjSpec, from our robots and world: both SCARAs from their URDF export
+    (prefixes r0_, r1_), gravity compensation, one affine PD + velocity feed-forward actuator per joint
+    limited to the actuator limits; the floor, the container's four walls, the bar (a free box), and a
+    weld between each robot's last link and the bar, inactive until the grasp. Collision groups: robots
+    touch the scenery and the bar, not each other (the task fails on any robot-robot contact anyway)."""
+    import mujoco
+    from coopsim.tasks import scene
+    spec = mujoco.MjSpec()
+    spec.option.timestep = DT
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    wb = spec.worldbody
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    # coopsim's (Bullet's) contact friction is the product of the two bodies' coefficients, MuJoCo's the larger:
+    # the bar gets 0 and everything it touches the product with the bar's (only the bar touches anything)
+    mu = scene.BAR_FRICTION
+    wb.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[3, 3, 0.1],
+                friction=[scene.FLOOR_FRICTION * mu, 0.005, 0.0001], contype=2, conaffinity=1)
+    for name, he, T in scene.container_walls():
+        wb.add_geom(name=name, type=box, size=he, pos=T[:3, 3], quat=mujoco_quat(T[:3, :3]),
+                    friction=[scene.CONTAINER["friction"] * mu, 0.005, 0.0001], contype=2, conaffinity=1)
+    T = scene.bar_pose()
+    bar = wb.add_body(name="bar", pos=T[:3, 3], quat=mujoco_quat(T[:3, :3]))
+    bar.add_freejoint()
+    bar.add_geom(name="bar", type=box, size=scene.BAR_HALF_EXTENTS, mass=scene.BAR_MASS,
+                 friction=[0.0, 0.0, 0.0], contype=3, conaffinity=3)
+    for i, r in enumerate(robots):
+        child = mujoco.MjSpec.from_string(r.to_urdf())
+        for g in child.geoms:
+            g.contype, g.conaffinity = 1, 2
+            g.friction = [1.0 * mu, 0.005, 0.0001]  # links' default 1
+        for b in child.bodies:
+            b.gravcomp = 1.0
+        spec.attach(child, prefix=f"r{i}_", frame=wb.add_frame())
+        for k in range(r.dof):
+            a = spec.add_actuator()
+            a.name, a.target, a.trntype = f"r{i}_act{k + 1}", f"r{i}_joint{k + 1}", mujoco.mjtTrn.mjTRN_JOINT
+            a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            a.forcerange = [-r.tau_limits[k], r.tau_limits[k]]
+            a.gainprm[0] = gains_kp[i][k]
+            a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            a.biasprm[0], a.biasprm[1], a.biasprm[2] = 0.0, -gains_kp[i][k], -gains_kd[i][k]
+        eq = spec.add_equality()
+        eq.name, eq.type, eq.objtype = f"weld{i}", mujoco.mjtEq.mjEQ_WELD, mujoco.mjtObj.mjOBJ_BODY
+        eq.name1, eq.name2, eq.active = f"r{i}_link{r.dof}", "bar", False
+    return spec.compile()
+
+
+def weld_now(m, d, e):
+    """Weld e holds its two bodies where they are now: relpose of body2 in body1."""
+    import mujoco
+    b1, b2 = m.eq_obj1id[e], m.eq_obj2id[e]
+    R1 = d.xmat[b1].reshape(3, 3)
+    m.eq_data[e, 0:3] = 0.0
+    m.eq_data[e, 3:6] = R1.T @ (d.xpos[b2] - d.xpos[b1])
+    q1inv = np.zeros(4)
+    mujoco.mju_negQuat(q1inv, d.xquat[b1])
+    mujoco.mju_mulQuat(m.eq_data[e, 6:10], q1inv, d.xquat[b2])
+    d.eq_active[e] = 1
+
+
+def through(p):
+    """Whether a bar centre p has passed the container's lower end (along its axis)."""
+    from coopsim.tasks import scene
+    axis = scene.container_axes()[:, 0]
+    return bool((np.asarray(p) - scene.CONTAINER["mouth"]) @ axis > scene.CONTAINER["length"])
+
+
+def scene_part(repeats):
+    """The cooperative task (one cycle) in coopsim with its controllers and world at every 0.2 ms step, then the
+    same scene in MuJoCo (RK4 at 0.2 ms, contacts every step) replaying coopsim's references for both robots
+    and welding the bar at coopsim's grasp and release times; real-time factors, and what each reports."""
+    import mujoco
+    from coopsim.tasks import handover as H
+    walls = []
+    for _ in range(repeats):
+        res = H.run(cycles=1, control_every=1, world_every=1, log_every=1, score=False)
+        walls.append(res.timing["run"])
+    log, t_sim = res.log, float(res.report["simulated_time"])
+    robots = [rl for rl in log.robots]
+    from coopsim.tasks import scene
+    r0, r1 = scene.scaras()
+    kp, kd = [], []
+    for r, w in zip((r0, r1), H.OMEGA):  # the task's computed-torque bandwidths as PD gains on M's diagonal
+        Mii = np.maximum(np.diag(r.mass_matrix(robots[0 if r is r0 else 1].q_ref[0])), 0.01)
+        kp.append(Mii * w * w)
+        kd.append(2 * Mii * w)
+    m = mujoco_scene((r0, r1), kp, kd)
+    steps = len(log.t) - 1
+    ctrl = np.hstack([robots[i].q_ref + kd[i] / kp[i] * robots[i].qd_ref for i in range(2)])
+    g = log.grasps
+    events = {int(round(t / DT)): (int(rb), ev) for t, rb, ev in zip(g["t"], g["robot"], g["event"])}
+    mj_walls = []
+    for _ in range(repeats):
+        d = mujoco.MjData(m)
+        for i in range(2):
+            for k in range(6):
+                d.joint(f"r{i}_joint{k + 1}").qpos[0] = robots[i].q[0, k]
+        mujoco.mj_forward(m, d)
+        ncon_max, bar_z_min = 0, np.inf
+        t0 = time.perf_counter()
+        for k in range(steps):
+            ev = events.get(k)
+            if ev is not None:
+                if ev[1] == "grasp":
+                    weld_now(m, d, ev[0])
+                else:
+                    d.eq_active[ev[0]] = 0
+            d.ctrl[:] = ctrl[k]
+            mujoco.mj_step(m, d)
+            ncon_max = max(ncon_max, d.ncon)
+        mj_walls.append(time.perf_counter() - t0)
+    bar_mj = d.body("bar").xpos.copy()
+    bar_cs = log.bodies["bar"].position[-1]
+    w_cs, w_mj = statistics.median(walls), statistics.median(mj_walls)
+    print(f"\n## The cooperative scene: one cycle of the task, {t_sim:.2f} s simulated at {DT * 1e3:g} ms, RK4, "
+          f"contacts every step, median of {repeats}")
+    print(f"{'peer':8} {'how':66} {'wall s':>7} {'real-time x':>12}")
+    print(f"{'coopsim':8} {'handover.run: computed torque, world and grasps in the engine':66} {w_cs:7.2f} "
+          f"{t_sim / w_cs:12.1f}")
+    print(f"{'MuJoCo':8} {'mj_step loop: coopsim references, PD+ff actuators, weld at grasps':66} {w_mj:7.2f} "
+          f"{t_sim / w_mj:12.1f}")
+    ratio = w_mj / w_cs
+    print(f"# coopsim reports: success {res.report['success']}, grasp events {len(g)}; MuJoCo: at most "
+          f"{ncon_max} contacts at once, the bar ends at {np.round(bar_mj, 3).tolist()}"
+          + f" (coopsim's: {np.round(bar_cs, 3).tolist()}); through the tube: coopsim {through(bar_cs)}, "
+          f"MuJoCo {through(bar_mj)}")
+    print("# coopsim's wall time includes its planning and phase sequencing in Python; MuJoCo's includes a Python "
+          "loop's few us per step around mj_step (contacts, RK4 and the weld: its own cost)")
+    print(f"# target: coopsim >= 2x MuJoCo's speed on the same scene: {ratio:.1f}x -> {'met' if ratio >= 2 else 'NOT met'}")
+    return ratio
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats, a shorter closed loop")
-    ap.add_argument("--part", choices=["dynamics", "loop", "all"], default="all")
+    ap.add_argument("--part", choices=["dynamics", "loop", "scene", "all"], default="all")
     ap.add_argument("--repeats", type=int, help="repeats of each timing (default 3 with --quick, else 15)")
     args = ap.parse_args(argv)
     repeats = args.repeats or (3 if args.quick else 15)
@@ -646,6 +798,11 @@ def main(argv=None):
                       loop_n=200 if args.quick else 1000, target_s=0.005 if args.quick else 0.01)
     if args.part in ("loop", "all"):
         loop_part(robot, peers, 1 if args.quick else max(3, repeats // 3), 1.0 if args.quick else T_LOOP)
+    if args.part in ("scene", "all"):
+        if "MuJoCo" in peers:
+            scene_part(1 if args.quick else 3)
+        else:
+            print("\n# the cooperative scene needs MuJoCo: skipped")
     return 0
 
 

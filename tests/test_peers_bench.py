@@ -71,3 +71,25 @@ def test_closed_loops_do_the_same_job(robot, peers):
         assert Q.shape == Q0.shape == (steps + 1, robot.dof)
         np.testing.assert_allclose(R, R0, atol=1e-12)
         assert np.abs(Q - Q0).max() <= tol, fn.__name__
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="the scene is compared in MuJoCo only")
+def test_the_scene_in_mujoco_welds_where_it_grasps():
+    """The task's scene as MJCF: both SCARAs (12 actuated joints), the bar free (7 coordinates), the floor and
+    the container's four walls; a weld switched on holds the bar where it is (no residual)."""
+    import mujoco
+    from coopsim.tasks import scene
+    r0, r1 = scene.scaras()
+    m = bench_peers.mujoco_scene((r0, r1), [np.full(6, 100.0)] * 2, [np.full(6, 10.0)] * 2)
+    assert (m.nu, m.nq, m.neq) == (12, 19, 2)
+    assert {"floor", "container_bottom", "container_top", "container_left", "container_right", "bar"} <= {
+        m.geom(i).name for i in range(m.ngeom)}
+    d = mujoco.MjData(m)
+    d.joint("r1_joint1").qpos[0], d.joint("r1_joint2").qpos[0] = 0.3, 0.7
+    mujoco.mj_forward(m, d)
+    bench_peers.weld_now(m, d, 1)
+    mujoco.mj_forward(m, d)
+    rows = d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    assert rows.sum() == 6 and np.abs(d.efc_pos[rows]).max() < 1e-12
+    assert bench_peers.through(scene.CONTAINER["mouth"] + scene.container_axes()[:, 0] * 0.5)
+    assert not bench_peers.through(scene.bar_pose()[:3, 3])
