@@ -629,9 +629,11 @@ def loop_part(robot, peers, repeats, t_end):
             print(f"# target: coopsim >= {TARGETS['closed loop']:g}x the real-time factor of MuJoCo ({how}): "
                   f"{ratio:.1f}x -> {'met' if met else 'NOT met'}")
             if not met and "rollout" in how:
-                print("#   why: with native actuators and rollout MuJoCo's loop has no Python in it either; what is "
-                      "left is its per-step cost (RK4 = four mj_forward with actuation and gravcomp, against "
-                      "coopsim's closed-form dynamics), the ratio of the RK4 step row above")
+                us = t_end / x / steps * 1e6
+                print(f"#   why: with native actuators and rollout MuJoCo's loop has no Python in it either; what is "
+                      f"left is its own cost per step, {us:.1f} us (RK4: four mj_forward with actuation and "
+                      f"gravcomp) against coopsim's {t_end / rtf[runs[0][:2]] / steps * 1e6:.1f} us (closed-form "
+                      f"dynamics, PID and log)")
     return rtf
 
 
