@@ -381,7 +381,7 @@ def interleaved(entries, repeats, target_s):
     return {k: statistics.median(v) for k, v in times.items()}
 
 
-def dynamics_part(robot, peers, notes, repeats, batch_n, loop_n, target_s):
+def dynamics_part(robot, peers, repeats, batch_n, loop_n, target_s):
     ours = peer_coopsim(robot)
     numeric = peer_coopsim(robot.with_backend("numeric"), "coopsim numeric")
     print(f"\n## Dynamics from Python: {robot.name} ({robot.dof} joints), coopsim backend '{robot.backend}'; "
@@ -418,7 +418,8 @@ def dynamics_part(robot, peers, notes, repeats, batch_n, loop_n, target_s):
                 call = f"forward_dynamics_batch, N={batch_n}"
             if label not in results[op]:
                 e = err[label][op]
-                print(f"{op:24} {label:18} {call:34} {'no ratio: disagrees (' + (f'{e:.1e}' if isinstance(e, float) else e) + ')'}")
+                why = f"{e:.1e}" if isinstance(e, float) else e
+                print(f"{op:24} {label:18} {call:34} no ratio: disagrees ({why})")
                 continue
             ns = results[op][label]
             print(f"{op:24} {label:18} {call:34} {ns:11.0f} {ns / base:10.2f}")
@@ -427,8 +428,8 @@ def dynamics_part(robot, peers, notes, repeats, batch_n, loop_n, target_s):
         if label in fd:
             ratio = fd["coopsim"] / fd[label]
             met = ratio <= TARGETS["forward dynamics"]
-            print(f"# target: coopsim forward dynamics <= {TARGETS['forward dynamics']}x {CALL_NAMES[label]['forward dynamics']}: "
-                  f"{ratio:.2f}x -> {'met' if met else 'NOT met'}")
+            print(f"# target: coopsim forward dynamics <= {TARGETS['forward dynamics']}x "
+                  f"{CALL_NAMES[label]['forward dynamics']}: {ratio:.2f}x -> {'met' if met else 'NOT met'}")
             if not met:
                 print("#   why: from Python a single call is mostly the call itself (argument checks, conversion "
                       "to and from numpy; see bench_dynamics.py's C++ rows for the dynamics alone), and single "
@@ -775,7 +776,8 @@ def scene_part(repeats):
           f"MuJoCo {through(bar_mj)}")
     print("# coopsim's wall time includes its planning and phase sequencing in Python; MuJoCo's includes a Python "
           "loop's few us per step around mj_step (contacts, RK4 and the weld: its own cost)")
-    print(f"# target: coopsim >= 2x MuJoCo's speed on the same scene: {ratio:.1f}x -> {'met' if ratio >= 2 else 'NOT met'}")
+    print(f"# target: coopsim >= 2x MuJoCo's speed on the same scene: {ratio:.1f}x -> "
+          f"{'met' if ratio >= 2 else 'NOT met'}")
     return ratio
 
 
@@ -796,7 +798,7 @@ def main(argv=None):
     for note in notes:
         print(f"# {note}")
     if args.part in ("dynamics", "all"):
-        dynamics_part(robot, peers, notes, repeats, batch_n=2000 if args.quick else 20000,
+        dynamics_part(robot, peers, repeats, batch_n=2000 if args.quick else 20000,
                       loop_n=200 if args.quick else 1000, target_s=0.005 if args.quick else 0.01)
     if args.part in ("loop", "all"):
         loop_part(robot, peers, 1 if args.quick else max(3, repeats // 3), 1.0 if args.quick else T_LOOP)
