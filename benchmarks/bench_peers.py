@@ -740,13 +740,14 @@ def scene_part(repeats):
     g = log.grasps
     events = {int(round(t / DT)): (int(rb), ev) for t, rb, ev in zip(g["t"], g["robot"], g["event"])}
     mj_walls = []
+    EQUALITY = mujoco.mjtConstraint.mjCNSTR_EQUALITY
     for _ in range(repeats):
         d = mujoco.MjData(m)
         for i in range(2):
             for k in range(6):
                 d.joint(f"r{i}_joint{k + 1}").qpos[0] = robots[i].q[0, k]
         mujoco.mj_forward(m, d)
-        ncon_max, bar_z_min = 0, np.inf
+        ncon_max, weld_peak = 0, [0.0, 0.0]
         t0 = time.perf_counter()
         for k in range(steps):
             ev = events.get(k)
@@ -758,6 +759,12 @@ def scene_part(repeats):
             d.ctrl[:] = ctrl[k]
             mujoco.mj_step(m, d)
             ncon_max = max(ncon_max, d.ncon)
+            if k % 10 == 0 and d.eq_active.any():  # the welds' forces, every 10th step
+                eq = np.flatnonzero(d.efc_type == EQUALITY)
+                for e in range(2):
+                    rows = eq[d.efc_id[eq] == e][:3]
+                    if len(rows):
+                        weld_peak[e] = max(weld_peak[e], float(np.linalg.norm(d.efc_force[rows])))
         mj_walls.append(time.perf_counter() - t0)
     bar_mj = d.body("bar").xpos.copy()
     bar_cs = log.bodies["bar"].position[-1]
@@ -770,8 +777,12 @@ def scene_part(repeats):
     print(f"{'MuJoCo':8} {'mj_step loop: coopsim references, PD+ff actuators, weld at grasps':66} {w_mj:7.2f} "
           f"{t_sim / w_mj:12.1f}")
     ratio = w_mj / w_cs
-    print(f"# coopsim reports: success {res.report['success']}, grasp events {len(g)}; MuJoCo: at most "
-          f"{ncon_max} contacts at once, the bar ends at {np.round(bar_mj, 3).tolist()}"
+    cs_peak = [float(np.linalg.norm(rl.weld[:, :3], axis=1).max()) for rl in robots]
+    ncon_cs = len(log.contacts) if log.contacts is not None else 0
+    print(f"# coopsim reports: success {res.report['success']}, {len(g)} grasp events, {ncon_cs} contact events, "
+          f"peak weld force #1 {cs_peak[0]:.2f} N, #2 {cs_peak[1]:.2f} N; MuJoCo: at most {ncon_max} contacts at "
+          f"once, peak weld force (every 10th step) #1 {weld_peak[0]:.2f} N, #2 {weld_peak[1]:.2f} N")
+    print(f"# where the bar ends: MuJoCo {np.round(bar_mj, 3).tolist()}"
           + f" (coopsim's: {np.round(bar_cs, 3).tolist()}); through the tube: coopsim {through(bar_cs)}, "
           f"MuJoCo {through(bar_mj)}")
     print("# coopsim's wall time includes its planning and phase sequencing in Python; MuJoCo's includes a Python "
