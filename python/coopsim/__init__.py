@@ -33,6 +33,8 @@ from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simula
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 from .batch import run_batch, simulate
+from . import sweeps
+from .sweeps import TaskRun, sweep
 from . import view
 
 Robot.to_urdf = to_urdf
@@ -69,4 +71,5 @@ __all__ = [
     "to_urdf",
     "view",
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
+    "sweep", "sweeps", "TaskRun",
 ]

@@ -1,0 +1,292 @@
+"""Sweeps: many independent runs (a gain grid, a task over seeds) on threads, any executor or a Dask cluster.
+
+:func:`sweep` takes simulations (their descriptions pickle to the workers)
+or task runs (:class:`TaskRun`, the keywords of
+:func:`coopsim.tasks.handover.run`), built from a grid or given as a list,
+runs them on this machine's threads (``executor=None``: simulations through
+:func:`coopsim.run_batch`, tasks on a thread pool, the engine releasing the
+GIL), on any ``concurrent.futures.Executor`` (a process pool), or on a Dask
+``distributed.Client`` (a ``LocalCluster`` or a real scheduler: ``pip
+install coopsim[cluster]``), and returns one row of metrics per run in the
+order of the grid, whatever order the workers finish in. A run that raises
+is a row with its error; a run whose worker dies is retried elsewhere by
+Dask; a sweep that times out or is interrupted (Ctrl-C) returns what
+finished, the rest as rows with the error 'not finished'.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import itertools
+import math
+import os
+import socket
+import time
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from .simulation import Simulation
+
+__all__ = ["sweep", "grid", "TaskRun", "run_one"]
+
+NOT_FINISHED = "not finished"
+
+
+class TaskRun:
+    """One run of the cooperative task: `options` are the keywords of
+    :func:`coopsim.tasks.handover.run` (seed=, bars=, cycles=, container_shift=, ...;
+    score=False unless given). Plain values only, so it pickles anywhere."""
+
+    def __init__(self, **options):
+        self.options = dict(options)
+
+    def __eq__(self, other):
+        return isinstance(other, TaskRun) and self.options == other.options
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        return "TaskRun(" + ", ".join(f"{k}={v!r}" for k, v in self.options.items()) + ")"
+
+
+def grid(**axes) -> List[dict]:
+    """The points of a grid as dicts, the last axis varying fastest (nested loops in the order given):
+    ``grid(kp=[100, 200], kd=[5, 10])`` -> [{kp: 100, kd: 5}, {kp: 100, kd: 10}, {kp: 200, kd: 5}, ...]."""
+    names = list(axes)
+    return [dict(zip(names, values)) for values in itertools.product(*(list(axes[k]) for k in names))]
+
+
+def _where() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _error_text(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}"
+
+
+def _sim_metrics(sim: Simulation) -> dict:
+    row = {}
+    for i, m in enumerate(sim.metrics()):
+        for name, key in (("rms_error", "rms_error"), ("max_error", "max_abs_error"), ("peak_tau", "max_abs_tau")):
+            for j, v in enumerate(np.asarray(m[key], dtype=float)):
+                row[f"{name}_{i}_{j}"] = float(v)
+    return row
+
+
+def _run_simulation(sim: Simulation, t_end: float, keep_log: bool) -> dict:
+    w0 = time.perf_counter()
+    row = dict(error=None, worker=_where())
+    try:
+        sim.run(t_end, progress=False)
+    except Exception as e:  # a diverging run is a row with its error, its metrics up to the failure
+        row["error"] = _error_text(e)
+    row["wall_time"] = time.perf_counter() - w0
+    row["simulated_time"] = sim.time
+    row["steps"] = sim.steps
+    row.update(_sim_metrics(sim))
+    if keep_log:
+        row["log"] = sim.log
+    return row
+
+
+def _run_task(task: TaskRun, keep_log: bool) -> dict:
+    from .tasks import handover as H
+
+    options = dict(task.options)
+    options.setdefault("score", False)
+    w0 = time.perf_counter()
+    row = dict(error=None, worker=_where())
+    try:
+        res = H.run(**options)
+    except Exception as e:  # an IKError at planning time, a bad option: a row with its error
+        row.update(success=False, step="planning", reason=_error_text(e), error=_error_text(e),
+                   wall_time=time.perf_counter() - w0, simulated_time=0.0)
+        return row
+    row["wall_time"] = time.perf_counter() - w0
+    c = res.report["cycles"][-1]
+    row.update(success=bool(res.success), step=c.get("failed_step"), reason=c.get("reason"),
+               simulated_time=float(res.report["simulated_time"]), steps=res.sim.steps)
+    bar = res.report["bars"][0]
+    row.update(bar_x=float(bar[0][3]), bar_y=float(bar[1][3]), bar_yaw=float(math.atan2(bar[1][0], bar[0][0])))
+    row.update(_sim_metrics(res.sim))
+    if keep_log:
+        row["log"] = res.log
+    return row
+
+
+def run_one(item, t_end: Optional[float] = None, keep_log: bool = False) -> dict:
+    """Runs one item of a sweep (a Simulation up to t_end, or a TaskRun) and returns its row as a dict.
+
+    A module-level function, so any executor can run it; it never raises for a run that fails
+    (the row's 'error' says why)."""
+    try:
+        if isinstance(item, TaskRun):
+            return _run_task(item, keep_log)
+        return _run_simulation(item, t_end, keep_log)
+    except Exception as e:  # noqa: BLE001 - whatever happens, the sweep gets its row
+        return dict(error=_error_text(e), worker=_where())
+
+
+def _is_dask_client(executor) -> bool:
+    mod = type(executor).__module__ or ""
+    return mod.split(".")[0] == "distributed" and hasattr(executor, "scheduler_info")
+
+
+def _items_from(runs, grid_points) -> tuple:
+    """(items, params): params a list of dicts (grid columns) or None."""
+    if callable(runs) and not isinstance(runs, (Simulation, TaskRun)):
+        if grid_points is None:
+            raise ValueError("a callable `runs` needs grid= (a dict of axes or a list of dicts)")
+        points = grid(**grid_points) if isinstance(grid_points, Mapping) else [dict(p) for p in grid_points]
+        return [runs(**p) for p in points], points
+    if isinstance(runs, (Simulation, TaskRun)):
+        raise ValueError("runs must be a sequence of Simulation or TaskRun (or a callable with grid=), got one "
+                         f"{type(runs).__name__}")
+    items = list(runs)
+    if grid_points is not None:
+        points = grid(**grid_points) if isinstance(grid_points, Mapping) else [dict(p) for p in grid_points]
+        if len(points) != len(items):
+            raise ValueError(f"grid has {len(points)} points for {len(items)} runs")
+        return items, points
+    return items, None
+
+
+def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float] = None, *,
+          grid: Union[Mapping[str, Iterable], Sequence[Mapping], None] = None, executor=None,
+          threads: Optional[int] = None, keep_logs: bool = False, timeout: Optional[float] = None,
+          on_result: Optional[Callable[[int, dict], Any]] = None):
+    """Runs many independent runs and returns a pandas DataFrame, one row per run in the order given.
+
+    runs: a sequence of coopsim.Simulation (run from their state up to t_end, s) and/or
+    :class:`TaskRun` (the cooperative task; t_end unused), or a callable called here, on the client,
+    with each point of `grid` as keywords and returning one of those (``grid`` a dict of axes, see
+    :func:`grid`, or a list of dicts; its values become the first columns).
+
+    executor: None (this machine's threads: simulations in one :func:`coopsim.run_batch` call, tasks on
+    a thread pool; `threads` of them, None for every core), any concurrent.futures.Executor (each run
+    pickled to a worker, see :func:`run_one`), or a Dask distributed.Client (a worker that dies has its
+    runs retried on the others by the scheduler).
+
+    Columns: the grid's, then error (None, or 'Type: message' for a run that raised: a diverging
+    simulation, an IKError, a worker lost too often; the metrics are then those up to the failure or
+    NaN), wall_time (s, the run's own, on its worker), simulated_time (s), steps, worker
+    ('host:pid'), rms_error_i_j, max_error_i_j and peak_tau_i_j (robot i, joint j: RMS and largest
+    absolute tracking error over every step, largest absolute commanded torque), and for the task
+    success, step and reason (of the failure), bar_x, bar_y, bar_yaw. keep_logs=True adds a 'log'
+    column (each run's SimulationLog, shipped back from the workers).
+
+    timeout (s, wall): runs not finished by then (or when Ctrl-C interrupts the sweep) are cancelled
+    and are rows with error 'not finished'. on_result(index, row) is called here as each run
+    finishes (progress; the row as a dict).
+    The simulations given are run in place only with executor=None; otherwise copies run remotely.
+    """
+    import pandas as pd
+
+    items, points = _items_from(runs, grid)
+    for i, it in enumerate(items):
+        if not isinstance(it, (Simulation, TaskRun)):
+            raise ValueError(f"runs[{i}] must be a coopsim.Simulation or a sweeps.TaskRun, got {type(it).__name__}")
+    if any(isinstance(it, Simulation) for it in items):
+        if t_end is None or not isinstance(t_end, (int, float, np.integer, np.floating)) or not math.isfinite(t_end):
+            raise ValueError(f"t_end must be a finite number of seconds for simulations, got {t_end!r}")
+        t_end = float(t_end)
+    if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
+        raise ValueError(f"timeout must be a positive number of seconds or None, got {timeout!r}")
+    rows: List[Optional[dict]] = [None] * len(items)
+
+    def done(i, row):
+        rows[i] = row
+        if on_result is not None:
+            on_result(i, row)
+
+    t0 = time.perf_counter()
+    if executor is None:
+        _sweep_local(items, t_end, threads, keep_logs, timeout, done)
+    elif _is_dask_client(executor):
+        _sweep_dask(executor, items, t_end, keep_logs, timeout, done)
+    elif isinstance(executor, concurrent.futures.Executor):
+        _sweep_executor(executor, items, t_end, keep_logs, timeout, done)
+    else:
+        raise ValueError(f"executor must be None, a concurrent.futures.Executor or a distributed.Client, "
+                         f"got {type(executor).__name__}")
+    for i, r in enumerate(rows):
+        if r is None:
+            rows[i] = dict(error=NOT_FINISHED)
+    df = pd.DataFrame(rows)
+    first = ["error", "wall_time", "simulated_time", "steps", "worker"]
+    if any(isinstance(it, TaskRun) for it in items):
+        first = ["success", "step", "reason", "bar_x", "bar_y", "bar_yaw"] + first
+    for c in first:
+        if c not in df:
+            df[c] = None
+    df = df[first + [c for c in df.columns if c not in first]]
+    if points is not None:
+        df = pd.concat([pd.DataFrame(points, index=df.index), df], axis=1)
+    df.index.name = "run"
+    df.attrs["wall_time"] = time.perf_counter() - t0
+    return df
+
+
+def _sweep_local(items, t_end, threads, keep_logs, timeout, done):
+    from .batch import run_batch
+
+    sims = [(i, s) for i, s in enumerate(items) if isinstance(s, Simulation)]
+    tasks = [(i, s) for i, s in enumerate(items) if isinstance(s, TaskRun)]
+    if sims:
+        # one C++ call on a thread pool, GIL released; a run that raises returns its exception
+        out = run_batch([s for _, s in sims], t_end, threads=threads, output="none", errors="return")
+        for (i, s), e in zip(sims, out):
+            row = dict(error=None if e is None else _error_text(e), worker=_where(),
+                       wall_time=s.stats.wall_time if s.stats is not None else float("nan"),
+                       simulated_time=s.time, steps=s.steps)
+            row.update(_sim_metrics(s))
+            if keep_logs:
+                row["log"] = s.log
+            done(i, row)
+    if tasks:
+        pool = concurrent.futures.ThreadPoolExecutor(max_workers=threads or os.cpu_count() or 1)
+        try:
+            _collect({pool.submit(run_one, t, None, keep_logs): i for i, t in tasks}, timeout, done)
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _collect(futures: Dict[concurrent.futures.Future, int], timeout, done):
+    try:
+        for f in concurrent.futures.as_completed(futures, timeout=timeout):
+            i = futures[f]
+            try:
+                done(i, f.result())
+            except Exception as e:  # a broken pool, a run that could not be pickled
+                done(i, dict(error=_error_text(e)))
+    except (concurrent.futures.TimeoutError, KeyboardInterrupt):
+        pass  # what finished is kept; the rest are 'not finished'
+    finally:
+        for f in futures:
+            f.cancel()
+
+
+def _sweep_executor(executor, items, t_end, keep_logs, timeout, done):
+    _collect({executor.submit(run_one, it, t_end, keep_logs): i for i, it in enumerate(items)}, timeout, done)
+
+
+def _sweep_dask(client, items, t_end, keep_logs, timeout, done):
+    from distributed import as_completed
+    from distributed.client import TimeoutError as DaskTimeout
+
+    # pure=False: every run is its own task, even two equal descriptions
+    futures = client.map(run_one, items, t_end=t_end, keep_log=keep_logs, pure=False)
+    index = {f.key: i for i, f in enumerate(futures)}
+    deadline = None if timeout is None else time.monotonic() + timeout
+    try:
+        ac = as_completed(futures, timeout=timeout)
+        for f in ac:
+            i = index[f.key]
+            try:
+                done(i, f.result(timeout=None if deadline is None else max(0.0, deadline - time.monotonic())))
+            except Exception as e:  # KilledWorker (lost more often than allowed), a cancelled run
+                done(i, dict(error=_error_text(e)))
+    except (DaskTimeout, concurrent.futures.TimeoutError, KeyboardInterrupt):
+        pass
+    finally:
+        client.cancel([f for f in futures if not f.done()])
