@@ -3,6 +3,7 @@ errors as rows; a worker killed mid-sweep loses no row; a sweep cut short return
 from __future__ import annotations
 
 import concurrent.futures
+import logging
 import multiprocessing
 import os
 import signal
@@ -145,7 +146,7 @@ def dask_client():
     # dashboard off (no port, no bokeh); loopback only; each worker one thread, so runs overlap as on 2 threads
     with warnings.catch_warnings():
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                      host="127.0.0.1", silence_logs=True) as cluster, \
+                                      host="127.0.0.1", silence_logs=logging.ERROR) as cluster, \
                 distributed.Client(cluster, timeout=30) as client:
             client.wait_for_workers(2, timeout=60)
             yield client
