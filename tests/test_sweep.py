@@ -141,12 +141,14 @@ def test_bad_arguments():
 # ---- Dask: a LocalCluster of 2 worker processes on this machine ----
 
 @pytest.fixture(scope="module")
-def dask_client():
+def dask_client(tmp_path_factory):
     distributed = pytest.importorskip("distributed")
-    # dashboard off (no port, no bokeh); loopback only; each worker one thread, so runs overlap as on 2 threads
+    # dashboard off (no port, no bokeh); loopback only; each worker one thread, so runs overlap as on 2 threads;
+    # the workers' own, empty cache of generated libraries, as on another machine
+    env = {"COOPSIM_CACHE_DIR": str(tmp_path_factory.mktemp("worker_cache"))}
     with warnings.catch_warnings():
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                      host="127.0.0.1", silence_logs=logging.ERROR) as cluster, \
+                                      host="127.0.0.1", silence_logs=logging.ERROR, env=env) as cluster, \
                 distributed.Client(cluster, timeout=30) as client:
             client.wait_for_workers(2, timeout=60)
             yield client
@@ -170,6 +172,36 @@ def test_the_same_grid_gives_identical_metrics_on_threads_a_process_pool_and_das
     remote = cs.sweep(tasks, executor=dask_client, timeout=60)
     cols = ["success", "step", "reason", "bar_x", "bar_y", "bar_yaw", "error", "simulated_time", "steps"]
     pd.testing.assert_frame_equal(remote[cols + metric_columns(local)], local[cols + metric_columns(local)])
+
+
+def test_generated_dynamics_compiled_here_reach_the_workers(dask_client, tmp_path, monkeypatch):
+    pytest.importorskip("sympy")
+    from coopsim import codegen
+
+    monkeypatch.setenv("COOPSIM_CACHE_DIR", str(tmp_path / "client"))
+    robot = codegen.compile(cs.robots.scara1())  # built here, at run time: not in the engine, not on the workers
+    assert robot.backend == "generated"
+
+    def make_generated(kp, kd):
+        sim = cs.Simulation(log_every=10)
+        sim.add_robot(robot, cs.PID(kp, kp / 10, kd), TRAJ)
+        return sim
+
+    small = dict(kp=[400.0, 6400.0], kd=[80.0])
+    here = cs.sweep(make_generated, T_END, grid=small, threads=2)
+    remote = cs.sweep(make_generated, T_END, grid=small, executor=dask_client, timeout=60)
+    other = tmp_path / "pool"  # a pool whose workers look in another, empty cache
+    with concurrent.futures.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn"),
+                                                initializer=os.putenv, initargs=("COOPSIM_CACHE_DIR", str(other))) as pool:
+        pooled = cs.sweep(make_generated, T_END, grid=small, executor=pool, timeout=60)
+    assert here.error.isna().all() and remote.error.isna().all() and pooled.error.isna().all(), (remote.error, pooled.error)
+    cols = metric_columns(here)
+    pd.testing.assert_frame_equal(remote[cols], here[cols])
+    pd.testing.assert_frame_equal(pooled[cols], here[cols])
+    assert list(other.glob("coopsim_gen_*.so"))  # installed there by the sweep
+    # generated and numeric dynamics agree closely, not bit for bit
+    numeric = cs.sweep(make, T_END, grid=small)
+    np.testing.assert_allclose(here[cols].to_numpy(float), numeric[cols].to_numpy(float), rtol=1e-6, atol=1e-9)
 
 
 def test_a_worker_killed_mid_sweep_loses_no_row(dask_client):

@@ -19,15 +19,17 @@ import concurrent.futures
 import itertools
 import math
 import os
+import pickle
 import socket
 import time
+from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
 from .simulation import Simulation
 
-__all__ = ["sweep", "grid", "TaskRun", "run_one"]
+__all__ = ["sweep", "grid", "TaskRun", "run_one", "run_shipped", "generated_libraries", "install_libraries"]
 
 NOT_FINISHED = "not finished"
 
@@ -127,6 +129,67 @@ def run_one(item, t_end: Optional[float] = None, keep_log: bool = False) -> dict
         return dict(error=_error_text(e), worker=_where())
 
 
+def _cache_folder() -> Path:
+    from . import _core
+
+    d = _core.generated_cache_dir()
+    return Path(d) if d else Path.home() / ".cache" / "coopsim"
+
+
+def generated_libraries(items) -> Dict[str, bytes]:
+    """The shared libraries of the generated dynamics (``codegen.compile``) that the simulations among
+    `items` use, as {name: bytes}, read from this process's ``codegen.cache_dir()`` (dynamics compiled
+    into the engine need none). The sweep ships them to its workers (:func:`install_libraries`)."""
+    from . import _core
+
+    builtin = set(_core.compiled_generated_names())
+    names = set()
+    for it in items:
+        if isinstance(it, Simulation):
+            for r in it.robots:
+                info = _core.generated_info(r)
+                if info is not None and info["name"] not in builtin:
+                    names.add(info["name"])
+    libs = {}
+    for name in sorted(names):
+        path = _cache_folder() / f"coopsim_{name}.so"
+        if not path.is_file():
+            raise ValueError(f"the generated dynamics {name!r} of a robot in the sweep are not in "
+                             f"{_cache_folder()} (compiled with another cache=?): set COOPSIM_CACHE_DIR to "
+                             "that folder to let the sweep ship them to its workers")
+        libs[name] = path.read_bytes()
+    return libs
+
+
+def install_libraries(libs: Mapping[str, bytes]) -> List[str]:
+    """On a worker: writes each generated library into this process's cache folder (unless the same bytes
+    are there) and loads it, so robots compiled on the client unpickle here. Returns the names."""
+    from . import _core
+
+    folder = _cache_folder()
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, data in libs.items():
+        path = folder / f"coopsim_{name}.so"
+        if not (path.is_file() and path.read_bytes() == data):
+            tmp = folder / f".coopsim_{name}.{os.getpid()}.tmp"
+            tmp.write_bytes(data)
+            os.replace(tmp, path)  # atomic: workers sharing the folder never see half a library
+        _core.load_generated_library(str(path))
+    return list(libs)
+
+
+def run_shipped(payload: bytes, libs: Mapping[str, bytes], t_end: Optional[float] = None,
+                keep_log: bool = False) -> dict:
+    """:func:`run_one` for an item pickled with generated dynamics: installs `libs` here first
+    (:func:`install_libraries`), then unpickles and runs it."""
+    try:
+        install_libraries(libs)
+        item = pickle.loads(payload)
+    except Exception as e:  # noqa: BLE001 - the run's row says why it could not start here
+        return dict(error=_error_text(e), worker=_where())
+    return run_one(item, t_end, keep_log)
+
+
 def _is_dask_client(executor) -> bool:
     mod = type(executor).__module__ or ""
     return mod.split(".")[0] == "distributed" and hasattr(executor, "scheduler_info")
@@ -179,6 +242,9 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     and are rows with error 'not finished'. on_result(index, row) is called here as each run
     finishes (progress; the row as a dict).
     The simulations given are run in place only with executor=None; otherwise copies run remotely.
+    Robots with generated dynamics built at run time (``codegen.compile``, found in this process's
+    ``codegen.cache_dir()``) have their libraries shipped with the runs and installed on the workers
+    (same platform and coopsim as here; no compiler needed there).
     """
     import pandas as pd
 
@@ -267,15 +333,27 @@ def _collect(futures: Dict[concurrent.futures.Future, int], timeout, done):
 
 
 def _sweep_executor(executor, items, t_end, keep_logs, timeout, done):
-    _collect({executor.submit(run_one, it, t_end, keep_logs): i for i, it in enumerate(items)}, timeout, done)
+    libs = generated_libraries(items)
+    if libs:  # each run carries the libraries its robots need, and is unpickled after they are installed
+        futures = {executor.submit(run_shipped, pickle.dumps(it), libs, t_end, keep_logs): i
+                   for i, it in enumerate(items)}
+    else:
+        futures = {executor.submit(run_one, it, t_end, keep_logs): i for i, it in enumerate(items)}
+    _collect(futures, timeout, done)
 
 
 def _sweep_dask(client, items, t_end, keep_logs, timeout, done):
     from distributed import as_completed
     from distributed.client import TimeoutError as DaskTimeout
 
+    libs = generated_libraries(items)
     # pure=False: every run is its own task, even two equal descriptions
-    futures = client.map(run_one, items, t_end=t_end, keep_log=keep_logs, pure=False)
+    if libs:  # sent once to every worker; each run installs them before unpickling its description
+        shared = client.scatter([libs], broadcast=True, hash=False)[0]
+        futures = client.map(run_shipped, [pickle.dumps(it) for it in items], libs=shared, t_end=t_end,
+                             keep_log=keep_logs, pure=False)
+    else:
+        futures = client.map(run_one, items, t_end=t_end, keep_log=keep_logs, pure=False)
     index = {f.key: i for i, f in enumerate(futures)}
     deadline = None if timeout is None else time.monotonic() + timeout
     try:
