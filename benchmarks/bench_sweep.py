@@ -10,7 +10,7 @@ wall time times its workers less the runs' own wall times (measured where
 they ran), over the runs; then the same 64 runs of one step each, whose wall
 time per run is the engine's fixed cost. The Dask cluster is a LocalCluster
 of 2 worker processes of one thread each on this machine (its start-up time
-is printed apart). ``--task N`` adds a sweep of the cooperative task over N
+is printed apart); a last row sends the runs to it in tasks of 8 (``chunk=8``). ``--task N`` adds a sweep of the cooperative task over N
 seeds on 2 threads and on the cluster.
 
     python benchmarks/bench_sweep.py [--quick] [--t-end 2.0] [--task 8]
@@ -91,6 +91,7 @@ def main() -> None:
         client.wait_for_workers(2)
         print(f"Dask LocalCluster of 2 workers started in {time.perf_counter() - t0:.2f} s")
         engines.append(("Dask, 2 workers", 2, dict(executor=client)))
+        engines.append(("Dask, chunks of 8", 2, dict(executor=client, chunk=8)))
     try:
         # warm-up: worker imports, first pickles
         for _, _, kw in engines:
@@ -115,7 +116,7 @@ def main() -> None:
         print("(every engine gives the 1-thread metrics bit for bit)")
         if args.task:
             print(f"\ncooperative task over {args.task} seeds (one bar each, score=False)")
-            for name, workers, kw in engines[1:2] + engines[3:]:
+            for name, workers, kw in engines[1:2] + engines[3:4]:
                 t0 = time.perf_counter()
                 df = cs.sweep(cs.TaskRun, grid=dict(seed=range(args.task)), **kw)
                 wall = time.perf_counter() - t0

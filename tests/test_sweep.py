@@ -130,6 +130,8 @@ def test_bad_arguments():
         cs.sweep([make(100.0, 5.0)], T_END, grid=[{}, {}])
     with pytest.raises(ValueError, match=r"runs\[1\]"):
         cs.sweep([make(100.0, 5.0), "x"], T_END)
+    with pytest.raises(ValueError, match="chunk"):
+        cs.sweep([make(100.0, 5.0)], T_END, chunk=0)
     with pytest.raises(ValueError, match="executor"):
         cs.sweep([make(100.0, 5.0)], T_END, executor=object())
     assert cs.sweeps.grid(a=[1, 2], b="xy") == [dict(a=1, b="x"), dict(a=1, b="y"), dict(a=2, b="x"),
@@ -156,10 +158,12 @@ def test_the_same_grid_gives_identical_metrics_on_threads_a_process_pool_and_das
     threads = cs.sweep(make, T_END, grid=GRID, threads=2)
     with process_pool() as pool:
         procs = cs.sweep(make, T_END, grid=GRID, executor=pool, timeout=60)
+        chunked_procs = cs.sweep(make, T_END, grid=GRID, executor=pool, timeout=60, chunk=4)
     dask = cs.sweep(make, T_END, grid=GRID, executor=dask_client, timeout=60)
+    chunked = cs.sweep(make, T_END, grid=GRID, executor=dask_client, timeout=60, chunk=4)  # tasks of 4 runs, 4 + 2
     cols = ["kp", "kd", "error", "simulated_time", "steps"] + metric_columns(threads)
-    pd.testing.assert_frame_equal(procs[cols], threads[cols])
-    pd.testing.assert_frame_equal(dask[cols], threads[cols])
+    for df in (procs, chunked_procs, dask, chunked):
+        pd.testing.assert_frame_equal(df[cols], threads[cols])
     # the runs really went to the two workers, and were timed there
     pids = {int(w.rsplit(":", 1)[1]) for w in dask.worker}
     assert pids <= set(dask_client.run(os.getpid).values()) and os.getpid() not in pids

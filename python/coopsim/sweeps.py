@@ -217,7 +217,7 @@ def _items_from(runs, grid_points) -> tuple:
 def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float] = None, *,
           grid: Union[Mapping[str, Iterable], Sequence[Mapping], None] = None, executor=None,
           threads: Optional[int] = None, keep_logs: bool = False, timeout: Optional[float] = None,
-          on_result: Optional[Callable[[int, dict], Any]] = None):
+          on_result: Optional[Callable[[int, dict], Any]] = None, chunk: int = 1):
     """Runs many independent runs and returns a pandas DataFrame, one row per run in the order given.
 
     runs: a sequence of coopsim.Simulation (run from their state up to t_end, s) and/or
@@ -241,6 +241,9 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     timeout (s, wall): runs not finished by then (or when Ctrl-C interrupts the sweep) are cancelled
     and are rows with error 'not finished'. on_result(index, row) is called here as each run
     finishes (progress; the row as a dict).
+    chunk: runs per task sent to an executor or Dask (consecutive runs of the grid, one after the
+    other on one worker): a few cut the fixed cost per task (pickling, scheduling) on short runs; a
+    lost worker then has a whole chunk retried.
     The simulations given are run in place only with executor=None; otherwise copies run remotely.
     Robots with generated dynamics built at run time (``codegen.compile``, found in this process's
     ``codegen.cache_dir()``) have their libraries shipped with the runs and installed on the workers
@@ -258,6 +261,8 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
         t_end = float(t_end)
     if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
         raise ValueError(f"timeout must be a positive number of seconds or None, got {timeout!r}")
+    if not isinstance(chunk, (int, np.integer)) or isinstance(chunk, bool) or chunk < 1:
+        raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
     rows: List[Optional[dict]] = [None] * len(items)
 
     def done(i, row):
@@ -269,9 +274,9 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     if executor is None:
         _sweep_local(items, t_end, threads, keep_logs, timeout, done)
     elif _is_dask_client(executor):
-        _sweep_dask(executor, items, t_end, keep_logs, timeout, done)
+        _sweep_dask(executor, items, t_end, keep_logs, timeout, done, chunk)
     elif isinstance(executor, concurrent.futures.Executor):
-        _sweep_executor(executor, items, t_end, keep_logs, timeout, done)
+        _sweep_executor(executor, items, t_end, keep_logs, timeout, done, chunk)
     else:
         raise ValueError(f"executor must be None, a concurrent.futures.Executor or a distributed.Client, "
                          f"got {type(executor).__name__}")
@@ -312,19 +317,40 @@ def _sweep_local(items, t_end, threads, keep_logs, timeout, done):
     if tasks:
         pool = concurrent.futures.ThreadPoolExecutor(max_workers=threads or os.cpu_count() or 1)
         try:
-            _collect({pool.submit(run_one, t, None, keep_logs): i for i, t in tasks}, timeout, done)
+            _collect({pool.submit(run_many, [t], None, keep_logs): [i] for i, t in tasks}, timeout, done)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _collect(futures: Dict[concurrent.futures.Future, int], timeout, done):
+def _chunks(items, chunk):
+    """[(indices, items)] of at most `chunk` runs each, in order."""
+    return [(list(range(k, min(k + chunk, len(items)))), items[k:k + chunk]) for k in range(0, len(items), chunk)]
+
+
+def run_many(items, t_end: Optional[float] = None, keep_log: bool = False) -> List[dict]:
+    """:func:`run_one` for each of `items` in turn (one task of a chunked sweep)."""
+    return [run_one(it, t_end, keep_log) for it in items]
+
+
+def run_many_shipped(payloads, libs: Mapping[str, bytes], t_end: Optional[float] = None,
+                     keep_log: bool = False) -> List[dict]:
+    """:func:`run_shipped` for each of `payloads` in turn (one task of a chunked sweep)."""
+    return [run_shipped(p, libs, t_end, keep_log) for p in payloads]
+
+
+def _deliver(indices, result, done):
+    for i, row in zip(indices, result):
+        done(i, row)
+
+
+def _collect(futures: Dict[concurrent.futures.Future, list], timeout, done):
     try:
         for f in concurrent.futures.as_completed(futures, timeout=timeout):
-            i = futures[f]
             try:
-                done(i, f.result())
+                result = f.result()
             except Exception as e:  # a broken pool, a run that could not be pickled
-                done(i, dict(error=_error_text(e)))
+                result = [dict(error=_error_text(e))] * len(futures[f])
+            _deliver(futures[f], result, done)
     except (concurrent.futures.TimeoutError, KeyboardInterrupt):
         pass  # what finished is kept; the rest are 'not finished'
     finally:
@@ -332,38 +358,39 @@ def _collect(futures: Dict[concurrent.futures.Future, int], timeout, done):
             f.cancel()
 
 
-def _sweep_executor(executor, items, t_end, keep_logs, timeout, done):
+def _sweep_executor(executor, items, t_end, keep_logs, timeout, done, chunk):
     libs = generated_libraries(items)
     if libs:  # each run carries the libraries its robots need, and is unpickled after they are installed
-        futures = {executor.submit(run_shipped, pickle.dumps(it), libs, t_end, keep_logs): i
-                   for i, it in enumerate(items)}
+        futures = {executor.submit(run_many_shipped, [pickle.dumps(it) for it in part], libs, t_end, keep_logs): idx
+                   for idx, part in _chunks(items, chunk)}
     else:
-        futures = {executor.submit(run_one, it, t_end, keep_logs): i for i, it in enumerate(items)}
+        futures = {executor.submit(run_many, part, t_end, keep_logs): idx for idx, part in _chunks(items, chunk)}
     _collect(futures, timeout, done)
 
 
-def _sweep_dask(client, items, t_end, keep_logs, timeout, done):
+def _sweep_dask(client, items, t_end, keep_logs, timeout, done, chunk):
     from distributed import as_completed
     from distributed.client import TimeoutError as DaskTimeout
 
     libs = generated_libraries(items)
-    # pure=False: every run is its own task, even two equal descriptions
+    parts = _chunks(items, chunk)
+    # pure=False: every chunk is its own task, even two equal descriptions
     if libs:  # sent once to every worker; each run installs them before unpickling its description
         shared = client.scatter([libs], broadcast=True, hash=False)[0]
-        futures = client.map(run_shipped, [pickle.dumps(it) for it in items], libs=shared, t_end=t_end,
-                             keep_log=keep_logs, pure=False)
+        futures = client.map(run_many_shipped, [[pickle.dumps(it) for it in part] for _, part in parts], libs=shared,
+                             t_end=t_end, keep_log=keep_logs, pure=False)
     else:
-        futures = client.map(run_one, items, t_end=t_end, keep_log=keep_logs, pure=False)
-    index = {f.key: i for i, f in enumerate(futures)}
+        futures = client.map(run_many, [part for _, part in parts], t_end=t_end, keep_log=keep_logs, pure=False)
+    index = {f.key: idx for f, (idx, _) in zip(futures, parts)}
     deadline = None if timeout is None else time.monotonic() + timeout
     try:
-        ac = as_completed(futures, timeout=timeout)
-        for f in ac:
-            i = index[f.key]
+        for f in as_completed(futures, timeout=timeout):
+            idx = index[f.key]
             try:
-                done(i, f.result(timeout=None if deadline is None else max(0.0, deadline - time.monotonic())))
+                result = f.result(timeout=None if deadline is None else max(0.0, deadline - time.monotonic()))
             except Exception as e:  # KilledWorker (lost more often than allowed), a cancelled run
-                done(i, dict(error=_error_text(e)))
+                result = [dict(error=_error_text(e))] * len(idx)
+            _deliver(idx, result, done)
     except (DaskTimeout, concurrent.futures.TimeoutError, KeyboardInterrupt):
         pass
     finally:
