@@ -121,6 +121,29 @@ def test_a_sweep_cut_short_returns_what_finished():
     assert (df.error[[1, 3]] == cs.sweeps.NOT_FINISHED).all() and df.steps[[1, 3]].isna().all()
 
 
+def interrupt_after(n):
+    seen = []
+
+    def on_result(i, row):
+        seen.append(i)
+        if len(seen) == n:
+            raise KeyboardInterrupt  # as Ctrl-C in the client while it waits
+
+    return on_result, seen
+
+
+def test_a_sweep_interrupted_from_the_client_returns_what_finished(dask_client):
+    for executor in ("pool", dask_client):
+        on_result, seen = interrupt_after(2)
+        if executor == "pool":
+            with process_pool() as pool:
+                df = cs.sweep(make, T_END, grid=GRID, executor=pool, on_result=on_result)
+        else:
+            df = cs.sweep(make, T_END, grid=GRID, executor=executor, on_result=on_result)
+        assert len(df) == 6 and list(df.index[df.error.isna()]) == sorted(seen)
+        assert (df.steps[seen] == 2000).all() and (df.error.drop(seen) == cs.sweeps.NOT_FINISHED).all()
+
+
 def test_bad_arguments():
     with pytest.raises(ValueError, match="t_end"):
         cs.sweep([make(100.0, 5.0)])
@@ -174,6 +197,9 @@ def test_the_same_grid_gives_identical_metrics_on_threads_a_process_pool_and_das
     remote = cs.sweep(tasks, executor=dask_client, timeout=60)
     cols = ["success", "step", "reason", "bar_x", "bar_y", "bar_yaw", "error", "simulated_time", "steps"]
     pd.testing.assert_frame_equal(remote[cols + metric_columns(local)], local[cols + metric_columns(local)])
+    from coopsim.tasks import handover as H
+
+    assert H.sweep([1, 2], executor=dask_client) == H.sweep([1, 2], threads=2)  # its dict, the same either way
 
 
 def test_generated_dynamics_compiled_here_reach_the_workers(dask_client, tmp_path, monkeypatch):

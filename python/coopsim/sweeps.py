@@ -100,9 +100,11 @@ def _run_task(task: TaskRun, keep_log: bool) -> dict:
     row = dict(error=None, worker=_where())
     try:
         res = H.run(**options)
-    except Exception as e:  # an IKError at planning time, a bad option: a row with its error
-        row.update(success=False, step="planning", reason=_error_text(e), error=_error_text(e),
-                   wall_time=time.perf_counter() - w0, simulated_time=0.0)
+    except Exception as e:  # an IKError at planning time (step 'planning'), a bad option: a row with its error
+        from ._core import IKError
+
+        row.update(success=False, step="planning" if isinstance(e, IKError) else None, reason=_error_text(e),
+                   error=_error_text(e), wall_time=time.perf_counter() - w0, simulated_time=0.0)
         return row
     row["wall_time"] = time.perf_counter() - w0
     c = res.report["cycles"][-1]

@@ -662,10 +662,12 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     return TaskResult(report, runner.sim, runner.sim.log, series, timing)
 
 
-def sweep(seeds: Sequence[int], *, threads: int = 2, **options) -> dict:
+def sweep(seeds: Sequence[int], *, threads: int = 2, executor=None, **options) -> dict:
     """The task once per seed, each with one bar drawn from :data:`REGION` (:func:`random_bar`), on
-    `threads` threads (the engine releases the GIL while it steps). options go to :func:`run`
-    (score=False by default: the success and failure reasons only).
+    `threads` threads (the engine releases the GIL while it steps), or through `executor` (any
+    concurrent.futures executor or a Dask distributed.Client, by :func:`coopsim.sweep`, which gives
+    the same as a table). options go to :func:`run` (score=False by default: the success and failure
+    reasons only).
 
     Returns dict(success_rate, runs=[dict(seed, bar=[x, y, yaw], success, step, reason, simulated_time)],
     failures=[the runs that failed]).
@@ -686,8 +688,25 @@ def sweep(seeds: Sequence[int], *, threads: int = 2, **options) -> dict:
         return dict(entry, success=res.success, step=c.get("failed_step"), reason=c.get("reason"),
                     simulated_time=res.report["simulated_time"])
 
-    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, int(threads))) as pool:
-        runs = list(pool.map(one, seeds))
+    if executor is not None:
+        from ..sweeps import TaskRun, sweep as _sweep
+
+        seeds = [int(s) for s in seeds]
+        df = _sweep([TaskRun(seed=s, **options) for s in seeds], executor=executor)
+        runs = []
+        for s, r in zip(seeds, df.itertuples()):
+            bar = random_bar(s)
+            entry = dict(seed=s, bar=[float(bar[0, 3]), float(bar[1, 3]), float(math.atan2(bar[1, 0], bar[0, 0]))])
+            if r.step == "planning" or not isinstance(r.success, (bool, np.bool_)):
+                # a planning error, or a run the executor lost (its error says why)
+                runs.append(dict(entry, success=False, step=r.step if r.step == "planning" else "lost",
+                                 reason=r.reason if r.step == "planning" else r.error, simulated_time=0.0))
+            else:
+                runs.append(dict(entry, success=bool(r.success), step=r.step, reason=r.reason,
+                                 simulated_time=float(r.simulated_time)))
+    else:
+        with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, int(threads))) as pool:
+            runs = list(pool.map(one, seeds))
     return dict(success_rate=sum(r["success"] for r in runs) / max(1, len(runs)), runs=runs,
                 failures=[r for r in runs if not r["success"]])
 
