@@ -121,6 +121,12 @@ def test_a_sweep_cut_short_returns_what_finished():
     assert (df.error[[1, 3]] == cs.sweeps.NOT_FINISHED).all() and df.steps[[1, 3]].isna().all()
 
 
+def test_a_dask_sweep_that_times_out_returns_what_finished(dask_client):
+    # one run of a few ms and one of about 1 s (400 000 steps) with 0.3 s to go, one on each worker
+    df = cs.sweep([make(100.0, 5.0), make(100.0, 5.0, dt=1e-6)], T_END, executor=dask_client, timeout=0.3)
+    assert pd.isna(df.error[0]) and df.steps[0] == 2000 and df.error[1] == cs.sweeps.NOT_FINISHED
+
+
 def interrupt_after(n):
     seen = []
 

@@ -241,12 +241,14 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     column (each run's SimulationLog, shipped back from the workers).
 
     timeout (s, wall): runs not finished by then (or when Ctrl-C interrupts the sweep) are cancelled
-    and are rows with error 'not finished'. on_result(index, row) is called here as each run
+    and are rows with error 'not finished' (a run already started goes on to its end on its worker;
+    simulations on this machine's threads, one run_batch call, take no timeout). on_result(index, row) is called here as each run
     finishes (progress; the row as a dict).
     chunk: runs per task sent to an executor or Dask (consecutive runs of the grid, one after the
     other on one worker): a few cut the fixed cost per task (pickling, scheduling) on short runs; a
     lost worker then has a whole chunk retried.
-    The simulations given are run in place only with executor=None; otherwise copies run remotely.
+    The simulations given are run in place, from their state, only with executor=None; otherwise
+    their descriptions are pickled and run from t = 0 on the workers.
     Robots with generated dynamics built at run time (``codegen.compile``, found in this process's
     ``codegen.cache_dir()``) have their libraries shipped with the runs and installed on the workers
     (same platform and coopsim as here; no compiler needed there).
@@ -372,7 +374,6 @@ def _sweep_executor(executor, items, t_end, keep_logs, timeout, done, chunk):
 
 def _sweep_dask(client, items, t_end, keep_logs, timeout, done, chunk):
     from distributed import as_completed
-    from distributed.client import TimeoutError as DaskTimeout
 
     libs = generated_libraries(items)
     parts = _chunks(items, chunk)
@@ -393,7 +394,8 @@ def _sweep_dask(client, items, t_end, keep_logs, timeout, done, chunk):
             except Exception as e:  # KilledWorker (lost more often than allowed), a cancelled run
                 result = [dict(error=_error_text(e))] * len(idx)
             _deliver(idx, result, done)
-    except (DaskTimeout, concurrent.futures.TimeoutError, KeyboardInterrupt):
-        pass
+    except (TimeoutError, concurrent.futures.TimeoutError, KeyboardInterrupt):
+        pass  # what finished is kept; the rest are 'not finished'
+
     finally:
         client.cancel([f for f in futures if not f.done()])
