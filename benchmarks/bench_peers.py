@@ -206,7 +206,9 @@ def peer_pinocchio(robot):
     }
 
 
-def peer_pybullet(robot):
+def pybullet_body(robot):
+    """A PyBullet client (DIRECT) with our URDF export of `robot` loaded on a fixed base, inertia from the
+    file, our gravity: (client id, body id)."""
     import pybullet as pb
     path = urdf_file(robot)
     c = pb.connect(pb.DIRECT)
@@ -215,6 +217,12 @@ def peer_pybullet(robot):
         body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
     finally:
         os.unlink(path)
+    return c, body
+
+
+def peer_pybullet(robot):
+    import pybullet as pb
+    c, body = pybullet_body(robot)
     K = robot.friction_coefficients
     zero = [0.0] * robot.dof
 
@@ -558,13 +566,7 @@ def loop_mujoco_rollout(robot, traj, kp, ki, kd, steps):
 
 def loop_pybullet(robot, traj, kp, ki, kd, steps):
     import pybullet as pb
-    path = urdf_file(robot)
-    c = pb.connect(pb.DIRECT)
-    try:
-        pb.setGravity(*robot.gravity_acceleration, physicsClientId=c)
-        body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
-    finally:
-        os.unlink(path)
+    c, body = pybullet_body(robot)
     try:
         pb.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, physicsClientId=c)
         joints = [j for j in range(pb.getNumJoints(body, physicsClientId=c))

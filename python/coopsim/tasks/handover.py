@@ -127,9 +127,8 @@ def _pose(R, p) -> np.ndarray:
     return T
 
 
-def bar_on_floor(x: float, y: float, yaw: float) -> np.ndarray:
-    """The pose (4, 4) of a bar lying on the floor with its centre at (x, y) m and a yaw (rad)."""
-    return scene.bar_pose(x, y, yaw)
+#: the pose (4, 4) of a bar lying on the floor: bar_on_floor(x, y, yaw), centre (x, y) m, yaw rad
+bar_on_floor = scene.bar_pose
 
 
 def default_bars(count: int = 3) -> List[np.ndarray]:
@@ -153,10 +152,6 @@ def _grip_down(s: float, height: float, opening: float = OPEN) -> np.ndarray:
     the bar, tool y = -bar y)."""
     shift = (opening - 2.0 * scene.BAR_HALF_EXTENTS[1]) / 2.0 - FIXED_GAP   # the TCP off the bar's centre line
     return _pose(np.diag([1.0, -1.0, -1.0]), [s, -shift, height])
-
-
-def _bar_pose(centre, R) -> np.ndarray:
-    return _pose(R, centre)
 
 
 def _yaw_pitch(yaw: float, pitch: float = 0.0) -> np.ndarray:
@@ -211,19 +206,15 @@ class _Runner:
                  container_shift=None, grip1_turn=0.0):
         self.r1, self.r2 = scene.scaras()
         self.bars = [np.asarray(b, float) for b in bars]
-        self.names = ["bar" if i == 0 else f"bar{i}" for i in range(len(self.bars))]
+        self.names = scene.bar_names(len(self.bars))
         self.mouth = scene.CONTAINER["mouth"] if mouth is None else np.asarray(mouth, float)
         self.slope = scene.CONTAINER["slope"] if slope is None else float(slope)
         self.handover_yaw = HANDOVER_YAW if handover_yaw is None else float(handover_yaw)
         self.axes = scene.container_axes(self.slope)
-        w = _core.World(floor=True, floor_friction=scene.FLOOR_FRICTION)
         placed = self.mouth if container_shift is None else self.mouth + np.asarray(container_shift, float)
         self.walls = scene.container_walls(placed, self.slope)
         self.grip1_turn = float(grip1_turn)
-        for name, he, T in self.walls:
-            w.add_static_box(name, he, T, friction=scene.CONTAINER["friction"])
-        for name, T in zip(self.names, self.bars):
-            w.add_free_box(name, scene.BAR_HALF_EXTENTS, scene.BAR_MASS, T, friction=scene.BAR_FRICTION)
+        w = scene.world(self.bars, mouth=placed, slope=self.slope)
         self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every,
                               control_every=control_every)
         self.t_limit = t_limit
@@ -245,7 +236,7 @@ class _Runner:
     # ---- geometry ----
 
     def _handover_bar(self) -> np.ndarray:
-        return _bar_pose(HANDOVER_CENTRE, rotz(self.handover_yaw))
+        return _pose(rotz(self.handover_yaw), HANDOVER_CENTRE)
 
     def _wait1_pose(self) -> np.ndarray:
         T = self._handover_bar() @ _grip_down(GRIP1, 0.0)
@@ -485,7 +476,7 @@ class _Runner:
         a = self.axes[:, 0]
         R_axis = _yaw_pitch(math.atan2(a[1], a[0]), self.slope)
         lead = scene.BAR_HALF_EXTENTS[0]
-        on_axis = _bar_pose(self.mouth - a * (lead + BEFORE_MOUTH), R_axis)
+        on_axis = _pose(R_axis, self.mouth - a * (lead + BEFORE_MOUTH))
         beside = on_axis.copy()
         beside[:3, 3] += np.array([BESIDE, 0.0, 0.0])
         lifted = self.bar(name)
@@ -663,50 +654,33 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
 
 
 def sweep(seeds: Sequence[int], *, threads: int = 2, executor=None, **options) -> dict:
-    """The task once per seed, each with one bar drawn from :data:`REGION` (:func:`random_bar`), on
-    `threads` threads (the engine releases the GIL while it steps), or through `executor` (any
-    concurrent.futures executor or a Dask distributed.Client, by :func:`coopsim.sweep`, which gives
-    the same as a table). options go to :func:`run` (score=False by default: the success and failure
+    """The task once per seed, each with one bar drawn from :data:`REGION` (:func:`random_bar`), by
+    :func:`coopsim.sweep` (which gives the same as a table): on `threads` threads (the engine releases
+    the GIL while it steps), or through `executor` (any concurrent.futures executor or a Dask
+    distributed.Client). options go to :func:`run` (score=False by default: the success and failure
     reasons only).
 
     Returns dict(success_rate, runs=[dict(seed, bar=[x, y, yaw], success, step, reason, simulated_time)],
     failures=[the runs that failed]).
     """
-    import concurrent.futures
+    from ..sweeps import TaskRun, sweep as _sweep
 
     options.setdefault("score", False)
-
-    def one(seed):
-        bar = random_bar(seed)
-        x, y, yaw = bar[0, 3], bar[1, 3], math.atan2(bar[1, 0], bar[0, 0])
-        entry = dict(seed=int(seed), bar=[float(x), float(y), float(yaw)])
-        try:
-            res = run([bar], **options)
-        except IKError as e:
-            return dict(entry, success=False, step="planning", reason=f"IKError: {e}", simulated_time=0.0)
-        c = res.report["cycles"][-1]
-        return dict(entry, success=res.success, step=c.get("failed_step"), reason=c.get("reason"),
-                    simulated_time=res.report["simulated_time"])
-
-    if executor is not None:
-        from ..sweeps import TaskRun, sweep as _sweep
-
-        seeds = [int(s) for s in seeds]
-        df = _sweep([TaskRun(seed=s, **options) for s in seeds], executor=executor)
-        runs = []
-        for s, r in zip(seeds, df.itertuples()):
-            bar = random_bar(s)
-            entry = dict(seed=s, bar=[float(bar[0, 3]), float(bar[1, 3]), float(math.atan2(bar[1, 0], bar[0, 0]))])
-            if r.step == "planning" or not isinstance(r.success, (bool, np.bool_)):
-                # a planning error, or a run the executor lost (its error says why)
-                runs.append(dict(entry, success=False, step=r.step if r.step == "planning" else "lost",
-                                 reason=r.reason if r.step == "planning" else r.error, simulated_time=0.0))
-            else:
-                runs.append(dict(entry, success=bool(r.success), step=r.step, reason=r.reason,
-                                 simulated_time=float(r.simulated_time)))
-    else:
-        with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, int(threads))) as pool:
-            runs = list(pool.map(one, seeds))
+    seeds = [int(s) for s in seeds]
+    # one mechanism for both: coopsim.sweep (threads here, or the executor), its rows read back per seed
+    df = _sweep([TaskRun(seed=s, **options) for s in seeds], executor=executor,
+                threads=None if executor is not None else max(1, int(threads)))
+    runs = []
+    for s, r in zip(seeds, df.itertuples()):
+        bar = random_bar(s)
+        entry = dict(seed=s, bar=[float(bar[0, 3]), float(bar[1, 3]), float(math.atan2(bar[1, 0], bar[0, 0]))])
+        if r.step == "planning" or not isinstance(r.success, (bool, np.bool_)):
+            # a planning error, or a run the executor lost (its error says why)
+            runs.append(dict(entry, success=False, step=r.step if r.step == "planning" else "lost",
+                             reason=r.reason if r.step == "planning" else r.error, simulated_time=0.0))
+        else:
+            runs.append(dict(entry, success=bool(r.success), step=r.step, reason=r.reason,
+                             simulated_time=float(r.simulated_time)))
     return dict(success_rate=sum(r["success"] for r in runs) / max(1, len(runs)), runs=runs,
                 failures=[r for r in runs if not r["success"]])
 
@@ -781,9 +755,17 @@ def plot_report(result: TaskResult, out_dir) -> List[str]:
         paths.append(p)
     cycles = [(c["t_start"], c.get("t_end", c["t_start"])) for c in result.report["cycles"]]
 
-    def bounds(ax):
-        for t0, _ in cycles[1:]:
-            ax.axvline(t0, color="0.6", lw=0.8, ls=":")
+    def save(fig, axes, title, name):
+        """Legends, the cycles' bounds and a title on a figure of panels over time, written as name."""
+        for ax in axes:
+            ax.legend(loc="upper right")
+            for t0, _ in cycles[1:]:
+                ax.axvline(t0, color="0.6", lw=0.8, ls=":")
+        fig.suptitle(title)
+        p = os.path.join(out_dir, name)
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
 
     fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
     for i, rl in enumerate(log.robots):
@@ -792,14 +774,7 @@ def plot_report(result: TaskResult, out_dir) -> List[str]:
     axes[0].set_ylabel("tool position error (mm)")
     axes[1].set_ylabel("largest joint error\n(rad or m)")
     axes[1].set_xlabel("t (s)")
-    for ax in axes:
-        ax.legend(loc="upper right")
-        bounds(ax)
-    fig.suptitle("Tracking errors")
-    p = os.path.join(out_dir, "tracking.png")
-    fig.savefig(p, dpi=90)
-    plt.close(fig)
-    paths.append(p)
+    save(fig, axes, "Tracking errors", "tracking.png")
 
     fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
     axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
@@ -811,14 +786,7 @@ def plot_report(result: TaskResult, out_dir) -> List[str]:
     axes[1].plot(series["t"], series["internal_force"], label="internal force (dual hold)", color="k", lw=1)
     axes[1].set_ylabel("force (N)")
     axes[1].set_xlabel("t (s)")
-    for ax in axes:
-        ax.legend(loc="upper right")
-        bounds(ax)
-    fig.suptitle("Clearances and grasp forces")
-    p = os.path.join(out_dir, "clearance_forces.png")
-    fig.savefig(p, dpi=90)
-    plt.close(fig)
-    paths.append(p)
+    save(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
     return paths
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from .. import robots
 from .._core import World
 
-__all__ = ["BAR_HALF_EXTENTS", "BAR_MASS", "CONTAINER", "bar_pose", "container_walls", "scaras", "world"]
+__all__ = ["BAR_HALF_EXTENTS", "BAR_MASS", "CONTAINER", "bar_names", "bar_pose", "container_walls", "scaras", "world"]
 
 BAR_HALF_EXTENTS = np.array([0.175, 0.01, 0.01])
 BAR_MASS = 0.15
@@ -73,11 +73,18 @@ def container_walls(mouth=None, slope=None):
     return out
 
 
-def world(bars=None):
-    """A World with the floor, the container and the bars (default: one bar at :func:`bar_pose`)."""
+def bar_names(count):
+    """The world's names of `count` bars: 'bar', 'bar1', 'bar2', ..."""
+    return ["bar" if i == 0 else f"bar{i}" for i in range(count)]
+
+
+def world(bars=None, mouth=None, slope=None):
+    """A World with the floor, the container (upper mouth centre `mouth` (3,) m, `slope` rad; default
+    CONTAINER's) and the bars, named by :func:`bar_names` (default: one bar at :func:`bar_pose`)."""
     w = World(floor=True, floor_friction=FLOOR_FRICTION)
-    for name, he, T in container_walls():
+    for name, he, T in container_walls(mouth, slope):
         w.add_static_box(name, he, T, friction=CONTAINER["friction"])
-    for i, T in enumerate([bar_pose()] if bars is None else bars):
-        w.add_free_box("bar" if i == 0 else f"bar{i}", BAR_HALF_EXTENTS, BAR_MASS, T, friction=BAR_FRICTION)
+    bars = [bar_pose()] if bars is None else list(bars)
+    for name, T in zip(bar_names(len(bars)), bars):
+        w.add_free_box(name, BAR_HALF_EXTENTS, BAR_MASS, T, friction=BAR_FRICTION)
     return w
