@@ -77,6 +77,10 @@ std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::strin
   g->angles.assign(angles, angles + 4 * g->dof);
   g->generator_version = library_symbol<const char* (*)()>(h, path, "coopsim_gen_version")();
   g->operation_count = library_symbol<long (*)()>(h, path, "coopsim_gen_operation_count")();
+  g->constant_count = library_symbol<int (*)()>(h, path, "coopsim_gen_constant_count")();
+  if (g->constant_count < 0 || g->constant_count > 100000)
+    throw std::invalid_argument(path + " describes a malformed structure");
+  g->constants = library_symbol<decltype(g->constants)>(h, path, "coopsim_gen_constants");
   g->mass_matrix = library_symbol<decltype(g->mass_matrix)>(h, path, "coopsim_gen_mass_matrix");
   g->coriolis = library_symbol<decltype(g->coriolis)>(h, path, "coopsim_gen_coriolis");
   g->coriolis_matrix = library_symbol<decltype(g->coriolis_matrix)>(h, path, "coopsim_gen_coriolis_matrix");

@@ -193,6 +193,7 @@ void Robot::build_() {
   params_[kParamsPerLink * n_ + 0] = g0.x();
   params_[kParamsPerLink * n_ + 1] = g0.y();
   params_[kParamsPerLink * n_ + 2] = g0.z();
+  refresh_generated_params_();
   build_geometry_();
 }
 
@@ -287,8 +288,18 @@ void Robot::attach_generated_(std::shared_ptr<const GeneratedDynamics> gen) {
   }
   require(gen->mass_matrix && gen->coriolis && gen->coriolis_matrix && gen->gravity,
           "generated dynamics '" + gen->name + "' lacks a function");
+  require(gen->constant_count >= 0 && (gen->constants || gen->constant_count == 0),
+          "generated dynamics '" + gen->name + "' lacks its constants function");
   generated_ = std::move(gen);
   use_generated_ = true;
+  refresh_generated_params_();
+}
+
+void Robot::refresh_generated_params_() {
+  gen_params_ = params_;
+  if (!generated_ || !generated_->constants) return;
+  gen_params_.resize(params_.size() + generated_->constant_count);
+  generated_->constants(params_.data(), gen_params_.data() + params_.size());
 }
 
 Robot Robot::with_generated(std::shared_ptr<const GeneratedDynamics> gen) const {
@@ -420,7 +431,7 @@ void Robot::tool_jacobian(const Workspace& ws, Mat6N& J) const {
 void Robot::mass_matrix(const double* q, Workspace& ws, MatN& M) const {
   M.resize(n_, n_);
   if (uses_generated()) {
-    generated_->mass_matrix(params_.data(), q, M.data());
+    generated_->mass_matrix(gen_params_.data(), q, M.data());
     return;
   }
   kinematics(q, ws);
@@ -481,12 +492,12 @@ void Robot::rnea(const double* q, const double* qd, const double* qdd, Workspace
   tau.resize(n_);
   if (uses_generated() && generated_->dynamics && gravity_scale == 1.0 && with_friction) {
     MatN M(n_, n_);
-    generated_->dynamics(params_.data(), q, qd, M.data(), tau.data());
+    generated_->dynamics(gen_params_.data(), q, qd, M.data(), tau.data());
     if (qdd) tau.noalias() += M * Eigen::Map<const VecN>(qdd, n_);
     return;
   }
   if (uses_generated()) {
-    const double* p = params_.data();
+    const double* p = gen_params_.data();
     VecN tmp(n_);
     tau.setZero();
     if (qdd) {
@@ -550,7 +561,7 @@ void Robot::rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& 
 void Robot::gravity(const double* q, Workspace& ws, VecN& g) const {
   g.resize(n_);
   if (uses_generated()) {
-    generated_->gravity(params_.data(), q, g.data());
+    generated_->gravity(gen_params_.data(), q, g.data());
     return;
   }
   VecN zero = VecN::Zero(n_);
@@ -560,7 +571,7 @@ void Robot::gravity(const double* q, Workspace& ws, VecN& g) const {
 void Robot::coriolis_vector(const double* q, const double* qd, Workspace& ws, VecN& c) const {
   c.resize(n_);
   if (uses_generated()) {
-    generated_->coriolis(params_.data(), q, qd, c.data());
+    generated_->coriolis(gen_params_.data(), q, qd, c.data());
     return;
   }
   rnea(q, qd, nullptr, ws, c, 0.0, false);
@@ -627,7 +638,7 @@ void Robot::mass_matrix_derivatives(const double* q, Workspace& ws, std::vector<
 void Robot::coriolis_matrix(const double* q, const double* qd, Workspace& ws, MatN& C) const {
   C.resize(n_, n_);
   if (uses_generated()) {
-    generated_->coriolis_matrix(params_.data(), q, qd, C.data());
+    generated_->coriolis_matrix(gen_params_.data(), q, qd, C.data());
     return;
   }
   std::vector<MatN> dM;
@@ -690,7 +701,7 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
   if (uses_generated() && generated_->dynamics) {
     M.resize(n_, n_);
     b.resize(n_);
-    generated_->dynamics(params_.data(), q, qd, M.data(), b.data());
+    generated_->dynamics(gen_params_.data(), q, qd, M.data(), b.data());
   } else if (uses_generated()) {
     mass_matrix(q, ws, M);
     rnea(q, qd, nullptr, ws, b, 1.0, true);

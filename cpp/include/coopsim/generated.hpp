@@ -6,6 +6,12 @@
 // angle parameters (DH and CoM theta offsets and alpha) are structural: they
 // were fixed at generation and are checked when the code is attached.
 //
+// The parameter polynomials of the closed forms (kappa: sums of products of
+// masses, lengths and inertias) do not depend on the state: constants()
+// computes them once from p, and every other function reads them right after
+// the parameters, i.e. its p is the parameter vector followed by constants(p)
+// (Robot keeps both in one vector and refreshes it when parameters change).
+//
 // Array layouts: q, qd: n; M, C: n x n column-major; c, g: n.
 #pragma once
 
@@ -24,6 +30,9 @@ struct GeneratedDynamics {
   std::vector<double> angles;
   std::string generator_version;
   long operation_count = 0;  // arithmetic operations of dynamics() after cse, sin/cos counted once
+  int constant_count = 0;    // values constants() writes after the parameters
+  // k[0..constant_count) <- the parameter polynomials of p (the plain parameter vector)
+  void (*constants)(const double* p, double* k) = nullptr;
   void (*mass_matrix)(const double* p, const double* q, double* M) = nullptr;
   void (*coriolis)(const double* p, const double* q, const double* qd, double* c) = nullptr;
   void (*coriolis_matrix)(const double* p, const double* q, const double* qd, double* C) = nullptr;

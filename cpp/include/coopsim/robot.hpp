@@ -298,6 +298,7 @@ class Robot {
   void build_();
   void build_geometry_();
   void attach_generated_(std::shared_ptr<const GeneratedDynamics> gen);
+  void refresh_generated_params_();
   void mass_matrix_kin_(Workspace& ws, MatN& M) const;
   void rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,
                  bool with_friction) const;
@@ -317,6 +318,8 @@ class Robot {
   std::shared_ptr<const GeneratedDynamics> generated_;
   bool use_generated_ = false;
   std::vector<double> params_;
+  // what the generated functions read: params_ followed by generated_->constants(params_)
+  std::vector<double> gen_params_;
   std::vector<LinkBox> boxes_;
   bool default_boxes_ = true;  // boxes_ are default_boxes() (re-made with the base)
   Clamp clamp_;

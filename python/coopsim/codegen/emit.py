@@ -2,8 +2,9 @@
 
 Every emitted function has the signature of ``coopsim::GeneratedDynamics``
 (``cpp/include/coopsim/generated.hpp``): p is the robot's parameter vector
-(19 per link, then gravity in frame 0), q and qd have n entries, matrices are
-n x n column-major. Output is deterministic: same structure, generator and
+(19 per link, then gravity in frame 0) followed by the parameter polynomials
+(kappa) that ``constants`` computed from it once, q and qd have n entries,
+matrices are n x n column-major. Output is deterministic: same structure, generator and
 sympy version give the same bytes.
 """
 from __future__ import annotations
@@ -14,9 +15,9 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.precedence import precedence
 
-from .symbolic import Coulomb, SymbolicModel, _cse_ops
+from .symbolic import PARAMS_PER_LINK, Coulomb, SymbolicModel, _cse_ops
 
-__all__ = ["EmittedFunction", "emit_functions", "emit_solve", "FUNCTIONS"]
+__all__ = ["EmittedFunction", "emit_functions", "emit_constants", "emit_solve", "FUNCTIONS", "SIN_COS"]
 
 # name, arguments (after p), outputs
 FUNCTIONS = (
@@ -73,6 +74,49 @@ class _Printer(C99CodePrinter):
         return repr(float(expr))
 
 
+#: sin and cos of one angle, emitted once at the top of every generated file (std::sin and
+#: std::cos are the larger part of a SCARA's dynamics otherwise). fdlibm's kernels on
+#: [-pi/4, pi/4] after a Cody-Waite reduction by pi/2 in three 33-bit parts (exact products
+#: for |x| < 1e5); within 2 ulp of the exact values there (tests/test_codegen.py checks it
+#: against mpmath), std::sin and std::cos beyond and for inf and nan.
+SIN_COS = """\
+// On x86-64 each function below is compiled twice, for the baseline x86-64 and for x86-64-v3
+// (AVX2, FMA: about a quarter fewer instructions); the loader picks the one this CPU runs.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(COOPSIM_GENERATED_BASELINE_ONLY)
+#define COOPSIM_GENERATED_TARGETS __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define COOPSIM_GENERATED_TARGETS
+#endif
+
+static inline void sin_cos(double x, double& s, double& c) {
+  if (!(std::fabs(x) < 1e5)) {
+    s = std::sin(x);
+    c = std::cos(x);
+    return;
+  }
+  const double shift = 6755399441055744.0;  // 1.5 * 2^52: adding it rounds to an integer
+  const double n = (x * 0.63661977236758134308 + shift) - shift;
+  const long quadrant = static_cast<long>(n) & 3;
+  const double r = ((x - n * 1.57079632673412561417e+00) - n * 6.07710050630396597660e-11) -
+                   n * 2.02226624871116645580e-21;
+  const double z = r * r, w = z * z;
+  const double ps = 8.33333333332248946124e-03 + z * (-1.98412698298579493134e-04 + z * 2.75573137070700676789e-06) +
+                    z * w * (-2.50507602534068634195e-08 + z * 1.58969099521155010221e-10);
+  const double sr = r + z * r * (-1.66666666666666324348e-01 + z * ps);
+  const double pc = z * (4.16666666666666019037e-02 + z * (-1.38888888888741095749e-03 + z * 2.48015872894767294178e-05)) +
+                    w * w * (-2.75573143513906633035e-07 + z * (2.08757232129817482790e-09 + z * -1.13596475577881948265e-11));
+  const double hz = 0.5 * z, one_hz = 1.0 - hz;
+  const double cr = one_hz + (((1.0 - one_hz) - hz) + z * pc);
+  switch (quadrant) {
+    case 0: s = sr; c = cr; break;
+    case 1: s = cr; c = -sr; break;
+    case 2: s = -sr; c = -cr; break;
+    default: s = -cr; c = sr; break;
+  }
+}
+"""
+
+
 @dataclass
 class EmittedFunction:
     name: str        # e.g. "mass_matrix"
@@ -103,9 +147,9 @@ class _SharedCse:
         return [(sym, e) for sym, e in self.reps if sym in need]
 
 
-def _body(model: SymbolicModel, outputs, names, kdefs, kappa_cse, out_cse):
+def _body(model: SymbolicModel, outputs, names, out_cse):
     """Statements computing [(target, expr)]: sin/cos of the joints used, the parameter
-    polynomials (kappa) used, then the outputs with kappa, sin/cos and qd as inputs."""
+    polynomials (kappa) used, read from p, then the outputs with kappa, sin/cos and qd as inputs."""
     exprs = [e for _, e in outputs]
     printer = _Printer(names)
     lines, ops = [], 0
@@ -115,30 +159,27 @@ def _body(model: SymbolicModel, outputs, names, kdefs, kappa_cse, out_cse):
         used |= out_cse.reduced[e].free_symbols
     for _, e in temps:
         used |= e.free_symbols
-    # sin/cos of each revolute joint once, in joint order
+    # sin and cos of each revolute joint used, together, once, in joint order
     for i in range(model.n):
-        for sym in sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name):
-            if sym in used:
-                theta = model.trig[sym][1]
-                arg = f"q[{i}]" if theta == 0.0 else f"q[{i}] + {repr(theta)}"
-                fn = "cos" if sym.name.startswith("c_") else "sin"
-                lines.append(f"  const double {sym.name} = std::{fn}({arg});")
-                ops += 1
+        syms = sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name)
+        if not any(sym in used for sym in syms):
+            continue
+        (c,), (sn,) = ([t for t in syms if t.name.startswith(k)] for k in ("c_", "s_"))
+        theta = model.trig[c][1]
+        arg = f"q[{i}]" if theta == 0.0 else f"q[{i}] + {repr(theta)}"
+        lines.append(f"  double {sn.name}, {c.name};")
+        lines.append(f"  sin_cos({arg}, {sn.name}, {c.name});")
+        ops += sum(sym in used for sym in syms)
     # displacement of each prismatic joint, offset included
     for sym, (i, d) in model.slides.items():
         if sym in used:
             lines.append(f"  const double {sym.name} = {names[d]} + q[{i}];")
             ops += 1
-    # parameter polynomials
-    kappas = [k for k in model.kappa if k in used]
-    kexprs = [kdefs[k] for k in kappas]
-    for sym, e in kappa_cse.needed(kexprs):
-        lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
-        ops += int(sp.count_ops(e))
-    for k, e in zip(kappas, kexprs):
-        red = kappa_cse.reduced[e]
-        lines.append(f"  const double {k.name} = {printer.doprint(red)};")
-        ops += int(sp.count_ops(red))
+    # parameter polynomials: computed once by `constants`, read after the parameters
+    base = _constants_offset(model)
+    for j, k in enumerate(model.kappa):
+        if k in used:
+            lines.append(f"  const double {k.name} = p[{base + j}];")
     for sym, e in temps:
         lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
@@ -199,14 +240,39 @@ def emit_functions(model: SymbolicModel) -> list:
     }
     outputs = {k: [(t, sp.sympify(e)) for t, e in v] for k, v in outputs.items()}
     out_cse = _SharedCse([e for fname, _ in FUNCTIONS for _, e in outputs[fname]], "x")
+    out = []
+    for fname, sig in FUNCTIONS:
+        body, ops = _body(model, outputs[fname], names, out_cse)
+        out.append(EmittedFunction(fname, sig, body, ops))
+    return out
+
+
+def _constants_offset(model: SymbolicModel) -> int:
+    """Where the constants start in p: after the n link blocks and gravity."""
+    return PARAMS_PER_LINK * model.n + 3
+
+
+def emit_constants(model: SymbolicModel):
+    """Body of ``void constants(const double* p, double* k)``: every parameter polynomial
+    (kappa_j, in order) from the parameter vector, written to k[j]. The robot calls it
+    once when its parameters are set and keeps k after p, where the other functions read
+    it: a term that does not depend on the state is not recomputed at every call.
+    Returns (body, number of constants, operation count)."""
+    printer = _Printer(_names(model))
     # parameter polynomials in Horner form: about 40 % fewer operations on the SCARAs
     kdefs = {k: sp.horner(e) for k, e in model.kappa.items()}
     kappa_cse = _SharedCse(list(kdefs.values()), "a")
-    out = []
-    for fname, sig in FUNCTIONS:
-        body, ops = _body(model, outputs[fname], names, kdefs, kappa_cse, out_cse)
-        out.append(EmittedFunction(fname, sig, body, ops))
-    return out
+    lines, ops = [], 0
+    for sym, e in kappa_cse.needed(list(kdefs.values())):
+        lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
+        ops += int(sp.count_ops(e))
+    for j, (k, e) in enumerate(kdefs.items()):
+        red = kappa_cse.reduced[e]
+        lines.append(f"  k[{j}] = {printer.doprint(red)};  // {k.name}")
+        ops += int(sp.count_ops(red))
+    if not lines:
+        lines.append("  (void)p;\n  (void)k;")
+    return "\n".join(lines), len(kdefs), ops
 
 
 def emit_solve(model: SymbolicModel):

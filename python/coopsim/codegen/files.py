@@ -3,14 +3,14 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .emit import emit_functions, emit_solve
+from .emit import SIN_COS, emit_constants, emit_functions, emit_solve
 from .symbolic import PARAMS_PER_LINK, Structure, SymbolicModel
 
 __all__ = ["GENERATOR_VERSION", "COMMAND", "SYMPY_VERSION", "builtin_sources", "registry_source", "runtime_source",
            "header_line"]
 
 #: Bump when the emitted code changes for the same structure.
-GENERATOR_VERSION = "1.2.0"
+GENERATOR_VERSION = "1.3.0"
 #: The documented command that regenerates cpp/generated.
 COMMAND = "python -m coopsim.codegen"
 #: The sympy version the committed files were generated with (pyproject pins it).
@@ -26,13 +26,15 @@ def _angles_literal(s: Structure) -> str:
     return ", ".join(repr(float(v)) for row in s.angles for v in row)
 
 
-def _describe(s: Structure, funcs, solve_ops) -> str:
+def _describe(s: Structure, funcs, solve_ops, n_const, const_ops) -> str:
     ops = ", ".join(f"{f.name} {f.operations}" for f in funcs) + f", solve {solve_ops}"
     return (f"// Closed-form Lagrange-Euler dynamics of '{s.name}' ({s.joint_types}), from its DH and\n"
             f"// centre-of-mass tables. Structural angles per link (dh theta, dh alpha, com theta,\n"
             f"// com alpha): {_angles_literal(s)}.\n"
             f"// Lengths, masses, inertias, armatures, friction and gravity are read from p (19 per\n"
-            f"// link, then gravity in frame 0). Operations per function (after cse, sin/cos counted once): {ops}.\n")
+            f"// link, then gravity in frame 0), followed by the {n_const} parameter polynomials that\n"
+            f"// constants() computes from them once ({const_ops} operations).\n"
+            f"// Operations per function (after cse, sin/cos counted once): {ops}.\n")
 
 
 def _operation_count(funcs) -> int:
@@ -46,17 +48,20 @@ def builtin_sources(s: Structure, model: SymbolicModel | None = None) -> dict:
     funcs = emit_functions(model)
     ops = _operation_count(funcs)
     solve_body, solve_ops = emit_solve(model)
-    top = header_line(ops) + "\n" + _describe(s, funcs, solve_ops)
-    decls = "\n".join(f"void {s.name}_{f.name}(const double* p, {f.signature});" for f in funcs)
+    const_body, n_const, const_ops = emit_constants(model)
+    top = header_line(ops) + "\n" + _describe(s, funcs, solve_ops, n_const, const_ops)
+    decls = f"void {s.name}_constants(const double* p, double* k);\n"
+    decls += "\n".join(f"void {s.name}_{f.name}(const double* p, {f.signature});" for f in funcs)
     decls += f"\nbool {s.name}_solve(const double* M, double* x);"
     hpp = (f"{top}#pragma once\n\n#include \"coopsim/generated.hpp\"\n\nnamespace coopsim::generated {{\n\n"
            f"{decls}\n\n// The functions above with the structure they were generated for.\n"
            f"const GeneratedDynamics& {s.name}();\n\n}}  // namespace coopsim::generated\n")
-    defs = "\n\n".join(f"void {s.name}_{f.name}(const double* p, {f.signature}) {{\n{f.body}\n}}"
-                       for f in funcs)
-    defs += f"\n\nbool {s.name}_solve(const double* M, double* x) {{\n{solve_body}\n}}"
+    defs = f"void {s.name}_constants(const double* p, double* k) {{\n{const_body}\n}}\n\n"
+    defs += "\n\n".join(f"COOPSIM_GENERATED_TARGETS\nvoid {s.name}_{f.name}(const double* p, {f.signature}) {{\n"
+                        f"{f.body}\n}}" for f in funcs)
+    defs += f"\n\nCOOPSIM_GENERATED_TARGETS\nbool {s.name}_solve(const double* M, double* x) {{\n{solve_body}\n}}"
     cpp = (f"{top}#include \"{s.name}_dynamics.hpp\"\n\n#include <cmath>\n\nnamespace coopsim::generated {{\n\n"
-           f"{defs}\n\n"
+           f"{SIN_COS}\n{defs}\n\n"
            f"const GeneratedDynamics& {s.name}() {{\n"
            f"  static const GeneratedDynamics g = [] {{\n"
            f"    GeneratedDynamics d;\n"
@@ -66,6 +71,8 @@ def builtin_sources(s: Structure, model: SymbolicModel | None = None) -> dict:
            f"    d.angles = {{{_angles_literal(s)}}};\n"
            f"    d.generator_version = \"{GENERATOR_VERSION}\";\n"
            f"    d.operation_count = {ops};\n"
+           f"    d.constant_count = {n_const};\n"
+           f"    d.constants = &{s.name}_constants;\n"
            + "".join(f"    d.{f.name} = &{s.name}_{f.name};\n" for f in funcs)
            + f"    d.solve = &{s.name}_solve;\n"
            + "    return d;\n  }();\n  return g;\n}\n\n}  // namespace coopsim::generated\n")
@@ -89,10 +96,12 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
     model = model or SymbolicModel(s)
     funcs = emit_functions(model)
     ops = _operation_count(funcs)
-    defs = "\n\n".join(f"void coopsim_gen_{f.name}(const double* p, {f.signature}) {{\n{f.body}\n}}"
-                       for f in funcs)
+    const_body, n_const, const_ops = emit_constants(model)
+    defs = f"void coopsim_gen_constants(const double* p, double* k) {{\n{const_body}\n}}\n\n"
+    defs += "\n\n".join(f"COOPSIM_GENERATED_TARGETS\nvoid coopsim_gen_{f.name}(const double* p, {f.signature}) {{\n"
+                        f"{f.body}\n}}" for f in funcs)
     solve_body, solve_ops = emit_solve(model)
-    defs += f"\n\nbool coopsim_gen_solve(const double* M, double* x) {{\n{solve_body}\n}}"
+    defs += f"\n\nCOOPSIM_GENERATED_TARGETS\nbool coopsim_gen_solve(const double* M, double* x) {{\n{solve_body}\n}}"
     meta = (f"const char* coopsim_gen_name() {{ return \"{s.name}\"; }}\n"
             f"int coopsim_gen_dof() {{ return {s.dof}; }}\n"
             f"const char* coopsim_gen_joint_types() {{ return \"{s.joint_types}\"; }}\n"
@@ -100,7 +109,8 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
             f"  return a;\n}}\n"
             f"const char* coopsim_gen_version() {{ return \"{GENERATOR_VERSION}\"; }}\n"
             f"int coopsim_gen_params_per_link() {{ return {PARAMS_PER_LINK}; }}\n"
-            f"long coopsim_gen_operation_count() {{ return {ops}; }}\n")
-    text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
-            f"{meta}\n{defs}\n\n}}  // extern \"C\"\n")
+            f"long coopsim_gen_operation_count() {{ return {ops}; }}\n"
+            f"int coopsim_gen_constant_count() {{ return {n_const}; }}\n")
+    text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops, n_const, const_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
+            f"{SIN_COS}\n{meta}\n{defs}\n\n}}  // extern \"C\"\n")
     return text, ops
