@@ -269,3 +269,61 @@ def test_box_distances_is_box_distance_for_every_pair_and_checks_its_arguments()
     bad[0, 0] = 2.0
     with pytest.raises(ValueError, match=r"poses_b\[1\] must be a rigid transform"):
         cs.box_distances(P, H, np.array([T, bad]), np.ones((2, 3)))
+
+
+def test_box_clearances_is_the_minimum_of_box_distances_in_every_row():
+    """Both SCARAs along random joint paths (poses that move: every pair moves) and against the
+    container's walls (poses that do not): the pruned search finds the same minimum as box_distances
+    on every pair, bit for bit, and a pair that has it; overlapping rows (negative) included."""
+    from coopsim.tasks import scene
+
+    r1, r2 = scene.scaras()  # at the task's bases
+    rng = np.random.default_rng(11)
+    lo1, hi1 = r1.q_limits[:, 0], r1.q_limits[:, 1]
+    lo2, hi2 = r2.q_limits[:, 0], r2.q_limits[:, 1]
+    # smooth paths (rows close to each other, as in a log) and jumps (each row on its own)
+    n = 300
+    s = np.linspace(0, 1, n)[:, None]
+    q1 = np.vstack([lo1 + (hi1 - lo1) * (0.5 + 0.5 * np.sin(6 * s + rng.uniform(0, 6, 6))), rng.uniform(lo1, hi1, (n, 6))])
+    q2 = np.vstack([lo2 + (hi2 - lo2) * (0.5 + 0.5 * np.sin(5 * s + rng.uniform(0, 6, 6))), rng.uniform(lo2, hi2, (n, 6))])
+    P1 = np.array([r1.shapes(q)[0] for q in q1])
+    P2 = np.array([r2.shapes(q)[0] for q in q2])
+    H1, H2 = r1.shapes(q1[0])[1], r2.shapes(q2[0])[1]
+    d, i, j = cs.box_clearances(P1, H1, P2, H2)
+    assert d.shape == i.shape == j.shape == (2 * n,)
+    for k in range(2 * n):
+        D = cs.box_distances(P1[k], H1, P2[k], H2)
+        assert d[k] == D.min() and D[i[k], j[k]] == d[k], k
+    assert (d < 0).any() and (d > 0).any()
+    # boxes that do not move: (kb, 4, 4)
+    W = np.array([random_pose(rng, 0.4) for _ in range(4)])
+    HW = rng.uniform(0.01, 0.1, (4, 3))
+    d, i, j = cs.box_clearances(P1, H1, W, HW)
+    for k in range(0, 2 * n, 7):
+        D = cs.box_distances(P1[k], H1, W, HW)
+        assert d[k] == D.min() and D[i[k], j[k]] == d[k]
+    # no rows
+    d, i, j = cs.box_clearances(P1[:0], H1, P2[:0], H2)
+    assert d.shape == (0,)
+
+
+def test_box_clearances_checks_its_arguments():
+    r = cs.robots.scara1()
+    P, H = r.shapes(np.zeros(6))
+    PA = np.array([P, P])
+    with pytest.raises(ValueError, match=r"wrong shape for half_a"):
+        cs.box_clearances(PA, H[:2], PA, H)
+    with pytest.raises(ValueError, match=r"poses_b"):
+        cs.box_clearances(PA, H, PA[:1], H)
+    bad = PA.copy()
+    bad[1, 2, 0, 0] = 2.0
+    with pytest.raises(ValueError, match=r"poses_a\[1\]\[2\] must be a rigid transform"):
+        cs.box_clearances(bad, H, PA, H)
+    nan = PA.copy()
+    nan[0, 0, 0, 3] = np.nan
+    with pytest.raises(ValueError, match=r"poses_a must be finite"):
+        cs.box_clearances(nan, H, PA, H)
+    with pytest.raises(ValueError, match="half_b: half extents must be finite and > 0"):
+        cs.box_clearances(PA, H, PA, -H)
+    with pytest.raises(ValueError, match="at least one box"):
+        cs.box_clearances(PA[:, :0], H[:0], PA, H)

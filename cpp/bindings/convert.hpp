@@ -123,17 +123,22 @@ inline Arr array(const py::handle& obj, std::vector<py::ssize_t> shape, const ch
   return a;
 }
 
-inline Eigen::Isometry3d pose(const py::handle& obj, const char* name) {
-  Arr a = array(obj, {4, 4}, name);
-  Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(a.data());
+// A rigid transform from 16 finite numbers, row-major (`name` names it in errors).
+inline Eigen::Isometry3d pose_from(const double* data, const std::string& name) {
+  Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(data);
   if ((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-12)
-    throw py::value_error(std::string(name) + " must be a homogeneous transform (last row 0 0 0 1)");
+    throw py::value_error(name + " must be a homogeneous transform (last row 0 0 0 1)");
   const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
   if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || R.determinant() <= 0)
-    throw py::value_error(std::string(name) + " must be a rigid transform (orthonormal rotation)");
+    throw py::value_error(name + " must be a rigid transform (orthonormal rotation)");
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.matrix() = M;
   return T;
+}
+
+inline Eigen::Isometry3d pose(const py::handle& obj, const char* name) {
+  Arr a = array(obj, {4, 4}, name);
+  return pose_from(a.data(), name);
 }
 
 // Wrenches on a robot (`name`: the argument): a Wrench, a list or tuple of

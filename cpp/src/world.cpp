@@ -11,6 +11,7 @@
 #include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <iterator>
 #include <sstream>
@@ -741,6 +742,60 @@ void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Ei
   }
   for (size_t i = 0; i < a.size(); ++i)
     for (size_t j = 0; j < b.size(); ++j) out[i * b.size() + j] = gjk_distance(sa[i], ta[i], sb[j], tb[j], a[i], half_a[i], b[j], half_b[j]);
+}
+
+void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
+                    const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
+                    bool b_static, double* d, long* ia, long* ib) {
+  const size_t na = half_a.size(), nb = half_b.size(), n = static_cast<size_t>(std::max(rows, 0));
+  if (rows < 0) throw std::invalid_argument("box_clearances: rows must be >= 0");
+  if (na == 0 || nb == 0) throw std::invalid_argument("box_clearances: both sets need at least one box");
+  if (a.size() != n * na || b.size() != (b_static ? nb : n * nb))
+    throw std::invalid_argument("box_clearances: as many poses as rows times boxes are needed");
+  std::vector<btBoxShape> sa, sb;
+  std::vector<double> ra, rb;
+  for (const auto& h : half_a) {
+    check_half(h, "half_a");
+    sa.push_back(zero_margin_box(h));
+    ra.push_back(h.norm());
+  }
+  for (const auto& h : half_b) {
+    check_half(h, "half_b");
+    sb.push_back(zero_margin_box(h));
+    rb.push_back(h.norm());
+  }
+  long pi = -1, pj = -1;
+  for (size_t r = 0; r < n; ++r) {
+    const Eigen::Isometry3d* A = &a[r * na];
+    const Eigen::Isometry3d* B = b_static ? b.data() : &b[r * nb];
+    auto exact = [&](size_t i, size_t j) {
+      return gjk_distance(sa[i], bt_pose(A[i]), sb[j], bt_pose(B[j]), A[i], half_a[i], B[j], half_b[j]);
+    };
+    double best = std::numeric_limits<double>::infinity();
+    long bi = -1, bj = -1;
+    if (pi >= 0) {
+      best = exact(static_cast<size_t>(pi), static_cast<size_t>(pj));
+      bi = pi;
+      bj = pj;
+    }
+    const long start_i = bi, start_j = bj;
+    for (size_t i = 0; i < na; ++i)
+      for (size_t j = 0; j < nb; ++j) {
+        if (static_cast<long>(i) == start_i && static_cast<long>(j) == start_j) continue;
+        // two lower bounds of the distance, the cheap one first
+        if ((A[i].translation() - B[j].translation()).norm() - ra[i] - rb[j] >= best) continue;
+        if (-box_penetration(A[i], half_a[i], B[j], half_b[j]) >= best) continue;
+        const double e = exact(i, j);
+        if (e < best) {
+          best = e;
+          bi = static_cast<long>(i);
+          bj = static_cast<long>(j);
+        }
+      }
+    d[r] = best;
+    ia[r] = pi = bi;
+    ib[r] = pj = bj;
+  }
 }
 
 }  // namespace coopsim

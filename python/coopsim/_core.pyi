@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -1002,6 +1002,12 @@ class SimulationCore:
     @property
     def world_every(self) -> int:
         ...
+def box_clearances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any, half_b: typing.Any) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.int64], numpy.typing.NDArray[numpy.int64]]:
+    """
+    The clearance between two sets of boxes in each of N configurations: the smallest box_distance (m; <= 0: minus the overlap depth) over every pair of a box of one set and a box of the other, and the pair that has it.
+    
+    poses_a: (N, ka, 4, 4) world poses of the box centres per row; half_a: (ka, 3) half extents (m, > 0); poses_b: (N, kb, 4, 4), or (kb, 4, 4) for boxes that do not move; half_b: (kb, 3). Returns (d (N,), ia (N,), ib (N,)): the distance and the indices of the nearest pair. The same minimum as box_distances on every pair, with far fewer GJK calls (each row starts from the previous row's nearest pair; bounding spheres and separating axes rule the others out); GIL released.
+    """
 def box_distance(pose_a: typing.Any, half_a: typing.Any, pose_b: typing.Any, half_b: typing.Any) -> float:
     """
     Distance between two boxes, m: the gap between their nearest points (> 0), or minus the depth of their overlap (<= 0).

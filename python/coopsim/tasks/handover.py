@@ -166,37 +166,10 @@ def clearances(PA, HA, PB, HB):
     pair that has it.
 
     PA: (N, ka, 4, 4) poses, HA: (ka, 3) half extents; PB: (N, kb, 4, 4) or (kb, 4, 4) for boxes that do
-    not move, HB: (kb, 3). Returns (d (N,), ia (N,), ib (N,)). Exact (box_distances) on the pairs that
-    bounding spheres cannot rule out: in each row the pair with the nearest spheres first, then only
-    the pairs whose spheres are nearer than that pair's boxes.
+    not move, HB: (kb, 3). Returns (d (N,), ia (N,), ib (N,)). Exact (box_distance, Bullet's GJK) on the
+    pairs that bounding spheres and separating axes cannot rule out (``coopsim.box_clearances``).
     """
-    PA, HA, PB, HB = (np.asarray(x, float) for x in (PA, HA, PB, HB))
-    N = len(PA)
-    if PB.ndim == 3:
-        PB = np.broadcast_to(PB, (N,) + PB.shape)
-    ca, cb = PA[..., :3, 3], PB[..., :3, 3]
-    ra, rb = np.linalg.norm(HA, axis=-1), np.linalg.norm(HB, axis=-1)
-    dc = np.linalg.norm(ca[:, :, None, :] - cb[:, None, :, :], axis=-1)            # (N, ka, kb)
-    lower = dc - ra[None, :, None] - rb[None, None, :]
-    # first the pair of each row with the smallest lower bound: its distance bounds the row's minimum above
-    flat = lower.reshape(N, -1).argmin(axis=1)
-    i0, j0 = np.unravel_index(flat, lower.shape[1:])
-    r0 = np.arange(N)
-    d0 = _core.box_distances(PA[r0, i0], HA[i0], PB[r0, j0], HB[j0], pairwise=True) if N else np.zeros(0)
-    # then every other pair whose spheres are nearer than that
-    cand = lower <= d0[:, None, None]
-    cand[r0, i0, j0] = False
-    rows, i, j = np.nonzero(cand)
-    d = _core.box_distances(PA[rows, i], HA[i], PB[rows, j], HB[j], pairwise=True) if len(rows) else np.zeros(0)
-    rows, i, j, d = np.r_[r0, rows], np.r_[i0, i], np.r_[j0, j], np.r_[d0, d]
-    out = np.full(N, np.inf)
-    ia = np.zeros(N, int)
-    ib = np.zeros(N, int)
-    order = np.lexsort((-d, rows))            # per row, the smallest distance last
-    last = np.r_[rows[order][1:] != rows[order][:-1], True] if len(rows) else np.zeros(0, bool)
-    k = order[last]
-    out[rows[k]], ia[rows[k]], ib[rows[k]] = d[k], i[k], j[k]
-    return out, ia, ib
+    return _core.box_clearances(PA, HA, PB, HB)
 
 
 class _Runner:
