@@ -459,13 +459,17 @@ void Simulation::factor_mass_(Slot& s) {
   if (s.M_valid) return;
   MatN M;
   s.robot.mass_matrix(s.q.data(), s.ws, M);
-  s.M_ldlt.compute(M);
+  s.M_llt.compute(M);
+  if (s.M_llt.info() != Eigen::Success)
+    throw std::runtime_error("the mass matrix of robot '" + s.robot.name() + "' is not positive definite at q = " +
+                             vec_str(s.q));
   s.M_valid = true;
 }
 
 double Simulation::inverse_mass_along(Slot& s, const VecN& u) {
   factor_mass_(s);
-  return u.dot(s.M_ldlt.solve(u));
+  // u^T M^-1 u = |L^-1 u|^2
+  return s.M_llt.matrixL().solve(u).squaredNorm();
 }
 
 void Simulation::contact_wrenches_(double h) {
@@ -758,9 +762,10 @@ void Simulation::welds_(double h) {
     Mat6N J;
     s.robot.jacobian(s.ws, l, s.anchor_link, J);
     factor_mass_(s);  // once this world step
-    Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxDof, 6> MinvJt(s.robot.dof(), 6);
-    for (int c = 0; c < 6; ++c) MinvJt.col(c) = s.M_ldlt.solve(VecN(J.row(c).transpose()));
-    const Eigen::Matrix<double, 6, 6> A_robot = J * MinvJt;
+    // J M^-1 J^T = Y^T Y with Y = L^-1 J^T (one triangular solve for the six columns)
+    Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxDof, 6> Y = J.transpose();
+    s.M_llt.matrixL().solveInPlace(Y);
+    const Eigen::Matrix<double, 6, 6> A_robot = Y.transpose() * Y;
     const Eigen::Matrix3d I_inv = w.inertia(s.held).inverse();
     Eigen::Matrix3d rx;
     rx << 0, -r.z(), r.y(), r.z(), 0, -r.x(), -r.y(), r.x(), 0;

@@ -324,7 +324,7 @@ class Simulation {
     int first_body = -1;           // world body of box 0
     bool ext_held = false;         // tau_ext held nonzero from the step before
     std::array<Eigen::Vector3d, kMaxDof + 1> frame_w, frame_v;  // frame velocities at the last world step
-    Eigen::LDLT<MatN> M_ldlt;
+    Eigen::LLT<MatN> M_llt;  // M = L L^T (M is positive definite)
     bool M_valid = false;
     // grasp
     int held = -1, candidate = -1;
@@ -366,7 +366,7 @@ class Simulation {
   bool has_ext_(const Slot& s) const { return s.has_applied || s.has_contact; }
   static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
   double inverse_mass_along(Slot& s, const VecN& u);
-  void factor_mass_(Slot& s);  // M(q) of the slot's robot, LDL^T-factored once per world step
+  void factor_mass_(Slot& s);  // M(q) of the slot's robot, Cholesky-factored once per world step
   void applied_changed_(Slot& s);
 
   SimulationOptions opt_;
