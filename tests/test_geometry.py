@@ -247,6 +247,41 @@ def test_box_distance_is_the_nearest_points_gap_of_a_bounded_least_squares_probl
         assert cs.box_distance(I, [0.1, 0.1, 0.1], T, [0.2, 0.1, 0.1]) == pytest.approx(want, abs=1e-12)
 
 
+def test_box_distance_where_the_separating_axis_gap_is_the_distance():
+    """The nearest features a SCARA's boxes meet: boxes turned about the vertical only (parallel vertical
+    edges and faces), face to face, edge to edge, and random, against the bounded least-squares reference
+    (9e-10 m): the separating-axis gap stands for the distance only when a face or edge pair is certain
+    to hold the nearest points, GJK decides otherwise."""
+    from scipy.optimize import lsq_linear
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(17)
+    checked = 0
+    for k in range(600):
+        Ta, Tb = np.eye(4), np.eye(4)
+        kind = k % 3
+        if kind == 0:    # yawed only
+            Ta[:3, :3] = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi)).as_matrix()
+            Tb[:3, :3] = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi)).as_matrix()
+        elif kind == 1:  # one turned about one of its own axes by a multiple of 90 degrees: faces parallel
+            Tb[:3, :3] = Rotation.from_euler("xyz"[k % 3], 90 * rng.integers(0, 4), degrees=True).as_matrix()
+        else:
+            Ta[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+            Tb[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        Ta[:3, 3], Tb[:3, 3] = rng.uniform(-0.3, 0.3, 3), rng.uniform(-0.3, 0.3, 3)
+        ha, hb = rng.uniform(0.01, 0.2, 3), rng.uniform(0.01, 0.2, 3)
+        d = cs.box_distance(Ta, ha, Tb, hb)
+        A = np.hstack([Ta[:3, :3], -Tb[:3, :3]])
+        res = lsq_linear(A, Tb[:3, 3] - Ta[:3, 3], bounds=(-np.r_[ha, hb], np.r_[ha, hb]), tol=1e-15)
+        gap = np.linalg.norm(A @ res.x - (Tb[:3, 3] - Ta[:3, 3]))
+        if gap > 1e-9:
+            checked += 1
+            assert d == pytest.approx(gap, abs=9e-10), (k, d, gap)
+        else:
+            assert d <= 0.0
+    assert checked > 250
+
+
 def test_box_distances_is_box_distance_for_every_pair_and_checks_its_arguments():
     r = cs.robots.scara1()
     P, H = r.shapes(np.array([0.3, 0.5, 0.1, 0.2, 1.0, 0.02]))

@@ -123,8 +123,8 @@ void bind_world(py::module_& m) {
         "3) half extents (m, > 0); poses_b: (N, kb, 4, 4), or (kb, 4, 4) for boxes that do not move; half_b: "
         "(kb, 3). Returns (d (N,), ia (N,), ib (N,)): the distance and the indices of the nearest pair. The "
         "same minimum as box_distances on every pair, with far fewer GJK calls (each row starts from the "
-        "previous row's nearest pair; bounding spheres and separating axes rule the others out); GIL "
-        "released.");
+        "previous row's nearest pair; an earlier row's bound less the boxes' motion since, bounding spheres "
+        "and separating axes rule the others out): rows in time order are fastest. GIL released.");
   m.def("box_distances", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb,
                             bool pairwise) {
           const auto a = pose_list(pa, "poses_a"), b = pose_list(pb, "poses_b");

@@ -103,26 +103,127 @@ void Robot::build_geometry_() {
 
 double box_penetration(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
                        const Eigen::Vector3d& half_b) {
-  const Eigen::Matrix3d& A = a.linear();
-  const Eigen::Matrix3d& B = b.linear();
-  const Eigen::Vector3d d = b.translation() - a.translation();
-  double depth = std::numeric_limits<double>::infinity();
-  auto along = [&](const Eigen::Vector3d& u) {
-    const double ra = (A.transpose() * u).cwiseAbs().dot(half_a);
-    const double rb = (B.transpose() * u).cwiseAbs().dot(half_b);
-    depth = std::min(depth, ra + rb - std::abs(d.dot(u)));
-  };
-  for (int i = 0; i < 3; ++i) {
-    along(A.col(i));
-    along(B.col(i));
+  return -box_gap(a, half_a, b, half_b);
+}
+
+namespace {
+
+// Whether a box's face (centre c, half extents h, in 2-D coordinates of the face) and the
+// parallel projection onto it of the other box's nearest feature (a vertex, edge or face: the
+// zonotope p + sum_k lambda_k g_k, |lambda_k| <= 1) have a point in common: no separating axis
+// among the axes of both (2-D separating-axis test).
+bool feature_over_face(const Eigen::Vector2d& p, const Eigen::Vector2d* g, int m, const Eigen::Vector2d& h) {
+  Eigen::Vector2d axes[4] = {Eigen::Vector2d::UnitX(), Eigen::Vector2d::UnitY()};
+  int na = 2;
+  for (int k = 0; k < m; ++k) axes[na++] = Eigen::Vector2d(-g[k].y(), g[k].x());
+  for (int k = 0; k < na; ++k) {
+    const Eigen::Vector2d& u = axes[k];
+    double reach = h.x() * std::abs(u.x()) + h.y() * std::abs(u.y());
+    for (int l = 0; l < m; ++l) reach += std::abs(g[l].dot(u));
+    if (std::abs(p.dot(u)) > reach) return false;
   }
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) {
-      const Eigen::Vector3d c = A.col(i).cross(B.col(j));
-      const double len = c.norm();
-      if (len > 1e-9) along(c / len);
+  return true;
+}
+
+// A direction along which a box's extent projects to less than this is parallel to the face
+// (a free direction of the nearest feature): the gap errs by less than 1e-12 m per metre of box.
+constexpr double kParallel = 1e-12;
+
+// Whether the gap along face normal k of box F (half extents hF) is the distance to box O
+// (centre t, axes the columns of R, half extents hO, all in F's frame).
+bool face_gap_exact(int k, const Eigen::Vector3d& t, const Eigen::Matrix3d& R, const Eigen::Vector3d& hF,
+                    const Eigen::Vector3d& hO) {
+  const double s = t[k] >= 0 ? 1.0 : -1.0;  // the normal towards O
+  const int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+  Eigen::Vector3d p = t;
+  Eigen::Vector2d g[3];
+  int m = 0;
+  for (int j = 0; j < 3; ++j) {
+    const double along = s * R(k, j);
+    if (std::abs(along) < kParallel) {
+      g[m++] = hO[j] * Eigen::Vector2d(R(k1, j), R(k2, j));
+    } else {
+      p -= (along > 0 ? hO[j] : -hO[j]) * R.col(j);
     }
-  return depth;
+  }
+  return m < 3 && feature_over_face(Eigen::Vector2d(p[k1], p[k2]), g, m, Eigen::Vector2d(hF[k1], hF[k2]));
+}
+
+}  // namespace
+
+double box_gap(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+               const Eigen::Vector3d& half_b, bool* exact) {
+  // in A's frame (Gottschalk's OBB test): B's axes are the columns of R, its centre is t
+  const Eigen::Matrix3d R = a.linear().transpose() * b.linear();
+  const Eigen::Vector3d t = a.linear().transpose() * (b.translation() - a.translation());
+  const Eigen::Matrix3d absR = R.cwiseAbs();
+  const Eigen::Vector3d& ha = half_a;
+  const Eigen::Vector3d& hb = half_b;
+  double gap = -std::numeric_limits<double>::infinity();
+  int axis = -1;  // 0..2: a face normal of A, 3..5: of B, 6 + 3 i + j: the edge-edge axis A_i x B_j
+  for (int i = 0; i < 3; ++i) {
+    const double g = std::abs(t[i]) - ha[i] - absR.row(i).dot(hb);
+    if (g > gap) {
+      gap = g;
+      axis = i;
+    }
+  }
+  for (int j = 0; j < 3; ++j) {
+    const double g = std::abs(R.col(j).dot(t)) - hb[j] - absR.col(j).dot(ha);
+    if (g > gap) {
+      gap = g;
+      axis = 3 + j;
+    }
+  }
+  // the edge-edge axes A_i x B_j, scaled by their length sqrt(1 - R_ij^2) (parallel edges: no axis)
+  for (int i = 0; i < 3; ++i) {
+    const int i1 = (i + 1) % 3, i2 = (i + 2) % 3;
+    for (int j = 0; j < 3; ++j) {
+      const double len2 = 1.0 - R(i, j) * R(i, j);
+      if (len2 < 1e-18) continue;
+      const int j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+      const double proj = std::abs(t[i2] * R(i1, j) - t[i1] * R(i2, j));
+      const double ra = ha[i1] * absR(i2, j) + ha[i2] * absR(i1, j);
+      const double rb = hb[j1] * absR(i, j2) + hb[j2] * absR(i, j1);
+      const double g = (proj - ra - rb) / std::sqrt(len2);
+      if (g > gap) {
+        gap = g;
+        axis = 6 + 3 * i + j;
+      }
+    }
+  }
+  if (!exact) return gap;
+  *exact = false;
+  if (!(gap > 0)) return gap;
+  if (axis < 3) {
+    *exact = face_gap_exact(axis, t, R, ha, hb);
+  } else if (axis < 6) {
+    // in B's frame: A's centre at -R^T t, its axes the columns of R^T
+    *exact = face_gap_exact(axis - 3, -(R.transpose() * t), R.transpose(), hb, ha);
+  } else {
+    // the nearest edges (A's along i, B's along j): both closest points within them
+    const int i = (axis - 6) / 3, j = (axis - 6) % 3;
+    Eigen::Vector3d n = Eigen::Vector3d::Unit(i).cross(Eigen::Vector3d(R.col(j)));
+    if (n.dot(t) < 0) n = -n;
+    Eigen::Vector3d pa = Eigen::Vector3d::Zero(), pb = t;
+    for (int k = 0; k < 3; ++k) {
+      if (k != i) {
+        if (std::abs(n[k]) < kParallel) return gap;
+        pa[k] = n[k] > 0 ? ha[k] : -ha[k];
+      }
+      if (k != j) {
+        const double along = R.col(k).dot(n);
+        if (std::abs(along) < kParallel) return gap;
+        pb -= (along > 0 ? hb[k] : -hb[k]) * R.col(k);
+      }
+    }
+    const double c = R(i, j), denom = 1.0 - c * c;
+    const Eigen::Vector3d w = pa - pb;
+    const double d = w[i], e = R.col(j).dot(w);
+    const double s = (c * e - d) / denom, u = (e - c * d) / denom;
+    *exact = std::abs(s) <= ha[i] && std::abs(u) <= hb[j];
+  }
+  return gap;
 }
 
 void Robot::frame_velocities(const Workspace& ws, const double* qd, Eigen::Vector3d* w, Eigen::Vector3d* v) const {

@@ -1006,7 +1006,7 @@ def box_clearances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any,
     """
     The clearance between two sets of boxes in each of N configurations: the smallest box_distance (m; <= 0: minus the overlap depth) over every pair of a box of one set and a box of the other, and the pair that has it.
     
-    poses_a: (N, ka, 4, 4) world poses of the box centres per row; half_a: (ka, 3) half extents (m, > 0); poses_b: (N, kb, 4, 4), or (kb, 4, 4) for boxes that do not move; half_b: (kb, 3). Returns (d (N,), ia (N,), ib (N,)): the distance and the indices of the nearest pair. The same minimum as box_distances on every pair, with far fewer GJK calls (each row starts from the previous row's nearest pair; bounding spheres and separating axes rule the others out); GIL released.
+    poses_a: (N, ka, 4, 4) world poses of the box centres per row; half_a: (ka, 3) half extents (m, > 0); poses_b: (N, kb, 4, 4), or (kb, 4, 4) for boxes that do not move; half_b: (kb, 3). Returns (d (N,), ia (N,), ib (N,)): the distance and the indices of the nearest pair. The same minimum as box_distances on every pair, with far fewer GJK calls (each row starts from the previous row's nearest pair; an earlier row's bound less the boxes' motion since, bounding spheres and separating axes rule the others out): rows in time order are fastest. GIL released.
     """
 def box_distance(pose_a: typing.Any, half_a: typing.Any, pose_b: typing.Any, half_b: typing.Any) -> float:
     """

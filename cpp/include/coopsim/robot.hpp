@@ -340,6 +340,13 @@ class Robot {
 // overlap by that much, <= 0 that they are that far apart along some axis.
 double box_penetration(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
                        const Eigen::Vector3d& half_b);
+// The separating-axis gap of two boxes: the largest gap between their
+// projections over the 15 axes, m (= -box_penetration). It bounds their
+// distance from below; *exact is set when it is the distance itself: the axis
+// is a face normal of one box and the other box's nearest vertex along it lies
+// over that face (that vertex and the face are then nearest points).
+double box_gap(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+               const Eigen::Vector3d& half_b, bool* exact = nullptr);
 
 // Solves A x = b for symmetric positive definite A by Cholesky, overwriting A
 // with its factor; false if A is not positive definite.

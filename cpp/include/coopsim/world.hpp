@@ -49,8 +49,8 @@ void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Ei
 // rows values each). a: rows x na poses, row by row; b: rows x nb poses, or nb poses when
 // b_static (boxes that do not move). The same minimum as box_distances on every pair, found with
 // far fewer GJK calls: each row starts from the previous row's nearest pair, and a pair goes to
-// GJK only if neither its bounding spheres nor its separating axes (both lower bounds of the
-// distance) show it cannot be nearer.
+// GJK only if no lower bound of its distance shows it cannot be nearer: its bound from an earlier
+// row less how far its boxes can have moved since, its bounding spheres, its separating axes.
 void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
                     const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
                     bool b_static, double* d, long* ia, long* ib);
