@@ -362,3 +362,22 @@ def test_box_clearances_checks_its_arguments():
         cs.box_clearances(PA, H, PA, -H)
     with pytest.raises(ValueError, match="at least one box"):
         cs.box_clearances(PA[:, :0], H[:0], PA, H)
+
+
+def test_fk_and_shapes_of_many_states_are_those_of_each():
+    r = cs.robots.scara2()
+    q = np.random.default_rng(4).uniform(r.q_limits[:, 0], r.q_limits[:, 1], (20, 6))
+    F = r.fk(q)
+    P, H = r.shapes(q)
+    assert F.shape == (20, 4, 4) and P.shape == (20, len(r.boxes), 4, 4)
+    for i in range(20):
+        np.testing.assert_array_equal(F[i], r.fk(q[i]))
+        np.testing.assert_array_equal(P[i], r.shapes(q[i])[0])
+    np.testing.assert_array_equal(H, r.shapes(q[0])[1])
+    assert r.fk(q[:0]).shape == (0, 4, 4) and r.shapes(q[:0])[0].shape == (0, len(r.boxes), 4, 4)
+    with pytest.raises(ValueError, match=r"wrong shape for q: expected \(N, 6\), got \(3, 5\)"):
+        r.fk(np.ones((3, 5)))
+    bad = q.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(ValueError, match="q must be finite"):
+        r.shapes(bad)

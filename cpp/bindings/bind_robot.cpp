@@ -538,8 +538,20 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
            py::arg("gravity"), "A copy with another gravity vector (3,) m/s^2.");
 
   // kinematics
-  R.def("fk", [](const Robot& r, const py::object& q) { return checked_pose(r.tool_pose(At(r, q).ws), "fk"); },
-        py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,).")
+  R.def("fk", [](const Robot& r, const py::object& q) -> py::object {
+         if (as_array(q, "q").ndim() != 2) return checked_pose(r.tool_pose(At(r, q).ws), "fk");
+         // N states at once
+         Arr Q = array(q, {-1, r.dof()}, "q");
+         std::vector<Eigen::Isometry3d> T(static_cast<size_t>(Q.shape(0)));
+         Workspace ws;
+         for (size_t i = 0; i < T.size(); ++i) {
+           r.kinematics(Q.data() + i * r.dof(), ws);
+           T[i] = r.tool_pose(ws);
+         }
+         return poses(T);
+       },
+        py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,); for N states q (N, n), "
+        "the poses (N, 4, 4).")
       .def("frames", [](const Robot& r, const py::object& q) {
          const At at(r, q);
          std::vector<Eigen::Isometry3d> T;
@@ -560,15 +572,33 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
        }, py::arg("q"), py::arg("link") = -1, py::arg("point") = py::none(),
        "Geometric Jacobian (6, n), linear rows first, of `point` (3,) m given in the DH frame of `link` "
        "(1..n, negative from the last; 0 is the base); world coordinates.")
-      .def("shapes", [](const Robot& r, const py::object& q) {
-         std::vector<Eigen::Isometry3d> T;
-         r.box_poses(At(r, q).ws, T);
-         py::array_t<double> he({static_cast<py::ssize_t>(T.size()), py::ssize_t(3)});
-         for (size_t b = 0; b < T.size(); ++b)
+      .def("shapes", [](const Robot& r, const py::object& q) -> py::tuple {
+         const py::ssize_t k = static_cast<py::ssize_t>(r.boxes().size());
+         py::array_t<double> he({k, py::ssize_t(3)});
+         for (py::ssize_t b = 0; b < k; ++b)
            Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * b) = r.boxes()[b].half_extents.transpose();
-         return py::make_tuple(poses(T), he);
+         std::vector<Eigen::Isometry3d> T;
+         if (as_array(q, "q").ndim() != 2) {
+           r.box_poses(At(r, q).ws, T);
+           return py::make_tuple(poses(T), he);
+         }
+         // N states at once: (N, k, 4, 4)
+         Arr Q = array(q, {-1, r.dof()}, "q");
+         const py::ssize_t N = Q.shape(0);
+         std::vector<Eigen::Isometry3d> all;
+         all.reserve(static_cast<size_t>(N * k));
+         Workspace ws;
+         for (py::ssize_t i = 0; i < N; ++i) {
+           r.kinematics(Q.data() + i * r.dof(), ws);
+           r.box_poses(ws, T);
+           all.insert(all.end(), T.begin(), T.end());
+         }
+         py::array_t<double> out = poses(all);
+         out.resize({N, k, py::ssize_t(4), py::ssize_t(4)});
+         return py::make_tuple(out, he);
        }, py::arg("q"),
-       "World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,).")
+       "World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,); "
+       "for N states q (N, n), the poses (N, k, 4, 4).")
       .def("clamp_faces", [](const Robot& r, const py::object& q) {
          const At at(r, q);
          Eigen::Isometry3d a, b;

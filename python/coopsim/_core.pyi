@@ -263,9 +263,9 @@ class Robot:
         """
         Joint torques J^T F (n,) of f_ext: a (6,) wrench [f; m] (world, N and N m) at the tool centre point, or a Wrench or list of Wrench on any point of any link.
         """
-    def fk(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+    def fk(self, q: typing.Any) -> typing.Any:
         """
-        Tool centre point pose (4, 4) in the world for joint positions q (n,).
+        Tool centre point pose (4, 4) in the world for joint positions q (n,); for N states q (N, n), the poses (N, 4, 4).
         """
     def forward_dynamics(self, q: typing.Any, qd: typing.Any, tau: typing.Any, f_ext: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -337,9 +337,9 @@ class Robot:
         """
         dM/dq (n, n, n); [k] is the derivative with respect to q_k.
         """
-    def shapes(self, q: typing.Any) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
+    def shapes(self, q: typing.Any) -> tuple:
         """
-        World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,).
+        World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,); for N states q (N, n), the poses (N, k, 4, 4).
         """
     def tool_jacobian(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """

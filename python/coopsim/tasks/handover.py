@@ -520,8 +520,7 @@ def _score(runner: "_Runner", results: List[dict]) -> dict:
     """Per-cycle scores from the log (see the module's docstring); also the series behind the plots."""
     sim, log = runner.sim, runner.sim.log
     robots = (runner.r1, runner.r2)
-    shapes = [np.array([r.shapes(q)[0] for q in rl.q]) for r, rl in zip(robots, log.robots)]
-    halves = [r.shapes(rl.q[0])[1] for r, rl in zip(robots, log.robots)]
+    shapes, halves = zip(*(r.shapes(rl.q) for r, rl in zip(robots, log.robots)))
     names = [[f"{r.name}/{b.name}" for b in r.boxes] for r in robots]
     walls = [w[0] for w in runner.walls]
     PW = np.array([w[2] for w in runner.walls])
@@ -529,8 +528,7 @@ def _score(runner: "_Runner", results: List[dict]) -> dict:
     d_rr, i_rr, j_rr = clearances(shapes[0], halves[0], shapes[1], halves[1])
     cont = [clearances(P, H, PW, HW) for P, H in zip(shapes, halves)]
     d_rc = np.minimum(cont[0][0], cont[1][0])
-    tcp_err = np.column_stack([np.linalg.norm(np.array([r.fk(q)[:3, 3] - r.fk(qr)[:3, 3] for q, qr in zip(rl.q, rl.q_ref)]),
-                                              axis=1) if len(rl.q) else np.zeros(0)
+    tcp_err = np.column_stack([np.linalg.norm(r.fk(rl.q)[:, :3, 3] - r.fk(rl.q_ref)[:, :3, 3], axis=1)
                                for r, rl in zip(robots, log.robots)])
     weld = np.column_stack([np.linalg.norm(rl.weld[:, :3], axis=1) for rl in log.robots])
     internal = np.linalg.norm(log.internal_wrench(0, 1)[:, :3], axis=1)
