@@ -5,7 +5,7 @@ generated vs numeric forward dynamics from Python.
 
     python benchmarks/bench_codegen.py [--skip-compile]
 
-Targets (performance.md): regenerating both robots <= 60 s.
+Targets: regenerating both robots <= 60 s.
 """
 from __future__ import annotations
 

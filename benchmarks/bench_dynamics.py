@@ -24,7 +24,7 @@ import numpy as np
 import coopsim as cs
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TARGETS = {  # ns per call, performance.md
+TARGETS = {  # ns per call: the project's targets
     ("generated", "forward_dynamics", "C++"): 250.0,
     ("numeric", "forward_dynamics", "C++"): 1000.0,
     ("any", "rk4_step", "C++"): 1200.0,

@@ -6,7 +6,7 @@ gravity compensation) and under computed torque, RK4 at 0.2 ms, timed as
 returned as numpy arrays), also with the log every 10th step; then a batch
 of 16 computed-torque runs on 1 and on 2 threads (``run_batch``). Each
 figure is the median over repeats of the wall time; ratios are taken within
-this run. Target (performance.md): >= 150x real time for one SCARA under
+this run. Target: >= 150x real time for one SCARA under
 computed torque.
 
     python benchmarks/bench_simulation.py [--quick]

@@ -418,7 +418,7 @@ def test_an_asymmetric_point_grasp_follows_the_lever_rule():
     assert np.all(fa[3:] == 0) and np.all(fb[3:] == 0)
     assert fa[2] + fb[2] == pytest.approx(G_BAR, rel=1e-6)
     assert fa[2] / G_BAR == pytest.approx(0.75, abs=1e-4) and fb[2] / G_BAR == pytest.approx(0.25, abs=1e-4)
-    # 6-DOF welds at the same places share it by their compliance instead (world.md measured 0.62/0.38)
+    # 6-DOF welds at the same places share it by their compliance instead (measured 0.62/0.38)
     sim = two_holders(-0.05, 0.15)
     sim.run(1.0, progress=False)
     fa6 = sim.weld_wrench(0)[2] / G_BAR

@@ -71,7 +71,7 @@ def test_dimensions_change_tables_and_mass_properties(make):
 
 # link i is a uniform box of its length along its own axis x robot width x
 # link height (x, y, z edges in its CoM frame); the jaw a jaw_length x width x
-# jaw_thickness plate (robots.md, the robots module's docstring)
+# jaw_thickness plate (the robots module's docstring)
 BOXES = {
     "scara1": [("L1", "width", "height"), ("L2", "width", "height"), ("width", "height", "quill_length"),
                ("width", "height", "L4"), ("L5", "width", "height"), ("jaw_length", "width", "jaw_thickness")],

@@ -59,8 +59,16 @@ def test_what_the_package_says_of_the_task_is_there():
 
     assert ":mod:`coopsim.tasks.handover`" in cs.__doc__
     assert callable(importlib.import_module("coopsim.tasks.handover").run)
-    with open(os.path.join(os.path.dirname(cs.robots.__file__), "robots.py"), encoding="utf-8") as f:
-        assert "shared/design" not in f.read()
+    # no file of the project points to design notes that are not part of it
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    notes = ("shared/design", "task.md", "world.md", "robots.md", "performance.md", "architecture.md")
+    for top in ("python", "notebooks", "benchmarks", "examples", "scripts", "README.md"):
+        for folder, _, files in os.walk(os.path.join(repo, top)) if top != "README.md" else [(repo, [], [top])]:
+            for name in files:
+                if name.endswith((".py", ".pyi", ".ipynb", ".md", ".sh")):
+                    with open(os.path.join(folder, name), encoding="utf-8") as f:
+                        text = f.read()
+                    assert not [n for n in notes if n in text], os.path.join(folder, name)
 
 
 def test_planning_errors_name_the_argument_and_what_is_wrong():

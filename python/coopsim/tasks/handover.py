@@ -25,7 +25,7 @@ grasps a bar #2 holds still, so its weld starts unstretched and #2 carries the l
 giving m g / 2), every contact and grasp event, and success or the step and reason.
 
 Scene values: :mod:`coopsim.tasks.scene`. Planning values (m, rad, s) are the module constants below
-(``task.md``, "Geometry checked"): the handover bar centre (0.25, 0.25, 0.20), yaw 285 deg, #1 gripping
+(checked against the robots' kinematics in tests/test_task.py): the handover bar centre (0.25, 0.25, 0.20), yaw 285 deg, #1 gripping
 0.075 m on one side of the centre and #2 0.125 m on the other; #2 picks the bar 0.125 m from its
 centre with the tool centre point 0.015 m above the bar's centre; #1 inserts at a clamp pitch of
 65 deg, arriving 0.10 m beside the axis, sliding onto it and pushing 0.20 m in, then backing off

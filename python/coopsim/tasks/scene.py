@@ -1,8 +1,8 @@
-"""The cooperative task's scene (``shared/design/task.md``): the two SCARAs, the floor, the bar and
-the inclined container, with the values checked against the robots' kinematics.
+"""The cooperative task's scene (the README's "The cooperative task"): the two SCARAs, the floor, the
+bar and the inclined container, with the values checked against the robots' kinematics.
 
 Values (m, kg, rad), where they differ from the paper's defaults because those do not all work with
-the SCARAs' default dimensions (task.md, "Geometry checked"):
+the SCARAs' default dimensions (the checks are in tests/test_task.py):
 
 - SCARA #1 at the origin with ``L_base = 0.52``; SCARA #2 at (0.75, 0, 0) with ``L_base = 0.38``
   (its arm 0.10 m below #1's, so the arms cannot meet in plan view).
