@@ -479,3 +479,27 @@ def test_world_bad_input():
     sim2.world.add_free_box("late", [0.02, 0.02, 0.02], 0.1, position=[0.3, 0.0, 0.02])
     log = sim2.run(0.002, progress=False)
     assert "late" in log.bodies and "scara1/link1" in sim2.world.body_names
+
+
+@pytest.mark.parametrize("sleep_after", [0.5, 2.0])
+def test_a_body_at_rest_sleeps_after_sleep_after_and_keeps_its_contacts(sleep_after):
+    """Two bars set down on the floor are at rest from their first steps: they sleep once at rest for
+    sleep_after (default 0.5 s; Bullet's own 2 s), not before, and asleep still rest on the floor with
+    their weight in their contacts; a box dropped onto one of them later wakes that one only."""
+    land = sleep_after + 0.4                                      # s, when the box reaches bar "b"
+    drop = 0.5 * G * land ** 2 + 2 * BAR[2] + 0.03
+    w = cs.World(sleep_after=sleep_after)
+    w.add_free_box("a", BAR, BAR_MASS, position=[0.3, 0.2, BAR[2]], friction=0.5)
+    w.add_free_box("b", BAR, BAR_MASS, position=[-0.3, -0.2, BAR[2]], friction=0.5)
+    w.add_free_box("box", [0.03, 0.03, 0.03], 0.2, position=[-0.3, -0.2, drop])
+    sim = cs.Simulation(dt=DT, world=w, log_every=50)
+    sim.run(sleep_after - 0.1, progress=False)
+    assert not sim.body_state("a")["asleep"] and not sim.body_state("b")["asleep"]
+    sim.run(sleep_after + 0.1, progress=False)
+    assert sim.body_state("a")["asleep"] and sim.body_state("b")["asleep"] and not sim.body_state("box")["asleep"]
+    on_a = -sum(c["force"] for c in sim.contacts() if c["b"] == "a")
+    assert on_a[2] == pytest.approx(BAR_MASS * G, rel=1e-6)
+    sim.run(land + 0.05, progress=False)
+    assert sim.body_state("a")["asleep"] and not sim.body_state("b")["asleep"]
+    with pytest.raises(ValueError, match=r"sleep_after must be in 1e-3 .. 1e3 s"):
+        cs.World(sleep_after=0.0)

@@ -55,6 +55,7 @@ py::dict body_state_dict(const BodyState& s) {
   d["quaternion"] = to_numpy(Eigen::Vector4d(q.w(), q.x(), q.y(), q.z()));
   d["velocity"] = to_numpy(s.velocity);
   d["angular_velocity"] = to_numpy(s.angular_velocity);
+  d["asleep"] = s.asleep;
   return d;
 }
 
@@ -160,19 +161,24 @@ links' default 1, so a free body's own coefficient decides).
 
 floor: add the floor. gravity: (3,) m/s^2, the robots' too. floor_friction,
 floor_restitution: the floor's coefficients. solver_iterations: Bullet's
-contact solver iterations per step.)doc")
+contact solver iterations per step. sleep_after: s; a free body below
+0.1 mm/s and 1 mrad/s for this long sleeps, with the bodies it touches, until
+something moving touches it: it costs nothing meanwhile (Bullet's own delay
+is 2 s).)doc")
       .def(py::init([](bool floor, const py::object& gravity, double floor_friction, double floor_restitution,
-                       int solver_iterations) {
+                       int solver_iterations, double sleep_after) {
              WorldOptions o;
              o.floor = floor;
              o.gravity = vecx(gravity, 3, "gravity");
              o.floor_friction = floor_friction;
              o.floor_restitution = floor_restitution;
              o.solver_iterations = solver_iterations;
+             o.sleep_after = sleep_after;
              return std::make_shared<World>(o);
            }),
            py::arg("floor") = true, py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.81),
-           py::arg("floor_friction") = 1.0, py::arg("floor_restitution") = 0.0, py::arg("solver_iterations") = 10)
+           py::arg("floor_friction") = 1.0, py::arg("floor_restitution") = 0.0, py::arg("solver_iterations") = 10,
+           py::arg("sleep_after") = 0.5)
       .def("add_static_box", [](World& w, const std::string& name, const py::object& half_extents,
                                 const py::object& pose_obj, const py::object& position, const py::object& quaternion,
                                 double friction, double restitution) {
@@ -230,7 +236,7 @@ contact solver iterations per step.)doc")
               if (b.kind == BodyKind::Static || b.kind == BodyKind::Free) bodies.append(spec_dict(b));
             }
             return py::make_tuple(o.floor, to_numpy(o.gravity), o.floor_friction, o.floor_restitution,
-                                  o.solver_iterations, bodies);
+                                  o.solver_iterations, bodies, o.sleep_after);
           },
           [](py::tuple t) {
             WorldOptions o;
@@ -239,6 +245,7 @@ contact solver iterations per step.)doc")
             o.floor_friction = t[2].cast<double>();
             o.floor_restitution = t[3].cast<double>();
             o.solver_iterations = t[4].cast<int>();
+            if (t.size() > 6) o.sleep_after = t[6].cast<double>();
             auto w = std::make_shared<World>(o);
             for (py::handle h : t[5].cast<py::list>()) {
               py::dict d = h.cast<py::dict>();

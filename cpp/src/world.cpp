@@ -300,6 +300,8 @@ World::World(WorldOptions options) : options_(options) {
           "floor_restitution must be in 0 .. 1");
   require(options_.solver_iterations >= 1 && options_.solver_iterations <= 1000,
           "solver_iterations must be in 1 .. 1000");
+  require(std::isfinite(options_.sleep_after) && options_.sleep_after >= 1e-3 && options_.sleep_after <= 1e3,
+          "sleep_after must be in 1e-3 .. 1e3 s");
   if (options_.floor) {
     BodySpec floor;
     floor.name = "floor";
@@ -433,6 +435,7 @@ BodyState World::state(int id) const {
   out.pose = s.kind == BodyKind::Floor ? Eigen::Isometry3d::Identity() : eig(b.getWorldTransform());
   out.velocity = eig(b.getLinearVelocity());
   out.angular_velocity = eig(b.getAngularVelocity());
+  out.asleep = s.kind == BodyKind::Free && b.getActivationState() == ISLAND_SLEEPING;
   return out;
 }
 
@@ -577,6 +580,15 @@ void World::step(double dt, double t) {
   if (!impl_) build_();
   Impl& I = *impl_;
   I.world.stepSimulation(dt, 0);  // exactly one step of dt
+  // Bullet counts a body's time at rest against its global 2 s (gDeactivationTime, read only
+  // here): a body at rest this step is moved on faster so that it sleeps after sleep_after
+  const btScalar extra = dt * (gDeactivationTime / options_.sleep_after - 1.0);
+  for (const auto& b : I.bodies) {
+    if (!b || b->isStaticOrKinematicObject()) continue;
+    const int state = b->getActivationState();
+    if ((state == ACTIVE_TAG || state == WANTS_DEACTIVATION) && b->getDeactivationTime() > 0)
+      b->setDeactivationTime(std::max<btScalar>(b->getDeactivationTime() + extra, dt));
+  }
   contacts_.clear();
   const int nm = I.dispatcher.getNumManifolds();
   for (int m = 0; m < nm; ++m) {

@@ -761,11 +761,14 @@ class World:
     
     floor: add the floor. gravity: (3,) m/s^2, the robots' too. floor_friction,
     floor_restitution: the floor's coefficients. solver_iterations: Bullet's
-    contact solver iterations per step.
+    contact solver iterations per step. sleep_after: s; a free body below
+    0.1 mm/s and 1 mrad/s for this long sleeps, with the bodies it touches, until
+    something moving touches it: it costs nothing meanwhile (Bullet's own delay
+    is 2 s).
     """
-    def __getstate__(self) -> tuple[bool, numpy.typing.NDArray[numpy.float64], float, float, int, list]:
+    def __getstate__(self) -> tuple[bool, numpy.typing.NDArray[numpy.float64], float, float, int, list, float]:
         ...
-    def __init__(self, floor: bool = True, gravity: typing.Any = (0.0, 0.0, -9.81), floor_friction: typing.SupportsFloat | typing.SupportsIndex = 1.0, floor_restitution: typing.SupportsFloat | typing.SupportsIndex = 0.0, solver_iterations: typing.SupportsInt | typing.SupportsIndex = 10) -> None:
+    def __init__(self, floor: bool = True, gravity: typing.Any = (0.0, 0.0, -9.81), floor_friction: typing.SupportsFloat | typing.SupportsIndex = 1.0, floor_restitution: typing.SupportsFloat | typing.SupportsIndex = 0.0, solver_iterations: typing.SupportsInt | typing.SupportsIndex = 10, sleep_after: typing.SupportsFloat | typing.SupportsIndex = 0.5) -> None:
         ...
     def __len__(self) -> int:
         ...

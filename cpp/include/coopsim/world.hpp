@@ -76,6 +76,7 @@ struct BodyState {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();          // m/s, of the centre (world)
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  // rad/s (world)
+  bool asleep = false;  // a free body at rest that the world no longer solves (WorldOptions::sleep_after)
 };
 
 // One contact point between bodies a and b of the last world step.
@@ -103,6 +104,9 @@ struct WorldOptions {
   double floor_friction = 1.0, floor_restitution = 0.0;
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81);  // m/s^2
   int solver_iterations = 10;
+  // a free body below 0.1 mm/s and 1 mrad/s for this long (s) sleeps, with the bodies it touches
+  // (Bullet's islands), until something moving touches it (Bullet's own delay is 2 s)
+  double sleep_after = 0.5;
 };
 
 class World {
