@@ -324,7 +324,9 @@ class _Runner:
     def run_to(self, t_end):
         if t_end > self.t_limit:
             raise TaskError(self.step, self.sim.time, f"the task would run past its time limit of {self.t_limit} s")
-        self.sim.run(t_end, progress=False)
+        # the engine's run without building the log (Simulation.run returns one): phases end hundreds of
+        # times per cycle, and a log of the whole run built at each would cost more than the steps
+        self.sim._core.run(t_end, None)
         self.check_contacts()
 
     def wait_for(self, predicate, timeout, what):
