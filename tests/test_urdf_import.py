@@ -269,6 +269,19 @@ def test_import_errors_are_clear(text, match):
         cs.Robot.from_urdf(text)
 
 
+@pytest.mark.parametrize("text", [
+    _urdf(_joint("j", "revolute", "a", "b"), _joint("k", "revolute", "c", "c")),  # a joint from a link to itself
+    _urdf(_joint("j", "revolute", "a", "d"), _joint("k", "revolute", "b", "c"), _joint("l", "revolute", "c", "b"),
+          links=("a", "b", "c", "d")),  # a loop of two joints apart from the chain
+])
+@pytest.mark.parametrize("tip", [None, "b", "c"])
+def test_a_cycle_of_joints_apart_from_the_root_is_an_error_not_a_hang(text, tip):
+    """Every link but the root has one parent, so a link the root does not reach hangs from a cycle
+    of joints: following its parents never ended (from_urdf hung; found by fuzzing)."""
+    with pytest.raises(ValueError, match=r"form a closed loop \(a cycle of links\) apart from the root 'a'"):
+        cs.Robot.from_urdf(text, tip=tip)
+
+
 def test_import_bad_arguments(tmp_path):
     with pytest.raises(ValueError, match="no file"):
         cs.Robot.from_urdf(str(tmp_path / "missing.urdf"))

@@ -415,6 +415,18 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     children = {ln: [] for ln in links}
     for jn, el in joints.items():
         children[el.find("parent").get("link")].append(jn)
+    # every link has one parent at most, so a link the root does not reach hangs from a cycle of joints
+    reached, todo = {base}, [base]
+    while todo:
+        for jn in children[todo.pop()]:
+            c = joints[jn].find("child").get("link")
+            if c not in reached:
+                reached.add(c)
+                todo.append(c)
+    if len(reached) != len(links):
+        cycle = sorted(jn for jn, el in joints.items() if el.find("child").get("link") not in reached)
+        raise ValueError(f"joints {cycle!r} form a closed loop (a cycle of links) apart from the root {base!r}: "
+                         "not a serial chain")
 
     def movable(jn):
         return joints[jn].get("type") in _MOVABLE and jn not in locked
