@@ -296,6 +296,59 @@ def test_import_bad_arguments(tmp_path):
     assert cs.Robot.from_urdf(path).dof == 6  # a PathLike too
 
 
+SCARA1 = cs.robots.scara1().to_urdf()
+
+
+@pytest.mark.parametrize("old, new, match", [
+    # inf in an inertia went through numpy's matmul (a RuntimeWarning) into NaN inertias
+    ('ixx="0.0012999999999999997"', 'ixx="inf"', r"link 'link1' inertia: ixx must be finite and at most 1e\+12"),
+    # huge finite numbers overflowed in the frame changes, or were taken as a 1e300 kg link
+    ('ixx="0.0012999999999999997"', 'ixx="1e308"', r"ixx must be finite and at most 1e\+12"),
+    ('<mass value="2.2"/>', '<mass value="1e300"/>', r"link 'link2' inertial mass: value must be finite and at most"),
+    ('<origin xyz="0.3 0.0 0.42"', '<origin xyz="1e300 0.0 0.42"',
+     r"joint 'joint2' origin xyz: numbers must be at most 1e\+12 in magnitude"),
+    ('damping="0.8"', 'damping="-inf"', r"joint 'joint2': damping must be finite"),  # was the engine's "friction"
+])
+def test_import_refuses_numbers_too_large_to_compute_with(old, new, match):
+    assert old in SCARA1
+    with pytest.raises(ValueError, match=match):
+        cs.Robot.from_urdf(SCARA1.replace(old, new))
+
+
+def test_import_reads_infinite_or_huge_limits_and_efforts_as_none():
+    text = SCARA1.replace('lower="-2.530727415391778" upper="2.530727415391778" effort="20.0"',
+                          'lower="-inf" upper="1e300" effort="inf"')
+    r = cs.Robot.from_urdf(text)
+    assert np.all(np.isinf(r.q_limits[1])) and np.isinf(r.tau_limits[1])
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(snap="a"), "snap must be in"), (dict(snap=None), "snap must be in"), (dict(snap=np.nan), "snap must be in"),
+    (dict(tip=5), r"tip must be the name of a link \(str\) or None, got int"),
+    (dict(tip=["link3"]), "tip must be the name of a link"),
+    (dict(locked=["joint6"]), r"locked must be a dict \{joint name: position\}, got list"),
+    (dict(locked={"joint6": "a"}), r"locked: the position of 'joint6' must be a finite number \(rad or m\), got 'a'"),
+    (dict(locked={"joint6": None}), "locked: the position of 'joint6' must be a finite number"),
+    (dict(locked={"joint6": 1e300}), "locked: the position of 'joint6' must be a finite number"),
+])
+def test_import_arguments_name_what_is_wrong(kw, match):
+    # these gave float()'s "could not convert string to float: 'a'", a TypeError, "unhashable type:
+    # 'list'" or dict()'s "dictionary update sequence element #0 ...", none naming the argument
+    with pytest.raises(ValueError, match=match):
+        cs.Robot.from_urdf(SCARA1, **kw)
+
+
+def test_text_that_no_xml_holds_is_a_clear_error(tmp_path):
+    # a lone surrogate gave the parser's UnicodeEncodeError, a file that is not UTF-8 the
+    # UnicodeDecodeError of open(), naming neither the source nor the file
+    with pytest.raises(ValueError, match="source is not well-formed XML"):
+        cs.Robot.from_urdf('<robot name="\udcff"/>')
+    path = tmp_path / "latin1.urdf"
+    path.write_bytes(SCARA1.replace('name="scara1"', 'name="scara\xe9"').encode("latin-1"))
+    with pytest.raises(ValueError, match=f"the file '{path}' is not UTF-8 text"):
+        cs.Robot.from_urdf(path)
+
+
 def test_snap_reads_eleven_digit_right_angles():
     """The UR5's URDF writes pi/2 as 1.57079632679: read as pi/2 by default (snap = 1e-9 rad), so
     the DH and CoM angles come out as exact multiples of pi/2 (CoMs on their axes, to rounding,

@@ -27,6 +27,7 @@ import math
 import os
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -178,6 +179,12 @@ def to_urdf(robot, name: str | None = None) -> str:
 
 # ------------------------------------------------------------------ import
 
+# numbers read from a URDF (lengths, angles, masses, inertias, damping ...) are at most this large in
+# magnitude, so that combining them (inertias moved to another frame, DH rows of far or nearly parallel
+# axes) cannot overflow; joint limits and efforts may be anything, 1e9 or more standing for none
+_MAX_NUMBER = 1e12
+
+
 def _floats(text, count, what):
     try:
         v = [float(x) for x in (text or "").split()]
@@ -185,6 +192,8 @@ def _floats(text, count, what):
         raise ValueError(f"{what}: expected {count} numbers, got {text!r}") from None
     if len(v) != count or not all(math.isfinite(x) for x in v):
         raise ValueError(f"{what}: expected {count} finite numbers, got {text!r}")
+    if any(abs(x) > _MAX_NUMBER for x in v):
+        raise ValueError(f"{what}: numbers must be at most {_MAX_NUMBER:g} in magnitude, got {text!r}")
     return v
 
 
@@ -200,7 +209,13 @@ def _pose(el, what, snap=0.0) -> np.ndarray:
     return T
 
 
-def _attr(el, key, what, default=None):
+def _is_real(x) -> bool:
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+
+
+def _attr(el, key, what, default=None, bounded=True):
+    """The number in attribute `key` of `el` (`default` when absent): finite and at most _MAX_NUMBER
+    in magnitude, or with bounded=False any number but NaN (limits, efforts)."""
     v = el.get(key) if el is not None else None
     if v is None:
         if default is None:
@@ -212,6 +227,8 @@ def _attr(el, key, what, default=None):
         raise ValueError(f"{what}: {key} must be a number, got {v!r}") from None
     if math.isnan(x):
         raise ValueError(f"{what}: {key} must be a number, got {v!r}")
+    if bounded and not abs(x) <= _MAX_NUMBER:
+        raise ValueError(f"{what}: {key} must be finite and at most {_MAX_NUMBER:g} in magnitude, got {v!r}")
     return x
 
 
@@ -305,8 +322,11 @@ def _read(source):
         path = os.fspath(source)
         if not os.path.isfile(path):
             raise ValueError(f"source must be URDF text or the path of a URDF file; no file {path!r}")
-        with open(path, encoding="utf-8") as f:
-            source = f.read()
+        try:
+            with open(path, encoding="utf-8") as f:
+                source = f.read()
+        except UnicodeDecodeError as e:
+            raise ValueError(f"source: the file {path!r} is not UTF-8 text ({e})") from None
     if not isinstance(source, str):
         raise ValueError(f"source must be URDF text or a path, got {type(source).__name__}")
     # a drake: prefix used without its namespace declaration still parses
@@ -314,7 +334,7 @@ def _read(source):
         source = re.sub(r"<robot\b", f'<robot xmlns:drake="{_DRAKE_NS}"', source, count=1)
     try:
         root = ET.fromstring(source)
-    except ET.ParseError as e:
+    except (ET.ParseError, UnicodeError) as e:  # UnicodeError: a lone surrogate, which no XML text holds
         raise ValueError(f"source is not well-formed XML: {e}") from None
     if root.tag != "robot":
         raise ValueError(f"source is not URDF: its root element is <{root.tag}>, expected <robot>")
@@ -368,9 +388,13 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     """
     from ._core import LinkBox, Robot
 
-    snap = float(snap)
-    if not 0.0 <= snap < 0.1:
+    if not _is_real(snap) or not 0.0 <= snap < 0.1:
         raise ValueError(f"snap must be in [0, 0.1) rad, got {snap!r}")
+    snap = float(snap)
+    if tip is not None and not isinstance(tip, str):
+        raise ValueError(f"tip must be the name of a link (str) or None, got {type(tip).__name__}")
+    if locked is not None and not isinstance(locked, Mapping):
+        raise ValueError(f"locked must be a dict {{joint name: position}}, got {type(locked).__name__}")
     root = _read(source)
     links = {}
     for el in root.findall("link"):
@@ -406,8 +430,8 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     for jn, v in locked.items():
         if jn not in joints or joints[jn].get("type") not in _MOVABLE:
             raise ValueError(f"locked: {jn!r} is not a movable joint of this URDF")
-        if not math.isfinite(float(v)):
-            raise ValueError(f"locked: the position of {jn!r} must be finite")
+        if not _is_real(v) or not abs(v) <= _MAX_NUMBER:
+            raise ValueError(f"locked: the position of {jn!r} must be a finite number (rad or m), got {v!r}")
     roots = [ln for ln in links if ln not in child_of]
     if len(roots) != 1:
         raise ValueError(f"a URDF robot needs exactly one root link, got {sorted(roots)!r}")
@@ -544,11 +568,11 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         what = f"joint {jn!r}"
         if lim is not None:
             if el.get("type") != "continuous" and (lim.get("lower") is not None or lim.get("upper") is not None):
-                qlim[i] = [_attr(lim, "lower", what, 0.0), _attr(lim, "upper", what, 0.0)]
+                qlim[i] = [_attr(lim, key, what, 0.0, bounded=False) for key in ("lower", "upper")]
                 qlim[i] = np.where(np.abs(qlim[i]) >= _UNBOUNDED, np.copysign(np.inf, qlim[i]), qlim[i])
                 if not qlim[i, 0] < qlim[i, 1]:
                     raise ValueError(f"{what}: limit lower must be below upper, got {qlim[i].tolist()}")
-            e = _attr(lim, "effort", what, 0.0)
+            e = _attr(lim, "effort", what, 0.0, bounded=False)
             tau[i] = e if 0 < e < _UNBOUNDED else np.inf
         dyn = el.find("dynamics")
         if dyn is not None:
