@@ -369,6 +369,27 @@ def test_grasp_matrix_load_split_and_internal_wrenches():
         grasp.grasp_matrix(np.zeros((2, 2)), c)
 
 
+@pytest.mark.parametrize("call, match", [
+    # numpy's "could not convert string to float: 'a'" before, naming nothing
+    (lambda g: g.grasp_matrix(["ab", "cd"], np.zeros(3)), "points must be an array of real numbers"),
+    # complex numbers were cast to their real part with numpy's ComplexWarning
+    (lambda g: g.load_split(np.ones(6) * 1j, np.zeros((1, 3)), np.zeros(3)), "wrench must be an array of real"),
+    # NaN in the internal part or the wrenches came back as NaN shares
+    (lambda g: g.load_split(np.ones(6), np.zeros((1, 3)), np.zeros(3), internal=np.full((1, 6), np.nan)),
+     r"internal must be finite and within \+-1e\+12 N, N m"),
+    (lambda g: g.internal_wrenches(np.full((1, 6), np.inf), np.zeros((1, 3)), np.zeros(3)), "wrenches must be finite"),
+    # points far enough to overflow the pseudo-inverse
+    (lambda g: g.load_split(np.ones(6), [[0, 0, 1e200]], np.zeros(3)), r"points must be finite and within \+-1e\+06 m"),
+    (lambda g: g.load_split(np.ones(6), np.zeros((2, 3)), np.zeros(3), internal=np.zeros((3, 6))),
+     r"wrong shape for internal: expected \(2, 6\)"),
+])
+def test_load_sharing_bad_input_names_the_argument(call, match):
+    from coopsim import grasp
+
+    with pytest.raises(ValueError, match=match):
+        call(grasp)
+
+
 def test_the_log_gives_the_internal_wrench_of_a_dual_hold():
     sim = two_holders(-0.1, 0.1)
     log = sim.run(1.0, progress=False)

@@ -16,15 +16,31 @@ import numpy as np
 __all__ = ["grasp_matrix", "internal_wrenches", "load_split"]
 
 
+# bounds that keep every product finite: points within the world's extent (m), wrenches (N, N m)
+_MAX_DISTANCE, _MAX_WRENCH = 1e6, 1e12
+
+
+def _array(x, what: str, bound: float, unit: str) -> np.ndarray:
+    """x as a float array: ValueError naming `what` for anything but real numbers within +-bound."""
+    try:
+        a = np.asarray(x)
+        if a.dtype.kind not in "biuf":  # complex, text, objects: no silent cast
+            raise TypeError
+        a = a.astype(float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be an array of real numbers, got {type(x).__name__}") from None
+    if not np.all(np.abs(a) <= bound):
+        raise ValueError(f"{what} must be finite and within +-{bound:g} {unit}")
+    return a
+
+
 def _points(points, centre):
-    P = np.asarray(points, dtype=float)
+    P = _array(points, "points", _MAX_DISTANCE, "m")
     if P.ndim != 2 or P.shape[1] != 3 or len(P) < 1:
-        raise ValueError(f"wrong shape for points: expected (k, 3) with k >= 1, got {np.shape(points)}")
-    c = np.asarray(centre, dtype=float)
+        raise ValueError(f"wrong shape for points: expected (k, 3) with k >= 1, got {np.shape(P)}")
+    c = _array(centre, "centre", _MAX_DISTANCE, "m")
     if c.shape != (3,):
         raise ValueError(f"wrong shape for centre: expected (3,), got {c.shape}")
-    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(c))):
-        raise ValueError("points and centre must be finite")
     return P, c
 
 
@@ -45,24 +61,24 @@ def load_split(wrench, points, centre, internal=None) -> np.ndarray:
     least norm, plus an optional internal part (k, 6) projected onto G's null space (so it leaves the
     net wrench unchanged): the share a controller can command to its robots."""
     G = grasp_matrix(points, centre)
-    w = np.asarray(wrench, dtype=float)
-    if w.shape != (6,) or not np.all(np.isfinite(w)):
-        raise ValueError(f"wrench must be 6 finite numbers, got shape {w.shape}")
+    w = _array(wrench, "wrench", _MAX_WRENCH, "N, N m")
+    if w.shape != (6,):
+        raise ValueError(f"wrong shape for wrench: expected (6,), got {w.shape}")
     Gp = np.linalg.pinv(G)
     f = Gp @ w
     if internal is not None:
-        e = np.asarray(internal, dtype=float).reshape(-1)
-        if e.shape != (G.shape[1],):
-            raise ValueError(f"wrong shape for internal: expected ({len(G.T) // 6}, 6), got {np.shape(internal)}")
-        f = f + (np.eye(G.shape[1]) - Gp @ G) @ e
+        e = _array(internal, "internal", _MAX_WRENCH, "N, N m")
+        if e.shape not in ((G.shape[1] // 6, 6), (G.shape[1],)):
+            raise ValueError(f"wrong shape for internal: expected ({G.shape[1] // 6}, 6), got {e.shape}")
+        f = f + (np.eye(G.shape[1]) - Gp @ G) @ e.reshape(-1)
     return f.reshape(-1, 6)
 
 
 def internal_wrenches(wrenches, points, centre) -> np.ndarray:
     """The internal part (k, 6) of holders' wrenches (k, 6) applied at `points` (k, 3): what is left
     after taking out the minimum-norm share of their net wrench; it sums to zero on the body."""
-    W = np.asarray(wrenches, dtype=float)
     G = grasp_matrix(points, centre)
+    W = _array(wrenches, "wrenches", _MAX_WRENCH, "N, N m")
     if W.shape != (G.shape[1] // 6, 6):
         raise ValueError(f"wrong shape for wrenches: expected ({G.shape[1] // 6}, 6), got {W.shape}")
     f = W.reshape(-1)
