@@ -453,6 +453,30 @@ def test_a_world_belongs_to_one_simulation():
     cs.Simulation(world=w)  # free again once its simulation is gone
 
 
+@pytest.mark.parametrize("options, match", [
+    # pybind11's "Unable to cast Python instance of type <class 'int'> to C++ type '?'" (a RuntimeError) before
+    ({1: 0.1}, "grasp_options: option names are str, got 1"),
+    ({"weld_moment": "no"}, "grasp_options: weld_moment must be True or False, got 'no'"),
+    ([("gap", 1e-3)], r"grasp_options must be a dict \{option: value\} or None, got list"),
+    ({"gap": -1.0}, "grasp_options: gap must be >= 0"),
+    ({"slip_limit": 1.0}, "grasp_options: unknown option 'slip_limit'"),
+])
+def test_bad_grasp_options_are_named(options, match):
+    with pytest.raises(ValueError, match=match):
+        cs.Simulation(world=cs.World(), grasp_options=options)
+
+
+def test_the_internal_wrench_of_robots_the_log_lacks_is_an_error():
+    sim = cs.Simulation(world=cs.World(), log_every=10)
+    sim.add_robot(cs.robots.scara1(), cs.PID(0.0, 0.0, 0.0), np.zeros(6) + 0.01)
+    log = sim.run(0.01, progress=False)
+    # an IndexError ("list index out of range") before
+    for a, b, name in ((0, 1, "b"), (2, 0, "a"), ("0", 0, "a"), (0, 0.5, "b")):
+        with pytest.raises(ValueError, match=f"{name} must be the index of a robot of the log, in \\[0, 1\\)"):
+            log.internal_wrench(a, b)
+    assert np.all(log.internal_wrench(0, 0) == 0)
+
+
 def test_world_bad_input():
     w = cs.World()
     w.add_static_box("a", [0.1, 0.1, 0.1], position=[1, 0, 0])

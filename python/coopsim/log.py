@@ -179,6 +179,10 @@ class SimulationLog:
         """The internal wrench (rows, 6) of robots a and b holding one body: in the rows where both hold
         the same body, (w_a - w_b) / 2 of their welds' wrenches on it (N, N m; both act at the body's
         centre, so this is the part that cancels on the body, see :mod:`coopsim.grasp`); zeros elsewhere."""
+        n = len(self.robots)
+        for name, i in (("a", a), ("b", b)):
+            if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not -n <= i < n:
+                raise ValueError(f"{name} must be the index of a robot of the log, in [0, {n}), got {i!r}")
         ra, rb = self.robots[a], self.robots[b]
         both = (ra.holding != "") & (ra.holding == rb.holding)
         return np.where(both[:, None], (ra.weld - rb.weld) / 2, 0.0)

@@ -12,6 +12,7 @@ Units: s, rad or m, N m or N. Arrays are float64.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from typing import Callable, List, Optional
 
 import numpy as np
@@ -83,11 +84,12 @@ class Simulation:
                  log_contacts: bool = False, grasp: bool = True, grasp_options: Optional[dict] = None):
         if world is not None and not isinstance(world, World):
             raise ValueError(f"world must be a coopsim.World or None, got {type(world).__name__}")
+        grasp_options = _grasp_options(grasp_options)
         self._core = _core.SimulationCore(dt=dt, control_every=control_every, log_every=log_every,
                                           end_stops=end_stops, max_speed=max_speed, max_position=max_position,
                                           integrator=integrator, world=world, world_every=world_every,
                                           contact_forces=contact_forces, log_contacts=log_contacts, grasp=grasp,
-                                          grasp_options=dict(grasp_options or {}))
+                                          grasp_options=grasp_options)
         self.stats: Optional[RunStats] = None
 
     # ---- building ----
@@ -372,6 +374,20 @@ class Simulation:
             m["name"] = self._core.robot(i).name
             out.append(m)
         return out
+
+
+def _grasp_options(options) -> dict:
+    """grasp_options as a dict of option names; the engine checks the values (and the names)."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(f"grasp_options must be a dict {{option: value}} or None, got {type(options).__name__}")
+    for key, value in options.items():
+        if not isinstance(key, str):
+            raise ValueError(f"grasp_options: option names are str, got {key!r}")
+        if key == "weld_moment" and not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"grasp_options: weld_moment must be True or False, got {value!r}")
+    return dict(options)
 
 
 def _index(i, n):
