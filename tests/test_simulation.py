@@ -261,6 +261,25 @@ def test_failed_write_leaves_no_file(tmp_path):
         log.to_csv(tmp_path / "out.csv" / "x.csv")
 
 
+def test_paths_that_cannot_be_written_are_named(tmp_path, monkeypatch):
+    log = make_sim().run(0.01, progress=False)
+    # these named a temporary file the user never wrote ("Is a directory: '/tmp/.x.abc123.csv' -> '/tmp'"),
+    # and the empty path made it in the working folder
+    monkeypatch.chdir(tmp_path)
+    for bad in (tmp_path, "", str(tmp_path) + os.sep, "a\0b.csv", b"run.csv", 5):
+        with pytest.raises(ValueError, match="path must"):
+            log.to_csv(bad)
+    assert os.listdir(tmp_path) == []
+    (tmp_path / "file").write_text("x")
+    inside = tmp_path / "file" / "run.csv"
+    with pytest.raises(OSError, match="cannot write the file") as e:
+        log.to_csv(inside)
+    assert e.value.filename == str(inside)
+    # a name near the file system's limit of 255 bytes: its temporary file's name must fit too
+    long = tmp_path / ("r" * 250 + ".csv")
+    assert log.to_csv(long) == str(long) and sorted(os.listdir(tmp_path)) == ["file", long.name]
+
+
 def test_plot_log_draws_one_panel_per_joint_with_dashed_references():
     import matplotlib
 

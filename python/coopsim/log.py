@@ -390,20 +390,36 @@ def _none_str(v):
 
 
 def _atomic_write(path, suffix: str, write: Callable[[str], None]) -> str:
+    """Calls write(tmp) on a temporary file beside `path`, then renames it to `path`: a failure midway
+    leaves any earlier file intact. The folder is made as needed. A path that cannot name a file is a
+    ValueError, a file system error an OSError naming `path` (not the temporary file)."""
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+        raise ValueError(f"path must be a file name (str or path-like), got {path!r}")
     path = os.fspath(path)
+    if not path or "\0" in path or path.endswith(("/", os.sep)) or os.path.isdir(path):
+        raise ValueError(f"path must name a file, got {path!r}" + (" (a folder)" if path and os.path.isdir(path)
+                                                                     else ""))
     folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)  # a fresh output folder is made, as the file would be
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=suffix, dir=folder)
-    os.close(fd)
+    tmp = None
     try:
+        os.makedirs(folder, exist_ok=True)  # a fresh output folder is made, as the file would be
+        # the temporary name stays short: a name near the file system's limit must still work
+        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path)[:64] + ".", suffix=suffix, dir=folder)
+        os.close(fd)
         write(tmp)
         # mkstemp makes the file private; give it the usual mode
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
+    except OSError as e:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+        if e.errno is None:
+            raise
+        raise OSError(e.errno, f"cannot write the file: {e.strerror}", path) from e
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         raise
     return path
