@@ -243,6 +243,58 @@ def test_bad_input_names_the_argument(sim, tmp_path):
     assert not os.path.exists(p)
 
 
+def spoiled_log(log, t=None, robot=0, bar=None, **arrays):
+    """The log with its times, robot `robot`'s arrays or the bar's data replaced (as a hand-made log)."""
+    t = log.t if t is None else t
+    robots = [cs.RobotLog(rl.name, t, holding=rl.holding, weld=rl.weld,
+                          **{k: arrays.get(k, getattr(rl, k)) if i == robot else getattr(rl, k)
+                             for k in cs.log.STORED})
+              for i, rl in enumerate(log.robots)]
+    bodies = [cs.BodyLog(b.name, t, bar if bar is not None and b.name == "bar" else b.data)
+              for b in log.bodies.values()]
+    return cs.SimulationLog(t, robots, bodies=bodies, contacts=log._contacts)
+
+
+def test_a_log_that_does_not_hold_together_is_named(sim, tmp_path):
+    """Hand-made or damaged logs: each gave an IndexError, an OverflowError, numpy's messages or
+    overflow warnings before (in brackets)."""
+    log, p = sim.log, str(tmp_path / "x.html")
+    rows = len(log.t)
+    q, bar = np.array(log[0].q), np.array(log.bodies["bar"].data)
+    huge = q.copy()
+    huge[:, 2] = 1e300  # the quill, a prismatic joint
+    nan_t, nan_bar = np.array(log.t), bar.copy()
+    nan_t[3], nan_bar[2, 0] = np.nan, np.nan
+    cases = [
+        (dict(t=nan_t), r"log\.t must be finite"),                     # (cannot convert float NaN to integer)
+        (dict(t=np.array(log.t)[::-1]), r"log\.t must be in time order"),       # (t_end must not be before t_start)
+        (dict(t=np.array(log.t).astype(str)), r"log\.t must be an array of real numbers"),
+        (dict(t=np.array(log.t) * 1e300), "frames is too many"),                 # (Maximum allowed size exceeded)
+        (dict(q=q[:-3]), rf"wrong shape for log\[0\]\.q: expected \({rows}, n\)"),   # (IndexError)
+        (dict(q=q[:, 0]), r"wrong shape for log\[0\]\.q"),                       # (IndexError)
+        (dict(q_ref=q[:, :5]), rf"wrong shape for log\[0\]\.q_ref: expected \({rows}, 6\)"),
+        (dict(q=huge), r"puts robot 0's boxes more than 1e\+06 m from the origin"),  # (overflow in cast)
+        (dict(bar=nan_bar), r"log\.bodies\['bar'\] must hold finite positions"),  # (invalid value in multiply)
+    ]
+    for kw, match in cases:
+        with pytest.raises(ValueError, match=match):
+            view.replay_html(spoiled_log(log, **kw), p, robots=sim.robots, world=sim.world)
+    assert not os.path.exists(p)
+    robots, small = sim.robots, dict(figsize=(2, 2), dpi=20)
+    for kw, match in cases[:6] + [(dict(t=np.array(log.t) * 1e200), r"^6e\+201 frames is too many")]:
+        with pytest.raises(ValueError, match=match):  # (fp and xp are not of the same length, 200 digits ...)
+            view.animate(spoiled_log(log, **kw), robots, world=sim.world, **small)
+    with pytest.raises(ValueError, match="path must be a file name ending in .mp4 or .gif, got 5"):
+        view.animate(sim, path=5, **small)  # (TypeError: expected str, bytes or os.PathLike object)
+    # tables: a clear error for rows that do not match (numpy's hstack before), inf written as it is
+    with pytest.raises(ValueError, match=r"wrong shape for log\[0\]\.q"):
+        spoiled_log(log, q=q[:-1]).to_dataframe()
+    inf = q.copy()
+    inf[1, 1] = np.inf
+    df = spoiled_log(log, q=inf, q_ref=inf).to_dataframe()  # e = inf - inf: NaN, without numpy's warning
+    assert np.isnan(df[f"{log.labels[0]}.e2"].iloc[1])
+
+
 def test_a_robot_alone_without_a_world(tmp_path):
     r = cs.robots.scara1()
     s = cs.Simulation(dt=2e-4, log_every=50)

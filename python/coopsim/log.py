@@ -33,6 +33,8 @@ STORED: Tuple[str, ...] = tuple(name for name, _ in log_schema())
 #: Quantities in tables (CSV, Excel, DataFrame): the stored ones, then the error e = q_ref - q.
 QUANTITIES: Tuple[str, ...] = STORED + ("e",)
 
+# the world's extent, m: positions of bodies lie within it
+_MAX_DISTANCE = 1e6
 # Excel's sheet size (rows include the header)
 _EXCEL_MAX_ROWS = 1_048_576
 
@@ -175,6 +177,46 @@ class SimulationLog:
         self._contact_points = contact_points
         self._grasps = grasps
 
+    def check(self, *, poses: bool = False) -> "SimulationLog":
+        """Returns the log if it is consistent, else raises ValueError naming what is not: log.t
+        (rows,) finite real numbers in time order; per robot every quantity (rows, n) real numbers
+        with one n, holding (rows,) and weld (rows, 6); per free body (rows, 13) real numbers, and
+        with poses=True (the views) finite, positions within 1e6 m and unit quaternions. A
+        simulation's log always is; the views and tables check one built or changed by hand."""
+        t = _real(self.t, "log.t")
+        if t.ndim != 1:
+            raise ValueError(f"log.t must be (rows,), got shape {t.shape}")
+        if not np.all(np.isfinite(t)):
+            raise ValueError("log.t must be finite (no NaN or inf)")
+        if np.any(np.diff(t) < 0):
+            raise ValueError("log.t must be in time order (non-decreasing)")
+        rows = len(t)
+        for i, r in enumerate(self.robots):
+            if not isinstance(r, RobotLog):
+                raise ValueError(f"log.robots[{i}] must be a RobotLog, got {type(r).__name__}")
+            n = None
+            for k in STORED:
+                a = _real(getattr(r, k), f"log[{i}].{k}")
+                if a.ndim != 2 or a.shape[0] != rows or (n is not None and a.shape[1] != n):
+                    want = f"({rows}, {'n' if n is None else n})"
+                    raise ValueError(f"wrong shape for log[{i}].{k}: expected {want}, one row per log row, "
+                                     f"got {a.shape}")
+                n = a.shape[1]
+            if np.shape(r.holding) != (rows,):
+                raise ValueError(f"wrong shape for log[{i}].holding: expected ({rows},), got {np.shape(r.holding)}")
+            if _real(r.weld, f"log[{i}].weld").shape != (rows, 6):
+                raise ValueError(f"wrong shape for log[{i}].weld: expected ({rows}, 6), got {np.shape(r.weld)}")
+        for name, b in self.bodies.items():
+            d = _real(b.data, f"log.bodies[{name!r}]")
+            if d.shape != (rows, 13):
+                raise ValueError(f"wrong shape for log.bodies[{name!r}]: expected ({rows}, 13), got {d.shape}")
+            if poses and not (np.all(np.isfinite(d)) and np.all(np.abs(d[:, :3]) <= _MAX_DISTANCE)
+                              and np.all(np.abs(d[:, 3:7]) <= 1.0 + 1e-6)
+                              and np.all(np.abs(np.linalg.norm(d[:, 3:7], axis=1) - 1.0) <= 1e-6)):
+                raise ValueError(f"log.bodies[{name!r}] must hold finite positions within {_MAX_DISTANCE:g} m and "
+                                 "unit quaternions")
+        return self
+
     def internal_wrench(self, a: int = 0, b: int = 1) -> np.ndarray:
         """The internal wrench (rows, 6) of robots a and b holding one body: in the rows where both hold
         the same body, (w_a - w_b) / 2 of their welds' wrenches on it (N, N m; both act at the body's
@@ -254,9 +296,11 @@ class SimulationLog:
 
     def to_array(self) -> np.ndarray:
         """All columns as one (rows, columns) float64 array, in :meth:`columns` order."""
-        parts = [self.t[:, None]]
-        for r in self.robots:
-            parts += [getattr(r, "error" if qty == "e" else qty) for qty in QUANTITIES]
+        self.check()
+        parts = [np.asarray(self.t, dtype=float)[:, None]]
+        with np.errstate(invalid="ignore", over="ignore"):  # e of a log holding inf (written by hand) is NaN
+            for r in self.robots:
+                parts += [np.asarray(getattr(r, "error" if qty == "e" else qty), dtype=float) for qty in QUANTITIES]
         parts += [b.data for b in self.bodies.values()]
         return np.hstack(parts) if parts else np.zeros((0, 1))
 
@@ -383,6 +427,14 @@ class SimulationLog:
         from .plotting import plot_log
 
         return plot_log(self, robot=robot, quantity=quantity, **kwargs)
+
+
+def _real(x, what: str) -> np.ndarray:
+    """x as a float array, or ValueError naming `what` when it holds anything but real numbers."""
+    a = np.asarray(x)
+    if a.dtype.kind not in "biuf":
+        raise ValueError(f"{what} must be an array of real numbers, got dtype {a.dtype}")
+    return a.astype(float, copy=False)
 
 
 def _none_str(v):

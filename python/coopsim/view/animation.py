@@ -51,6 +51,8 @@ def _number(x, what: str) -> float:
 
 
 def _suffix(path) -> str:
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+        raise ValueError(f"path must be a file name ending in .mp4 or .gif, got {path!r}")
     suffix = os.path.splitext(os.fspath(path))[1].lower()
     if suffix not in _SUFFIXES:
         raise ValueError(f"path must end in .mp4 or .gif (the format follows the suffix), got {os.fspath(path)!r}")
@@ -347,6 +349,8 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         _suffix(path)
     if not hasattr(log, "t") or not hasattr(log, "robots"):
         raise ValueError(f"log must be a coopsim.SimulationLog, got {type(log).__name__}")
+    if hasattr(log, "check"):
+        log.check(poses=True)
     t_log = np.asarray(log.t, dtype=float)
     rows = len(t_log)
     if rows == 0:
@@ -367,13 +371,15 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         duration = _number(duration, "duration")
         if duration <= 0:
             raise ValueError(f"duration must be > 0 s, got {duration!r}")
-        n_frames = max(1, int(round(duration * fps)))
+        frames = duration * fps
     elif speed == 0:
         raise ValueError("speed 0 (pause) needs a duration (s) for the video")
     else:
-        n_frames = int(math.floor((t1 - t0) * fps / speed + 1e-9)) + 1
-    if n_frames > 1_000_000:
-        raise ValueError(f"{n_frames} frames is too many: lower fps, raise speed or shorten t_end - t_start")
+        frames = (t1 - t0) * fps / speed
+    if not frames <= 1_000_000:
+        raise ValueError(f"{frames:.3g} frames is too many: lower fps, raise speed or shorten t_end - t_start"
+                         + (" (or the duration)" if duration is not None else ""))
+    n_frames = max(1, int(round(frames))) if duration is not None else int(math.floor(frames + 1e-9)) + 1
     times = np.minimum(t0 + np.arange(n_frames) * (speed / fps), t1)
 
     n = len(robots)
@@ -480,7 +486,10 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     scene.choose_azimuth([[(True, *r.shapes(Q[i][k]), False) for i, r in enumerate(robots)]
                           + [(False, p if p.ndim == 3 else p[at[k]], hb, b.scenery and p.ndim == 3)
                              for b, (hb, p, _) in checked_bodies] for k in few])
-    scene.fit(np.concatenate(pts))
+    pts = np.concatenate(pts)
+    if not np.all(np.abs(pts) <= 1e6):
+        raise ValueError("the log puts boxes more than 1e6 m from the origin (q, q_ref or a body's pose)")
+    scene.fit(pts)
     if label is True:
         # the part that does not change goes into the background (text costs about 0.1 ms a glyph)
         ax.figure.text(0.98, 0.975, f"speed {100 * speed:.0f} %", va="top", ha="right", fontsize=9)

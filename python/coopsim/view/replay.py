@@ -242,6 +242,10 @@ def _color_track(times: np.ndarray, colors: np.ndarray) -> dict:
             "values": _f32(rgb.reshape(-1))}
 
 
+_MAX_FRAMES = 1e6  # keyframes of a replay, as animate's frames
+_MAX_DISTANCE = 1e6  # m: boxes drawn lie within the world's extent
+
+
 def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
     """Indices of the log rows shown: the row nearest each t0 + k / fps within [t0, t1], the last row in it."""
     lo = int(np.searchsorted(t, t0 - 1e-12, side="left"))
@@ -249,7 +253,11 @@ def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
     if hi < lo:
         raise ValueError(f"no log row between t_start = {t0:g} s and t_end = {t1:g} s")
     seg = t[lo:hi + 1]
-    n = int(math.floor((seg[-1] - seg[0]) * fps + 1e-9)) + 1
+    frames = (seg[-1] - seg[0]) * fps
+    if not frames <= _MAX_FRAMES:
+        raise ValueError(f"{frames:.3g} frames is too many (at most {_MAX_FRAMES:g}): lower fps or replay a part "
+                         "of the log (t_start, t_end)")
+    n = int(math.floor(frames + 1e-9)) + 1
     targets = seg[0] + np.arange(n) / fps
     j = np.clip(np.searchsorted(seg, targets), 1, max(len(seg) - 1, 1))
     if len(seg) > 1:
@@ -297,6 +305,7 @@ def _unpack_sources(log, robots, world):
             world = getattr(sim, "world", None)
     if not isinstance(log, SimulationLog):
         raise ValueError(f"log must be a coopsim SimulationLog or a finished Simulation, got {type(log).__name__}")
+    log.check(poses=True)
     if robots is None:
         robots = []
         if len(log.robots):
@@ -379,7 +388,7 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     rows). speed: the speed the page starts at, 0 to 4 (400 %). t_start,
     t_end: the part of the log to replay (s; default all). reference: draw
     the desired pose (``q_ref``) as a transparent blue ghost (robots whose
-    reference is not finite get none). floor: draw the floor (z = 0) when
+    reference is not finite, or beyond 1e6 m, get none). floor: draw the floor (z = 0) when
     the world has one (or there is no world). holding: a robot's moving
     boxes are green while it holds: None (default) or 'shared' from the log
     while another robot holds the same body too (the paper's dual hold,
@@ -462,6 +471,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
         k = len(r.boxes)
         shapes = [r.shapes(qq) for qq in q]
         P = np.stack([s[0] for s in shapes])             # (frames, k, 4, 4)
+        if not np.all(np.abs(P[..., :3, 3]) <= _MAX_DISTANCE):
+            raise ValueError(f"log[{i}].q puts robot {i}'s boxes more than {_MAX_DISTANCE:g} m from the origin")
         H = shapes[0][1]
         link = _hex(c["robots"][i % len(c["robots"])] if colors[i] is None else colors[i])
         base, jaw = _hex(c["base"]), _hex(c["jaw"])
@@ -482,8 +493,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
         bounds.append(pts.reshape(-1, 3))
         if reference:
             qr = np.asarray(rl.q_ref, float)[rows]
-            if qr.shape == q.shape and np.all(np.isfinite(qr)):
-                G = np.stack([r.shapes(qq)[0] for qq in qr])
+            G = np.stack([r.shapes(qq)[0] for qq in qr]) if qr.shape == q.shape and np.all(np.isfinite(qr)) else None
+            if G is not None and np.all(np.abs(G[..., :3, 3]) <= _MAX_DISTANCE):   # else no ghost
                 ghost = _hex(c["ghost"])
                 alpha = float(c.get("ghost_alpha", 0.3))
                 for j, b in enumerate(r.boxes):
