@@ -286,6 +286,14 @@ def test_a_log_that_does_not_hold_together_is_named(sim, tmp_path):
             view.animate(spoiled_log(log, **kw), robots, world=sim.world, **small)
     with pytest.raises(ValueError, match="path must be a file name ending in .mp4 or .gif, got 5"):
         view.animate(sim, path=5, **small)  # (TypeError: expected str, bytes or os.PathLike object)
+    # what the views derive from a log: NaN poses given back, an IndexError for a flat body log before
+    with pytest.raises(ValueError, match=r"log\.bodies\['bar'\] must hold finite positions"):
+        view.world_bodies(sim.world, spoiled_log(log, bar=nan_bar))
+    with pytest.raises(ValueError, match=r"wrong shape for log\.bodies\['bar'\]"):
+        view.world_bodies(sim.world, spoiled_log(log, bar=bar[:, 0]))
+    for derive in (lambda x: view.colliding_from_log(x, robots), view.contacts_from_log, view.holding_from_log):
+        with pytest.raises(ValueError, match=r"log\.t must be in time order"):
+            derive(spoiled_log(log, t=np.array(log.t)[::-1]))
     # tables: a clear error for rows that do not match (numpy's hstack before), inf written as it is
     with pytest.raises(ValueError, match=r"wrong shape for log\[0\]\.q"):
         spoiled_log(log, q=q[:-1]).to_dataframe()

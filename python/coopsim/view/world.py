@@ -97,6 +97,8 @@ def world_bodies(world, log=None, *, rows: Optional[int] = None, scenery: bool =
     w, sim = resolve_world(world)
     if w is None:
         return []
+    if hasattr(log, "check"):
+        log.check(poses=True)
     out = []
     for name in w.body_names:
         d = w.body(name)
@@ -127,6 +129,8 @@ def _log_and_robots(log, robots):
             robots = sim.robots
     if not hasattr(log, "t") or not hasattr(log, "robots") or not hasattr(log, "contacts"):
         raise ValueError(f"log must be a coopsim.SimulationLog or a Simulation, got {type(log).__name__}")
+    if hasattr(log, "check"):
+        log.check()
     from .scene import _robot_list
 
     if robots is None:
@@ -215,6 +219,8 @@ def contacts_from_log(log) -> Optional[list]:
     """
     if _is_simulation(log):
         log = log.log
+    if hasattr(log, "check"):
+        log.check()
     cp = getattr(log, "contact_points", None)
     if cp is None:
         return None
@@ -297,6 +303,8 @@ def holding_from_log(log, robots=None, *, mode: str = "shared") -> List[np.ndarr
             robots = sim.robots
     if not hasattr(log, "t") or not hasattr(log, "robots"):
         raise ValueError(f"log must be a coopsim.SimulationLog or a Simulation, got {type(log).__name__}")
+    if hasattr(log, "check"):
+        log.check()
     if robots is not None:
         from .scene import _robot_list
 
