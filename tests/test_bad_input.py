@@ -127,9 +127,9 @@ def test_bad_dimension_keywords():
 
 
 def test_bad_time_step_and_steps():
-    with pytest.raises(ValueError, match="dt must be finite and > 0"):
+    with pytest.raises(ValueError, match="dt must be > 0 and at most 1 s"):
         cs.rk4_step(R1, Q, Q, Q, dt=0.0)
-    with pytest.raises(ValueError, match="dt must be finite and > 0"):
+    with pytest.raises(ValueError, match="dt must be > 0 and at most 1 s"):
         cs.integrate(R1, Q, Q, Q, dt=-1e-3, steps=10)
     with pytest.raises(ValueError, match="steps"):
         cs.integrate(R1, Q, Q, Q, steps=-1)

@@ -138,7 +138,8 @@ void bind_simulation(py::module_& m) {
   divergence_type = PyErr_NewExceptionWithDoc(
       "coopsim._core.DivergenceError",
       "The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time "
-      "(s), robot (index), q, qd (the rejected state). The simulation keeps its log up to the last good step.",
+      "(s), robot (index; -1 when a free body of the world diverged, named in the message), q, qd (the rejected "
+      "state; empty for a free body). The simulation keeps its log up to the last good step.",
       PyExc_RuntimeError, nullptr);
   m.attr("DivergenceError") = py::reinterpret_borrow<py::object>(divergence_type);
   py::register_local_exception_translator([](std::exception_ptr p) {

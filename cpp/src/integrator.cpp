@@ -18,9 +18,9 @@ Method method_from_name(const std::string& name, const char* what) {
 const char* method_name(Method m) { return m == Method::RK4 ? "rk4" : "euler"; }
 
 void check_step_size(double dt) {
-  if (!(dt > 0) || !std::isfinite(dt)) {
+  if (!(dt > 0) || !(dt <= 1.0)) {
     std::ostringstream s;
-    s << "dt must be finite and > 0 s, got " << dt;
+    s << "dt must be > 0 and at most 1 s, got " << dt;
     throw std::invalid_argument(s.str());
   }
 }

@@ -865,7 +865,16 @@ void Simulation::world_step_() {
     welds_(h);
   }
   if (profiling_) profile_.grasp += std::chrono::duration<double>(clock::now() - tg).count();
-  w.step(h, time());
+  try {
+    w.step(h, time());
+  } catch (const WorldDivergence& e) {
+    diverged_ = true;
+    std::ostringstream msg;
+    msg << "simulation diverged at step " << k_ + 1 << ": " << e.what() << "; the log ends at t = "
+        << (log_t_.rows() ? log_t_.back() : 0.0) << " s";
+    divergence_ = msg.str();
+    throw DivergenceError(divergence_, k_ + 1, time() + h, -1, VecN(), VecN());
+  }
   const auto t1 = profiling_ ? clock::now() : clock::time_point();
   contact_wrenches_(h);
   w.record_events(time());

@@ -22,6 +22,10 @@ namespace coopsim {
 namespace {
 
 constexpr double kMinSize = 1e-4, kMaxSize = 1e4;  // m: box sizes Bullet handles well
+constexpr double kMinMass = 1e-6, kMaxMass = 1e9;   // kg: a free body's mass
+constexpr double kMaxSpeed = 1e4;                   // m/s and rad/s: a free body's initial velocities
+constexpr double kWorldRadius = 1e6;                // m: a free body beyond it has diverged
+constexpr double kDivergedSpeed = 1e5;              // m/s and rad/s: a free body faster has diverged
 constexpr double kMaxDistance = 1e6;               // m: positions from the world origin
 constexpr double kFloorHalf = 100.0;               // m: the floor is the top face of a 200 m cube
 
@@ -292,7 +296,7 @@ struct World::Impl {
 };
 
 World::World(WorldOptions options) : options_(options) {
-  require(options_.gravity.allFinite(), "gravity must be finite");
+  require(options_.gravity.allFinite() && options_.gravity.norm() <= 1e3, "gravity must be finite and at most 1e3 m/s^2");
   require(std::isfinite(options_.floor_friction) && options_.floor_friction >= 0,
           "floor_friction must be finite and >= 0");
   require(std::isfinite(options_.floor_restitution) && options_.floor_restitution >= 0 &&
@@ -314,7 +318,39 @@ World::World(WorldOptions options) : options_(options) {
 
 World::~World() = default;
 
+namespace {
+
+// Whether `s` is well-formed UTF-8 (names come back to Python as text).
+bool valid_utf8(const std::string& s) {
+  size_t i = 0;
+  while (i < s.size()) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    int more;
+    unsigned int cp;
+    if (c < 0x80) { ++i; continue; }
+    if ((c & 0xE0) == 0xC0) { more = 1; cp = c & 0x1F; }
+    else if ((c & 0xF0) == 0xE0) { more = 2; cp = c & 0x0F; }
+    else if ((c & 0xF8) == 0xF0) { more = 3; cp = c & 0x07; }
+    else return false;
+    if (i + more >= s.size()) return false;
+    for (int k = 1; k <= more; ++k) {
+      const unsigned char d = static_cast<unsigned char>(s[i + k]);
+      if ((d & 0xC0) != 0x80) return false;
+      cp = (cp << 6) | (d & 0x3F);
+    }
+    // overlong forms, surrogates and values beyond U+10FFFF
+    if ((more == 1 && cp < 0x80) || (more == 2 && cp < 0x800) || (more == 3 && cp < 0x10000) ||
+        (cp >= 0xD800 && cp <= 0xDFFF) || cp > 0x10FFFF)
+      return false;
+    i += more + 1;
+  }
+  return true;
+}
+
+}  // namespace
+
 int World::add_(BodySpec spec) {
+  require(valid_utf8(spec.name), "a body's name must be UTF-8 text");
   const std::string who = std::string(body_kind_name(spec.kind)) + " body '" + spec.name + "'";
   require(!spec.name.empty(), "a body needs a name");
   require(!names_.count(spec.name), "a body named '" + spec.name + "' is already in the world");
@@ -328,8 +364,11 @@ int World::add_(BodySpec spec) {
   require(std::isfinite(spec.restitution) && spec.restitution >= 0 && spec.restitution <= 1,
           who + ": restitution must be in 0 .. 1");
   if (spec.kind == BodyKind::Free) {
-    require(std::isfinite(spec.mass) && spec.mass > 0, who + ": mass must be finite and > 0 kg");
-    require(spec.velocity.allFinite() && spec.angular_velocity.allFinite(), who + ": velocities must be finite");
+    require(std::isfinite(spec.mass) && spec.mass >= kMinMass && spec.mass <= kMaxMass,
+            who + ": mass must be in 1e-6 .. 1e9 kg");
+    require(spec.velocity.allFinite() && spec.angular_velocity.allFinite() && spec.velocity.norm() <= kMaxSpeed &&
+                spec.angular_velocity.norm() <= kMaxSpeed,
+            who + ": velocities must be finite and at most 1e4 m/s and 1e4 rad/s");
   }
   const int id = body_count();
   specs_.push_back(std::move(spec));
@@ -589,6 +628,26 @@ void World::step(double dt, double t) {
     if ((state == ACTIVE_TAG || state == WANTS_DEACTIVATION) && b->getDeactivationTime() > 0)
       b->setDeactivationTime(std::max<btScalar>(b->getDeactivationTime() + extra, dt));
   }
+  // a free body that left the world or whose state stopped being finite: the run has diverged
+  for (size_t id = 0; id < I.bodies.size(); ++id) {
+    const auto& b = I.bodies[id];
+    if (!b || specs_[id].kind != BodyKind::Free) continue;
+    const btVector3& p = b->getWorldTransform().getOrigin();
+    const btVector3 &v = b->getLinearVelocity(), &w = b->getAngularVelocity();
+    const bool finite = std::isfinite(p.length2()) && std::isfinite(v.length2()) && std::isfinite(w.length2()) &&
+                        std::isfinite(b->getWorldTransform().getBasis()[0].length2() +
+                                      b->getWorldTransform().getBasis()[1].length2() +
+                                      b->getWorldTransform().getBasis()[2].length2());
+    if (!finite || p.length() > kWorldRadius || v.length() > kDivergedSpeed || w.length() > kDivergedSpeed ||
+        b->getActivationState() == DISABLE_SIMULATION) {
+      std::ostringstream msg;
+      msg << "free body '" << specs_[id].name << "' diverged at t = " << t + dt << " s (dt = " << dt
+          << " s): position " << eig(p).transpose() << " m, velocity " << eig(v).transpose() << " m/s, angular velocity "
+          << eig(w).transpose() << " rad/s"
+          << (finite ? " (beyond 1e6 m or 1e5 m/s or rad/s)" : " (no longer finite)");
+      throw WorldDivergence(msg.str(), static_cast<int>(id));
+    }
+  }
   contacts_.clear();
   const int nm = I.dispatcher.getNumManifolds();
   for (int m = 0; m < nm; ++m) {
@@ -622,7 +681,6 @@ void World::step(double dt, double t) {
       contacts_.push_back(c);
     }
   }
-  (void)t;
 }
 
 void World::record_events(double t) {

@@ -806,7 +806,7 @@ class World:
         ...
 class DivergenceError(RuntimeError):
     """
-    The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time (s), robot (index), q, qd (the rejected state). The simulation keeps its log up to the last good step.
+    The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time (s), robot (index; -1 when a free body of the world diverged, named in the message), q, qd (the rejected state; empty for a free body). The simulation keeps its log up to the last good step.
     """
 class SimulationCore:
     """

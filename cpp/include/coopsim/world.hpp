@@ -20,6 +20,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -97,6 +98,14 @@ struct ContactEvent {
   double peak_force = 0.0;  // N, largest magnitude of the pair's total force
   double max_depth = 0.0;   // m, deepest penetration
   long steps = 0;           // world steps in contact
+};
+
+// A free body whose state stopped being finite, left the world (1e6 m) or
+// exceeded 1e5 m/s or rad/s in a step: the simulation raises DivergenceError.
+class WorldDivergence : public std::runtime_error {
+ public:
+  WorldDivergence(const std::string& what, int body) : std::runtime_error(what), body(body) {}
+  int body;  // the body's id
 };
 
 struct WorldOptions {
