@@ -676,6 +676,10 @@ void Robot::inverse_dynamics(const double* q, const double* qd, const double* qd
 
 void Robot::end_stop_torques(const double* q, const double* qd, const MatN& M, VecN& tau) const {
   tau.setZero(n_);
+  add_end_stop_torques_(q, qd, M, tau);
+}
+
+void Robot::add_end_stop_torques_(const double* q, const double* qd, const MatN& M, VecN& tau) const {
   const double w = end_stop_.frequency;
   if (w <= 0) return;
   for (int j = 0; j < n_; ++j) {
@@ -690,7 +694,7 @@ void Robot::end_stop_torques(const double* q, const double* qd, const MatN& M, V
     // a stop pushes, never pulls the joint towards the limit
     if (pen > 0 && t > 0) t = 0;
     if (pen < 0 && t < 0) t = 0;
-    tau[j] = t;
+    tau[j] += t;
   }
 }
 
@@ -714,11 +718,7 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
   }
   VecN rhs = Eigen::Map<const VecN>(tau, n_) - b;
   if (tau_ext) rhs += Eigen::Map<const VecN>(tau_ext, n_);
-  if (end_stops) {
-    VecN ts;
-    end_stop_torques(q, qd, M, ts);
-    rhs += ts;
-  }
+  if (end_stops) add_end_stop_torques_(q, qd, M, rhs);
   bool ok;
   if (uses_generated() && generated_->solve) {
     qdd = rhs;  // generated LDL^T that skips M's structural zeros

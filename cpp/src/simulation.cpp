@@ -935,8 +935,14 @@ void Simulation::step_() {
                true, false);
     }
     s.k1_valid = false;
-    const std::string why = divergence_reason(s.q, s.qd, DivergenceLimits{opt_.max_speed, opt_.max_position});
-    if (!why.empty()) diverge_(static_cast<int>(i), why, true, true);
+    // the common case without building a string: every joint finite and within the limits
+    bool fine = true;
+    for (int j = 0; j < s.q.size(); ++j)
+      fine = fine && std::abs(s.qd[j]) <= opt_.max_speed && std::abs(s.q[j]) <= opt_.max_position;
+    if (!fine) {
+      const std::string why = divergence_reason(s.q, s.qd, DivergenceLimits{opt_.max_speed, opt_.max_position});
+      if (!why.empty()) diverge_(static_cast<int>(i), why, true, true);
+    }
   }
   ++k_;
   if (profiling_) {

@@ -298,6 +298,8 @@ class Robot {
   void build_();
   void build_geometry_();
   void attach_generated_(std::shared_ptr<const GeneratedDynamics> gen);
+  // tau += the end stops' torques (end_stop_torques without the zeroing)
+  void add_end_stop_torques_(const double* q, const double* qd, const MatN& M, VecN& tau) const;
   void refresh_generated_params_();
   void mass_matrix_kin_(Workspace& ws, MatN& M) const;
   void rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,

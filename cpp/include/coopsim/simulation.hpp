@@ -312,7 +312,9 @@ class Simulation {
 
  private:
   struct Slot {
-    explicit Slot(const Robot& r) : robot(r) {}
+    // M_llt starts as the factor of the identity: Eigen leaves a decomposition's info unset until
+    // compute(), and moving a Slot (the vector of slots growing) would copy that unset enum (UB)
+    explicit Slot(const Robot& r) : robot(r) { M_llt.compute(MatN::Identity(r.dof(), r.dof())); }
     Robot robot;
     std::shared_ptr<Controller> controller;
     std::shared_ptr<const Reference> reference;
