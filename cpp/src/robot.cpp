@@ -354,7 +354,7 @@ void Robot::check_vector(const Eigen::Ref<const Eigen::VectorXd>& v, const char*
 
 // ---------------------------------------------------------------- kinematics
 
-void Robot::kinematics(const double* q, Workspace& ws) const {
+void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
   ws.n = n_;
   ws.R[0] = base_.linear();
   ws.o[0] = base_.translation();
@@ -373,6 +373,7 @@ void Robot::kinematics(const double* q, Workspace& ws) const {
     const Eigen::Vector3d pl(a * ct, a * st, d);
     ws.o[k + 1].noalias() = ws.o[k] + ws.R[k] * pl;
     ws.R[k + 1].noalias() = ws.R[k] * Rl;
+    if (!inertia) continue;
     ws.c[k].noalias() = ws.o[k + 1] + ws.R[k + 1] * P.p_com;
     const Eigen::Matrix3d RI = ws.R[k + 1] * P.I_local;
     ws.Iw[k].noalias() = RI * ws.R[k + 1].transpose();

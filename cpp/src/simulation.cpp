@@ -847,7 +847,7 @@ void Simulation::world_step_() {
   std::vector<Eigen::Isometry3d>& poses = box_poses_;
   for (Slot& s : slots_) {
     const Robot& r = s.robot;
-    r.kinematics(s.q.data(), s.ws);
+    r.kinematics(s.q.data(), s.ws, false);  // the frames (what follows reads no centre of mass or inertia)
     r.frame_velocities(s.ws, s.qd.data(), s.frame_w.data(), s.frame_v.data());
     r.box_poses(s.ws, poses);
     for (size_t b = 0; b < poses.size(); ++b) {

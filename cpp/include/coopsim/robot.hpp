@@ -250,8 +250,9 @@ class Robot {
 
   // ---- kinematics (all poses in the world frame) ----
   // Computes frames and CoMs of q into ws; the functions below taking a
-  // Workspace without q read what this left there.
-  void kinematics(const double* q, Workspace& ws) const;
+  // Workspace without q read what this left there. inertia = false: the
+  // frames only (R, o), not the centres of mass and world inertias.
+  void kinematics(const double* q, Workspace& ws, bool inertia = true) const;
   Eigen::Isometry3d frame(const Workspace& ws, int i) const;      // DH frame i = 0..n
   Eigen::Isometry3d com_frame(const Workspace& ws, int i) const;  // link i = 1..n
   Eigen::Isometry3d tool_pose(const Workspace& ws) const;
