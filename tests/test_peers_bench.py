@@ -93,3 +93,35 @@ def test_the_scene_in_mujoco_welds_where_it_grasps():
     assert rows.sum() == 6 and np.abs(d.efc_pos[rows]).max() < 1e-12
     assert bench_peers.through(scene.CONTAINER["mouth"] + scene.container_axes()[:, 0] * 0.5)
     assert not bench_peers.through(scene.bar_pose()[:3, 3])
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="the scene is compared in MuJoCo only")
+def test_the_scene_in_mujoco_runs_the_tasks_controller():
+    """The task's references recorded from one cycle reproduce its log; MuJoCo's computed torque gives coopsim's
+    logged torques in coopsim's states; and 0.1 s of the task in MuJoCo under that controller, from coopsim's
+    state as SCARA #2 starts down to the bar (robots in free space), follows coopsim's joints: the same
+    controller, references, dt and integrator."""
+    from coopsim.tasks import handover as H
+    from coopsim.tasks import scene
+    with bench_peers.recorded_references() as installed:
+        res = H.run(cycles=1, control_every=1, world_every=1, log_every=1, score=False)
+    log = res.log
+    refs = bench_peers.task_references(log, installed)  # raises unless they reproduce q_ref and qd_ref
+    assert all(np.isfinite(r).all() for ref in refs for r in ref)
+    robots = scene.scaras()
+    m = bench_peers.mujoco_scene(robots)
+    assert (m.nu, m.ngravcomp) == (12, 0) and not m.actuator_forcelimited.any()
+    ctl = bench_peers.MujocoComputedTorque(m, [w * w for w in H.OMEGA], [2 * w for w in H.OMEGA],
+                                           [r.tau_limits for r in robots], refs)
+    rows = np.linspace(0, len(log.t) - 1, 9).astype(int)
+    assert bench_peers.agrees(bench_peers.scene_controller_agreement(m, ctl, log, rows))
+    off = bench_peers.MujocoComputedTorque(m, [w * w * 1.001 for w in H.OMEGA], [2 * w for w in H.OMEGA],
+                                           [r.tau_limits for r in robots], refs)
+    assert not bench_peers.agrees(bench_peers.scene_controller_agreement(m, off, log, rows))  # would get no ratio
+    k0, steps = round(H.TIMES["approach"] / bench_peers.DT), 500
+    q0, qd0 = (np.concatenate([getattr(rl, x)[k0] for rl in log.robots]) for x in ("q", "qd"))
+    run = bench_peers.scene_mujoco(m, q0, steps, {}, controller=ctl, start=k0, qd0=qd0)
+    assert run["ncon"] <= 4  # the bar lying on the floor, nothing else
+    Q = np.hstack([rl.q[k0:k0 + steps + 1] for rl in log.robots])
+    assert np.abs(run["Q"][-1] - run["Q"][0]).max() > 1e-2  # SCARA #2 moves
+    assert np.abs(run["Q"] - Q).max() < 1e-6
