@@ -637,6 +637,8 @@ def loop_part(robot, peers, repeats, t_end):
         runs += [("PyBullet", "stepSimulation (semi-impl. Euler), PID in Python", loop_pybullet)]
     took = {i: [] for i in range(len(runs))}
     errors = {}
+    for label, how, fn in runs:  # untimed, once each: first-call costs (loading, first touch) out of the figures
+        fn(robot, traj, kp, ki, kd, min(steps, 500))
     for r in range(repeats):
         for i, (label, how, fn) in enumerate(runs):
             t, Q, Qref = fn(robot, traj, kp, ki, kd, steps)
