@@ -544,9 +544,12 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
          Arr Q = array(q, {-1, r.dof()}, "q");
          std::vector<Eigen::Isometry3d> T(static_cast<size_t>(Q.shape(0)));
          Workspace ws;
-         for (size_t i = 0; i < T.size(); ++i) {
-           r.kinematics(Q.data() + i * r.dof(), ws);
-           T[i] = r.tool_pose(ws);
+         {
+           py::gil_scoped_release nogil;
+           for (size_t i = 0; i < T.size(); ++i) {
+             r.kinematics(Q.data() + i * r.dof(), ws, false);
+             T[i] = r.tool_pose(ws);
+           }
          }
          return poses(T);
        },
@@ -588,10 +591,13 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
          std::vector<Eigen::Isometry3d> all;
          all.reserve(static_cast<size_t>(N * k));
          Workspace ws;
-         for (py::ssize_t i = 0; i < N; ++i) {
-           r.kinematics(Q.data() + i * r.dof(), ws);
-           r.box_poses(ws, T);
-           all.insert(all.end(), T.begin(), T.end());
+         {
+           py::gil_scoped_release nogil;
+           for (py::ssize_t i = 0; i < N; ++i) {
+             r.kinematics(Q.data() + i * r.dof(), ws, false);  // the boxes need the frames only
+             r.box_poses(ws, T);
+             all.insert(all.end(), T.begin(), T.end());
+           }
          }
          py::array_t<double> out = poses(all);
          out.resize({N, k, py::ssize_t(4), py::ssize_t(4)});
