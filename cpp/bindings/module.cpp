@@ -19,6 +19,12 @@ PYBIND11_MODULE(_core, m) {
 #else
   m.attr("build_optimised") = false;
 #endif
+  // the sanitizers this module and the engine were built with (CMake's COOPSIM_SANITIZE), "" for none
+#ifdef COOPSIM_SANITIZERS
+  m.attr("build_sanitizers") = COOPSIM_SANITIZERS;
+#else
+  m.attr("build_sanitizers") = "";
+#endif
   bind_robot(m);
   bind_integrator(m);
   bind_codegen(m);
