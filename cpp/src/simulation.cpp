@@ -6,9 +6,12 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <new>
 #include <sstream>
 #include <random>
 #include <thread>
+
+#include <unistd.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -220,11 +223,25 @@ class BlockPool {
   size_t bytes_ = 0;
 };
 
+// The machine's memory, bytes (physical pages; 1 TiB where the system does not say).
+size_t memory_bytes() {
+  static const size_t bytes = [] {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    return pages > 0 && page > 0 ? static_cast<size_t>(pages) * static_cast<size_t>(page) : size_t(1) << 40;
+  }();
+  return bytes;
+}
+
 }  // namespace
 
 void LogColumn::reserve(long rows) {
   if (rows <= cap_) return;
-  const long want = std::max(rows, 2 * cap_);
+  // a log larger than the machine's memory is refused as new[] refuses what it cannot give
+  // (std::bad_alloc), before asking: the size in bytes could overflow, and an allocator may
+  // abort rather than throw (AddressSanitizer's does on requests beyond its limit)
+  const long limit = static_cast<long>(memory_bytes() / sizeof(double) / static_cast<size_t>(width_));
+  if (rows > limit) throw std::bad_alloc();
+  const long want = std::min(std::max(rows, 2 * cap_), limit);
   size_t size = 0;
   std::shared_ptr<double[]> b = BlockPool::get().take(static_cast<size_t>(want) * width_, &size);
   if (rows_) std::copy(block_.get(), block_.get() + rows_ * width_, b.get());
