@@ -293,7 +293,11 @@ def _dh_from_axes(points, axes):
             w = op - p
             b, dd, e = zp @ zi, zp @ w, zi @ w
             den = 1.0 - b * b
-            t, s = (b * e - dd) / den, (e - b * dd) / den
+            with np.errstate(all="ignore"):
+                t, s = (b * e - dd) / den, (e - b * dd) / den
+            if not (math.isfinite(t) and math.isfinite(s)):
+                raise ValueError(f"the axes of joints {i} and {i + 1} are out of range: their common normal "
+                                 f"cannot be computed (points {points[i - 1]}, {p}, axes {zp}, {zi})")
             f1, f2 = op + t * zp, p + s * zi
             xi = _unit(c)
             if (f2 - f1) @ xi < 0:
