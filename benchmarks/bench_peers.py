@@ -77,6 +77,7 @@ import time
 import numpy as np
 
 import coopsim as cs
+from bench_simulation import gains, trajectory  # the closed loop's cubic and PID (this folder is on sys.path)
 
 DT = 2e-4
 TOL = 1e-9          # relative agreement required before a ratio is printed
@@ -467,18 +468,6 @@ def dynamics_part(robot, peers, repeats, batch_n, loop_n, target_s):
 
 # ---------------------------------------------------------------- closed loop
 
-def trajectory(robot, duration):
-    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
-    mid, span = (lo + hi) / 2, hi - lo
-    pts = np.array([mid + f * span for f in (-0.1, 0.15, -0.2, 0.05)])
-    return cs.CubicTrajectory(np.linspace(0.0, duration, 4), pts)
-
-
-def gains(robot, traj):
-    """The PID of bench_simulation.py: per-joint kp, ki, kd from M's diagonal at the start, omega = 50 rad/s."""
-    J = np.maximum(np.diag(robot.mass_matrix(traj.evaluate(0.0)[0])), 0.01)
-    w = 50.0
-    return J * w * w, J * w ** 3 / 10, 2 * J * w
 
 
 class PythonPID:

@@ -32,10 +32,15 @@ def trajectory(robot, duration):
     return cs.CubicTrajectory(np.linspace(0.0, duration, 4), pts)
 
 
-def pid(robot, traj):
+def gains(robot, traj):
+    """Per-joint kp, ki, kd from M's diagonal at the start, omega = 50 rad/s (also bench_peers.py's PID)."""
     J = np.maximum(np.diag(robot.mass_matrix(traj.evaluate(0.0)[0])), 0.01)
     w = 50.0
-    return cs.PID(J * w * w, J * w ** 3 / 10, 2 * J * w)
+    return J * w * w, J * w ** 3 / 10, 2 * J * w
+
+
+def pid(robot, traj):
+    return cs.PID(*gains(robot, traj))
 
 
 def make(robot, traj, controller, log_every=1):

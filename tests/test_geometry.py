@@ -219,20 +219,25 @@ def random_pose(rng, spread=0.3):
     return T
 
 
-def test_box_distance_is_the_nearest_points_gap_of_a_bounded_least_squares_problem():
-    # the reference: min |p_a - p_b| over points of both boxes, p = t + R u with |u_k| <= h_k, solved by
-    # scipy's bounded linear least squares; overlapping boxes give minus the separating-axis overlap
+def nearest_points_gap(Ta, ha, Tb, hb, tol):
+    """The reference distance: min |p_a - p_b| over points of both boxes, p = t + R u with |u_k| <= h_k, by
+    scipy's bounded linear least squares."""
     from scipy.optimize import lsq_linear
 
+    A = np.hstack([Ta[:3, :3], -Tb[:3, :3]])
+    res = lsq_linear(A, Tb[:3, 3] - Ta[:3, 3], bounds=(-np.r_[ha, hb], np.r_[ha, hb]), tol=tol)
+    return np.linalg.norm(A @ res.x - (Tb[:3, 3] - Ta[:3, 3]))
+
+
+def test_box_distance_is_the_nearest_points_gap_of_a_bounded_least_squares_problem():
+    # the reference: nearest_points_gap; overlapping boxes give minus the separating-axis overlap
     rng = np.random.default_rng(7)
     apart = 0
     for _ in range(300):
         Ta, Tb = random_pose(rng), random_pose(rng)
         ha, hb = rng.uniform(0.01, 0.15, 3), rng.uniform(0.01, 0.15, 3)
         d = cs.box_distance(Ta, ha, Tb, hb)
-        A = np.hstack([Ta[:3, :3], -Tb[:3, :3]])
-        res = lsq_linear(A, Tb[:3, 3] - Ta[:3, 3], bounds=(-np.r_[ha, hb], np.r_[ha, hb]), tol=1e-14)
-        gap = np.linalg.norm(A @ res.x - (Tb[:3, 3] - Ta[:3, 3]))
+        gap = nearest_points_gap(Ta, ha, Tb, hb, tol=1e-14)
         if gap > 1e-9:
             apart += 1
             assert d == pytest.approx(gap, abs=1e-9)
@@ -252,7 +257,6 @@ def test_box_distance_where_the_separating_axis_gap_is_the_distance():
     edges and faces), face to face, edge to edge, and random, against the bounded least-squares reference
     (9e-10 m): the separating-axis gap stands for the distance only when a face or edge pair is certain
     to hold the nearest points, GJK decides otherwise."""
-    from scipy.optimize import lsq_linear
     from scipy.spatial.transform import Rotation
 
     rng = np.random.default_rng(17)
@@ -271,9 +275,7 @@ def test_box_distance_where_the_separating_axis_gap_is_the_distance():
         Ta[:3, 3], Tb[:3, 3] = rng.uniform(-0.3, 0.3, 3), rng.uniform(-0.3, 0.3, 3)
         ha, hb = rng.uniform(0.01, 0.2, 3), rng.uniform(0.01, 0.2, 3)
         d = cs.box_distance(Ta, ha, Tb, hb)
-        A = np.hstack([Ta[:3, :3], -Tb[:3, :3]])
-        res = lsq_linear(A, Tb[:3, 3] - Ta[:3, 3], bounds=(-np.r_[ha, hb], np.r_[ha, hb]), tol=1e-15)
-        gap = np.linalg.norm(A @ res.x - (Tb[:3, 3] - Ta[:3, 3]))
+        gap = nearest_points_gap(Ta, ha, Tb, hb, tol=1e-15)
         if gap > 1e-9:
             checked += 1
             assert d == pytest.approx(gap, abs=9e-10), (k, d, gap)

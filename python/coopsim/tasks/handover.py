@@ -38,6 +38,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, List, Optional, Sequence
 
 import numpy as np
@@ -528,7 +529,6 @@ def _score(runner: "_Runner", results: List[dict]) -> dict:
     PW = np.array([w[2] for w in runner.walls])
     HW = np.array([w[1] for w in runner.walls])
     # the three clearance series at once: the engine releases the GIL
-    from concurrent.futures import ThreadPoolExecutor
     with ThreadPoolExecutor(max_workers=3) as pool:
         jobs = [pool.submit(clearances, shapes[0], halves[0], shapes[1], halves[1])]
         jobs += [pool.submit(clearances, P, H, PW, HW) for P, H in zip(shapes, halves)]
