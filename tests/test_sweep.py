@@ -122,8 +122,11 @@ def test_a_sweep_cut_short_returns_what_finished():
 
 
 def test_a_dask_sweep_that_times_out_returns_what_finished(dask_client):
-    # one run of a few ms and one of about 1 s (400 000 steps) with 0.3 s to go, one on each worker
-    df = cs.sweep([make(100.0, 5.0), make(100.0, 5.0, dt=1e-6)], T_END, executor=dask_client, timeout=0.3)
+    # one run of a few ms and one of about 1 s (400 000 steps) with 0.3 s to go, one on each worker;
+    # against the engine built with sanitizers (slower, and its workers slower to start) 1.5 s to go
+    # and a run of about 5 s (10^6 steps)
+    timeout, slow_dt = (1.5, 4e-7) if cs._core.build_sanitizers else (0.3, 1e-6)
+    df = cs.sweep([make(100.0, 5.0), make(100.0, 5.0, dt=slow_dt)], T_END, executor=dask_client, timeout=timeout)
     assert pd.isna(df.error[0]) and df.steps[0] == 2000 and df.error[1] == cs.sweeps.NOT_FINISHED
 
 
