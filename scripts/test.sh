@@ -1,16 +1,39 @@
 #!/usr/bin/env bash
 # The whole test suite, after setting up everything it needs; then the engine under the sanitizers
 # (README, "Sanitizers and threads"): the whole suite again against the engine and module built
-# with AddressSanitizer + UndefinedBehaviorSanitizer, and run_batch with worlds on threads under
-# ThreadSanitizer. Extra arguments go to both pytest runs; COOPSIM_SKIP_SANITIZERS=1 runs the plain
-# suite only.
+# with AddressSanitizer + UndefinedBehaviorSanitizer, on 2 worker processes, and run_batch with
+# worlds on threads under ThreadSanitizer. The sanitizers' builds run at the lowest priority while
+# the plain suite runs, on the core it leaves idle. Extra arguments go to both pytest runs;
+# COOPSIM_SKIP_SANITIZERS=1 runs the plain suite only.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export MPLBACKEND=Agg
-"${PYTHON:-python3}" -m pytest "$@"
-if [ "${COOPSIM_SKIP_SANITIZERS:-0}" = 1 ]; then
-  exit 0
+
+sanitizers=1
+[ "${COOPSIM_SKIP_SANITIZERS:-0}" = 1 ] && sanitizers=0
+builds=
+if [ "$sanitizers" = 1 ]; then
+  mkdir -p build
+  # its own process group (setsid), so that an early exit stops the compilers too
+  setsid nice -n 19 bash -c 'COOPSIM_SKIP_SETUP=1 bash scripts/test_sanitized.sh --build-only &&
+                             COOPSIM_SKIP_SETUP=1 bash scripts/test_threads.sh --build-only' \
+    >build/sanitizer-builds.log 2>&1 &
+  builds=$!
+  trap '[ -n "$builds" ] && kill -- -"$builds" 2>/dev/null; true' EXIT
 fi
-COOPSIM_SKIP_SETUP=1 bash scripts/test_sanitized.sh "$@"
+
+"${PYTHON:-python3}" -m pytest "$@"
+[ "$sanitizers" = 1 ] || exit 0
+
+echo "test: waiting for the sanitizers' builds (log: build/sanitizer-builds.log)"
+if ! wait "$builds"; then
+  builds=
+  cat build/sanitizer-builds.log
+  echo "test: the sanitizers' builds failed" >&2
+  exit 1
+fi
+builds=
+# -p no:benchmark: pytest-benchmark, where installed, refuses to run beside xdist
+COOPSIM_SKIP_SETUP=1 bash scripts/test_sanitized.sh -n 2 --dist loadfile -p no:benchmark "$@"
 COOPSIM_SKIP_SETUP=1 bash scripts/test_threads.sh

@@ -4,6 +4,8 @@
 #
 #   bash scripts/test_sanitized.sh              # after scripts/setup.sh (scripts/test.sh runs both)
 #   bash scripts/test_sanitized.sh -k world     # extra arguments go to pytest
+#   bash scripts/test_sanitized.sh -n 2         # on 2 worker processes (pytest-xdist; what CI does)
+#   bash scripts/test_sanitized.sh --build-only # the sanitized module only, no tests
 #
 # It needs what scripts/setup.sh installs (compiler, Eigen, Bullet, the Python test dependencies,
 # CMake, Ninja, pybind11) and runs it first unless COOPSIM_SKIP_SETUP=1. It builds the sanitized
@@ -12,6 +14,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
+BUILD_ONLY=0
+if [ "${1:-}" = --build-only ]; then BUILD_ONLY=1; shift; fi
 bash scripts/setup.sh
 PY=$("${PYTHON:-python3}" -c 'import sys; print(sys.executable)')  # the interpreter itself, not a shim
 SAN=address,undefined,float-cast-overflow
@@ -19,9 +23,13 @@ BUILD=build/sanitize-asan
 STAGE=$BUILD/stage
 
 echo "sanitized: building coopsim._core with -fsanitize=$SAN in $BUILD"
+# a unity build (the engine in one translation unit, the bindings in another): Eigen's and
+# pybind11's templates are instantiated once per target rather than once per file, half the time
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCOOPSIM_SANITIZE="$SAN" \
+  -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=0 \
   -DPython_EXECUTABLE="$PY" -Dpybind11_DIR="$("$PY" -m pybind11 --cmakedir)" >/dev/null
 cmake --build "$BUILD" --target _core -j "${COOPSIM_BUILD_JOBS:-2}"
+[ "$BUILD_ONLY" = 1 ] && exit 0
 
 rm -rf "$STAGE"
 mkdir -p "$STAGE"

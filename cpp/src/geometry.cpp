@@ -5,14 +5,13 @@
 #include <stdexcept>
 
 #include "coopsim/robot.hpp"
+#include "internal.hpp"
 
 namespace coopsim {
 
 namespace {
 
-void require(bool ok, const std::string& msg) {
-  if (!ok) throw std::invalid_argument(msg);
-}
+using detail::require;
 
 bool rigid(const Eigen::Isometry3d& T) {
   if (!T.matrix().allFinite()) return false;

@@ -1,4 +1,5 @@
 #include "coopsim/ik.hpp"
+#include "internal.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -20,12 +21,7 @@ constexpr double kLimitTol = 1e-12;  // round-off allowed at a joint limit
 bool angle_is(double a, double v) { return std::abs(std::remainder(a - v, kTwoPi)) < kStructTol; }
 bool zero_or_pi(double a) { return angle_is(a, 0.0) || angle_is(a, kPi); }
 
-std::string num(double x) {
-  std::ostringstream s;
-  s.precision(6);
-  s << x;
-  return s.str();
-}
+using detail::num;
 
 std::string joint_name(const Robot& r, int i) {
   const bool rev = r.links()[i].type == JointType::Revolute;

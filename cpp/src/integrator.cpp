@@ -1,4 +1,5 @@
 #include "coopsim/integrator.hpp"
+#include "internal.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -78,11 +79,7 @@ void euler_step(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const doub
 
 namespace {
 
-std::string num(double x) {
-  std::ostringstream s;
-  s << x;
-  return s.str();
-}
+using detail::num;
 
 }  // namespace
 

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "coopsim/generated.hpp"
+#include "internal.hpp"
 
 namespace coopsim {
 
@@ -20,9 +21,7 @@ std::string link_name(size_t k) {
   return s.str();
 }
 
-void require(bool ok, const std::string& msg) {
-  if (!ok) throw std::invalid_argument(msg);
-}
+using detail::require;
 
 bool finite_dh(const DHParams& p) {
   return std::isfinite(p.theta) && std::isfinite(p.d) && std::isfinite(p.a) && std::isfinite(p.alpha);

@@ -2,6 +2,7 @@
 // of the engine's simulation that includes Bullet.
 #include "coopsim/world.hpp"
 #include "coopsim/robot.hpp"
+#include "internal.hpp"
 
 #include <btBulletDynamicsCommon.h>
 #include <BulletCollision/CollisionDispatch/btBoxBoxCollisionAlgorithm.h>
@@ -29,9 +30,7 @@ constexpr double kDivergedSpeed = 1e5;              // m/s and rad/s: a free bod
 constexpr double kMaxDistance = 1e6;               // m: positions from the world origin
 constexpr double kFloorHalf = 100.0;               // m: the floor is the top face of a 200 m cube
 
-void require(bool ok, const std::string& msg) {
-  if (!ok) throw std::invalid_argument(msg);
-}
+using detail::require;
 
 btVector3 bt(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
 Eigen::Vector3d eig(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(), v.z()); }
