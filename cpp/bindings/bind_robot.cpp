@@ -650,8 +650,11 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
          r.mass_matrix_derivatives(at.q.data(), at.ws, dM);
          const int n = r.dof();
          py::array_t<double> out({n, n, n});
-         for (int k = 0; k < n; ++k)
+         for (int k = 0; k < n; ++k) {
+           if (!dM[k].allFinite())
+             throw py::value_error("mass_matrix_derivatives: result is not finite for this input (values out of range?)");
            Eigen::Map<Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(out.mutable_data() + k * n * n, n, n) = dM[k];
+         }
          return out;
        }, py::arg("q"), "dM/dq (n, n, n); [k] is the derivative with respect to q_k.")
       .def("friction", [](const Robot& r, const py::object& qd) {
