@@ -24,15 +24,9 @@ import numpy as np
 import coopsim as cs
 from coopsim import view
 from coopsim.tasks import scene
+from bench_view import trajectory  # the two SCARAs' sine-like cubics (this folder is on sys.path)
 
 T_END = 20.0
-
-
-def trajectory(robot, duration, phase):
-    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
-    mid, span = (lo + hi) / 2, hi - lo
-    times = np.linspace(0.0, duration, 9)
-    return cs.CubicTrajectory(times, [mid + 0.2 * np.sin(phase + 1.3 * k) * span for k in range(len(times))])
 
 
 def run(t_end):

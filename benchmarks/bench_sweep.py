@@ -27,15 +27,9 @@ import time
 import numpy as np
 
 import coopsim as cs
+from bench_simulation import trajectory  # the closed loop's cubic (this folder is on sys.path)
 
 DT = 2e-4
-
-
-def trajectory(robot, duration):
-    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
-    mid, span = (lo + hi) / 2, hi - lo
-    pts = np.array([mid + f * span for f in (-0.1, 0.15, -0.2, 0.05)])
-    return cs.CubicTrajectory(np.linspace(0.0, duration, 4), pts)
 
 
 ROBOT = cs.robots.scara1()

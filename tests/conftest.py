@@ -7,8 +7,17 @@ import threading
 
 import numpy as np
 import pytest
+from hypothesis import settings
 
 import coopsim as cs
+
+# The property-based tests (hypothesis) draw the same examples every run and keep no example
+# database, so that the suite's verdict depends on the code alone. To explore new examples instead:
+#   python3 -m pytest --hypothesis-profile=explore tests/test_bad_input.py tests/test_fuzz_world.py
+# (random examples, as many per test as the repeatable run; a failure prints how to reproduce it).
+settings.register_profile("repeatable", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False, database=None, print_blob=True)
+settings.load_profile("repeatable")
 
 
 def random_inertia(rng: np.random.Generator, mass: float) -> np.ndarray:

@@ -25,8 +25,8 @@ from hypothesis import strategies as st
 import coopsim as cs
 from conftest import random_robot
 
-# repeatable in CI: the same examples every run, no example database
-FUZZ = settings(deadline=None, derandomize=True, database=None,
+# repeatable or exploring by the suite's hypothesis profile (tests/conftest.py)
+FUZZ = settings(deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 SEEDS = [cs.robots.scara1().to_urdf(), cs.robots.scara2().to_urdf(),

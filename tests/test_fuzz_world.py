@@ -27,8 +27,8 @@ from coopsim import grasp, view
 from coopsim.log import STORED, BodyLog, RobotLog, SimulationLog
 from test_bad_input import any_float, anything, c_int, draw_arguments, finite_floats, rigid_poses, vectors
 
-# repeatable in CI: the same examples every run, no example database
-FUZZ = settings(deadline=None, derandomize=True, database=None, max_examples=100,
+# repeatable or exploring by the suite's hypothesis profile (tests/conftest.py)
+FUZZ = settings(deadline=None, max_examples=100,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                        HealthCheck.function_scoped_fixture])
 
