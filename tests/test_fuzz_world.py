@@ -666,3 +666,20 @@ def test_a_name_of_bytes_that_are_not_utf8_is_refused():
         w.add_static_box(b"\x80", [0.1, 0.1, 0.1], position=[0.0, 0.0, 0.1])
     w.add_static_box("wall é", [0.1, 0.1, 0.1], position=[0.0, 0.0, 0.1])
     assert w.body_names == ["floor", "wall é"]
+
+
+def test_a_robot_started_beyond_the_world_is_refused_when_added():
+    # a prismatic joint at 2e6 m was taken by add_robot and refused only at the first step
+    r = cs.robots.scara1()
+    far = np.zeros(6)
+    far[2] = 2e6
+    sim = cs.Simulation(dt=2e-4, world=cs.World())
+    with pytest.raises(ValueError, match=r"the start of robot 'scara1' \(q0, or its reference at t = 0\) puts its "
+                                         r"box 'link3': pose must lie within 1e6 m of the origin"):
+        sim.add_robot(r, cs.PID(np.ones(6), np.zeros(6), np.ones(6)), np.zeros(6), q0=far)
+    with pytest.raises(ValueError, match=r"reference at t = 0\) puts its box"):
+        sim.add_robot(r, cs.PID(np.ones(6), np.zeros(6), np.ones(6)), far)
+    # nothing was added; a start within the world is taken and runs (without a world any q0 is taken)
+    sim.add_robot(r, cs.PID(np.ones(6), np.zeros(6), np.ones(6)), np.zeros(6))
+    sim.run(0.01, progress=False)
+    cs.Simulation(dt=2e-4).add_robot(r, cs.PID(np.ones(6), np.zeros(6), np.ones(6)), np.zeros(6), q0=far)

@@ -107,6 +107,16 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   if (qd0) s.qd0 = Eigen::Map<const VecN>(qd0, n);
   if (!s.q0.allFinite()) throw std::invalid_argument("q0 must be finite");
   if (!s.qd0.allFinite()) throw std::invalid_argument("qd0 must be finite");
+  if (world_) {  // its boxes at q0 where a world can hold them: refused here rather than at the first step
+    robot.kinematics(s.q0.data(), s.ws);
+    std::vector<Eigen::Isometry3d> poses;
+    robot.box_poses(s.ws, poses);
+    for (size_t k = 0; k < poses.size(); ++k) {
+      const std::string& box = robot.boxes()[k].name;
+      World::check_pose(poses[k], "the start of robot '" + robot.name() + "' (q0, or its reference at t = 0) puts its box '" +
+                                      (box.empty() ? std::to_string(k) : box) + "'");
+    }
+  }
   s.q = s.q0;
   s.qd = s.qd0;
   s.tau = VecN::Zero(n);

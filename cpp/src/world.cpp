@@ -50,14 +50,6 @@ Eigen::Isometry3d eig(const btTransform& t) {
   return T;
 }
 
-void check_pose(const Eigen::Isometry3d& T, const std::string& who) {
-  require(T.matrix().allFinite(), who + ": pose must be finite");
-  require(T.translation().norm() <= kMaxDistance, who + ": pose must lie within 1e6 m of the origin");
-  const Eigen::Matrix3d R = T.linear();
-  require((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 && R.determinant() > 0,
-          who + ": pose must be a rigid transform (orthonormal rotation)");
-}
-
 bool static_like(BodyKind k) { return k == BodyKind::Floor || k == BodyKind::Static; }
 
 // A body's own bounding box in the world, without Bullet's contact margin
@@ -405,6 +397,14 @@ int World::add_free_box(const std::string& name, const Eigen::Vector3d& half_ext
   s.velocity = velocity;
   s.angular_velocity = angular_velocity;
   return add_(s);
+}
+
+void World::check_pose(const Eigen::Isometry3d& T, const std::string& who) {
+  require(T.matrix().allFinite(), who + ": pose must be finite");
+  require(T.translation().norm() <= kMaxDistance, who + ": pose must lie within 1e6 m of the origin");
+  const Eigen::Matrix3d R = T.linear();
+  require((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 && R.determinant() > 0,
+          who + ": pose must be a rigid transform (orthonormal rotation)");
 }
 
 void World::add_robot(int robot, const std::string& label, const std::vector<std::string>& box_names,

@@ -102,7 +102,9 @@ class Simulation:
         CubicTrajectory, or a Python subclass) or a set-point array (n,) held
         at all times (kept as a coopsim.SetPoint). q0, qd0 (n,): the initial
         state, by default the reference's q and qd at t = 0. Each robot needs
-        its own controller instance (controllers keep state).
+        its own controller instance (controllers keep state). With a world,
+        a start that puts a link box beyond 1e6 m of the origin is a
+        ValueError naming the box.
         """
         if not isinstance(robot, Robot):
             raise ValueError(f"robot must be a coopsim.Robot, got {type(robot).__name__}")

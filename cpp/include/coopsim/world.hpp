@@ -127,6 +127,10 @@ class World {
 
   const WorldOptions& options() const { return options_; }
 
+  // Throws std::invalid_argument naming `who` unless T is a finite rigid transform within 1e6 m of
+  // the origin: what every pose in a world must be.
+  static void check_pose(const Eigen::Isometry3d& T, const std::string& who);
+
   // ---- building (before the first step) ----
   // Throw std::invalid_argument naming what is wrong: sizes outside
   // 1e-4 .. 1e4 m, non-positive or non-finite mass, friction < 0,
