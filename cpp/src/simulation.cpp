@@ -29,6 +29,14 @@ std::string vec_str(const VecN& v) {
   return s.str();
 }
 
+// The poses of robot's collision boxes at q (computed in ws), in its boxes' order.
+std::vector<Eigen::Isometry3d> box_poses_at(const Robot& robot, const VecN& q, Workspace& ws) {
+  robot.kinematics(q.data(), ws);
+  std::vector<Eigen::Isometry3d> poses;
+  robot.box_poses(ws, poses);
+  return poses;
+}
+
 }  // namespace
 
 const std::array<LogQuantityInfo, kLogQuantities>& log_schema() {
@@ -108,9 +116,7 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   if (!s.q0.allFinite()) throw std::invalid_argument("q0 must be finite");
   if (!s.qd0.allFinite()) throw std::invalid_argument("qd0 must be finite");
   if (world_) {  // its boxes at q0 where a world can hold them: refused here rather than at the first step
-    robot.kinematics(s.q0.data(), s.ws);
-    std::vector<Eigen::Isometry3d> poses;
-    robot.box_poses(s.ws, poses);
+    const std::vector<Eigen::Isometry3d> poses = box_poses_at(robot, s.q0, s.ws);
     for (size_t k = 0; k < poses.size(); ++k) {
       const std::string& box = robot.boxes()[k].name;
       World::check_pose(poses[k], "the start of robot '" + robot.name() + "' (q0, or its reference at t = 0) puts its box '" +
@@ -281,9 +287,7 @@ void Simulation::start_() {
       int same = 0;
       for (const Slot& o : slots_) same += o.robot.name() == r.name();
       const std::string label = same > 1 ? r.name() + "_" + std::to_string(i) : r.name();
-      r.kinematics(s.q.data(), s.ws);
-      std::vector<Eigen::Isometry3d> poses;
-      r.box_poses(s.ws, poses);
+      const std::vector<Eigen::Isometry3d> poses = box_poses_at(r, s.q, s.ws);
       std::vector<std::string> names;
       std::vector<int> links;
       std::vector<Eigen::Vector3d> half;

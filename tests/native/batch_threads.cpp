@@ -116,16 +116,22 @@ Robot make_scara(const ScaraSpec& s, const Eigen::Vector3d& base, const std::str
   return r.with_backend(backend);
 }
 
-ScaraSpec scara1_spec(double L_base) {
-  const double L1 = 0.30, L2 = 0.25, L4 = 0.05, L5 = 0.08, quill = 0.30, Lj = 0.04, tj = 0.01, w = 0.06, h = 0.04;
+// What both SCARAs' tables give alike: name, joint types, base height, link section and jaw (m).
+ScaraSpec scara_spec(const char* name, const char* types, double L_base, double w, double h, double Lj, double tj) {
   ScaraSpec s;
-  s.name = "scara1";
-  s.types = "RRPRRP";
+  s.name = name;
+  s.types = types;
   s.L_base = L_base;
   s.width = w;
   s.height = h;
   s.jaw_length = Lj;
   s.jaw_thickness = tj;
+  return s;
+}
+
+ScaraSpec scara1_spec(double L_base) {
+  const double L1 = 0.30, L2 = 0.25, L4 = 0.05, L5 = 0.08, quill = 0.30, Lj = 0.04, tj = 0.01, w = 0.06, h = 0.04;
+  ScaraSpec s = scara_spec("scara1", "RRPRRP", L_base, w, h, Lj, tj);
   s.dh = {{0, L_base, L1, 0}, {0, 0, L2, kPi}, {0, 0, 0, 0}, {0, L4, 0, kPi / 2}, {0, 0, L5, 0}, {0, 0, 0, 0}};
   s.com = {{0, L_base, L1 / 2, 0}, {0, 0, L2 / 2, 0}, {0, -quill / 2, 0, 0},
            {0, L4 / 2, 0, 0},      {0, 0, L5 / 2, 0}, {0, tj / 2, Lj / 2, 0}};
@@ -145,14 +151,7 @@ ScaraSpec scara1_spec(double L_base) {
 
 ScaraSpec scara2_spec(double L_base) {
   const double L1 = 0.20, L2 = 0.18, L3 = 0.15, L5 = 0.06, quill = 0.30, Lj = 0.04, tj = 0.01, w = 0.05, h = 0.04;
-  ScaraSpec s;
-  s.name = "scara2";
-  s.types = "RRRPRP";
-  s.L_base = L_base;
-  s.width = w;
-  s.height = h;
-  s.jaw_length = Lj;
-  s.jaw_thickness = tj;
+  ScaraSpec s = scara_spec("scara2", "RRRPRP", L_base, w, h, Lj, tj);
   s.dh = {{0, L_base, L1, 0}, {0, 0, L2, 0}, {0, 0, L3, kPi}, {0, 0, 0, 0}, {0, L5, 0, kPi / 2}, {0, 0, 0, 0}};
   s.com = {{0, L_base, L1 / 2, 0}, {0, 0, L2 / 2, 0}, {0, 0, L3 / 2, 0},
            {0, -quill / 2, 0, 0},  {0, L5 / 2, 0, 0}, {kPi / 2, tj / 2, Lj / 2, 0}};
