@@ -125,7 +125,7 @@ def test_a_dask_sweep_that_times_out_returns_what_finished(dask_client):
     # one run of a few ms and one of about 1 s (400 000 steps) with 0.3 s to go, one on each worker;
     # against the engine built with sanitizers (slower, and its workers slower to start) 1.5 s to go
     # and a run of about 5 s (10^6 steps)
-    timeout, slow_dt = (1.5, 4e-7) if cs._core.build_sanitizers else (0.3, 1e-6)
+    timeout, slow_dt = (1.5, 4e-7) if cs.build_info()["sanitizers"] else (0.3, 1e-6)
     df = cs.sweep([make(100.0, 5.0), make(100.0, 5.0, dt=slow_dt)], T_END, executor=dask_client, timeout=timeout)
     assert pd.isna(df.error[0]) and df.steps[0] == 2000 and df.error[1] == cs.sweeps.NOT_FINISHED
 
@@ -241,7 +241,7 @@ def test_generated_dynamics_compiled_here_reach_the_workers(dask_client, tmp_pat
     # the same metrics as the engine's own generated dynamics of scara1 (make): equal, since both are
     # built by the same compiler with the same flags; against the engine built with sanitizers, whose
     # copy is compiled with theirs, they differ in rounding, which this closed loop amplifies
-    if not cs._core.build_sanitizers:
+    if not cs.build_info()["sanitizers"]:
         compiled_in = cs.sweep(make, T_END, grid=small)
         np.testing.assert_allclose(here[cols].to_numpy(float), compiled_in[cols].to_numpy(float), rtol=1e-6,
                                    atol=1e-9)

@@ -32,6 +32,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from ._core import LinkBox, Robot
+
 __all__ = ["to_urdf", "from_urdf", "rpy_from_matrix"]
 
 # characters XML 1.0 does not allow (control characters, surrogates, U+FFFE/F)
@@ -390,8 +392,6 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     planar joints, mimic joints in the chain, branches of movable joints (a
     tree; pass tip= or locked=) or no movable joint.
     """
-    from ._core import LinkBox, Robot
-
     if not _is_real(snap) or not 0.0 <= snap < 0.1:
         raise ValueError(f"snap must be in [0, 0.1) rad, got {snap!r}")
     snap = float(snap)

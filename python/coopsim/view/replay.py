@@ -25,7 +25,7 @@ three.js keyframes: per moving box a position track and a quaternion track
 at the chosen frame rate (``fps``, default 30), with times and values as
 float32 arrays (msgpack extension 0x17, decoded as ``Float32Array``), so a
 20 s run of both SCARAs is well under 2 MB, the viewer bundle (0.85 MB)
-included. Frames are log rows (the row nearest each multiple of 1/fps),
+included. Frames are log rows (the row that held at each multiple of 1/fps),
 so a frame shows exactly what the log holds at its time; three.js
 interpolates between frames while playing. meshcat's scene root turns the
 z-up world into three.js's y-up one; the poses in the commands are z-up.
@@ -48,16 +48,22 @@ from __future__ import annotations
 import base64
 import functools
 import html
+import importlib.util
 import json
 import math
 import os
 import re
 import uuid
+from importlib.metadata import PackageNotFoundError, version
 from typing import List, Optional
 
 import numpy as np
+import umsgpack  # the msgpack meshcat's Python client uses (a dependency of meshcat)
 
-from .scene import COLORS
+from .._core import Robot
+from ..log import SimulationLog, _atomic_write, rows_at
+from .bodies import COLORS
+from .world import holding_from_log
 
 __all__ = ["replay_html"]
 
@@ -76,9 +82,6 @@ def _meshcat_assets():
 
     The package is found, not imported: importing meshcat loads its ZMQ server and IPython machinery,
     none of which a file needs."""
-    import importlib.util
-    from importlib.metadata import PackageNotFoundError, version
-
     spec = importlib.util.find_spec("meshcat")
     if spec is None or not spec.submodule_search_locations:
         raise ImportError("coopsim.view.replay_html needs the meshcat package for its viewer bundle "
@@ -108,15 +111,11 @@ def _meshcat_assets():
 
 
 def _pack(cmd: dict) -> str:
-    import umsgpack   # the msgpack meshcat's Python client uses (a dependency of meshcat)
-
     return base64.b64encode(umsgpack.packb(cmd)).decode("ascii")
 
 
 def _f32(a: np.ndarray):
     """A float32 array as msgpack extension 0x17, which meshcat's decoder turns into a Float32Array."""
-    import umsgpack
-
     return umsgpack.Ext(0x17, np.ascontiguousarray(a, dtype="<f4").tobytes())
 
 
@@ -247,7 +246,8 @@ _MAX_DISTANCE = 1e6  # m: boxes drawn lie within the world's extent
 
 
 def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
-    """Indices of the log rows shown: the row nearest each t0 + k / fps within [t0, t1], the last row in it."""
+    """Indices of the log rows shown, among the rows within [t0, t1]: the row that held at each frame's time,
+    the first of them + k / fps (:func:`coopsim.log.rows_at`), and the last row in it."""
     lo = int(np.searchsorted(t, t0 - 1e-12, side="left"))
     hi = int(np.searchsorted(t, t1 + 1e-12, side="right")) - 1
     if hi < lo:
@@ -258,22 +258,8 @@ def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
         raise ValueError(f"{frames:.3g} frames is too many (at most {_MAX_FRAMES:g}): lower fps or replay a part "
                          "of the log (t_start, t_end)")
     n = int(math.floor(frames + 1e-9)) + 1
-    targets = seg[0] + np.arange(n) / fps
-    j = np.clip(np.searchsorted(seg, targets), 1, max(len(seg) - 1, 1))
-    if len(seg) > 1:
-        j = np.where(np.abs(seg[j - 1] - targets) <= np.abs(seg[j] - targets), j - 1, j)
-    else:
-        j = np.zeros(n, dtype=int)
-    rows = np.unique(np.append(j, len(seg) - 1)) + lo
-    return rows
-
-
-def _nearest(t_src: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Index of the row of t_src nearest each time."""
-    if len(t_src) == 1:
-        return np.zeros(len(times), dtype=int)
-    j = np.clip(np.searchsorted(t_src, times), 1, len(t_src) - 1)
-    return np.where(np.abs(t_src[j - 1] - times) <= np.abs(t_src[j] - times), j - 1, j)
+    j = rows_at(seg, seg[0] + np.arange(n) / fps)
+    return np.unique(np.append(j, len(seg) - 1)) + lo
 
 
 def _safe(name: str) -> str:
@@ -294,8 +280,6 @@ def _number(x, what: str, lo: float, hi: float = math.inf, lo_open: bool = False
 
 def _unpack_sources(log, robots, world):
     """(log, robots, world) from a SimulationLog or a Simulation."""
-    from ..log import SimulationLog
-
     if not isinstance(log, SimulationLog) and hasattr(log, "log") and hasattr(log, "robots"):   # a Simulation
         sim = log
         log = sim.log
@@ -310,8 +294,6 @@ def _unpack_sources(log, robots, world):
         robots = []
         if len(log.robots):
             raise ValueError("robots must be given with a log (the robots it was run with), or pass the Simulation")
-    from .. import Robot
-
     if isinstance(robots, Robot):
         robots = [robots]
     robots = list(robots)
@@ -333,8 +315,6 @@ def _holding(holding, log, rows: int) -> list:
     if holding is None or holding is True or isinstance(holding, str):
         # the views' rule: by default green while another robot holds the same body too (the paper's
         # dual hold), 'any' while the robot holds anything
-        from .world import holding_from_log
-
         mode = holding if isinstance(holding, str) else "shared"
         if any(len(getattr(rl, "holding", ())) != rows for rl in log.robots):
             return [None] * n
@@ -384,7 +364,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     colour; needed when the log has free bodies.
 
     fps: frames per second of the replay's keyframes (> 0; each frame is
-    the log row nearest its time, so a log coarser than 1/fps keeps all its
+    the log row that held at its time, :func:`coopsim.log.rows_at`, as in
+    :func:`~coopsim.view.animate`, so a log coarser than 1/fps keeps all its
     rows). speed: the speed the page starts at, 0 to 4 (400 %). t_start,
     t_end: the part of the log to replay (s; default all). reference: draw
     the desired pose (``q_ref``) as a transparent blue ghost (robots whose
@@ -521,7 +502,7 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
             if bl is None:
                 poses = np.asarray(b["pose"], float)
             else:
-                poses = np.asarray(bl.poses(), float)[_nearest(np.asarray(bl.t, float), times)]
+                poses = np.asarray(bl.poses(), float)[rows_at(bl.t, times)]
             bar = str(name).startswith("bar")             # the bar red, other free bodies in their colour
             add_box(f"bodies/{_safe(name)}", b["half_extents"], _hex(c["body"] if bar else c["free_body"]), 1.0,
                     poses)
@@ -583,7 +564,6 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
               "COMMANDS": json.dumps([_pack(x) for x in cmds]), "META": json.dumps(meta).replace("</", "<\\/"),
               "MESHCAT_JS": js}
     page = re.sub(r"@([A-Z_]+)@", lambda m: values[m.group(1)], _TEMPLATE)     # one pass: no value is rescanned
-    from ..log import _atomic_write
 
     def write(tmp):
         with open(tmp, "w", encoding="utf-8") as f:
