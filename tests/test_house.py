@@ -225,3 +225,21 @@ def test_the_facade_check_tells_allowed_from_forbidden(tmp_path, monkeypatch, te
             failed += 1
     assert (failed == 0) == ok
 
+
+def test_the_files_the_package_reads_ship_in_its_wheel():
+    """The files beside the modules that the package reads (the replay's page, the stubs, py.typed) lie in
+    the folder the wheel takes whole: scikit-build-core's wheel.packages copies every file under it that
+    no exclusion (wheel.exclude, .gitignore) drops."""
+    import fnmatch
+    import tomllib
+
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["scikit-build"]["wheel"]
+    assert conf["packages"] == ["python/coopsim"] and not conf.get("exclude")
+    ignored = [p.strip() for p in (ROOT / ".gitignore").read_text(encoding="utf-8").splitlines()
+               if p.strip() and not p.startswith("#")]
+    for data in ("view/replay_template.html", "py.typed", "_core.pyi"):
+        assert (PACKAGE / data).is_file(), data
+        assert not any(fnmatch.fnmatch(Path(data).name, p) for p in ignored), data
+    from coopsim.view import replay
+
+    assert replay._template().startswith("<!DOCTYPE html>") and "@COMMANDS@" in replay._template()
