@@ -8,7 +8,7 @@ wrenches splits into the minimum-norm share of the net wrench, G^+ w, and an int
 space that squeezes or twists the body without moving it.
 
 In the simulation each weld acts at its own point: midway between the centres of its clamp's two pads
-when it grasped (the fixed pad's centre plus half the jaw opening along the pad's normal), fixed from
+when it grasped (the fixed pad's centre moved by half the jaw opening along the jaw axis), fixed from
 then on in the clamp's link and in the body. ``sim.weld_wrench(i)`` and the log's ``weld`` columns are
 that weld's force on the body and its moment about that point. Two holders' points differ (in the
 cooperative task #1 grips 0.075 m on one side of the bar's centre and #2 0.125 m on the other), so
