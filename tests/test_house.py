@@ -46,7 +46,8 @@ def imports_of(name: str, path: Path, is_package: bool, mods: dict):
             targets = [a.name for a in node.names if a.name.split(".")[0] == "coopsim"]
         elif isinstance(node, ast.ImportFrom):
             if node.level:
-                base = ".".join(here.split(".")[:len(here.split(".")) - node.level + 1] + [node.module or ""]).strip(".")
+                parts = here.split(".")
+                base = ".".join(parts[:len(parts) - node.level + 1] + [node.module or ""]).strip(".")
             elif (node.module or "").split(".")[0] == "coopsim":
                 base = node.module
             else:

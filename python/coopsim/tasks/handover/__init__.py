@@ -8,8 +8,8 @@ off; the bar slides down the tube by gravity. Both robots return and the next ba
 Python sequences the phases; every step runs in the engine. Each phase plans both robots' motions from
 the state the previous phase left (the bar's pose in a clamp is measured after each grasp, so a grip
 that settled a millimetre off is carried into the plan), installs them with
-:meth:`Simulation.set_reference`, and advances the simulation with ``run``; grasps and releases
-happen only through the clamp rule (closing the jaws on the bar, opening them). Motions are the
+:meth:`Simulation.set_reference`, and advances the simulation with :meth:`Simulation.advance`; grasps
+and releases happen only through the clamp rule (closing the jaws on the bar, opening them). Motions are the
 existing closed-form IK and cubic joint trajectories (:func:`coopsim.planning.plan_cartesian` for the
 straight tool lines).
 
