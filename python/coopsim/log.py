@@ -245,7 +245,8 @@ class SimulationLog:
         This is the part that cancels on the body only when both welds act at one point. They do not:
         each acts between its own clamp's pads, so an uneven split of the weight (holders at different
         distances from the body's centre of mass do not carry half each) shows here as internal force
-        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points gives the part that cancels."""
+        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points
+        gives the part that cancels (the log does not keep those points)."""
         n = len(self.robots)
         for name, i in (("a", a), ("b", b)):
             if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not -n <= i < n:
