@@ -220,6 +220,7 @@ def test_general_origins_axes_and_tilted_first_axis_against_pinocchio():
         assert _rel(r.fk(q), d.oMf[m.getFrameId("tip")].homogeneous) <= 1e-12
 
 
+@pytest.mark.slow  # sympy and g++: about 15 s
 def test_generated_dynamics_for_an_imported_robot(tmp_path):
     """codegen.compile builds closed-form dynamics for an imported robot; they equal the numeric
     backend's (which equals Pinocchio's above)."""

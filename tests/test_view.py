@@ -884,6 +884,7 @@ def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_lo
 
 # ---- the live view example ----
 
+@pytest.mark.slow  # a subprocess importing matplotlib and coopsim, drawing frames: seconds
 def test_live_view_example_writes_its_frames(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
     res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--frames", "3",

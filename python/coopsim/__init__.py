@@ -35,7 +35,8 @@ from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 from .batch import run_batch, simulate
 from . import sweeps
-from .sweeps import TaskRun, sweep
+from .sweeps import sweep
+from .tasks import TaskRun
 from . import view
 
 Robot.to_urdf = to_urdf

@@ -61,7 +61,8 @@ class RobotLog:
             raise ValueError(f"RobotLog needs the arrays {list(STORED)}; missing {missing}, unknown {unknown}")
         self.name = str(name)
         self.t = t
-        #: per row, the name of the body held ('' when none), and the weld's force and moment on it (rows, 6)
+        #: per row, the name of the body held ('' when none), and the weld's force on it and its moment about
+        #: the weld's point, midway between the clamp's pads (rows, 6; N, N m, world frame)
         self.holding = np.full(len(t), "", dtype=object) if holding is None else holding
         self.weld = np.zeros((len(t), 6)) if weld is None else weld
         #: the robot's joint types, e.g. 'RRPRRP' (which joints are in rad, which in m), or None if unknown
@@ -221,9 +222,14 @@ class SimulationLog:
         return self
 
     def internal_wrench(self, a: int = 0, b: int = 1) -> np.ndarray:
-        """The internal wrench (rows, 6) of robots a and b holding one body: in the rows where both hold
-        the same body, (w_a - w_b) / 2 of their welds' wrenches on it (N, N m; both act at the body's
-        centre, so this is the part that cancels on the body, see :mod:`coopsim.grasp`); zeros elsewhere."""
+        """(w_a - w_b) / 2 (rows, 6) of robots a and b's weld wrenches on a body both hold (N, N m; each
+        weld's force and its moment about its own point, midway between its clamp's pads); zeros in the
+        rows where they do not hold the same body.
+
+        This is the part that cancels on the body only when both welds act at one point. They do not:
+        each acts between its own clamp's pads, so an uneven split of the weight (holders at different
+        distances from the body's centre of mass do not carry half each) shows here as internal force
+        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points gives the part that cancels."""
         n = len(self.robots)
         for name, i in (("a", a), ("b", b)):
             if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not -n <= i < n:

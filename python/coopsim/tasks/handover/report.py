@@ -1,0 +1,110 @@
+"""The task's outputs: the report as JSON, a summary of a few lines per cycle, and the plots of a run."""
+from __future__ import annotations
+
+import json
+import os
+from typing import List
+
+import numpy as np
+
+from ...log import _atomic_write
+from ...plotting import plot_log
+from .sequence import TaskResult
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def write_report(report: dict, path) -> str:
+    """The report as JSON, written atomically (a temporary file renamed into place); returns the path."""
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(_jsonable(report), f, indent=1)
+
+    return _atomic_write(path, ".json", write)
+
+
+def summary(report: dict) -> str:
+    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure."""
+    lines = []
+    for c in report["cycles"]:
+        head = f"cycle {c['cycle']} ({c['bar']}): "
+        if not c["success"]:
+            lines.append(head + f"FAILED in {c['failed_step']} at t = {c['failed_at']:.3f} s: {c['reason']}")
+            continue
+        lines.append(head + f"success in {c['duration']:.2f} s, the bar {c.get('outcome')}")
+        if "tracking" in c:
+            tr = ", ".join(f"{x['robot']} {x['rms_tool'] * 1e3:.2f} / {x['max_tool'] * 1e3:.2f} mm"
+                           for x in c["tracking"])
+            lines.append(f"  tool tracking error RMS / max: {tr}")
+            cr, cc = c["clearance_robots"], c["clearance_container"]
+            lines.append(f"  min clearance robot-robot {cr['min'] * 1e3:.1f} mm ({' - '.join(cr['between'])}, "
+                         f"t = {cr['t']:.2f} s), robot-container {cc['min'] * 1e3:.1f} mm "
+                         f"({' - '.join(cc['between'])})")
+            lines.append(f"  dual hold {c['dual_hold']:.3f} s; peak weld force #1 {c['peak_weld_force'][0]:.2f} N, "
+                         f"#2 {c['peak_weld_force'][1]:.2f} N; peak internal force {c['peak_internal_force']:.2f} N; "
+                         f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
+    ok = sum(c["success"] for c in report["cycles"])
+    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded")
+    return "\n".join(lines)
+
+
+def plot_report(result: TaskResult, out_dir) -> List[str]:
+    """The plots of a run into out_dir: joints with references (one PNG per robot), tracking errors, and
+    clearances with forces over time. Returns the paths."""
+    import matplotlib.pyplot as plt  # matplotlib's import is heavy: only when plotting
+
+    os.makedirs(out_dir, exist_ok=True)
+    log, series, paths = result.log, result.series, []
+    for i, rl in enumerate(log.robots):
+        fig, axes = plt.subplots(rl.dof, 1, figsize=(9, 1.6 * rl.dof), sharex=True)
+        plot_log(log, robot=i, quantity="q", axes=axes, title=f"{rl.name}: joints (solid) and references (dashed)")
+        p = os.path.join(out_dir, f"joints_{rl.name}.png")
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+    cycles = [(c["t_start"], c.get("t_end", c["t_start"])) for c in result.report["cycles"]]
+
+    def save(fig, axes, title, name):
+        """Legends, the cycles' bounds and a title on a figure of panels over time, written as name."""
+        for ax in axes:
+            ax.legend(loc="upper right")
+            for t0, _ in cycles[1:]:
+                ax.axvline(t0, color="0.6", lw=0.8, ls=":")
+        fig.suptitle(title)
+        p = os.path.join(out_dir, name)
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
+    for i, rl in enumerate(log.robots):
+        axes[0].plot(series["t"], series["tool_error"][:, i] * 1e3, label=rl.name)
+        axes[1].plot(log.t, np.abs(rl.error).max(axis=1), label=rl.name)
+    axes[0].set_ylabel("tool position error (mm)")
+    axes[1].set_ylabel("largest joint error\n(rad or m)")
+    axes[1].set_xlabel("t (s)")
+    save(fig, axes, "Tracking errors", "tracking.png")
+
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
+    axes[0].plot(series["t"], series["clearance_container"] * 1e3, label="robot - container")
+    axes[0].set_ylabel("clearance (mm)")
+    axes[0].set_ylim(0, 300)
+    for i, rl in enumerate(log.robots):
+        axes[1].plot(series["t"], series["weld_force"][:, i], label=f"weld force, {rl.name}")
+    axes[1].plot(series["t"], series["internal_force"], label="internal force (dual hold)", color="k", lw=1)
+    axes[1].set_ylabel("force (N)")
+    axes[1].set_xlabel("t (s)")
+    save(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
+    return paths
+
