@@ -267,3 +267,31 @@ def test_plot_trajectory_puts_revolute_and_prismatic_joints_on_separate_axes(sca
     fig = plot_trajectory(traj, "RRRRRR")  # one kind: one axis per row
     assert _ylabels(fig) == ["position (rad)", "velocity (rad/s)", "acceleration (rad/s²)"]
     plt.close(fig)
+
+
+@pytest.mark.slow
+def test_the_tasks_report_figures_name_every_axis_with_one_unit_and_keep_legends_off_the_data():
+    import matplotlib.pyplot as plt
+
+    from coopsim.tasks import handover as H
+
+    res = H.run(cycles=1)
+    figs = H.report_figures(res)
+    assert sorted(figs) == ["clearance_forces.png", "joints_scara1.png", "joints_scara2.png", "tracking.png"]
+    # the joint types come from the robots, not from the caller
+    assert _ylabels(figs["joints_scara1.png"]) == ["θ1 (rad)", "θ2 (rad)", "d3 (m)", "θ4 (rad)", "θ5 (rad)", "d6 (m)"]
+    assert _ylabels(figs["joints_scara2.png"]) == ["θ1 (rad)", "θ2 (rad)", "θ3 (rad)", "d4 (m)", "θ5 (rad)", "d6 (m)"]
+    assert _ylabels(figs["tracking.png"]) == ["tool position\nerror (mm)", "largest revolute\njoint error (rad)",
+                                              "largest prismatic\njoint error (m)"]
+    assert _ylabels(figs["clearance_forces.png"]) == ["clearance (mm)", "force (N)"]
+    for name, fig in figs.items():
+        fig.canvas.draw()
+        width = fig.bbox.x1
+        for ax in fig.axes:
+            assert re.search(r"\((rad|m|mm|N)\)$", ax.get_ylabel()), (name, ax.get_ylabel())
+            assert not _mixes_units(ax.get_ylabel())
+            # the legend stands right of the panel, inside the picture: it covers no data (the weld force of
+            # SCARA #1 from 8 to 14 s was under it)
+            leg = ax.get_legend().get_window_extent()
+            assert ax.get_window_extent().x1 <= leg.x0 and leg.x1 <= width, name
+        plt.close(fig)
