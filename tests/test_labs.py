@@ -159,8 +159,9 @@ def _run_cells(nb, upto, tmp_path):
     return None
 
 
-@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if not p.endswith(("01_robots_and_dynamics.ipynb", "02_planning_and_control.ipynb")) else p
-                                  for p in NOTEBOOKS], ids=IDS)
+# a kernel each: lab 01 (the cheapest, about 3 s) in the fast loop, the others slow
+@pytest.mark.parametrize("path", [p if p.endswith("01_robots_and_dynamics.ipynb") else
+                                  pytest.param(p, marks=pytest.mark.slow) for p in NOTEBOOKS], ids=IDS)
 def test_a_student_notebook_runs_up_to_its_first_exercise_and_stops_there(path, tmp_path):
     pytest.importorskip("nbclient")
     student = _student_labs().student_version(_read(path))
