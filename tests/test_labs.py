@@ -296,3 +296,43 @@ def test_the_tasks_report_figures_name_every_axis_with_one_unit_and_keep_legends
             leg = ax.get_legend().get_window_extent()
             assert ax.get_window_extent().x1 <= leg.x0 and leg.x1 <= width, name
         plt.close(fig)
+
+
+# ---------------------------------------------------------------- what lab 03 says of its runs
+
+def _wall_impact(dt):
+    """Lab 03's wall run (SCARA #1 turned into a wall by a stiff PID) at step dt, logged every step: the
+    quill's (link3) first contact event, its contact points and the robot's state just before."""
+    w = cs.World()
+    w.add_static_box("wall", [0.3, 0.0025, 0.4], position=[0.45, 0.25, 0.4])
+    sim = cs.Simulation(dt=dt, world=w, log_every=1, log_contacts=True)
+    q0 = np.array([0.0, 0.3, 0.10, 0.0, np.pi / 2, 0.02])
+    sim.add_robot(cs.robots.scara1(), cs.PID(400.0, 0.0, 40.0),
+                  cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]])))
+    log = sim.run(0.25)
+    ev = log.contacts[log.contacts.b == "scara1/link3"].iloc[0]
+    pts = log.contact_points[log.contact_points.b == "scara1/link3"]
+    k = int(np.searchsorted(log.t, ev["begin"])) - 1
+    return sim.robots[0], ev, pts, log.q[k], log.qd[k]
+
+
+def test_the_wall_impacts_peak_force_is_the_contacts_damping_and_its_impulse_does_not_depend_on_the_step():
+    """Lab 03: the quill's ~14 kN peak is the penalty contact's m w^2 depth + 2 m w v at its two points
+    (m the effective mass 1 / n^T J M^-1 J^T n, v the approach speed, w = 0.2 / dt), so it doubles when dt
+    halves, while the impulse that stops the arm, the physical quantity, stays."""
+    peaks, impulses = {}, {}
+    for dt in (2e-4, 1e-4):
+        r, ev, pts, q, qd = _wall_impact(dt)
+        first = pts[pts.t == ev["begin"]]
+        assert len(first) == 2  # the quill box's upper and lower edges
+        n, w, predicted = np.array([0.0, -1.0, 0.0]), 0.2 / dt, 0.0
+        for _, p in first.iterrows():
+            u = n @ r.jacobian(q, 3, np.linalg.solve(r.frames(q)[3], [p.point_x, p.point_y, p.point_z, 1.0])[:3])[:3]
+            m = 1.0 / (u @ np.linalg.solve(r.mass_matrix(q), u))
+            predicted += m * w * w * p.depth + 2.0 * m * w * (-u @ qd)
+        assert abs(predicted - ev["peak_force"]) < 1e-3 * ev["peak_force"]
+        force = pts.groupby("t").force_y.sum()
+        peaks[dt] = ev["peak_force"]
+        impulses[dt] = force[force.index < ev["begin"] + 0.002].sum() * dt  # N s over the impact's 2 ms
+    assert 13e3 < peaks[2e-4] < 15e3 and abs(peaks[1e-4] / peaks[2e-4] - 2.0) < 0.05
+    assert abs(impulses[1e-4] - impulses[2e-4]) < 0.02 * impulses[2e-4]
