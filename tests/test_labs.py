@@ -336,3 +336,22 @@ def test_the_wall_impacts_peak_force_is_the_contacts_damping_and_its_impulse_doe
         impulses[dt] = force[force.index < ev["begin"] + 0.002].sum() * dt  # N s over the impact's 2 ms
     assert 13e3 < peaks[2e-4] < 15e3 and abs(peaks[1e-4] / peaks[2e-4] - 2.0) < 0.05
     assert abs(impulses[1e-4] - impulses[2e-4]) < 0.02 * impulses[2e-4]
+
+
+def test_the_dropped_bar_makes_one_contact_event_that_never_ends():
+    """Lab 03 said two events (a landing, a hop, a landing); the bar, tilted 10°, lands on an edge and rocks
+    onto its face, one of its edges touching the floor at every step: one event, still going at the end."""
+    w = cs.World(floor=True)
+    a = np.radians(10.0)
+    w.add_free_box("bar", [0.175, 0.01, 0.01], 0.15, position=[0.0, 0.0, 0.06],
+                   quaternion=[np.cos(a / 2), np.sin(a / 2), 0, 0], friction=0.5)
+    sim = cs.Simulation(dt=2e-4, world=w, log_every=10, log_contacts=True)
+    log = sim.run(1.0)
+    ev = log.contacts
+    assert len(ev) == 1 and (ev.a.iloc[0], ev.b.iloc[0]) == ("floor", "bar") and np.isnan(ev.end.iloc[0])
+    # it lands after a free fall of its lowest edge: the 2 x 2 cm section turned 10° about the bar's axis puts
+    # that edge 0.01 (cos 10° + sin 10°) m below the centre, which starts 6 cm up; t = sqrt(2 h / g), to 2 steps
+    drop = 0.06 - 0.01 * (np.cos(a) + np.sin(a))
+    assert abs(ev.begin.iloc[0] - np.sqrt(2 * drop / 9.81)) < 4e-4
+    steps = np.round(log.contact_points.t.unique() / 2e-4).astype(int)
+    assert steps[-1] == round(1.0 / 2e-4) and np.all(np.diff(steps) == 1)
