@@ -14,6 +14,7 @@ import pytest
 
 import coopsim as cs
 from conftest import python_ran_during
+from coopsim.log import log_schema
 
 DT = 2e-4
 
@@ -37,7 +38,7 @@ def make_sim(robot=None, controller=None, reference=None, **kw) -> cs.Simulation
     return sim
 
 
-QTY = ("q", "qd", "qdd", "tau", "q_ref", "qd_ref")
+QTY = ("q", "qd", "qdd", "tau", "q_ref", "qd_ref", "qdd_ref")
 
 
 def assert_logs_equal(a: cs.SimulationLog, b: cs.SimulationLog):
@@ -189,12 +190,60 @@ def test_set_point_and_python_references():
     assert np.all(logs[0].q_ref == target)
 
 
+def test_log_keeps_the_reference_acceleration():
+    """qdd_ref: the reference's acceleration at each logged time, also between controller updates and
+    across a change of reference; a cubic's acceleration is the derivative of its velocity."""
+    robot = cs.robots.scara1()
+    traj = trajectory(robot)
+    sim = make_sim(robot, reference=traj, log_every=3, control_every=4)
+    assert [name for name, _ in log_schema()][-1] == "qdd_ref"
+    sim.run(0.1, progress=False)
+    later = cs.CubicTrajectory([0.0, 1.0], traj.evaluate([0.1, 0.9])[0])
+    sim.set_reference(0, later)
+    log = sim.run(0.2, progress=False)
+    assert log.qdd_ref.shape == (len(log), 6) and log.qdd_ref.dtype == np.float64
+    first = log.t <= 0.1 + 1e-12
+    np.testing.assert_array_equal(log.qdd_ref[first], traj.evaluate(log.t[first])[2])
+    # from the change on (the row at t = 0.1 is the old reference's, logged before it)
+    np.testing.assert_array_equal(log.qdd_ref[~first], later.evaluate(log.t[~first])[2])
+    # independent of evaluate's own acceleration: the central difference of its velocity (a cubic's
+    # velocity is quadratic, so the difference is exact up to round-off)
+    t, h = log.t[first][1:-1], 1e-4
+    fd = (traj.evaluate(t + h)[1] - traj.evaluate(t - h)[1]) / (2 * h)
+    np.testing.assert_allclose(log.qdd_ref[first][1:-1], fd, rtol=0, atol=1e-7)
+    assert np.abs(log.qdd_ref[first]).max() > 0.1  # a moving reference: the test can fail
+
+
+
+def test_the_defaults_are_the_engines():
+    """simulation_defaults(): the engine's SimulationOptions, what SimulationCore takes when an argument is
+    left out, and what coopsim.Simulation's signature shows."""
+    import inspect
+
+    d = cs._core.simulation_defaults()
+    assert d["dt"] == 2e-4 and d["integrator"] == "rk4" and d["grasp_options"]["hold_time"] == 2e-3
+    core = cs._core.SimulationCore(world=cs.World())
+    for name, value in d.items():
+        got = core.grasp_options() if name == "grasp_options" else getattr(core, name)
+        assert got == value and type(got) is type(value), name
+    params = inspect.signature(cs.Simulation.__init__).parameters
+    for name, value in d.items():
+        if name != "grasp_options":
+            assert params[name].default == value, name
+    # one check of the grasp options, in the engine: the message names the option, its unit and value
+    with pytest.raises(ValueError, match=r"grasp_options: slip must be >= 0 m, got -0\.5"):
+        cs._core.SimulationCore(grasp_options={"slip": -0.5})
+    with pytest.raises(ValueError, match="grasp_options: unknown option 'grip'"):
+        cs._core.SimulationCore(grasp_options={"grip": 1.0})
+
+
+
 # ---- export ----
 
 def test_dataframe_and_csv_round_trip(tmp_path):
     log = make_sim(log_every=3).run(0.05, progress=False)
     df = log.to_dataframe()
-    assert df.shape == (len(log), 1 + 8 * 6)  # t, then per joint q qd qdd tau tau_ext q_ref qd_ref e
+    assert df.shape == (len(log), 1 + 9 * 6)  # t, then per joint q qd qdd tau tau_ext q_ref qd_ref qdd_ref e
     assert list(df.columns[:3]) == ["t", "scara1.q1", "scara1.q2"]
     np.testing.assert_array_equal(df["scara1.tau4"].to_numpy(), log.tau[:, 3])
     np.testing.assert_array_equal(df["scara1.e2"].to_numpy(), log.error[:, 1])

@@ -230,7 +230,7 @@ def test_a_pickled_simulation_keeps_robots_references_and_set_points():
 
 def test_log_schema_is_defined_once_in_the_engine():
     names = [n for n, _ in cs.log.log_schema()]
-    assert names == ["q", "qd", "qdd", "tau", "tau_ext", "q_ref", "qd_ref"]
+    assert names == ["q", "qd", "qdd", "tau", "tau_ext", "q_ref", "qd_ref", "qdd_ref"]
     assert cs.log.QUANTITIES == tuple(names) + ("e",)
     sim = cs.Simulation(dt=DT)
     sim.add_robot(cs.robots.scara1(), zero_controller(), np.zeros(6) + 0.01)

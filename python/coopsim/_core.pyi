@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'simulation_defaults']
 class Tool:
     """
     Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
@@ -893,7 +893,9 @@ class SimulationCore:
         Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force (3) N and moment (3) N m on it.
         """
     def grasp_options(self) -> dict:
-        ...
+        """
+        The clamp rule's options of this simulation: {name: value} (see simulation_defaults()).
+        """
     def holding(self, i: typing.SupportsInt | typing.SupportsIndex) -> typing.Any:
         """
         The name of the free body robot i holds, or None.
@@ -1099,6 +1101,10 @@ def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: t
 def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[list, list]:
     """
     Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time (s) its run took.
+    """
+def simulation_defaults() -> dict:
+    """
+    The engine's defaults of SimulationCore's options, the only place they are written: a dict with dt (s), control_every, log_every, end_stops, max_speed (rad/s or m/s), max_position (rad or m), integrator, world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, release_time s, weld_moment).
     """
 build_optimised: bool
 build_sanitizers: str

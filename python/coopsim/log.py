@@ -66,7 +66,7 @@ class RobotLog:
     (rad, rad/s, rad/s^2, or m... for prismatic joints); tau, the torque
     applied from that row's time to the next step (held, saturated), and
     tau_ext, the joint torque of the applied forces and wrenches over that
-    step (N m or N); q_ref, qd_ref, the reference at that time; error =
+    step (N m or N); q_ref, qd_ref, qdd_ref, the reference at that time; error =
     q_ref - q. Arrays taken from a simulation are read-only views of its log
     (later steps or a reset do not change them); copy one to modify it.
     """
