@@ -220,6 +220,7 @@ def _operations_without_cse(model):
     return out
 
 
+@pytest.mark.slow  # emits both SCARAs' code again
 def test_emitted_code_uses_cse(scara_models):
     """Every emitted function of both SCARAs has cse temporaries, and its operation count (as
     written in the file, after cse) is at most half the count without cse."""
@@ -395,6 +396,7 @@ def _arm2(joint_types="RR", alpha=np.pi / 2, scale=1.0):
                             q_limits=q_limits, gravity=(0.3, -0.2, -9.81), name="arm2")
 
 
+@pytest.mark.slow  # g++ builds several libraries
 def test_compile_cache_key_is_the_structure(tmp_path):
     """The build is keyed by the structure: another joint type or alpha gives another key and
     library; other lengths, masses or name reuse the build."""

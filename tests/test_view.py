@@ -869,8 +869,10 @@ def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_lo
     tr = cs.CubicTrajectory([0.0, 1.0], [[0.0, 0.1], [1.0, 0.2]])
     fig = plot_trajectory(tr, "RP", samples=20)
     try:
-        assert [ax.get_ylabel() for ax in fig.axes] == ["position (rad | m)", "velocity (rad/s | m/s)",
-                                                       "acceleration (rad/s² | m/s²)"]
+        # no axis mixes rad and m: the prismatic joint on a twin axis at the right
+        assert [ax.get_ylabel() for ax in fig.axes] == [
+            "position (rad, solid)", "velocity (rad/s, solid)", "acceleration (rad/s², solid)",
+            "position (m, dashed)", "velocity (m/s, dashed)", "acceleration (m/s², dashed)"]
     finally:
         plt.close(fig)
     fig = plot_trajectory(tr, samples=20)

@@ -13,7 +13,7 @@ then on in the clamp's link and in the body. ``sim.weld_wrench(i)`` and the log'
 that weld's force on the body and its moment about that point. Two holders' points differ (in the
 cooperative task #1 grips 0.075 m on one side of the bar's centre and #2 0.125 m on the other), so
 with c the body's centre of mass G is not [I I] and the internal part is :func:`internal_wrenches` at
-those points. ``SimulationLog.internal_wrench`` is not that: it takes +-(w_1 - w_2) / 2, which is the
+those points (the log does not keep them). ``SimulationLog.internal_wrench`` is not that: it takes +-(w_1 - w_2) / 2, which is the
 internal part only when both welds act at one point; with the points apart it counts an uneven split of
 the weight between the holders as internal.
 """

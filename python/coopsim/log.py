@@ -71,9 +71,9 @@ class RobotLog:
     (later steps or a reset do not change them); copy one to modify it.
     """
 
-    __slots__ = ("name", "t", "holding", "weld") + STORED
+    __slots__ = ("name", "t", "holding", "weld", "joint_types") + STORED
 
-    def __init__(self, name, t, holding=None, weld=None, **arrays):
+    def __init__(self, name, t, holding=None, weld=None, joint_types=None, **arrays):
         missing = [k for k in STORED if k not in arrays]
         unknown = [k for k in arrays if k not in STORED]
         if missing or unknown:
@@ -84,6 +84,8 @@ class RobotLog:
         #: the weld's point, midway between the clamp's pads (rows, 6; N, N m, world frame)
         self.holding = np.full(len(t), "", dtype=object) if holding is None else holding
         self.weld = np.zeros((len(t), 6)) if weld is None else weld
+        #: the robot's joint types, e.g. 'RRPRRP' (which joints are in rad, which in m), or None if unknown
+        self.joint_types = joint_types
         for k in STORED:
             setattr(self, k, arrays[k])
 
@@ -91,6 +93,7 @@ class RobotLog:
         return {k: getattr(self, k) for k in self.__slots__}
 
     def __setstate__(self, state):
+        self.joint_types = None  # a log pickled before it had them
         for k, v in state.items():
             setattr(self, k, v)
 
@@ -245,7 +248,8 @@ class SimulationLog:
         This is the part that cancels on the body only when both welds act at one point. They do not:
         each acts between its own clamp's pads, so an uneven split of the weight (holders at different
         distances from the body's centre of mass do not carry half each) shows here as internal force
-        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points gives the part that cancels."""
+        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points
+        gives the part that cancels (the log does not keep those points)."""
         n = len(self.robots)
         for name, i in (("a", a), ("b", b)):
             if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not -n <= i < n:

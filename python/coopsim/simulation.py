@@ -415,7 +415,8 @@ class Simulation:
         for i in range(self.robot_count):
             g = c.grasp_log(i)
             held = names[g[:, 0].astype(int)]  # -1 (none) picks the trailing ""
-            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:], **c.log(i)))
+            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:],
+                                   joint_types=c.robot(i).joint_types, **c.log(i)))
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,

@@ -46,7 +46,7 @@ from .constants import (  # noqa: F401
     GRASP_TIMEOUT, GRIP1, GRIP2, HANDOVER_CENTRE, HANDOVER_YAW, INSERT_BRANCH, INSERT_DEPTH, INSERT_PITCH,
     LINE_SPACING, OMEGA, OPEN, PICK_HEIGHT, REGION, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN, SQUEEZE, TIMES)
 from .planning import _grip_down, bar_on_floor, default_bars, random_bar  # noqa: F401
-from .report import _jsonable, plot_report, summary, write_report  # noqa: F401
+from .report import _jsonable, plot_report, report_figures, summary, write_report  # noqa: F401
 from .runs import TaskRun, sweep
 from .scoring import clearances  # noqa: F401
 from .sequence import TaskError, TaskResult, _Runner, run  # noqa: F401
