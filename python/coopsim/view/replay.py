@@ -127,7 +127,7 @@ def _f32(a: np.ndarray):
 
 
 def _hex(color) -> int:
-    from matplotlib.colors import to_rgb
+    from matplotlib.colors import to_rgb  # matplotlib loads only to draw
 
     try:
         r, g, b = to_rgb(color)
