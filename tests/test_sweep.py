@@ -282,7 +282,7 @@ def test_generated_dynamics_compiled_here_reach_the_workers(dask_client, tmp_pat
     # the same metrics as the engine's own generated dynamics of scara1 (make): equal, since both are
     # built by the same compiler with the same flags; against the engine built with sanitizers, whose
     # copy is compiled with theirs, they differ in rounding, which this closed loop amplifies
-    if not cs._core.build_sanitizers:
+    if not cs.build_info()["sanitizers"]:
         compiled_in = cs.sweep(make, T_END, grid=small)
         np.testing.assert_allclose(here[cols].to_numpy(float), compiled_in[cols].to_numpy(float), rtol=1e-6,
                                    atol=1e-9)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from typing import Callable, List, Optional
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -360,6 +360,20 @@ class Simulation:
         self._run(t_end, None)
         return self.time
 
+    @staticmethod
+    def advance_all(sims: Sequence["Simulation"], t_end: float, threads: int = 0) -> list:
+        """Advances each of `sims` up to time t_end (s) as :meth:`advance` does, all in one engine call on
+        a pool of `threads` threads (0: every core) with the GIL released; the simulations must not share
+        controller instances. Returns per simulation the exception that stopped it (e.g. a
+        DivergenceError), or None. Each one's :attr:`stats` give the wall time of its own run (the runs
+        overlap on the threads). :func:`coopsim.run_batch` checks the arguments and gathers the results.
+        """
+        marks = [(s.time, s.steps) for s in sims]
+        errors, seconds = _core.run_batch([s._core for s in sims], float(t_end), int(threads))
+        for s, w, (t0, k0) in zip(sims, seconds, marks):
+            s.stats = RunStats._make(s.time, s.time - t0, w, w, s.dt, s.steps - k0)
+        return list(errors)
+
     def _run(self, t_end: float, callback) -> None:
         t0, s0, w0 = self.time, self.steps, time.perf_counter()
         try:
@@ -401,7 +415,8 @@ class Simulation:
         for i in range(self.robot_count):
             g = c.grasp_log(i)
             held = names[g[:, 0].astype(int)]  # -1 (none) picks the trailing ""
-            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:], **c.log(i)))
+            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:],
+                                   joint_types=c.robot(i).joint_types, **c.log(i)))
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,

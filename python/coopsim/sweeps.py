@@ -27,6 +27,8 @@ from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Seque
 
 import numpy as np
 
+from ._core import compiled_generated_names, generated_cache_dir, generated_info, load_generated_library
+from .batch import run_batch
 from .simulation import Simulation
 
 __all__ = ["sweep", "grid", "run_one", "run_shipped", "generated_libraries", "install_libraries"]
@@ -110,9 +112,7 @@ def run_one(item, t_end: Optional[float] = None, keep_log: bool = False) -> dict
 
 
 def _cache_folder() -> Path:
-    from . import _core
-
-    d = _core.generated_cache_dir()
+    d = generated_cache_dir()
     return Path(d) if d else Path.home() / ".cache" / "coopsim"
 
 
@@ -120,14 +120,12 @@ def generated_libraries(items) -> Dict[str, bytes]:
     """The shared libraries of the generated dynamics (``codegen.compile``) that the simulations among
     `items` use, as {name: bytes}, read from this process's ``codegen.cache_dir()`` (dynamics compiled
     into the engine need none). The sweep ships them to its workers (:func:`install_libraries`)."""
-    from . import _core
-
-    builtin = set(_core.compiled_generated_names())
+    builtin = set(compiled_generated_names())
     names = set()
     for it in items:
         if isinstance(it, Simulation):
             for r in it.robots:
-                info = _core.generated_info(r)
+                info = generated_info(r)
                 if info is not None and info["name"] not in builtin:
                     names.add(info["name"])
     libs = {}
@@ -144,8 +142,6 @@ def generated_libraries(items) -> Dict[str, bytes]:
 def install_libraries(libs: Mapping[str, bytes]) -> List[str]:
     """On a worker: writes each generated library into this process's cache folder (unless the same bytes
     are there) and loads it, so robots compiled on the client unpickle here. Returns the names."""
-    from . import _core
-
     folder = _cache_folder()
     folder.mkdir(parents=True, exist_ok=True)
     for name, data in libs.items():
@@ -154,7 +150,7 @@ def install_libraries(libs: Mapping[str, bytes]) -> List[str]:
             tmp = folder / f".coopsim_{name}.{os.getpid()}.tmp"
             tmp.write_bytes(data)
             os.replace(tmp, path)  # atomic: workers sharing the folder never see half a library
-        _core.load_generated_library(str(path))
+        load_generated_library(str(path))
     return list(libs)
 
 
@@ -231,7 +227,7 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     ``codegen.cache_dir()``) have their libraries shipped with the runs and installed on the workers
     (same platform and coopsim as here; no compiler needed there).
     """
-    import pandas as pd
+    import pandas as pd  # pandas' import is heavy: only when a sweep builds its table
 
     items, points = _items_from(runs, grid)
     for i, it in enumerate(items):
@@ -281,8 +277,6 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
 
 
 def _sweep_local(items, t_end, threads, keep_logs, timeout, done):
-    from .batch import run_batch
-
     sims = [(i, s) for i, s in enumerate(items) if isinstance(s, Simulation)]
     tasks = [(i, s) for i, s in enumerate(items) if not isinstance(s, Simulation)]
     if sims:
@@ -351,7 +345,7 @@ def _sweep_executor(executor, items, t_end, keep_logs, timeout, done, chunk):
 
 
 def _sweep_dask(client, items, t_end, keep_logs, timeout, done, chunk):
-    from distributed import as_completed
+    from distributed import as_completed  # the optional cluster extra: only with a Dask client
 
     libs = generated_libraries(items)
     parts = _chunks(items, chunk)

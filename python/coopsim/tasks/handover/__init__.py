@@ -8,8 +8,8 @@ off; the bar slides down the tube by gravity. Both robots return and the next ba
 Python sequences the phases; every step runs in the engine. Each phase plans both robots' motions from
 the state the previous phase left (the bar's pose in a clamp is measured after each grasp, so a grip
 that settled a millimetre off is carried into the plan), installs them with
-:meth:`Simulation.set_reference`, and advances the simulation with ``run``; grasps and releases
-happen only through the clamp rule (closing the jaws on the bar, opening them). Motions are the
+:meth:`Simulation.set_reference`, and advances the simulation with :meth:`Simulation.advance`; grasps
+and releases happen only through the clamp rule (closing the jaws on the bar, opening them). Motions are the
 existing closed-form IK and cubic joint trajectories (:func:`coopsim.planning.plan_cartesian` for the
 straight tool lines).
 
@@ -46,7 +46,7 @@ from .constants import (  # noqa: F401
     GRASP_TIMEOUT, GRIP1, GRIP2, HANDOVER_CENTRE, HANDOVER_YAW, INSERT_BRANCH, INSERT_DEPTH, INSERT_PITCH,
     LINE_SPACING, OMEGA, OPEN, PICK_HEIGHT, REGION, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN, SQUEEZE, TIMES)
 from .planning import _grip_down, bar_on_floor, default_bars, random_bar  # noqa: F401
-from .report import _jsonable, plot_report, summary, write_report  # noqa: F401
+from .report import _jsonable, plot_report, report_figures, summary, write_report  # noqa: F401
 from .runs import TaskRun, sweep
 from .scoring import clearances  # noqa: F401
 from .sequence import TaskError, TaskResult, _Runner, run  # noqa: F401

@@ -58,53 +58,69 @@ def summary(report: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_report(result: TaskResult, out_dir) -> List[str]:
-    """The plots of a run into out_dir: joints with references (one PNG per robot), tracking errors, and
-    clearances with forces over time. Returns the paths."""
+def report_figures(result: TaskResult) -> dict:
+    """The figures of a run's report, {file name: matplotlib Figure}: the joints with their references (one
+    per robot, ``joints_<robot>.png``), the tracking errors (``tracking.png``) and the clearances with the
+    grasp forces (``clearance_forces.png``), all over time. Every y axis names its quantity and unit, one
+    unit per axis (revolute joints in rad, prismatic ones in m); legends stand beside the panels."""
     import matplotlib.pyplot as plt  # matplotlib's import is heavy: only when plotting
 
-    os.makedirs(out_dir, exist_ok=True)
-    log, series, paths = result.log, result.series, []
+    log, series, figs = result.log, result.series, {}
     for i, rl in enumerate(log.robots):
-        fig, axes = plt.subplots(rl.dof, 1, figsize=(9, 1.6 * rl.dof), sharex=True)
+        fig, axes = plt.subplots(rl.dof, 1, figsize=(10, 1.6 * rl.dof), sharex=True)
         plot_log(log, robot=i, quantity="q", axes=axes, title=f"{rl.name}: joints (solid) and references (dashed)")
-        p = os.path.join(out_dir, f"joints_{rl.name}.png")
-        fig.savefig(p, dpi=90)
-        plt.close(fig)
-        paths.append(p)
+        fig.tight_layout()
+        figs[f"joints_{rl.name}.png"] = fig
     cycles = [(c["t_start"], c.get("t_end", c["t_start"])) for c in result.report["cycles"]]
 
-    def save(fig, axes, title, name):
-        """Legends, the cycles' bounds and a title on a figure of panels over time, written as name."""
+    def finish(fig, axes, title, name):
+        """Legends beside the panels, the cycles' bounds and a title on a figure of panels over time."""
         for ax in axes:
-            ax.legend(loc="upper right")
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize="small")
             for t0, _ in cycles[1:]:
                 ax.axvline(t0, color="0.6", lw=0.8, ls=":")
         fig.suptitle(title)
-        p = os.path.join(out_dir, name)
-        fig.savefig(p, dpi=90)
-        plt.close(fig)
-        paths.append(p)
+        fig.tight_layout()
+        figs[name] = fig
 
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 6.5), sharex=True)
     for i, rl in enumerate(log.robots):
         axes[0].plot(series["t"], series["tool_error"][:, i] * 1e3, label=rl.name)
-        axes[1].plot(log.t, np.abs(rl.error).max(axis=1), label=rl.name)
-    axes[0].set_ylabel("tool position error (mm)")
-    axes[1].set_ylabel("largest joint error\n(rad or m)")
-    axes[1].set_xlabel("t (s)")
-    save(fig, axes, "Tracking errors", "tracking.png")
+        types = rl.joint_types or ""
+        for ax, kind in ((axes[1], "R"), (axes[2], "P")):
+            cols = [j for j, c in enumerate(types) if c == kind]
+            if cols:
+                ax.plot(log.t, np.abs(rl.error[:, cols]).max(axis=1), label=rl.name)
+    axes[0].set_ylabel("tool position\nerror (mm)")
+    axes[1].set_ylabel("largest revolute\njoint error (rad)")
+    axes[2].set_ylabel("largest prismatic\njoint error (m)")
+    axes[2].set_xlabel("t (s)")
+    finish(fig, axes, "Tracking errors", "tracking.png")
 
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
     axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
     axes[0].plot(series["t"], series["clearance_container"] * 1e3, label="robot - container")
     axes[0].set_ylabel("clearance (mm)")
     axes[0].set_ylim(0, 300)
     for i, rl in enumerate(log.robots):
         axes[1].plot(series["t"], series["weld_force"][:, i], label=f"weld force, {rl.name}")
-    axes[1].plot(series["t"], series["internal_force"], label="internal force (dual hold)", color="k", lw=1)
+    axes[1].plot(series["t"], series["internal_force"], label="internal force\n(dual hold)", color="k", lw=1)
     axes[1].set_ylabel("force (N)")
     axes[1].set_xlabel("t (s)")
-    save(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
+    finish(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
+    return figs
+
+
+def plot_report(result: TaskResult, out_dir) -> List[str]:
+    """The plots of a run into out_dir (:func:`report_figures`, as PNG). Returns the paths."""
+    import matplotlib.pyplot as plt
+
+    os.makedirs(out_dir, exist_ok=True)
+    paths = []
+    for name, fig in report_figures(result).items():
+        p = os.path.join(out_dir, name)
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
     return paths
 
