@@ -251,6 +251,7 @@ def test_generation_independent_of_hash_seed():
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
 
 
+@pytest.mark.slow  # writes both SCARAs' files again (test_generated_files_do_not_drift checks them in memory)
 def test_command_writes_identical_files(tmp_path):
     """The documented command writes byte-identical files into another folder."""
     from coopsim.codegen.__main__ import main
@@ -267,6 +268,15 @@ def test_command_writes_identical_files(tmp_path):
     assert diff == "", "regenerated files differ (run `python -m coopsim.codegen`):\n" + diff[:20000]
     (tmp_path / "scara1_dynamics.cpp").write_bytes(written["scara1_dynamics.cpp"] + b" ")
     assert main(["--out", str(tmp_path), "--check"]) == 1
+
+
+def test_the_command_refuses_an_out_that_is_not_a_folder(tmp_path, capsys):
+    from coopsim.codegen.__main__ import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--out", str(tmp_path / "missing")])
+    assert e.value.code == 2 and "is not a folder" in capsys.readouterr().err
+    assert not (tmp_path / "missing").exists()
 
 
 # ---- textbook models: exact symbolic agreement ----

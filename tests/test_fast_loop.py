@@ -68,7 +68,12 @@ def names_in(tree: ast.AST, modules: dict[str, str]) -> set[str]:
                     aliases[a.asname or a.name] = full
         elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.startswith("coopsim"):
             add(node.value)
-            add(node.value + ".__main__")
+        elif isinstance(node, (ast.List, ast.Tuple)):  # [sys.executable, "-m", "coopsim.x", ...]
+            items = [e.value if isinstance(e, ast.Constant) else None for e in node.elts]
+            for flag, name in zip(items, items[1:]):
+                if flag == "-m" and isinstance(name, str):
+                    add(name)
+                    add(name + ".__main__")
         elif isinstance(node, ast.Assign) and isinstance(node.value, ast.Call) and len(node.targets) == 1:
             # H = pytest.importorskip("coopsim.tasks.handover") and the like
             args = node.value.args
@@ -160,6 +165,9 @@ def test_the_check_sees_what_a_test_file_names():
     assert {"coopsim", "coopsim.view", "coopsim.grasp", "coopsim.robots", "coopsim.tasks.handover"} <= found
     assert "coopsim.view.replay" in found or "coopsim.view.replay" not in modules
     assert "coopsim.sweeps" not in found and "coopsim.codegen" not in found
+    assert "coopsim.codegen.__main__" not in names_in(ast.parse("x = 'coopsim.codegen'\n"), modules)
+    assert "coopsim.codegen.__main__" in names_in(ast.parse("run([sys.executable, '-m', 'coopsim.codegen'])\n"),
+                                                  modules)
     slow = ast.parse("import pytest\n@pytest.mark.slow\ndef test_y():\n    import coopsim.sweeps\n")
     assert not names_in(ast.Module(body=[n for n in slow.body if not is_slow(n)], type_ignores=[]), modules)
 

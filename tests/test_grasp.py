@@ -137,7 +137,8 @@ def test_a_lifted_body_weighs_m_g_on_the_weld_and_loads_the_robot():
     F = sim.weld_wrench(0)
     assert F[2] == pytest.approx(0.1 * 9.81, rel=1e-6)
     assert np.abs(F[:2]).max() < 1e-6 * 0.981
-    # the robot feels it: the clamp link carries the weld's reaction, J^T (-F) at the body's centre
+    # the robot feels it: the clamp link carries the weld's reaction, J^T (-F) at the weld's point, midway
+    # between the pads; the box is gripped about its centre, which stands in for that point here
     q, _ = sim.state(0)
     link = r.clamp.fixed_link
     c = sim.body_state("box")["position"]

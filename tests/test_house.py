@@ -124,9 +124,15 @@ def test_the_package_imports_without_cycles():
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
 
 
-#: third-party modules a function may import where it needs them: their import is heavy (matplotlib,
-#: pandas, sympy, ...) or optional (dask's distributed), and ``import coopsim`` loads none of them
-LOCAL_IMPORTS = {"matplotlib", "mpl_toolkits", "pandas", "PIL", "imageio_ffmpeg", "tqdm", "xlsxwriter", "distributed"}
+#: modules a function may import where it needs them: their import is heavy (matplotlib, pandas, the
+#: standard library's importlib.metadata, ...) or optional (dask's distributed), and ``import coopsim``
+#: loads none of them
+LOCAL_IMPORTS = {"matplotlib", "mpl_toolkits", "pandas", "PIL", "imageio_ffmpeg", "tqdm", "xlsxwriter", "distributed",
+                 "importlib.metadata"}
+
+
+def _heavy(name: str) -> bool:
+    return any(name == m or name.startswith(m + ".") for m in LOCAL_IMPORTS)
 
 
 def test_function_level_imports_are_only_of_heavy_or_optional_dependencies():
@@ -139,9 +145,9 @@ def test_function_level_imports_are_only_of_heavy_or_optional_dependencies():
         top = {id(n) for n in tree.body}
         for node in ast.walk(tree):
             if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
-                roots = [a.name.split(".")[0] for a in node.names] if isinstance(node, ast.Import) else \
-                    ["." if node.level else (node.module or "").split(".")[0]]
-                if any(r not in LOCAL_IMPORTS for r in roots):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    ["." if node.level else node.module or ""]
+                if not all(_heavy(n) for n in names):
                     bad.append(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)}")
     assert not bad, "imports inside functions (move them to the top of the module):\n" + "\n".join(bad)
     # and the reason they may wait: importing coopsim loads none of them

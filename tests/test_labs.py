@@ -296,3 +296,62 @@ def test_the_tasks_report_figures_name_every_axis_with_one_unit_and_keep_legends
             leg = ax.get_legend().get_window_extent()
             assert ax.get_window_extent().x1 <= leg.x0 and leg.x1 <= width, name
         plt.close(fig)
+
+
+# ---------------------------------------------------------------- what lab 03 says of its runs
+
+def _wall_impact(dt):
+    """Lab 03's wall run (SCARA #1 turned into a wall by a stiff PID) at step dt, logged every step: the
+    quill's (link3) first contact event, its contact points and the robot's state just before."""
+    w = cs.World()
+    w.add_static_box("wall", [0.3, 0.0025, 0.4], position=[0.45, 0.25, 0.4])
+    sim = cs.Simulation(dt=dt, world=w, log_every=1, log_contacts=True)
+    q0 = np.array([0.0, 0.3, 0.10, 0.0, np.pi / 2, 0.02])
+    sim.add_robot(cs.robots.scara1(), cs.PID(400.0, 0.0, 40.0),
+                  cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]])))
+    log = sim.run(0.25)
+    ev = log.contacts[log.contacts.b == "scara1/link3"].iloc[0]
+    pts = log.contact_points[log.contact_points.b == "scara1/link3"]
+    k = int(np.searchsorted(log.t, ev["begin"])) - 1
+    return sim.robots[0], ev, pts, log.q[k], log.qd[k]
+
+
+def test_the_wall_impacts_peak_force_is_the_contacts_damping_and_its_impulse_does_not_depend_on_the_step():
+    """Lab 03: the quill's ~14 kN peak is the penalty contact's m w^2 depth + 2 m w v at its two points
+    (m the effective mass 1 / n^T J M^-1 J^T n, v the approach speed, w = 0.2 / dt), so it doubles when dt
+    halves, while the impulse that stops the arm, the physical quantity, stays."""
+    peaks, impulses = {}, {}
+    for dt in (2e-4, 1e-4):
+        r, ev, pts, q, qd = _wall_impact(dt)
+        first = pts[pts.t == ev["begin"]]
+        assert len(first) == 2  # the quill box's upper and lower edges
+        n, w, predicted = np.array([0.0, -1.0, 0.0]), 0.2 / dt, 0.0
+        for _, p in first.iterrows():
+            u = n @ r.jacobian(q, 3, np.linalg.solve(r.frames(q)[3], [p.point_x, p.point_y, p.point_z, 1.0])[:3])[:3]
+            m = 1.0 / (u @ np.linalg.solve(r.mass_matrix(q), u))
+            predicted += m * w * w * p.depth + 2.0 * m * w * (-u @ qd)
+        assert abs(predicted - ev["peak_force"]) < 1e-3 * ev["peak_force"]
+        force = pts.groupby("t").force_y.sum()
+        peaks[dt] = ev["peak_force"]
+        impulses[dt] = force[force.index < ev["begin"] + 0.002].sum() * dt  # N s over the impact's 2 ms
+    assert 13e3 < peaks[2e-4] < 15e3 and abs(peaks[1e-4] / peaks[2e-4] - 2.0) < 0.05
+    assert abs(impulses[1e-4] - impulses[2e-4]) < 0.02 * impulses[2e-4]
+
+
+def test_the_dropped_bar_makes_one_contact_event_that_never_ends():
+    """Lab 03 said two events (a landing, a hop, a landing); the bar, tilted 10°, lands on an edge and rocks
+    onto its face, one of its edges touching the floor at every step: one event, still going at the end."""
+    w = cs.World(floor=True)
+    a = np.radians(10.0)
+    w.add_free_box("bar", [0.175, 0.01, 0.01], 0.15, position=[0.0, 0.0, 0.06],
+                   quaternion=[np.cos(a / 2), np.sin(a / 2), 0, 0], friction=0.5)
+    sim = cs.Simulation(dt=2e-4, world=w, log_every=10, log_contacts=True)
+    log = sim.run(1.0)
+    ev = log.contacts
+    assert len(ev) == 1 and (ev.a.iloc[0], ev.b.iloc[0]) == ("floor", "bar") and np.isnan(ev.end.iloc[0])
+    # it lands after a free fall of its lowest edge: the 2 x 2 cm section turned 10° about the bar's axis puts
+    # that edge 0.01 (cos 10° + sin 10°) m below the centre, which starts 6 cm up; t = sqrt(2 h / g), to 2 steps
+    drop = 0.06 - 0.01 * (np.cos(a) + np.sin(a))
+    assert abs(ev.begin.iloc[0] - np.sqrt(2 * drop / 9.81)) < 4e-4
+    steps = np.round(log.contact_points.t.unique() / 2e-4).astype(int)
+    assert steps[-1] == round(1.0 / 2e-4) and np.all(np.diff(steps) == 1)

@@ -833,3 +833,97 @@ def test_a_reference_replaced_between_runs_acts_from_the_next_step():
         split.set_reference(0, np.zeros(3))
     with pytest.raises(ValueError, match="robot must be an index"):
         split.set_reference(1, q_new)
+
+
+# ---- the public calls that stand for the engine's ----
+
+def test_advance_runs_as_run_does_without_building_the_log():
+    a = make_sim()
+    log_a = a.run(0.1, progress=False)
+    b = make_sim()
+    assert b.steps_until(0.1) == 500 and b.steps_until(0.0) == 0
+    for t, steps in ((0.013, 65), (0.05, 185), (0.0501, 0), (0.1, 250)):     # steps rounded down
+        before = b.steps
+        assert b.steps_until(t) == steps
+        assert b.advance(t) == b.time == pytest.approx(t, abs=DT)
+        assert b.stats.sim_time == b.time and b.stats.steps == b.steps - before == steps
+    assert b.steps == 500 and b.steps_until(0.1) == 0
+    assert_logs_equal(b.log, log_a)
+    with pytest.raises(ValueError):
+        b.advance(0.05)                 # in the past
+    with pytest.raises(ValueError):
+        b.steps_until(float("nan"))
+
+
+def test_contact_events_tau_ext_and_link_states_without_the_log():
+    w = cs.World()
+    w.add_static_box("wall", [0.3, 0.0025, 0.4], position=[0.45, 0.25, 0.4])    # the arm turns into it
+    r = cs.robots.scara1()
+    q0 = np.array([0.0, 0.3, 0.10, 0.0, np.pi / 2, 0.02])
+    sim = cs.Simulation(dt=DT, world=w, log_every=10)
+    turn = cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]]))
+    sim.add_robot(r, cs.PID(400.0, 0.0, 40.0), turn)
+    sim.set_applied(0, forces=np.arange(6.0))
+    np.testing.assert_array_equal(sim.tau_ext(0), np.arange(6.0))
+    sim.clear_applied(0)
+    sim.advance(0.4)
+    ev = sim.contact_events()
+    contacts = sim.log.contacts
+    assert len(contacts) > 0 and list(ev["a"]) == list(contacts["a"]) and list(ev["b"]) == list(contacts["b"])
+    np.testing.assert_array_equal(ev["begin"], contacts["begin"].to_numpy())
+    # each link box where the world holds it: at the robot's kinematics, as of the last world step
+    P, _ = r.shapes(sim.state(0)[0])
+    for k in range(len(r.boxes)):
+        np.testing.assert_allclose(sim.link_state(0, k)["pose"], P[k], atol=1e-9)
+    for bad in (len(r.boxes), -1, 1.0, True):
+        with pytest.raises(ValueError, match="box"):
+            sim.link_state(0, bad)
+    assert make_sim().contact_events() == {}                     # no world, no events
+
+
+def test_profiling_splits_the_steps_time():
+    sim = make_sim()
+    sim.set_profiling(True)
+    sim.advance(0.05)
+    p = sim.profile()
+    assert {"controllers", "robots"} <= set(p) and all(v >= 0.0 for v in p.values()) and p["robots"] > 0.0
+    sim.set_profiling(False)
+    with pytest.raises(ValueError, match="True or False"):
+        sim.set_profiling("yes")
+
+
+def test_advance_all_is_the_runs_one_by_one_on_threads():
+    alone = [make_sim(dt=DT * k) for k in (1, 2)]
+    for s in alone:
+        s.run(0.05, progress=False)
+    sims = [make_sim(dt=DT * k) for k in (1, 2)]
+    errors = cs.Simulation.advance_all(sims, 0.05, threads=2)
+    assert errors == [None, None]
+    for s, a in zip(sims, alone):
+        assert_logs_equal(s.log, a.log)
+        assert s.stats.steps == a.steps and s.stats.wall_time > 0
+
+
+def test_the_pacer_drives_anything_with_the_simulations_public_calls():
+    clock = FakeClock()
+    sim = make_sim()
+
+    class Wrapped:        # a simulation seen only through the calls the pacer uses
+        time = property(lambda self: sim.time)
+        dt = property(lambda self: sim.dt)
+        steps = property(lambda self: sim.steps)
+        steps_until, step = sim.steps_until, sim.step
+        stats = None
+
+    w = Wrapped()
+    stats = cs.Pacer(speed=4.0, frame_rate=50.0, clock=clock, sleep=clock.sleep).run(w, 0.2)
+    assert sim.time == pytest.approx(0.2) and w.stats is stats and stats.sim_elapsed == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="coopsim.Simulation"):
+        cs.Pacer().run(object(), 1.0)
+
+
+def test_build_info():
+    info = cs.build_info()
+    assert set(info) == {"optimised", "sanitizers"}
+    assert isinstance(info["optimised"], bool) and isinstance(info["sanitizers"], str)
+    assert not (info["optimised"] and info["sanitizers"])       # a sanitized build is a Debug one

@@ -41,7 +41,7 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
     offset such as "+3e-1" hiding them).
     Returns the Figure.
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     if quantity not in _LOG_LABELS:
         raise ValueError(f"quantity must be one of {sorted(_LOG_LABELS)}, got {quantity!r}")
@@ -57,7 +57,7 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
         if not 0 <= j < n:
             raise ValueError(f"joints must be indices in [0, {n}), got {j}")
     if color is not None:
-        from matplotlib.colors import is_color_like
+        from matplotlib.colors import is_color_like  # matplotlib loads only to draw
 
         if not is_color_like(color):
             raise ValueError(f"color must be a matplotlib colour, got {color!r}")
@@ -99,7 +99,7 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
 
 def _plain_ticks(ax, axis: str = "y") -> None:
     """Tick labels with their whole values: no offset ("+3e-1") and a ×10ⁿ factor only for tiny or huge values."""
-    from matplotlib.ticker import ScalarFormatter
+    from matplotlib.ticker import ScalarFormatter  # matplotlib loads only to draw
 
     fmt = ScalarFormatter(useOffset=False, useMathText=True)
     fmt.set_powerlimits((-4, 5))
@@ -140,7 +140,7 @@ def plot_trajectory(trajectory, robot=None, t=None, samples: int = 600, joints=N
     shares one axis "(rad or m)". Returns the Figure (its axes: the three
     given or made, then the twins).
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     n = trajectory.dof
     joint_types = robot if isinstance(robot, str) or robot is None else robot.joint_types
@@ -204,7 +204,7 @@ def plot_tool_path(robot, trajectory, poses=None, samples: int = 400, ax=None, l
     straight dashed lines (the intended path). ax: a matplotlib Axes, default
     a new figure. Returns the Figure.
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     if int(samples) < 2:
         raise ValueError(f"samples must be >= 2, got {samples}")

@@ -37,10 +37,10 @@ def ffmpeg_path() -> str:
     Also sets matplotlib's ``rcParams['animation.ffmpeg_path']`` to it when that is still the default
     'ffmpeg', so matplotlib's own writers (``FuncAnimation.save``, ``to_html5_video``) find it too.
     """
-    import matplotlib
+    import matplotlib  # matplotlib loads only to draw
 
     try:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # only to find or run ffmpeg
     except ImportError:  # pragma: no cover - a declared dependency
         raise RuntimeError("MP4 needs imageio-ffmpeg: pip install imageio-ffmpeg") from None
     exe = imageio_ffmpeg.get_ffmpeg_exe()
@@ -112,7 +112,7 @@ class Animation:
         the next frame), drawn with :meth:`Scene.redraw` (the background once, then the moving artists)."""
         fig = self.fig
         if not hasattr(fig.canvas, "buffer_rgba"):
-            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib loads only to draw
 
             FigureCanvasAgg(fig)
         for k in range(len(self.times)):
@@ -147,7 +147,7 @@ class Animation:
         return self.path
 
     def _write_mp4(self, path: str, quality: float) -> None:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # only to find or run ffmpeg
 
         ffmpeg_path()
         w, h = self.fig.canvas.get_width_height(physical=True)
@@ -165,7 +165,7 @@ class Animation:
             writer.close()
 
     def _write_gif(self, path: str) -> None:
-        from PIL import Image
+        from PIL import Image  # Pillow loads only to write a GIF
 
         images = []
         for frame in self.frames():
@@ -196,7 +196,7 @@ class Animation:
     def animation(self):
         """A matplotlib ``FuncAnimation`` over the same frames (interval 1000 / fps ms), made on first use."""
         if self._anim is None:
-            from matplotlib.animation import FuncAnimation
+            from matplotlib.animation import FuncAnimation  # matplotlib loads only to draw
 
             ffmpeg_path()
             self._anim = FuncAnimation(self.fig, self.show_frame, frames=len(self.times), interval=1000.0 / self.fps,
@@ -449,8 +449,8 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
 
     # ---- the scene: fixed camera, floor and limits fitted to every frame ----
     if ax is None:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib loads only to draw
+        from matplotlib.figure import Figure  # matplotlib loads only to draw
 
         dpi = _number(dpi, "dpi")
         w, h = figsize

@@ -55,7 +55,6 @@ import math
 import os
 import re
 import uuid
-from importlib.metadata import PackageNotFoundError, version
 from typing import List, Optional
 
 import numpy as np
@@ -89,6 +88,7 @@ def _meshcat_assets():
 
     The package is found, not imported: importing meshcat loads its ZMQ server and IPython machinery,
     none of which a file needs."""
+    from importlib.metadata import PackageNotFoundError, version  # its import costs 50 ms: only for a page
     spec = importlib.util.find_spec("meshcat")
     if spec is None or not spec.submodule_search_locations:
         raise ImportError("coopsim.view.replay_html needs the meshcat package for its viewer bundle "
@@ -127,7 +127,7 @@ def _f32(a: np.ndarray):
 
 
 def _hex(color) -> int:
-    from matplotlib.colors import to_rgb
+    from matplotlib.colors import to_rgb  # matplotlib loads only to draw
 
     try:
         r, g, b = to_rgb(color)

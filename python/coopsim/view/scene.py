@@ -134,7 +134,7 @@ def _bodies(bodies, what: str = "bodies") -> list:
 
 
 def _rgba(c, what: str) -> np.ndarray:
-    from matplotlib.colors import to_rgba
+    from matplotlib.colors import to_rgba  # matplotlib loads only to draw
 
     try:
         return np.array(to_rgba(c))
@@ -162,7 +162,7 @@ class Scene:
                  limits=None, elev: Optional[float] = 22.0, azim: Optional[float] = None, axis: bool = False,
                  zoom: Optional[float] = None, contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4,
                  cull: bool = False, ghost_margin: float = 0.002):
-        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # matplotlib loads only to draw
 
         self.robots = _robot_list(robots, allow_empty=True)
         self.ax = ax
@@ -236,7 +236,7 @@ class Scene:
         self.label = self.fig.text(0.02, 0.975, "", va="top", ha="left", fontsize=9, zorder=4)
         # the boxes may use the whole subplot, not only the square a 3D Axes draws into: an empty frame over
         # the subplot keeps all of it in a tight bounding box (notebooks show figures with bbox_inches='tight')
-        from matplotlib.patches import Rectangle
+        from matplotlib.patches import Rectangle  # matplotlib loads only to draw
 
         pos = ax.get_position(original=True)
         self.extent = Rectangle((pos.x0, pos.y0), pos.width, pos.height, transform=self.fig.transFigure,
@@ -399,7 +399,7 @@ class Scene:
         """How far the points (m, 3) reach from the middle of the axes' place in the figure towards its edges,
         at most: 1 at an edge (the larger of x and y, as fractions of the half width and half height). A 3D
         Axes draws into a square, but its artists are not clipped: the place is the whole subplot."""
-        from mpl_toolkits.mplot3d import proj3d
+        from mpl_toolkits.mplot3d import proj3d  # matplotlib loads only to draw
 
         self.ax.apply_aspect()           # as drawing will: the square the Axes draws into
         x, y, _ = proj3d.proj_transform(points[:, 0], points[:, 1], points[:, 2], self.ax.get_proj())
@@ -625,7 +625,7 @@ class Scene:
         """Pixel coordinates (m, 2) of world points (m, 3) m in the figure's image: x to the right, y down
         from the top-left corner, as in ``np.asarray(fig.canvas.buffer_rgba())[y, x]``. Draw the figure
         first (e.g. ``fig.canvas.draw()``) so that the layout is final."""
-        from mpl_toolkits.mplot3d import proj3d
+        from mpl_toolkits.mplot3d import proj3d  # matplotlib loads only to draw
 
         p = _array(points, "points").reshape(-1, 3)
         x, y, _ = proj3d.proj_transform(p[:, 0], p[:, 1], p[:, 2], self.ax.get_proj())
@@ -648,7 +648,7 @@ def _finite(x, what: str) -> float:
 
 
 def _is_colour(c) -> bool:
-    from matplotlib.colors import is_color_like
+    from matplotlib.colors import is_color_like  # matplotlib loads only to draw
 
     if isinstance(c, str):
         return is_color_like(c)
@@ -746,7 +746,7 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
     if not robots and not shown:
         raise ValueError("nothing to draw: give robots, bodies or a world with bodies")
     if ax is None:
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
         fig = plt.figure(figsize=(6.4, 4.8))
         ax = fig.add_subplot(projection="3d")

@@ -113,7 +113,7 @@ def report_figures(result: TaskResult) -> dict:
 
 def plot_report(result: TaskResult, out_dir) -> List[str]:
     """The plots of a run into out_dir (:func:`report_figures`, as PNG). Returns the paths."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     os.makedirs(out_dir, exist_ok=True)
     paths = []
