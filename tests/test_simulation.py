@@ -216,25 +216,24 @@ def test_log_keeps_the_reference_acceleration():
 
 
 def test_the_defaults_are_the_engines():
-    """simulation_defaults(): the engine's SimulationOptions, what SimulationCore takes when an argument is
-    left out, and what coopsim.Simulation's signature shows."""
+    """Simulation.defaults(): the engine's SimulationOptions, what a Simulation built without arguments
+    holds, and what coopsim.Simulation's signature shows."""
     import inspect
 
-    d = cs._core.simulation_defaults()
+    d = cs.Simulation.defaults()
     assert d["dt"] == 2e-4 and d["integrator"] == "rk4" and d["grasp_options"]["hold_time"] == 2e-3
-    core = cs._core.SimulationCore(world=cs.World())
+    options = cs.Simulation(world=cs.World()).options
     for name, value in d.items():
-        got = core.grasp_options() if name == "grasp_options" else getattr(core, name)
-        assert got == value and type(got) is type(value), name
+        assert options[name] == value and type(options[name]) is type(value), name
     params = inspect.signature(cs.Simulation.__init__).parameters
     for name, value in d.items():
         if name != "grasp_options":
             assert params[name].default == value, name
     # one check of the grasp options, in the engine: the message names the option, its unit and value
     with pytest.raises(ValueError, match=r"grasp_options: slip must be >= 0 m, got -0\.5"):
-        cs._core.SimulationCore(grasp_options={"slip": -0.5})
+        cs.Simulation(grasp_options={"slip": -0.5})
     with pytest.raises(ValueError, match="grasp_options: unknown option 'grip'"):
-        cs._core.SimulationCore(grasp_options={"grip": 1.0})
+        cs.Simulation(grasp_options={"grip": 1.0})
 
 
 

@@ -133,6 +133,12 @@ class Simulation:
     def log_every(self) -> int:
         return self._core.log_every
 
+    @staticmethod
+    def defaults() -> dict:
+        """The engine's defaults of the constructor's keyword arguments but the world (its
+        SimulationOptions, the grasp options included): what this signature's defaults are."""
+        return _core.simulation_defaults()
+
     @property
     def options(self) -> dict:
         """The constructor's keyword arguments but the world."""
