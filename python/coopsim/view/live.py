@@ -47,7 +47,8 @@ from typing import Callable, List, Optional
 
 import numpy as np
 
-from .scene import COLORS
+from .geometry import view_direction
+from .scene import COLORS, DEFAULT_ELEV
 from .world import colliding_from_contacts, contact_lines, holding_now, is_bar, robot_labels
 
 __all__ = ["LiveView", "live"]
@@ -59,6 +60,7 @@ _PLOT_EVERY = 0.1             # s of wall time between plot updates
 _TABLE_EVERY = 0.5            # s of wall time between updates of the data table
 _TABLE_ROWS = 8
 _WINDOW = 1.0                 # s of wall time over which the supervision's rates are measured
+_ENVIRONMENT = 0.4           # intensity of the environment map's lighting (viser's default 1 washes colours out)
 _FOREVER = 1e7                # s: t_end of a run "until closed"
 
 # a unit cube (side 1, centred) as 8 vertices and 12 outward triangles
@@ -212,6 +214,8 @@ class LiveView:
         self.message = ""
         self.frames = 0
         self.frame: Optional[Frame] = None
+        self._changes = 0            # requests applied (a frame after one is drawn even if the time stands still)
+        self._shown = None
         self._stats: deque = deque()
         self._hist: List[deque] = [deque() for _ in self.robots]
         self._last_plot = self._last_table = -math.inf
@@ -280,19 +284,19 @@ class LiveView:
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         self._centre = 0.5 * (lo + hi)
         self._radius = max(0.3, float(np.linalg.norm(hi - lo)) / 2)
-        size = 2 * max(hi[0] - lo[0], hi[1] - lo[1]) + 0.6
+        self._azim = self._choose_azimuth(scenery)
+        size = max(hi[0] - lo[0], hi[1] - lo[1]) + 0.6
         floor = world is None or world.floor
+        # the environment's light at a little under half: the paper's colours stay recognisable
+        sc.configure_environment_map("warehouse", environment_intensity=_ENVIRONMENT)
         if floor:
             sc.add_box("/floor", color=_rgb8(COLORS["floor"][0]), dimensions=(size, size, 0.01),
                        position=(self._centre[0], self._centre[1], -0.005), cast_shadow=False)
             sc.add_grid("/floor/grid", width=size, height=size, cell_size=0.1, section_size=0.5,
                         cell_color=_rgb8(COLORS["floor"][1]), position=(0.0, 0.0, 0.0051), shadow_opacity=0.0)
-        if scenery:
-            P = np.array([p for _, p, _ in scenery])
-            H = np.array([h for _, _, h in scenery])
-            sc.add_batched_meshes_simple("/scenery", _CUBE_V, _CUBE_F, quaternions(P[:, :3, :3]), P[:, :3, 3],
-                                         batched_scales=2 * H, batched_colors=_rgb8(COLORS["scenery"]), lod="off",
-                                         flat_shading=True)
+        for name, P, H in scenery:          # fixed: one box each, sent once
+            sc.add_box(f"/scenery/{name}", color=_rgb8(COLORS["scenery"]), dimensions=2 * H,
+                       wxyz=quaternions(P[:3, :3])[0], position=P[:3, 3])
         k = sum(len(r.boxes) for r in self.robots)
         half = np.concatenate([self.sim.robots[i].shapes(self.sim.state(i)[0])[1] for i in range(len(self.robots))]) \
             if self.robots else np.zeros((0, 3))
@@ -306,7 +310,8 @@ class LiveView:
                                  zip(self._split(half), self._moving)])
             self._ghost_mesh = sc.add_batched_meshes_simple(
                 "/ghosts", _CUBE_V, _CUBE_F, np.tile([1.0, 0, 0, 0], (len(gh), 1)), np.zeros((len(gh), 3)),
-                batched_scales=2 * gh, batched_colors=_rgb8(COLORS["ghost"]), opacity=float(COLORS["ghost_alpha"]),
+                batched_scales=2 * gh, batched_colors=np.tile(_rgb8(COLORS["ghost"]), (len(gh), 1)),
+                opacity=float(COLORS["ghost_alpha"]),
                 lod="off", flat_shading=True, cast_shadow=False, receive_shadow=False,
                 visible=self._show["ghosts"])
         self._body_mesh = None
@@ -329,6 +334,20 @@ class LiveView:
                                                   visible=self._show["labels"]))
         self._set_camera("perspective", initial=True)
 
+    def _choose_azimuth(self, scenery) -> float:
+        """The default camera's azimuth (degrees), chosen as coopsim.view.Scene chooses it: robots, scenery and
+        bodies seen past each other (Scene.choose_azimuth, on a figure never drawn)."""
+        from matplotlib.figure import Figure
+
+        from .scene import Scene
+
+        ax = Figure().add_subplot(projection="3d")
+        frame = [(True, *r.shapes(self.sim.state(i)[0]), False) for i, r in enumerate(self.robots)]
+        frame += [(False, P[None], H[None], True) for _, P, H in scenery]
+        frame += [(False, np.asarray(self.sim.body_state(n)["pose"])[None],
+                   np.asarray(self._world.body(n)["half_extents"])[None], False) for n in self._free_names]
+        return Scene(ax, self.robots).choose_azimuth([frame])
+
     @staticmethod
     def _corners(poses, half):
         from .geometry import box_corners
@@ -343,11 +362,11 @@ class LiveView:
     def _set_camera(self, view: str, initial: bool = False) -> None:
         c, r = self._centre, self._radius
         if view == "top":
-            pos, up = c + np.array([0.0, -1e-3, 3.2 * r]), (0.0, 0.0, 1.0)
+            pos, up = c + r * np.array([0.0, -0.3, 2.6]), (0.0, 0.0, 1.0)
         elif view == "side":
-            pos, up = c + np.array([0.0, -3.2 * r, 0.3 * r]), (0.0, 0.0, 1.0)
+            pos, up = c + r * np.array([0.0, -2.4, 0.3]), (0.0, 0.0, 1.0)
         else:
-            pos, up = c + r * np.array([1.3, -2.2, 1.5]), (0.0, 0.0, 1.0)
+            pos, up = c + 2.1 * r * view_direction(DEFAULT_ELEV + 8.0, self._azim), (0.0, 0.0, 1.0)
         if initial:
             self.server.initial_camera.position = tuple(pos)
             self.server.initial_camera.look_at = tuple(c)
@@ -360,6 +379,9 @@ class LiveView:
 
     def _build_panels(self) -> None:
         gui = self.server.gui
+        # the panel docked beside the scene (not over it); no share button: the page never leaves this host
+        gui.configure_theme(control_width="medium", show_share_button=False)
+        gui.main_panel.dock_right()
         self._msg = gui.add_markdown("", order=0)
         tabs = gui.add_tab_group(order=1)
         n = len(self.robots)
@@ -421,7 +443,7 @@ class LiveView:
         with tabs.add_tab("Data"):
             if n:
                 pick = gui.add_dropdown("Robot", names, initial_value=names[0])
-                pick.on_update(lambda e: setattr(self, "_table_robot", names.index(e.target.value)))
+                pick.on_update(lambda e: self._pick_table(names.index(e.target.value)))
             self._table = gui.add_markdown("")
             csv_btn, xls_btn = gui.add_button("Download CSV"), gui.add_button("Download Excel")
             csv_btn.on_click(lambda e: self.download("csv", e.client))
@@ -456,16 +478,22 @@ class LiveView:
         series_q = [up.Series(label="t (s)")]
         for j in range(r.dof):
             c = palette[j % len(palette)]
-            series_q += [up.Series(label=f"q{j + 1}", stroke=c, width=1.5),
-                         up.Series(label=f"q{j + 1} ref", stroke=c, width=1, dash=[4, 4])]
+            series_q += [up.Series(label=f"q{j + 1}", stroke=c, width=1.5, points={"show": False}),
+                         up.Series(label=f"ref{j + 1}", stroke=c, width=1, dash=[4, 4], points={"show": False})]
         series_e = [up.Series(label="t (s)")] + [up.Series(label=f"e{j + 1}", stroke=palette[j % len(palette)],
-                                                           width=1.5) for j in range(r.dof)]
+                                                           width=1.5, points={"show": False}) for j in range(r.dof)]
         gui = self.server.gui
+        scales = {"x": {"time": False}}
         pq = gui.add_uplot((x,) + (x,) * (2 * r.dof), tuple(series_q), title=f"{self.labels[i]}: q and q_ref",
-                           aspect=1.4)
+                           scales=scales, aspect=1.4)
         pe = gui.add_uplot((x,) + (x,) * r.dof, tuple(series_e), title=f"{self.labels[i]}: error q_ref - q",
-                           aspect=1.4)
+                           scales=scales, aspect=1.4)
         return pq, pe
+
+    def _pick_table(self, i: int) -> None:
+        self._table_robot = i
+        self._last_table = -math.inf
+        self._changes += 1
 
     def _pick_plot(self, i: int) -> None:
         with self._lock:
@@ -474,6 +502,7 @@ class LiveView:
             self._plot_e.remove()
             self._plot_q, self._plot_e = self._make_plots(i)
             self._last_plot = -math.inf
+            self._changes += 1
 
     # ---- requests from the page (or from Python): queued, applied by the simulation's thread ----
 
@@ -746,6 +775,7 @@ class LiveView:
         for i, ref in enumerate(self._references0):
             self.sim.set_reference(i, ref)
         self.error = None
+        self._changes += 1
         for h in self._hist:
             h.clear()
         self._stats.clear()
@@ -758,6 +788,7 @@ class LiveView:
                 fn = self._queue.get_nowait()
             except queue.Empty:
                 break
+            self._changes += 1
             try:
                 fn()
             except ValueError as e:          # IKError is a ValueError
@@ -806,35 +837,43 @@ class LiveView:
 
     def _draw(self, f: Frame) -> None:
         now = time.perf_counter()
+        # nothing new to show (paused, or past the end): the scene is left as it is, the panels go on
+        key = (f.steps, self._changes, tuple(self._show.values()))
+        same, self._shown = key == self._shown, key
         with self._lock, self.server.atomic():
-            if self._robot_mesh is not None:
-                P = np.concatenate(f.poses)
-                self._robot_mesh.batched_positions = P[:, :3, 3]
-                self._robot_mesh.batched_wxyzs = quaternions(P[:, :3, :3])
-                cols = self._robot_colours(f)
-                if self.frame is None or not np.array_equal(cols, self._robot_mesh.batched_colors):
-                    self._robot_mesh.batched_colors = cols
-                if self._show["ghosts"]:
-                    G = np.concatenate([g[m] for g, m in zip(f.ghost, self._moving)])
-                    self._ghost_mesh.batched_positions = G[:, :3, 3]
-                    self._ghost_mesh.batched_wxyzs = quaternions(G[:, :3, :3])
-            if self._body_mesh is not None:
-                B = np.array([f.bodies[n] for n in self._free_names])
-                self._body_mesh.batched_positions = B[:, :3, 3]
-                self._body_mesh.batched_wxyzs = quaternions(B[:, :3, :3])
-                if self._show["labels"]:
-                    for node, n in zip(self._label_nodes[len(self.robots):], self._free_names):
-                        node.position = B[self._free_names.index(n), :3, 3] + np.array([0, 0, 0.05])
-            show_lines = self._show["contact_lines"] and len(f.lines) > 0
-            if show_lines:
-                seg = np.stack([f.lines[:, 0], f.lines[:, 0] + _CONTACT_LENGTH * f.lines[:, 1]], axis=1)
-                self._lines.points = seg.astype(np.float32)
-            if self._lines.visible != show_lines:
-                self._lines.visible = show_lines
+            if not same:
+                self._draw_scene(f)
             self._supervise(f, now)
-            self._plots(f, now)
+            if not same:
+                self._plots(f, now)
         self.frame = f
         self.frames += 1
+
+    def _draw_scene(self, f: Frame) -> None:
+        if self._robot_mesh is not None:
+            P = np.concatenate(f.poses)
+            self._robot_mesh.batched_positions = P[:, :3, 3]
+            self._robot_mesh.batched_wxyzs = quaternions(P[:, :3, :3])
+            cols = self._robot_colours(f)
+            if self.frame is None or not np.array_equal(cols, self._robot_mesh.batched_colors):
+                self._robot_mesh.batched_colors = cols
+            if self._show["ghosts"]:
+                G = np.concatenate([g[m] for g, m in zip(f.ghost, self._moving)])
+                self._ghost_mesh.batched_positions = G[:, :3, 3]
+                self._ghost_mesh.batched_wxyzs = quaternions(G[:, :3, :3])
+        if self._body_mesh is not None:
+            B = np.array([f.bodies[n] for n in self._free_names])
+            self._body_mesh.batched_positions = B[:, :3, 3]
+            self._body_mesh.batched_wxyzs = quaternions(B[:, :3, :3])
+            if self._show["labels"]:
+                for node, n in zip(self._label_nodes[len(self.robots):], self._free_names):
+                    node.position = B[self._free_names.index(n), :3, 3] + np.array([0, 0, 0.05])
+        show_lines = self._show["contact_lines"] and len(f.lines) > 0
+        if show_lines:
+            seg = np.stack([f.lines[:, 0], f.lines[:, 0] + _CONTACT_LENGTH * f.lines[:, 1]], axis=1)
+            self._lines.points = seg.astype(np.float32)
+        if self._lines.visible != show_lines:
+            self._lines.visible = show_lines
 
     def _supervise(self, f: Frame, now: float) -> None:
         st = self.pacer.stats
@@ -893,7 +932,7 @@ class LiveView:
         lo = max(0, rows - _TABLE_ROWS)
         head = "| t (s) | " + " | ".join(f"q{j + 1}" for j in range(rl.dof)) + " |"
         sep = "|---" * (rl.dof + 1) + "|"
-        body = "\n".join(f"| {log.t[k]:.4f} | " + " | ".join(f"{x:.4f}" for x in rl.q[k]) + " |"
+        body = "\n".join(f"| {log.t[k]:.4f} | " + " | ".join(f"{x:.3f}" for x in rl.q[k]) + " |"
                          for k in range(lo, rows))
         return f"{self.labels[i]}, last {rows - lo} of {rows} rows ({len(log.columns())} columns)\n\n" \
                f"{head}\n{sep}\n{body}"
