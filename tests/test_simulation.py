@@ -588,10 +588,11 @@ def test_batch_of_16_equals_the_same_16_one_by_one():
     logs = cs.run_batch(batch, 0.5, threads=2)
     wall = time.perf_counter() - w0
     assert len(logs) == 16
-    # each run's statistics: its own steps and wall time, parts of the batch's
+    # each run's statistics: its own steps and wall time, measured within the batch's (so not the
+    # batch's own figure: a run's interval lies inside the call's, whatever the load)
     walls = [s.stats.wall_time for s in batch]
     assert all(s.stats.steps == 2500 and s.stats.sim_elapsed == pytest.approx(0.5) for s in batch)
-    assert all(0 < w < wall for w in walls) and sum(walls) > wall / 2
+    assert all(0 < w < wall for w in walls)
     singles = gain_grid()
     for a, sim in zip(logs, singles):
         assert_logs_equal(a, sim.run(0.5, progress=False))

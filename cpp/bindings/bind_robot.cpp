@@ -453,6 +453,14 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
   R.def_property_readonly("dof", &Robot::dof, "Number of joints n.")
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("joint_types", &Robot::joint_types, "e.g. 'RRPRRP'.")
+      .def_property_readonly("joint_names", &Robot::joint_names,
+                             "Names of the joints (n,), in the order of q: from a URDF its joints' names, else "
+                             "'joint1'..'jointn'.")
+      .def_property_readonly("link_names", &Robot::link_names,
+                             "Names of the moving links (n,), link i moved by joint i: from a URDF the child "
+                             "link of each chain joint, else 'link1'..'linkn'.")
+      .def("with_names", &Robot::with_names, py::arg("joint_names"), py::arg("link_names"),
+           "A copy with these joint and link names (n each, unique, not empty); all else equal.")
       .def_property_readonly("dh", [](const Robot& r) { return py::object(robot_state(r)[0]); }, "(n, 4) [theta, d, a, alpha].")
       .def_property_readonly("com", [](const Robot& r) { return py::object(robot_state(r)[1]); }, "(n, 4) CoM rows.")
       .def_property_readonly("masses", [](const Robot& r) { return py::object(robot_state(r)[2]); }, "(n,) kg.")
@@ -721,7 +729,8 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                                   r.end_stop().damping_ratio, r.backend(),
                                   r.has_generated() ? r.generated()->name : std::string(), boxes,
                                   r.clamp().present() ? py::cast(r.clamp()) : py::none(), r.dimensions(),
-                                  to_numpy(Eigen::MatrixXd(r.base_orientation())));
+                                  to_numpy(Eigen::MatrixXd(r.base_orientation())), r.joint_names(),
+                                  r.link_names());
           },
           [](py::tuple t) {
             py::tuple s = t[0];
@@ -730,6 +739,8 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                                  t[3].cast<double>(), t[4], t[5].cast<std::string>(), t[6].cast<double>(),
                                  t[7].cast<double>(), py::len(boxes) ? py::object(boxes) : py::object(py::none()),
                                  t[11], t[12], s[8], s[9], s[10], t[13], "ignore");
+            if (t.size() > 15)
+              r = r.with_names(t[14].cast<std::vector<std::string>>(), t[15].cast<std::vector<std::string>>());
             const std::string gen = t[9].cast<std::string>();
             if (!gen.empty()) {
               if (!find_generated(gen))

@@ -3,6 +3,7 @@
 coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)
 """
 from __future__ import annotations
+import collections.abc
 import numpy
 import numpy.typing
 import typing
@@ -169,13 +170,16 @@ class Robot:
         dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
-    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09):
+    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file'):
         """
         A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
         
             Joints: revolute, continuous (unbounded) and prismatic ones make the
             chain, in order from the root link; fixed joints merge their child link
-            (mass, CoM, inertia, boxes) into its parent. Each joint's origin and axis
+            (mass, CoM, inertia, boxes) into its parent. The robot keeps their names:
+            ``robot.joint_names[i]`` is the URDF joint whose position is q[i] (and
+            whose torque is tau[i]), ``robot.link_names[i]`` the child link it moves
+            (the one Robot link i + 1 stands for, with the links fixed to it). Each joint's origin and axis
             (any direction) become a standard DH row; frame 0 lies on the first axis
             (z0 along it, nearest the root's origin) and is the robot's base
             (position, yaw and, for a first axis that is not the root's z, a
@@ -199,6 +203,11 @@ class Robot:
                 or m) and merged like fixed joints (e.g. fingers kept with their mass).
             name: the robot's name (default the URDF's). gravity: (3,) m/s^2 in the
                 root link's frame. inertia_check: as Robot.from_dh.
+            limits: 'file' (default) takes each joint's lower/upper and effort from
+                its ``<limit>``; 'ignore' takes none (q and tau unbounded), for
+                files whose limits are placeholders, as CAD exporters write them
+                (lower = upper = 0, effort = 0), which 'file' refuses, naming the
+                joint and this option.
             snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
                 read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
                 5e-12 rad would make every derived angle general (and generated code
@@ -225,7 +234,7 @@ class Robot:
             carry an explicit zero ``<inertial>``. See the module's docstring.
             
         """
-    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float], numpy.typing.NDArray[numpy.float64]]:
+    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float], numpy.typing.NDArray[numpy.float64], list[str], list[str]]:
         ...
     def __repr__(self) -> str:
         ...
@@ -369,6 +378,10 @@ class Robot:
         """
         A copy with another gravity vector (3,) m/s^2.
         """
+    def with_names(self, joint_names: collections.abc.Sequence[str], link_names: collections.abc.Sequence[str]) -> Robot:
+        """
+        A copy with these joint and link names (n each, unique, not empty); all else equal.
+        """
     @property
     def armature(self) -> typing.Any:
         """
@@ -475,6 +488,11 @@ class Robot:
         (n, 3, 3) kg m^2 about each CoM in its CoM frame.
         """
     @property
+    def joint_names(self) -> list[str]:
+        """
+        Names of the joints (n,), in the order of q: from a URDF its joints' names, else 'joint1'..'jointn'.
+        """
+    @property
     def joint_types(self) -> str:
         """
         e.g. 'RRPRRP'.
@@ -483,6 +501,11 @@ class Robot:
     def link_inertias(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n, 3, 3) inertia of each link about its CoM in DH frame i's axes, kg m^2.
+        """
+    @property
+    def link_names(self) -> list[str]:
+        """
+        Names of the moving links (n,), link i moved by joint i: from a URDF the child link of each chain joint, else 'link1'..'linkn'.
         """
     @property
     def masses(self) -> typing.Any:

@@ -168,6 +168,8 @@ class Robot {
 
   int dof() const { return n_; }
   const std::string& name() const { return name_; }
+  std::vector<std::string> joint_names() const;
+  std::vector<std::string> link_names() const;
   std::string joint_types() const;
   const std::vector<Link>& links() const { return links_; }
   // The world's gravitational acceleration (3), m/s^2 (G(q) is gravity()).
@@ -205,6 +207,9 @@ class Robot {
   Robot with_gravity(const Eigen::Vector3d& gravity) const;
   Robot with_geometry(std::vector<LinkBox> boxes, Clamp clamp) const;
   Robot with_dimensions(std::map<std::string, double> dimensions) const;
+  // Names of the joints and of the moving links (n each, link i the one joint i moves; unique, not
+  // empty); default "joint1".."jointn" and "link1".."linkn".
+  Robot with_names(std::vector<std::string> joint_names, std::vector<std::string> link_names) const;
   Robot with_generated(std::shared_ptr<const GeneratedDynamics> gen) const;
   Robot with_backend(const std::string& backend) const;
 
@@ -327,6 +332,7 @@ class Robot {
   bool default_boxes_ = true;  // boxes_ are default_boxes() (re-made with the base)
   Clamp clamp_;
   std::map<std::string, double> dimensions_;
+  std::vector<std::string> joint_names_, link_names_;  // empty: the defaults
   // precomputed constants per link: fixed part of the DH transform and the
   // transform from DH frame i to the CoM frame of link i
   struct Pre {
