@@ -25,7 +25,7 @@ viser = pytest.importorskip("viser", reason="the live view needs viser (the live
 from test_grasp import BOX, closing, scene  # noqa: E402  (a SCARA #1 closing its clamp on a box)
 from test_replay import browser  # noqa: E402,F401  (Debian's chromium through Playwright)
 
-WAIT = 60.0     # s: generous bound for anything the page or the run must reach (never a timing assertion)
+WAIT = 120.0    # s: generous bound for anything the page or the run must reach (never a timing assertion)
 
 
 def until(cond, what, timeout=WAIT):
@@ -254,8 +254,8 @@ def test_the_server_binds_localhost_by_default(views):
 class LivePage:
     """A browser page of a live view; waits for the page's elements, never for a fixed time."""
 
-    def __init__(self, browser, v, width=900, height=560):   # noqa: F811
-        self.v = v
+    def __init__(self, browser, v, width=900, height=560, keep=None):   # noqa: F811
+        self.v, self.keep = v, keep
         self.page = browser.new_page(viewport={"width": width, "height": height}, accept_downloads=True)
         self.page.goto(v.url)
         self.page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
@@ -297,7 +297,13 @@ class LivePage:
         def look():
             shot[:] = [self.canvas_pixels()]
             return colour_near(shot[0], uv, test, radius)
-        until(look, what)
+        try:
+            until(look, what)
+        finally:
+            if shot and self.keep is not None:       # what the page showed last, to look at
+                from PIL import Image
+
+                Image.fromarray(shot[0].astype(np.uint8)).save(self.keep / "last_shot.png")
         return shot[0]
 
     def project(self, points):
@@ -386,7 +392,7 @@ def test_a_holding_robot_turns_green(browser, views, tmp_path):  # noqa: F811
     v = make(views, sim, t_end=0.3, holding="any", contact_lines=False)
     v.wait(timeout=WAIT)
     assert sim.holding(0) == "box"
-    lp = LivePage(browser, v)
+    lp = LivePage(browser, v, keep=tmp_path)
     try:
         from PIL import Image
 
@@ -546,3 +552,18 @@ def test_two_pages_a_closed_page_and_a_reload_leave_the_run_intact(browser, view
         assert v.error is None and v._thread.is_alive()
     finally:
         b.close()
+
+
+@pytest.mark.slow
+def test_the_task_runs_in_the_live_page_with_the_headless_result(views):
+    """The cooperative task sequenced phase by phase through a live view (paced, here at 400 %): the same
+    report, bit for bit, as the headless run (pacing changes when the steps run, not what they compute)."""
+    from coopsim.tasks import handover
+
+    headless = handover.run(cycles=1, score=False)
+    res = handover.run(cycles=1, score=False, live=dict(speed=4.0, quiet=True))
+    views.append(res.live)
+    assert res.success and res.report == headless.report
+    assert res.live.frames > 10 and res.live.error is None and not res.live.resettable
+    res.live.reset()
+    assert "Refused" in res.live.message          # a run sequenced from Python does not go back to its start

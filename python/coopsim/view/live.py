@@ -60,7 +60,7 @@ _PLOT_EVERY = 0.1             # s of wall time between plot updates
 _TABLE_EVERY = 0.5            # s of wall time between updates of the data table
 _TABLE_ROWS = 8
 _WINDOW = 1.0                 # s of wall time over which the supervision's rates are measured
-_ENVIRONMENT = 0.4           # intensity of the environment map's lighting (viser's default 1 washes colours out)
+_ENVIRONMENT = 0.15          # intensity of the environment map's lighting (viser's default 1 washes colours out)
 _FOREVER = 1e7                # s: t_end of a run "until closed"
 
 # a unit cube (side 1, centred) as 8 vertices and 12 outward triangles
@@ -720,7 +720,7 @@ class LiveView:
         with self._driving:
             while not self._closing and self.sim.time < t_end - 0.5 * self._dt:
                 try:
-                    self.pacer.run(self.sim, t_end, on_frame=self._on_frame)
+                    self.pacer.run(self.sim, t_end, on_frame=self._on_frame, keep_clock=True)
                 except BaseException as e:
                     self._failed(e)
                     raise
@@ -846,6 +846,9 @@ class LiveView:
             self._supervise(f, now)
             if not same:
                 self._plots(f, now)
+            if now - self._last_table >= _TABLE_EVERY:
+                self._last_table = now
+                self._table.content = self._table_text()
         self.frame = f
         self.frames += 1
 
@@ -916,9 +919,6 @@ class LiveView:
                 cols += [q[:, j], qr[:, j]]
             self._plot_q.data = tuple(cols)
             self._plot_e.data = (t,) + tuple((qr - q).T)
-        if now - self._last_table >= _TABLE_EVERY:
-            self._last_table = now
-            self._table.content = self._table_text()
 
     def _table_text(self) -> str:
         if not self.robots or self.sim.log_every == 0:
