@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import shutil
 import statistics
-import threading
 import time
 
 import numpy as np
@@ -31,13 +30,7 @@ import coopsim as cs
 from coopsim import view
 from coopsim.tasks import scene as task_scene
 
-
-def trajectory(robot, duration, phase):
-    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
-    mid, span = (lo + hi) / 2, hi - lo
-    times = np.linspace(0.0, duration, 9)
-    pts = np.array([mid + 0.15 * np.sin(phase + 1.3 * k) * span for k in range(len(times))])
-    return cs.CubicTrajectory(times, pts)
+from bench_view import trajectory   # the same cubics through the joint ranges
 
 
 def task_sim(t_end=60.0):
@@ -54,6 +47,7 @@ def per_frame(v, repeats):
         t0 = time.perf_counter()
         f = v._snapshot()
         t1 = time.perf_counter()
+        v._changes += 1          # a new frame for the view (the state stands still here): everything is sent
         v._draw(f)
         t2 = time.perf_counter()
         snap.append(t1 - t0)
@@ -115,22 +109,21 @@ def main():
     v = view.live(sim, start=False, quiet=True, speed=4.0, frame_rate=30.0, resettable=False)
     if have_browser:
         pw, b, page = browser_page(v.url)
-    fps_page = []
+    # the run in this thread, the page only drawing meanwhile (Playwright's calls from a second thread would
+    # compete with the run for the interpreter)
     w0 = time.perf_counter()
-    # the run in a thread of its own; this thread drives the page (Playwright) and counts its frames meanwhile
-    runner = threading.Thread(target=v.run_to, args=(sim_seconds,))
-    runner.start()
-    if page is not None:
-        time.sleep(0.2 * sim_seconds / 4)
-        fps_page.append(page_fps(page, 0.6 * sim_seconds / 4))
-    runner.join()
+    v.run_to(sim_seconds)
     wall = time.perf_counter() - w0
-    st = v.pacer.stats
-    print(f"paced 400 %, view + page:  real-time factor {st.real_time_factor:.3f} "
-          f"({st.frames} frames, {st.frame_rate:.1f} sent per second)")
-    if fps_page:
-        print(f"page in headless Chromium: {fps_page[0]:.1f} frames per second drawn (software WebGL)")
-    print(f"ratio view / no view:      {st.real_time_factor / rtf_alone:.3f}  (wall {wall:.2f} s)")
+    rtf_view = sim_seconds / wall
+    print(f"paced 400 %, view + page:  real-time factor {rtf_view:.3f} "
+          f"({v.frames} frames sent, {v.frames / wall:.1f} per second)")
+    print(f"ratio view / no view:      {rtf_view / rtf_alone:.3f}")
+    if page is not None:
+        # the page's own drawing rate while the view runs on in its thread
+        v.start(sim.time + sim_seconds)
+        time.sleep(0.5)
+        print(f"page in headless Chromium: {page_fps(page, 2.0):.1f} frames per second drawn (software WebGL), "
+              f"the view sending {v.stats.get('fps', 0.0):.1f} per second")
     v.close()
     if page is not None:
         b.close()

@@ -17,10 +17,7 @@ frames.
 from __future__ import annotations
 
 import argparse
-import math
 import os
-import sys
-import time
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -71,12 +68,7 @@ def browser(args, sim):
             path = os.path.join(args.out, "live_view_q.png")
             fig.savefig(path, dpi=80)
             print(f"wrote {path}")
-        hold = args.hold if args.hold is not None else (math.inf if sys.stdout.isatty() else 0.0)
-        if hold > 0:
-            print("the page stays open: Ctrl-C to stop")
-            end = time.monotonic() + hold
-            while time.monotonic() < end:
-                time.sleep(0.2)
+        v.hold(args.hold)
     except KeyboardInterrupt:
         pass
     finally:

@@ -227,6 +227,23 @@ def test_an_exception_in_the_run_reaches_python_and_the_panel(views):
     assert "controller failed on purpose" in v._msg.content
 
 
+def test_keep_clock_paces_a_run_in_short_pieces_as_one_run():
+    """A run sequenced in 10 ms pieces (a task waiting for a grasp) keeps real time with keep_clock; without
+    it each piece waits for a frame of its own. A fake clock: exact, whatever the machine's load."""
+    def paced(keep_clock):
+        now = [0.0]
+        pacer = cs.Pacer(speed=1.0, frame_rate=50.0, clock=lambda: now[0],
+                         sleep=lambda d: now.__setitem__(0, now[0] + d))
+        sim = two_scaras()
+        for k in range(1, 21):
+            pacer.run(sim, 0.01 * k, keep_clock=keep_clock)
+        assert math.isclose(sim.time, 0.2, abs_tol=sim.dt / 2)
+        return now[0]
+
+    assert paced(True) <= 0.2 + 0.02 + 1e-9          # real time, but for the first frame (20 ms)
+    assert paced(False) >= 2 * 0.2                   # a frame or more per piece
+
+
 def test_run_to_drives_from_the_callers_thread_and_close_frees_the_port(views):
     sim = two_scaras()
     v = make(views, sim, start=False, speed=4.0, resettable=False)

@@ -937,6 +937,22 @@ class LiveView:
         return f"{self.labels[i]}, last {rows - lo} of {rows} rows ({len(log.columns())} columns)\n\n" \
                f"{head}\n{sep}\n{body}"
 
+    def hold(self, seconds: Optional[float] = None) -> None:
+        """Keeps serving the page for `seconds` (None: until Ctrl-C when run from a terminal, else not at all),
+        then closes the view. For a script whose run is over but whose page should stay."""
+        if seconds is None:
+            seconds = math.inf if sys.stdout.isatty() else 0.0
+        try:
+            if seconds > 0:
+                print(f"the live page stays at {self.url}: Ctrl-C to stop", flush=True)
+                end = time.monotonic() + seconds
+                while time.monotonic() < end and self.server is not None:
+                    time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+
     # ---- closing ----
 
     def close(self) -> None:

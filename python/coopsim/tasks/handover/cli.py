@@ -7,9 +7,7 @@ its report, data, plots, video and browser replay, and prints the summary.
 from __future__ import annotations
 
 import argparse
-import math
 import os
-import sys
 import time
 
 import numpy as np
@@ -44,23 +42,7 @@ def main(argv=None) -> int:
         return _outputs(args, res)
     finally:
         if res.live is not None:
-            _hold(res.live, args.hold)
-
-
-def _hold(v, hold) -> None:
-    """Keeps a live page served for `hold` s (None: until Ctrl-C in a terminal, else not at all), then closes it."""
-    if hold is None:
-        hold = math.inf if sys.stdout.isatty() else 0.0
-    try:
-        if hold > 0:
-            print(f"the live page stays at {v.url}: Ctrl-C to stop", flush=True)
-            end = time.monotonic() + hold
-            while time.monotonic() < end:
-                time.sleep(0.2)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        v.close()
+            res.live.hold(args.hold)
 
 
 def _outputs(args, res) -> int:
