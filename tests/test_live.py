@@ -584,3 +584,32 @@ def test_the_task_runs_in_the_live_page_with_the_headless_result(views):
     assert res.live.frames > 10 and res.live.error is None and not res.live.resettable
     res.live.reset()
     assert "Refused" in res.live.message          # a run sequenced from Python does not go back to its start
+
+
+def test_show_puts_the_live_page_in_a_notebook_cell(views, monkeypatch):
+    import IPython.display
+
+    import coopsim.view.live  # noqa: F401  (the module, for its notebook check)
+    live_module = __import__("sys").modules["coopsim.view.live"]
+    shown = []
+    monkeypatch.setattr(live_module, "_in_notebook", lambda: True)
+    monkeypatch.setattr(IPython.display, "display", shown.append)
+    v = make(views, two_scaras(), start=False)
+    frame = v.show(height=480)
+    assert shown == [frame] and isinstance(frame, IPython.display.IFrame)
+    assert frame.src == v.url and frame.height == 480
+    assert f'src="{v.url}"' in v._repr_html_()
+
+
+@pytest.mark.slow
+def test_the_tasks_command_line_runs_it_live(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--cycles", "1", "--no-video",
+                          "--hold", "0", "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "coopsim live view: http://127.0.0.1:" in res.stdout
+    with open(tmp_path / "report.json", encoding="utf-8") as f:
+        assert json.load(f)["success"] is True
