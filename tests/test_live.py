@@ -499,7 +499,7 @@ def test_the_pages_controls_reach_the_simulation(browser, views):  # noqa: F811
         field = lp.field("Joint target")
         field.fill("0.1, 0.2, 0.05, 0.3, 1.2, 0.02")
         page.get_by_role("button", name="Move to joint target").first.click()
-        until(lambda: isinstance(v.call(lambda: sim.references[0]), cs.CubicTrajectory), "the typed target as the reference")
+        until(lambda: isinstance(v.call(lambda: sim.references[0]), cs.CubicTrajectory), "the typed target")
         assert np.array_equal(v.call(lambda: sim.references[0]).q_points[-1], [0.1, 0.2, 0.05, 0.3, 1.2, 0.02])
         for bad in ("zero, 1, 2", "nan, 0, 0, 0, 0, 0", "0, 0, 9, 0, 0, 0"):
             field.fill(bad)

@@ -161,7 +161,7 @@ class LiveView:
     ``frames`` (frames sent); ``frame`` (the last :class:`Frame`).
     """
 
-    def __init__(self, sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: float = 30.0,
+    def __init__(self, sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: float = 40.0,
                  host: str = _HOST, port: int = 0, start: bool = True, collision_boxes: bool = False,
                  contact_lines: bool = True, ghosts: bool = True, labels: bool = False, holding: str = "shared",
                  history: float = 5.0, move_time: float = 1.0, resettable: bool = True,
@@ -898,7 +898,8 @@ class LiveView:
         self._time.content = (
             f"| | |\n|---|---|\n| Simulated time | {f.t:.4f} s |\n| Wall time (this run) | {wall_total:.2f} s |\n"
             f"| Speed set | {self.pacer.speed_percent:.0f} % ({state}) |\n| Speed achieved | {100 * achieved:.0f} % |\n"
-            f"| Step size | {self._dt * 1e3:.4g} ms |\n| Step time mean / max | {mean * 1e6:.2f} / {top * 1e6:.2f} µs |\n"
+            f"| Step size | {self._dt * 1e3:.4g} ms |\n"
+            f"| Step time mean / max | {mean * 1e6:.2f} / {top * 1e6:.2f} µs |\n"
             f"| Frames per second | {fps:.1f} |\n| Steps | {f.steps} |")
         self.stats = dict(t=f.t, wall=wall_total, speed_set=self.pacer.speed_percent, speed_achieved=100 * achieved,
                           step_mean=mean, step_max=top, fps=fps, steps=f.steps)
@@ -991,7 +992,7 @@ def _in_notebook() -> bool:
     return shell is not None and type(shell).__name__ == "ZMQInteractiveShell"
 
 
-def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: float = 30.0, host: str = _HOST,
+def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: float = 40.0, host: str = _HOST,
          port: int = 0, start: bool = True, collision_boxes: bool = False, contact_lines: bool = True,
          ghosts: bool = True, labels: bool = False, holding: str = "shared", history: float = 5.0,
          move_time: float = 1.0, resettable: bool = True, title: Optional[str] = None,
@@ -1000,8 +1001,9 @@ def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: 
     world) in the browser; returns the :class:`LiveView`.
 
     t_end: simulated time (s) the run goes to (None: until closed; the log grows meanwhile). speed: 0 .. 4
-    (400 %). frame_rate: frames per second (Hz) sent to the page. host, port: where the server listens
-    (127.0.0.1 by default, port 0: any free one; give another host only on purpose). start: run at once in
+    (400 %). frame_rate: frames per second (Hz) the view aims at (the pacer sleeps to it; 40 reaches 30 or
+    more). host, port: where the server listens (127.0.0.1 by default, port 0: any free one; give another
+    host only on purpose). start: run at once in
     the view's thread (False: call :meth:`LiveView.start`, or drive it with :meth:`LiveView.run_to`).
     collision_boxes, contact_lines, ghosts, labels: what the Display panel shows at first. holding:
     'shared' (robots green while another robot holds the same body) or 'any'. history: seconds shown in the
