@@ -307,13 +307,15 @@ class LivePage:
         png = self.page.screenshot(clip=box)
         return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
 
-    def shows(self, uv, test, what, radius=4):
-        """Waits until the canvas shows a pixel passing `test` within `radius` px of uv; returns the shot."""
+    def shows(self, point, test, what, radius=4):
+        """Waits until the canvas shows a pixel passing `test` within `radius` px of where the page's camera
+        puts the world point (3,) (projected anew each time: the camera settles after the page loads);
+        returns the shot."""
         shot = []
 
         def look():
             shot[:] = [self.canvas_pixels()]
-            return colour_near(shot[0], uv, test, radius)
+            return colour_near(shot[0], self.project(point)[0], test, radius)
         try:
             until(look, what)
         finally:
@@ -387,12 +389,12 @@ def test_the_page_shows_the_robots_and_the_bar_where_the_scene_puts_them(browser
         sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), np.array(q0))
     v = make(views, sim, t_end=0.05, contact_lines=False)
     v.wait(timeout=WAIT)
-    lp = LivePage(browser, v)
+    lp = LivePage(browser, v, keep=tmp_path)
     try:
         from PIL import Image
 
         bar = np.asarray(sim.body_state("bar")["position"])
-        img = lp.shows(lp.project(bar)[0], is_red, "the bar red where it lies")
+        img = lp.shows(bar, is_red, "the bar red where it lies")
         Image.fromarray(img.astype(np.uint8)).save(tmp_path / "scene.png")
         P, _ = r1.shapes(sim.state(0)[0])
         links = [k for k, b in enumerate(r1.boxes) if b.name in ("link1", "link2")]
@@ -415,8 +417,8 @@ def test_a_holding_robot_turns_green(browser, views, tmp_path):  # noqa: F811
 
         P, _ = r.shapes(sim.state(0)[0])
         arm = [k for k, b in enumerate(r.boxes) if b.name in ("link1", "link2")]
+        img = lp.shows(P[arm[0], :3, 3], is_green, "link1 green")
         uv = lp.project(P[arm, :3, 3])
-        img = lp.shows(uv[0], is_green, "link1 green")
         Image.fromarray(img.astype(np.uint8)).save(tmp_path / "holding.png")
         assert colour_near(img, uv[1], is_green), "link2 green too"
         assert not any(colour_near(img, uv, is_orange, radius=2) for uv in lp.project(P[arm, :3, 3]))
@@ -445,11 +447,11 @@ def test_collision_boxes_turn_red_where_a_link_meets_scenery(browser, views, tmp
     hit = v.frame.colliding[0]
     assert hit[k2] and not hit[[b.name for b in r.boxes].index("link1")]
     assert len(v.frame.lines) > 0 and v._lines.visible
-    lp = LivePage(browser, v)
+    lp = LivePage(browser, v, keep=tmp_path)
     try:
         P, _ = r.shapes(sim.state(0)[0])
+        img = lp.shows(P[k2, :3, 3], is_red, "the link meeting the post red", radius=3)
         uv = lp.project(P[:, :3, 3])
-        img = lp.shows(uv[k2], is_red, "the link meeting the post red", radius=3)
         Image.fromarray(img.astype(np.uint8)).save(tmp_path / "collision.png")
         free = np.flatnonzero(~hit)                    # the base column, link1, ...: touching nothing
         assert any(colour_near(img, uv[k], is_green, radius=3) for k in free), "boxes touching nothing are green"
@@ -457,7 +459,7 @@ def test_collision_boxes_turn_red_where_a_link_meets_scenery(browser, views, tmp
         lp.tab("Display")
         lp.page.get_by_label("Collision boxes").uncheck()
         until(lambda: not v._show["collision_boxes"], "collision boxes off")
-        lp.shows(uv[k2], is_orange, "link2 orange again", radius=3)
+        lp.shows(P[k2, :3, 3], is_orange, "link2 orange again", radius=3)
     finally:
         lp.close()
 
@@ -526,7 +528,7 @@ def test_the_downloads_hold_the_logs_rows_and_columns(browser, views, tmp_path):
     v = make(views, sim, t_end=0.3, speed=4.0)
     v.wait(timeout=WAIT)
     log = sim.log
-    lp = LivePage(browser, v)
+    lp = LivePage(browser, v, keep=tmp_path)
     try:
         lp.tab("Data")
         lp.page.get_by_text("last 8 of").wait_for(timeout=WAIT * 1000)
