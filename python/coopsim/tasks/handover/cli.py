@@ -28,9 +28,24 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, default=2, help="threads for the sweep (default 2)")
     ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
     ap.add_argument("--speed", type=float, default=2.0, help="simulated seconds per video second (default 2)")
+    ap.add_argument("--live", action="store_true",
+                    help="run in a live page in the browser (coopsim.view.live, 127.0.0.1) at 100 %% speed; the page "
+                         "stays after the run until Ctrl-C (--hold s)")
+    ap.add_argument("--port", type=int, default=0, help="--live: the page's port (default any free one)")
+    ap.add_argument("--hold", type=float, default=None,
+                    help="--live: seconds the page stays after the run (default: until Ctrl-C in a terminal, else 0)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
-    res = run(seed=args.seed) if args.seed is not None else run(cycles=args.cycles)
+    live = dict(port=args.port) if args.live else None
+    res = run(seed=args.seed, live=live) if args.seed is not None else run(cycles=args.cycles, live=live)
+    try:
+        return _outputs(args, res)
+    finally:
+        if res.live is not None:
+            res.live.hold(args.hold)
+
+
+def _outputs(args, res) -> int:
     rep, wall = res.report, res.timing["run"]
     print(summary(rep))
     print(f"simulated {rep['simulated_time']:.2f} s in {wall:.2f} s of wall time: {rep['simulated_time'] / wall:.1f}x "
