@@ -34,7 +34,8 @@ def write_report(report: dict, path) -> str:
 
 
 def summary(report: dict) -> str:
-    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure."""
+    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure; then how many
+    cycles succeeded, and which were not run after a failure."""
     lines = []
     for c in report["cycles"]:
         head = f"cycle {c['cycle']} ({c['bar']}): "
@@ -54,7 +55,11 @@ def summary(report: dict) -> str:
                          f"#2 {c['peak_weld_force'][1]:.2f} N; peak internal force {c['peak_internal_force']:.2f} N; "
                          f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
     ok = sum(c["success"] for c in report["cycles"])
-    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded")
+    not_run = report["cycles_planned"] - len(report["cycles"])
+    tail = (f" (cycle {len(report['cycles'])} not run: the run stops at the first failure)" if not_run == 1 else
+            f" (cycles {len(report['cycles'])} .. {report['cycles_planned'] - 1} not run: the run stops at the first "
+            f"failure)" if not_run > 1 else "")
+    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded" + tail)
     return "\n".join(lines)
 
 
