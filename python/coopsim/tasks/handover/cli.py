@@ -14,7 +14,7 @@ import time
 from ... import view
 from ...view.animation import MAX_SPEED
 from .constants import MAX_CYCLES
-from .report import plot_report, summary, write_report
+from .report import plot_report, step_markers, summary, write_report
 from .runs import sweep
 from .sequence import run
 
@@ -100,7 +100,7 @@ def main(argv=None) -> int:
     paths += plot_report(res, args.out)
     if not args.no_video:
         paths.append(view.replay_html(res.sim, os.path.join(args.out, "task_replay.html"),
-                                      title="coopsim: the cooperative bar handover"))
+                                      title="coopsim: the cooperative bar handover", markers=step_markers(rep)))
         anim = view.animate(res.sim, speed=args.speed, fps=20, path=os.path.join(args.out, "task.mp4"))
         paths.append(anim.path)
     if args.sweep:

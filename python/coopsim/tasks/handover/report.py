@@ -63,6 +63,19 @@ def summary(report: dict) -> str:
     return "\n".join(lines)
 
 
+def step_markers(report: dict) -> List[tuple]:
+    """The task's steps as (t, label) pairs (s, text), for a replay's timeline
+    (:func:`coopsim.view.replay_html`'s markers): each step's start per cycle, and a failure where it happened."""
+    out = []
+    for c in report["cycles"]:
+        for step, (t_begin, _) in (c.get("steps") or {}).items():
+            out.append((float(t_begin), f"cycle {c['cycle']} ({c['bar']}): {step}"))
+        if not c["success"]:
+            out.append((float(c["failed_at"]), f"cycle {c['cycle']} ({c['bar']}) FAILED in {c['failed_step']}: "
+                                                 f"{c['reason']}"))
+    return sorted(out, key=lambda m: m[0])
+
+
 def report_figures(result: TaskResult) -> dict:
     """The figures of a run's report, {file name: matplotlib Figure}: the joints with their references (one
     per robot, ``joints_<robot>.png``), the tracking errors (``tracking.png``) and the clearances with the
