@@ -29,7 +29,10 @@ class RunStats:
     steps_per_second: steps / busy_time (the engine's speed);
     real_time_factor: sim_elapsed / wall_time (1 = real time; for a paced
     run, about the speed setting); frames and frame_rate (Hz): frames drawn
-    by a paced run (0 for headless runs).
+    by a paced run and the rate reached (0 for headless runs); frame_rate_asked
+    (Hz): the pacer's frame rate, which frame_rate falls below when a frame
+    (stepping and drawing) takes longer than 1 / frame_rate_asked (0 for
+    headless runs).
     """
 
     sim_time: float
@@ -42,9 +45,10 @@ class RunStats:
     real_time_factor: float
     frames: int = 0
     frame_rate: float = 0.0
+    frame_rate_asked: float = 0.0
 
     @staticmethod
-    def _make(sim_time, sim_elapsed, wall, busy, dt, steps, frames=0):
+    def _make(sim_time, sim_elapsed, wall, busy, dt, steps, frames=0, frame_rate_asked=0.0):
         return RunStats(
             sim_time=float(sim_time),
             sim_elapsed=float(sim_elapsed),
@@ -56,13 +60,16 @@ class RunStats:
             real_time_factor=sim_elapsed / wall if wall > 0 else math.inf if sim_elapsed else 0.0,
             frames=int(frames),
             frame_rate=frames / wall if wall > 0 else 0.0,
+            frame_rate_asked=float(frame_rate_asked),
         )
 
     def __str__(self) -> str:
         return (f"sim time {self.sim_time:.4f} s (+{self.sim_elapsed:.4f} s), wall {self.wall_time:.4f} s, "
                 f"step {self.step_size * 1e3:.4g} ms, {self.steps} steps, {self.steps_per_second:,.0f} steps/s, "
                 f"real-time factor {self.real_time_factor:.3g}"
-                + (f", {self.frames} frames ({self.frame_rate:.1f}/s)" if self.frames else ""))
+                + (f", {self.frames} frames ({self.frame_rate:.1f}/s"
+                   + (f" of {self.frame_rate_asked:g}/s asked" if self.frame_rate_asked else "") + ")"
+                   if self.frames else ""))
 
 
 
@@ -133,7 +140,8 @@ class Pacer:
 
     @property
     def paused(self) -> bool:
-        return self._paused
+        """True while simulated time stands still: after pause() (until resume()) or at speed 0, a pause."""
+        return self._paused or self._speed == 0.0
 
     def pause(self) -> None:
         """Holds simulated time still; frames continue."""
@@ -152,7 +160,8 @@ class Pacer:
         if self._live is None:
             return None
         sim, t0, s0, w0, busy, frames = self._live
-        return RunStats._make(sim.time, sim.time - t0, self._clock() - w0, busy, sim.dt, sim.steps - s0, frames)
+        return RunStats._make(sim.time, sim.time - t0, self._clock() - w0, busy, sim.dt, sim.steps - s0, frames,
+                              self._frame_rate)
 
     def run(self, sim, t_end: float, *, on_frame: Optional[Callable] = None,
             max_wall_time: Optional[float] = None, keep_clock: bool = False) -> RunStats:

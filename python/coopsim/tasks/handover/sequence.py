@@ -15,7 +15,7 @@ from ...planning import plan_cartesian, rotz
 from ...simulation import Simulation
 from .. import scene
 from .constants import (BACK_OFF, BEFORE_MOUTH, BESIDE, BRANCH, CLEAR_ABOVE, CLOSE_SPEED, DEG, GRASP_TIMEOUT, GRIP1,
-                        INSERT_BRANCH, INSERT_DEPTH, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
+                        INSERT_BRANCH, INSERT_DEPTH, MAX_CYCLES, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
                         SQUEEZE, TIMES)
 from .planning import Planner, _grip_down, _pose, _yaw_pitch, default_bars, random_bar
 from .scoring import score_cycles
@@ -353,14 +353,29 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     live: run in a live page (:func:`coopsim.view.live`, paced, 100 % by default): True, or a dict of
     its options (speed, port, host, ...); the view is ``result.live`` (close it when done).
 
-    Returns a :class:`TaskResult`. Raises coopsim.IKError, naming the bar and what is out of reach,
+    The report records every input that changes the run: the seed (None when the bars were given or
+    defaulted), the bars' poses and the keywords above.
+
+    Returns a :class:`TaskResult`. Raises ValueError for cycles outside 1 .. MAX_CYCLES (3: the container
+    takes three bars, see :data:`~coopsim.tasks.handover.constants.MAX_CYCLES`), a seed with bars or with
+    more than one cycle; coopsim.IKError, naming the bar and what is out of reach,
     when a bar cannot be picked where it lies (checked before the run starts).
     """
+    if seed is not None and bars is not None:
+        raise ValueError("give bars or seed, not both: seed draws the one bar")
+    if seed is not None and cycles not in (None, 1):
+        raise ValueError(f"seed draws one bar, so one cycle: cycles must be 1 (or None) with a seed, got {cycles}")
+    if cycles is not None and bars is None and not 0 < int(cycles) <= MAX_CYCLES:
+        raise ValueError(f"cycles must be 1 .. {MAX_CYCLES} (the container takes {MAX_CYCLES} bars: the ones that "
+                         f"slid out pile up at its lower mouth, the next stays in the tube), got {cycles}")
     if bars is None:
         bars = [random_bar(seed)] if seed is not None else default_bars(3 if cycles is None else cycles)
     cycles = len(bars) if cycles is None else int(cycles)
     if not 0 < cycles <= len(bars):
         raise ValueError(f"cycles must be 1 .. {len(bars)} (one per bar), got {cycles}")
+    if cycles > MAX_CYCLES:
+        raise ValueError(f"cycles must be 1 .. {MAX_CYCLES} (the container takes {MAX_CYCLES} bars: the ones that "
+                         f"slid out pile up at its lower mouth, the next stays in the tube), got {cycles}")
     runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                      mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit,
                      container_shift=container_shift, grip1_turn=grip1_turn)
@@ -393,5 +408,9 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     timing = dict(run=t_run, scoring=time.perf_counter() - t_wall - t_run)
     report = dict(success=len(results) == cycles and all(c["success"] for c in results), cycles_planned=cycles,
                   cycles=results, bars=[np.round(b, 12).tolist() for b in runner.bars[:cycles]],
-                  simulated_time=runner.sim.time, dt=dt, world_every=world_every, control_every=control_every)
+                  simulated_time=runner.sim.time, seed=seed, dt=dt, log_every=log_every, world_every=world_every,
+                  control_every=control_every, t_limit=t_limit, mouth=runner.mouth.tolist(), slope=runner.slope,
+                  handover_yaw=runner.handover_yaw,
+                  container_shift=None if container_shift is None else np.asarray(container_shift, float).tolist(),
+                  grip1_turn=float(grip1_turn))
     return TaskResult(report, runner.sim, runner.sim.log, series, timing, runner.live)
