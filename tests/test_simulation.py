@@ -837,6 +837,74 @@ def test_a_reference_replaced_between_runs_acts_from_the_next_step():
         split.set_reference(1, q_new)
 
 
+
+@pytest.mark.parametrize("kind", ["pid", "computed_torque"])
+def test_a_controller_replaced_in_a_run_drives_as_a_run_built_with_it(kind):
+    # a set point, so the reference does not depend on the clock: a run switched at step k
+    # must continue, from the step after the switch, exactly as a run started there with the
+    # new controller (the new controller is reset at the switch: a PID's integral from zero)
+    r = cs.robots.scara1()
+    q_goal = trajectory(r).evaluate(0.5)[0]
+
+    def new_controller():
+        if kind == "pid":
+            return pid(r, w=25.0)
+        return cs.ComputedTorque(np.full(6, 900.0), np.full(6, 60.0))
+
+    old = pid(r) if kind == "pid" else cs.ComputedTorque(400.0, 40.0)
+    switched = cs.Simulation(dt=DT)
+    switched.add_robot(r, old, q_goal, q0=trajectory(r).evaluate(0.0)[0])
+    switched.step(300)
+    tau_held = switched.torque(0)
+    new = new_controller()
+    switched.set_controller(0, new)
+    assert switched.controllers[0] is new
+    np.testing.assert_array_equal(switched.torque(0), tau_held)  # the torque held at the switch stays
+    switched.step(1)  # the new controller computes from this step on
+    q, qd = switched.state(0)
+    fresh = cs.Simulation(dt=DT)
+    fresh.add_robot(r, new_controller(), q_goal, q0=q, qd0=qd)
+    switched.step(400)
+    fresh.step(400)
+    a, b = switched.log, fresh.log
+    for name in ("q", "qd", "tau"):
+        np.testing.assert_array_equal(getattr(a, name)[301:], getattr(b, name), err_msg=name)
+    # the new gains act: the old controller would have driven another motion
+    kept = cs.Simulation(dt=DT)
+    kept.add_robot(r, pid(r) if kind == "pid" else cs.ComputedTorque(400.0, 40.0), q_goal,
+                   q0=trajectory(r).evaluate(0.0)[0])
+    kept.step(701)
+    assert np.abs(kept.log.tau[301:] - a.tau[301:]).max() > 1e-3
+
+
+def test_a_controller_replaced_before_the_first_step_acts_at_once_and_bad_ones_are_refused():
+    r = cs.robots.scara1()
+    built = make_sim(r, pid(r, w=25.0))
+    replaced = make_sim(r)
+    replaced.set_controller(0, pid(r, w=25.0))
+    np.testing.assert_array_equal(built.run(0.05, progress=False).to_array(),
+                                  replaced.run(0.05, progress=False).to_array())
+    with pytest.raises(ValueError, match="kp"):
+        replaced.set_controller(0, cs.PID(np.ones(2), 0.0, 1.0))
+    small = cs.Robot.from_dh(r.dh[:2], r.com[:2], r.masses[:2], r.inertias[:2], joint_types="RR")
+    with pytest.raises(ValueError, match="model has 2 joints but robot 'scara1' has 6"):
+        replaced.set_controller(0, cs.ComputedTorque(1.0, 1.0, model=small))
+    with pytest.raises(ValueError, match="controller must be a coopsim.Controller"):
+        replaced.set_controller(0, None)
+    with pytest.raises(ValueError, match="robot must be an index"):
+        replaced.set_controller(1, pid(r))
+    other = cs.Simulation(dt=DT)
+    c0, c1 = pid(r), pid(r)
+    other.add_robot(r, c0, trajectory(r))
+    other.add_robot(r, c1, trajectory(r))
+    with pytest.raises(ValueError, match="already driving robot 1"):
+        other.set_controller(0, c1)
+    other.set_controller(0, c0)  # its own controller again: allowed (reset)
+    # a refused controller leaves the one in place and the run going
+    other.run(0.01, progress=False)
+    assert other.controllers[0] is c0 and other.controllers[1] is c1
+
+
 # ---- the public calls that stand for the engine's ----
 
 def test_advance_runs_as_run_does_without_building_the_log():

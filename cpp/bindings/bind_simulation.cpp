@@ -217,6 +217,10 @@ torques between controller updates, the log and tracking metrics.)doc")
            }, py::arg("i"), py::arg("reference"), py::keep_alive<1, 3>(),
            "Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller "
            "update.")
+      .def("set_controller", &Simulation::set_controller, py::arg("i"), py::arg("controller"),
+           py::keep_alive<1, 3>(),
+           "Replaces robot i's controller (checked as add_robot's); the state stays, the new controller "
+           "is reset now and acts from the next controller update.")
       .def("advance", [](Simulation& s, long n) {
              py::gil_scoped_release nogil;
              s.advance(n);

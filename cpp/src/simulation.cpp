@@ -417,5 +417,20 @@ long Simulation::run(double t_end, long chunk, const std::function<bool(long, lo
   return done;
 }
 
+// ---- replacing a robot's controller in a run ----
+
+void Simulation::set_controller(int i, std::shared_ptr<Controller> controller) {
+  Slot& s = slot_(i);
+  if (!controller) throw std::invalid_argument("controller must not be None");
+  for (size_t k = 0; k < slots_.size(); ++k)
+    if (static_cast<int>(k) != i && slots_[k].control.controller == controller)
+      throw std::invalid_argument("controller is already driving robot " + std::to_string(k) +
+                                  ": give each robot its own instance");
+  controller->check(s.robot);
+  // a run under way: the new controller starts now (start_ resets it otherwise)
+  if (started_) controller->reset(s.robot, opt_.dt * opt_.control_every);
+  s.control.controller = std::move(controller);
+}
+
 
 }  // namespace coopsim

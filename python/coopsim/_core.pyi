@@ -944,6 +944,10 @@ class SimulationCore:
         """
         Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench at the tool centre point); None keeps that input as it is.
         """
+    def set_controller(self, i: typing.SupportsInt | typing.SupportsIndex, controller: Controller) -> None:
+        """
+        Replaces robot i's controller (checked as add_robot's); the state stays, the new controller is reset now and acts from the next controller update.
+        """
     def set_profiling(self, on: bool) -> None:
         ...
     def set_reference(self, i: typing.SupportsInt | typing.SupportsIndex, reference: typing.Any) -> None:

@@ -247,6 +247,23 @@ class Simulation:
         """
         self._core.set_reference(_index(robot, self.robot_count), reference)
 
+    def set_controller(self, robot: int, controller: Controller) -> None:
+        """Replaces a robot's controller by `controller` (a coopsim.Controller: PID, ComputedTorque
+        or a subclass), keeping the robot's state, e.g. to change gains during a run.
+
+        Checked as :meth:`add_robot`'s controller: its gains sized for the robot's joints, its model
+        (if any) of the robot's dof, and not driving another robot of this simulation (ValueError
+        naming what is wrong). The new controller is reset now, so a PID's integral restarts at
+        zero and its velocity estimate at the measured velocity; it computes from the next
+        controller update on: at once before the first step or after :meth:`reset`; between runs,
+        the torque already held over the step at the present time stays and the new controller
+        drives the next step on. The pickled description keeps the latest controller.
+        """
+        if not isinstance(controller, Controller):
+            raise ValueError(f"controller must be a coopsim.Controller (PID, ComputedTorque or a subclass), "
+                             f"got {type(controller).__name__}")
+        self._core.set_controller(_index(robot, self.robot_count), controller)
+
     def applied(self, robot: int = 0) -> dict:
         """A robot's applied inputs now: {'forces': (n,), 'wrenches': [Wrench], 'tau_ext': (n,)}."""
         i = _index(robot, self.robot_count)

@@ -133,6 +133,14 @@ class Simulation {
   // the old one at the present time for a smooth hand-over.
   void set_reference(int i, std::shared_ptr<const Reference> reference);
 
+  // Replaces robot i's controller (checked as add_robot's: not null, not driving another robot,
+  // controller->check(robot): gains' sizes, a model of the robot's dof). The state stays; the
+  // new controller is reset now (a PID's integral restarts at zero, its velocity estimate at the
+  // measured velocity) and computes from the next controller update on: before the first step
+  // (or after reset()) at once; between runs, the torque already held over the step at the
+  // present time stays and the new controller drives the next step on.
+  void set_controller(int i, std::shared_ptr<Controller> controller);
+
   int robot_count() const { return static_cast<int>(slots_.size()); }
   const Robot& robot(int i) const { return slot_(i).robot; }
   const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).control.controller; }
