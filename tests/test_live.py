@@ -520,6 +520,82 @@ def test_the_pages_controls_reach_the_simulation(browser, views):  # noqa: F811
         lp.close()
 
 
+
+def pid_scara(**kw):
+    """A SCARA #1 under a PID (gains from its joint inertias at q0, bandwidth 40 rad/s) at a set point."""
+    r = cs.robots.scara1()
+    q0 = np.array([0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03])
+    J = np.maximum(np.diag(r.mass_matrix(q0)), 0.01)
+    sim = cs.Simulation(**kw)
+    sim.add_robot(r, cs.PID(J * 1600.0, J * 6400.0, J * 80.0, derivative_filter=1e-3), q0)
+    return sim
+
+
+def test_gains_set_from_the_view_replace_the_controller_and_bad_ones_are_refused(views):
+    sim = two_scaras(control_every=5)
+    sim.add_robot(cs.robots.scara1(base_position=(0.0, 0.8, 0.0)),
+                  cs.PID(100.0, 0.0, 10.0, derivative_filter=2e-3, integral_limit=5.0),
+                  np.array([0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03]))
+    v = make(views, sim, speed=1.0)
+    until(lambda: sim.time > 0.02, "the run started")
+    old = v.call(lambda: sim.controllers[0])
+    v.set_gains(0, kp="900", kd=[60.0] * 6)
+    until(lambda: v.call(lambda: sim.controllers[0]) is not old, "the new controller")
+    c = v.call(lambda: sim.controllers[0])
+    assert isinstance(c, cs.ComputedTorque) and c.model is None
+    assert np.array_equal(c.kp, [900.0]) and np.array_equal(c.kd, np.full(6, 60.0))
+    assert "900" in v._controller_md[0].content
+    # a PID keeps its other settings; the gain not given stays
+    v.set_gains(2, ki="7")
+    until(lambda: np.array_equal(v.call(lambda: sim.controllers[2]).ki, [7.0]), "the PID's new ki")
+    p = v.call(lambda: sim.controllers[2])
+    assert np.array_equal(p.kp, [100.0]) and np.array_equal(p.kd, [10.0])
+    assert p.derivative_filter == 2e-3 and np.array_equal(p.integral_limit, [5.0]) and p.gravity_compensation
+    for i, gains, what in ((0, dict(kp="fast"), r"kp\[0\] of .* must be a number"),
+                           (0, dict(kd="-1"), "kd must be >= 0"),
+                           (0, dict(kp="1, 2"), "wrong size for kp: expected 1 or 6"),
+                           (0, dict(ki="1"), "gain must be one of"),
+                           (2, dict(kp=""), "kp of .* must be 1 or 6 numbers")):
+        v.set_gains(i, **gains)
+        until(lambda: v.message.startswith("Refused:"), f"{gains} refused")
+        assert __import__("re").search(what, v.message), v.message
+        v._say("")
+    assert v.call(lambda: sim.controllers[0]) is c and v.call(lambda: sim.controllers[2]) is p
+    t = sim.time
+    until(lambda: sim.time > t + 0.02, "the run goes on")
+    assert v.error is None
+
+
+@pytest.mark.slow
+def test_gains_typed_in_the_page_reach_the_simulation(browser, views):  # noqa: F811
+    sim = pid_scara(control_every=5)
+    v = make(views, sim, speed=1.0)
+    lp = LivePage(browser, v)
+    try:
+        page = lp.page
+        lp.tab("Robots")
+        assert lp.field("kp").input_value() == v._gain_text(0, "kp")
+        ki, kd = sim.controllers[0].ki, sim.controllers[0].kd
+        lp.field("kp").fill("100, 200, 300, 400, 50, 60")
+        page.get_by_role("button", name="Set gains").first.click()
+        until(lambda: np.array_equal(v.call(lambda: sim.controllers[0]).kp, [100, 200, 300, 400, 50, 60]),
+              "the typed kp")
+        c = v.call(lambda: sim.controllers[0])
+        assert isinstance(c, cs.PID) and np.array_equal(c.ki, ki) and np.array_equal(c.kd, kd)
+        for bad in ("-5", "1, 2", "nan"):
+            lp.field("kp").fill(bad)
+            page.get_by_role("button", name="Set gains").first.click()
+            page.get_by_text("Refused:").first.wait_for(timeout=WAIT * 1000)
+            v._say("")
+            page.get_by_text("Refused:").first.wait_for(state="detached", timeout=WAIT * 1000)
+        assert v.call(lambda: sim.controllers[0]) is c
+        t = sim.time
+        until(lambda: sim.time > t + 0.02, "the run goes on")
+        assert v.error is None
+    finally:
+        lp.close()
+
+
 @pytest.mark.slow
 def test_the_downloads_hold_the_logs_rows_and_columns(browser, views, tmp_path):  # noqa: F811
     from coopsim.log import SimulationLog

@@ -14,7 +14,7 @@ link boxes green (free) or red (in contact), and the contact points as red lines
 Panels (tabs): **Run**: speed 0-400 %, pause, resume, one step (one control period), reset to the start,
 and the time supervision (simulated and wall time, set and achieved speed, step time mean and max,
 frames per second). **Display**: collision boxes, contact lines, ghosts, labels, camera views.
-**Robots**: per robot its controller and gains, its dimensions, and a teach mode: joint sliders, a joint
+**Robots**: per robot its controller and its gains (editable: ``Simulation.set_controller``), its dimensions, and a teach mode: joint sliders, a joint
 target typed in, and a gizmo at the clamp; a target becomes a cubic from where the robot is (its
 measured q and qd now) to the target (closed-form IK ``robot.ik`` for the gizmo) as the robot's new
 reference. **Plots**: a chosen robot's joint positions against their references and its tracking error
@@ -28,10 +28,13 @@ frame's snapshot. A value from the page passes the checks of the API it calls (t
 the run goes on. Pages may come, go and reconnect; the run does not notice. The server binds 127.0.0.1
 unless another host is given, and never opens viser's share tunnel.
 
-What the engine does not allow while a simulation runs, the panels show without editing: controller
-gains (``PID``/``ComputedTorque`` keep their gains fixed, and ``Simulation`` has no way to swap a
-controller) and a robot's dimensions (a ``Simulation`` keeps the robots it was given; none can be
-replaced).
+Gains typed in and set (:meth:`LiveView.set_gains`) build a new controller of the same kind (``PID`` or
+``ComputedTorque``, its other settings kept) that replaces the robot's through ``Simulation.set_controller``
+from the next control step; a PID's integral restarts at zero. The constructor and ``set_controller`` check
+the values (>= 0, finite, 1 or n of them). "Reset to the start" keeps the gains last set. A Python
+controller's gains are its own: shown by name only. What the engine does not allow while a simulation
+runs, the panels show without editing: a robot's dimensions (a ``Simulation`` keeps the robots it was
+given; none can be replaced).
 """
 from __future__ import annotations
 
@@ -409,10 +412,17 @@ class LiveView:
             cam.on_click(lambda e: self._set_camera(e.target.value.lower()))
 
         self._teach = []
+        self._controller_md = []
         with tabs.add_tab("Robots"):
             for i, r in enumerate(self.robots):
                 with gui.add_folder(f"{i}: {self.labels[i]}", expand_by_default=(i == 0)):
-                    gui.add_markdown(self._controller_text(i))
+                    self._controller_md.append(gui.add_markdown(self._controller_text(i)))
+                    fields = {name: gui.add_text(label, initial_value=self._gain_text(i, name))
+                              for name, label in self._gain_labels(i)}
+                    if fields:
+                        apply = gui.add_button("Set gains")
+                        apply.on_click(lambda e, i=i, fields=fields: self.set_gains(
+                            i, **{name: f.value for name, f in fields.items()}))
                     sliders = []
                     q_ref = self.sim.references[i].evaluate(self.sim.time)[0]
                     for j in range(r.dof):
@@ -459,8 +469,63 @@ class LiveView:
         elif isinstance(c, ComputedTorque):
             body = f"Computed torque: kp [{fmt(c.kp)}] 1/s², kd [{fmt(c.kd)}] 1/s"
         else:
-            body = f"{type(c).__name__} (a Python controller)"
-        return f"**Controller** {body}  \n_(fixed while the simulation runs)_"
+            return f"**Controller** {type(c).__name__} (a Python controller: its gains are its own)"
+        return f"**Controller** {body}  \n_(gains: 1 or {self.robots[i].dof} values, from the next control step)_"
+
+    def _gain_labels(self, i: int) -> tuple:
+        """(gain name, field label) of robot i's controller: PID kp, ki, kd; ComputedTorque kp, kd; else none."""
+        from .._core import ComputedTorque, PID
+
+        c = self.sim.controllers[i]
+        if isinstance(c, PID):
+            return (("kp", "kp"), ("ki", "ki"), ("kd", "kd"))
+        if isinstance(c, ComputedTorque):
+            return (("kp", "kp (1/s²)"), ("kd", "kd (1/s)"))
+        return ()
+
+    def _gain_text(self, i: int, name: str) -> str:
+        """Robot i's gain `name` as a field's text: the shortest that reads back as the same floats (a field
+        set unchanged gives the same gain)."""
+        return ", ".join(repr(float(x)) for x in np.atleast_1d(getattr(self.sim.controllers[i], name)))
+
+    def set_gains(self, i: int, **gains) -> None:
+        """Replaces robot i's controller by one of the same kind with the given gains (kp, ki, kd for a PID;
+        kp, kd for a ComputedTorque; each numbers or a text "a, b, ...", 1 or n values; the gains not given
+        and the other settings kept), through ``Simulation.set_controller`` on the simulation's thread: it
+        acts from the next control step, a PID's integral restarting at zero. Refused with a message: text,
+        NaN, a negative gain, a wrong count (the constructor's and set_controller's checks)."""
+        from .._core import ComputedTorque, PID
+
+        try:
+            i = self._robot_index(i)
+            allowed = [name for name, _ in self._gain_labels(i)]
+            if not allowed:
+                raise ValueError(f"{self.labels[i]}'s controller is a Python controller: its gains are its own")
+            values = {}
+            for name, text in gains.items():
+                if name not in allowed:
+                    raise ValueError(f"gain must be one of {allowed} for {self.labels[i]}, got {name!r}")
+                items = [t for t in str(text).replace(";", ",").replace(" ", ",").split(",") if t] \
+                    if isinstance(text, str) else list(np.atleast_1d(text))
+                if not items:
+                    raise ValueError(f"{name} of {self.labels[i]} must be 1 or {self.robots[i].dof} numbers, got none")
+                values[name] = np.array([_number(t, f"{name}[{j}] of {self.labels[i]}") for j, t in enumerate(items)])
+        except ValueError as e:
+            self._say(f"Refused: {e}")
+            return
+
+        def go():
+            c = self.sim.controllers[i]
+            g = {name: values.get(name, getattr(c, name)) for name in allowed}
+            if isinstance(c, PID):
+                new = PID(g["kp"], g["ki"], g["kd"], gravity_compensation=c.gravity_compensation,
+                          derivative_filter=c.derivative_filter, integral_limit=c.integral_limit, model=c.model)
+            else:
+                new = ComputedTorque(g["kp"], g["kd"], model=c.model)
+            self.sim.set_controller(i, new)
+            self._controller_md[i].content = self._controller_text(i)
+            self._say(f"{self.labels[i]}: new gains " + "; ".join(f"{k} [{self._gain_text(i, k)}]" for k in g))
+        self.submit(go)
 
     def _dimensions_text(self, i: int) -> str:
         dims = self.robots[i].dimensions
