@@ -905,6 +905,88 @@ def test_a_controller_replaced_before_the_first_step_acts_at_once_and_bad_ones_a
     assert other.controllers[0] is c0 and other.controllers[1] is c1
 
 
+
+def test_a_robot_replaced_in_a_run_keeps_its_state_and_drives_as_a_run_built_with_it():
+    # the same SCARA with a longer first arm: its DH table and mass matrix change, q and qd stay,
+    # the controller's model (the robot's own) follows; from the step after the switch the run
+    # is exactly one started there with the new robot
+    r, longer = cs.robots.scara1(), cs.robots.scara1(L1=0.35, L_base=0.45)
+    q_goal = trajectory(r).evaluate(0.5)[0]
+    q_start = trajectory(r).evaluate(0.0)[0]
+    switched = cs.Simulation(dt=DT)
+    switched.add_robot(r, cs.ComputedTorque(400.0, 40.0), q_goal, q0=q_start)
+    switched.step(300)
+    q, qd = switched.state(0)
+    switched.set_robot(0, longer)
+    got = switched.robots[0]
+    assert not np.allclose(got.dh, r.dh) and np.array_equal(got.dh, longer.dh)
+    assert got.dimensions["L1"] == 0.35 and not np.allclose(got.masses, r.masses)
+    M = got.mass_matrix(q)
+    np.testing.assert_array_equal(M, longer.mass_matrix(q))
+    assert np.abs(M - r.mass_matrix(q)).max() > 1e-3
+    qn, qdn = switched.state(0)
+    np.testing.assert_array_equal(qn, q)
+    np.testing.assert_array_equal(qdn, qd)
+    switched.step(1)
+    fresh = cs.Simulation(dt=DT)
+    fresh.add_robot(longer, cs.ComputedTorque(400.0, 40.0), q_goal, q0=switched.state(0)[0],
+                    qd0=switched.state(0)[1])
+    switched.step(400)
+    fresh.step(400)
+    for name in ("q", "qd", "tau"):
+        np.testing.assert_array_equal(getattr(switched.log, name)[301:], getattr(fresh.log, name), err_msg=name)
+    switched.run(2.0, progress=False)   # the run goes on, to its goal
+    assert not switched.diverged and np.abs(switched.state(0)[0] - q_goal).max() < 1e-3
+    with pytest.raises(ValueError, match="robot must have the joints of robot 'scara1' \\(RRPRRP\\), got 'scara2'"):
+        switched.set_robot(0, cs.robots.scara2())
+    with pytest.raises(ValueError, match="robot must be an index"):
+        switched.set_robot(1, longer)
+    with pytest.raises(ValueError, match="robot must be a coopsim.Robot"):
+        switched.set_robot(0, "scara1")
+    np.testing.assert_array_equal(switched.robots[0].dh, longer.dh)
+
+
+def test_a_robot_replaced_in_a_run_brings_its_new_boxes_into_the_world():
+    # a small static box just beyond the second arm's end: the default SCARA misses it, one with
+    # a longer second arm reaches into it at the same q; its link bodies take the new sizes and
+    # poses, its exclusions are recomputed, the free body keeps its state
+    r, longer = cs.robots.scara1(), cs.robots.scara1(L2=0.40)
+    q = np.array([0.0, 0.0, 0.05, 0.0, np.pi / 2, 0.03])
+    names = [b.name for b in r.boxes]
+    k2 = names.index("link2")
+    P, H = longer.shapes(q)
+    spot = P[k2].copy()
+    spot[:3, 3] = P[k2][:3, 3] + P[k2][:3, 0] * (H[k2][0] - 0.03)   # inside the longer link 2, near its end
+    half = np.full(3, 0.005)
+    P0, H0 = r.shapes(q)
+    assert min(cs.box_distance(P0[b], H0[b], spot, half) for b in range(len(H0))) > 0.02
+    world = cs.World()
+    world.add_static_box("post", half, spot)
+    crate_pose = np.eye(4)
+    crate_pose[:3, 3] = [0.9, 0.9, 0.05]
+    world.add_free_box("crate", [0.05, 0.05, 0.05], 1.0, crate_pose, velocity=[0.1, 0.0, 0.0])
+    sim = cs.Simulation(dt=DT, world=world)
+    sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), q)
+    sim.step(50)
+    assert not any("post" in (c["a"], c["b"]) for c in sim.contacts())
+    crate = sim.body_state("crate")
+    sim.set_robot(0, longer)
+    # the world's bodies of the robot: the new sizes at once, the crate untouched
+    for b, name in enumerate(names):
+        np.testing.assert_array_equal(world.body(f"scara1/{name}")["half_extents"], longer.boxes[b].half_extents)
+    after = sim.body_state("crate")
+    np.testing.assert_array_equal(after["position"], crate["position"])
+    sim.step(1)
+    Pn, _ = longer.shapes(sim.state(0)[0])
+    for b in range(len(names)):
+        np.testing.assert_allclose(sim.link_state(0, b)["pose"], Pn[b], atol=1e-12)
+    contacts = sim.contacts()
+    assert any({c["a"], c["b"]} == {"post", "scara1/link2"} for c in contacts)
+    assert not any(c["kind"] == "self" for c in contacts)   # its touching boxes excluded anew
+    sim.step(200)   # the run goes on
+    assert not sim.diverged and sim.body_state("crate")["position"][0] > crate["position"][0]
+
+
 # ---- the public calls that stand for the engine's ----
 
 def test_advance_runs_as_run_does_without_building_the_log():

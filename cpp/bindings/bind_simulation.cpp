@@ -217,6 +217,9 @@ torques between controller updates, the log and tracking metrics.)doc")
            }, py::arg("i"), py::arg("reference"), py::keep_alive<1, 3>(),
            "Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller "
            "update.")
+      .def("set_robot", &Simulation::set_robot, py::arg("i"), py::arg("robot"),
+           "Replaces robot i by a robot of the same joints and boxes (copied); q and qd stay, the controller "
+           "is reset, with a world the robot's link bodies and exclusions follow.")
       .def("set_controller", &Simulation::set_controller, py::arg("i"), py::arg("controller"),
            py::keep_alive<1, 3>(),
            "Replaces robot i's controller (checked as add_robot's); the state stays, the new controller "

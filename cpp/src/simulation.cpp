@@ -433,4 +433,49 @@ void Simulation::set_controller(int i, std::shared_ptr<Controller> controller) {
 }
 
 
+// ---- replacing a robot in a run ----
+
+void Simulation::set_robot(int i, const Robot& robot) {
+  Slot& s = slot_(i);
+  const Robot& old = s.robot;
+  const int n = old.dof();
+  if (robot.dof() != n || robot.joint_types() != old.joint_types())
+    throw std::invalid_argument("robot must have the joints of robot '" + old.name() + "' (" + old.joint_types() +
+                                "), got '" + robot.name() + "' (" + robot.joint_types() + ")");
+  const std::vector<LinkBox>& nb = robot.boxes();
+  bool same_boxes = nb.size() == old.boxes().size();
+  for (size_t b = 0; same_boxes && b < nb.size(); ++b) same_boxes = nb[b].link == old.boxes()[b].link;
+  if (!same_boxes)
+    throw std::invalid_argument("robot must have as many boxes as robot '" + old.name() + "' (" +
+                                std::to_string(old.boxes().size()) + "), on the same links; got " +
+                                std::to_string(nb.size()));
+  if (s.grasp.held >= 0)
+    throw std::invalid_argument("robot " + std::to_string(i) + " holds a body: release it before replacing the robot");
+  if (world_ && (robot.gravity_acceleration() - world_->options().gravity).norm() > 1e-12)
+    throw std::invalid_argument("robot '" + robot.name() + "' has another gravity than the world's");
+  s.control.controller->check(robot);
+  // every check before any change: the boxes at q where the world can hold them
+  Workspace ws;
+  std::vector<Eigen::Isometry3d> poses;
+  std::vector<Eigen::Vector3d> half;
+  std::vector<std::pair<int, int>> excluded;
+  const bool in_world = world_ && s.contact.first_body >= 0;
+  if (world_) {
+    poses = box_poses_at(robot, s.state.q, ws);
+    for (size_t k = 0; k < poses.size(); ++k)
+      World::check_pose(poses[k], "robot '" + robot.name() + "' at the present q puts its box '" +
+                                      (nb[k].name.empty() ? std::to_string(k) : nb[k].name) + "'");
+    for (const LinkBox& b : nb) half.push_back(b.half_extents);
+    if (in_world) excluded = excluded_pairs(robot);
+  }
+  s.robot = robot;
+  s.ws = ws;
+  s.control.tau_max = s.robot.tau_max();
+  saturate(n, s.control.tau_max.data(), s.control.tau.data());
+  s.state.k1_valid = false;  // the dynamics changed: the next step's first stage anew
+  s.contact.M_valid = false;
+  if (started_) s.control.controller->reset(s.robot, opt_.dt * opt_.control_every);
+  if (in_world) world_->replace_robot_boxes(s.contact.first_body, half, poses, excluded);
+}
+
 }  // namespace coopsim

@@ -738,4 +738,42 @@ void World::reset() {
   open_.clear();
 }
 
+// ---- a robot's link bodies replaced in place ----
+
+void World::replace_robot_boxes(int first, const std::vector<Eigen::Vector3d>& half_extents,
+                                const std::vector<Eigen::Isometry3d>& poses,
+                                const std::vector<std::pair<int, int>>& excluded) {
+  const int k = static_cast<int>(half_extents.size());
+  require(first >= 0 && first + k <= body_count() && static_cast<int>(poses.size()) == k,
+          "replace_robot_boxes: bodies out of range");
+  const int robot = k ? specs_[first].robot : -1;
+  for (int b = 0; b < k; ++b)
+    require(specs_[first + b].kind == BodyKind::Link && specs_[first + b].robot == robot,
+            "replace_robot_boxes: not the bodies of one robot");
+  for (int b = 0; b < k; ++b) {
+    specs_[first + b].half_extents = half_extents[b];
+    specs_[first + b].pose = poses[b];
+    exclusions_[first + b].clear();  // a robot's exclusions are among its own bodies
+  }
+  for (const auto& [i, j] : excluded) {
+    exclusions_[first + i].push_back(first + j);
+    exclusions_[first + j].push_back(first + i);
+  }
+  if (!impl_) return;  // built with these at the next step
+  Impl& I = *impl_;
+  for (int b = 0; b < k; ++b) {
+    const int id = first + b;
+    btRigidBody& body = *I.bodies[id];
+    I.world.removeRigidBody(&body);  // its pairs and contact manifolds go with it
+    auto shape = std::make_unique<btBoxShape>(bt(half_extents[b]));
+    shape->setMargin(0.0);
+    body.setCollisionShape(shape.get());
+    body.setWorldTransform(bt(poses[b]));
+    body.setInterpolationWorldTransform(body.getWorldTransform());
+    shape->getAabb(body.getWorldTransform(), I.bounds[id].lo, I.bounds[id].hi);
+    I.world.addRigidBody(&body);
+    I.shapes.push_back(std::move(shape));  // the old shape stays owned (unused) until the world is rebuilt
+  }
+}
+
 }  // namespace coopsim

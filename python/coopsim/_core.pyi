@@ -954,6 +954,10 @@ class SimulationCore:
         """
         Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller update.
         """
+    def set_robot(self, i: typing.SupportsInt | typing.SupportsIndex, robot: Robot) -> None:
+        """
+        Replaces robot i by a robot of the same joints and boxes (copied); q and qd stay, the controller is reset, with a world the robot's link bodies and exclusions follow.
+        """
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
         (q, qd) of robot i now, each (n,).

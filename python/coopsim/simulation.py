@@ -247,6 +247,25 @@ class Simulation:
         """
         self._core.set_reference(_index(robot, self.robot_count), reference)
 
+    def set_robot(self, robot: int, new: Robot) -> None:
+        """Replaces a robot by `new` (a coopsim.Robot with the same joint types and the same boxes on
+        the same links, e.g. ``cs.robots.scara1(L1=0.35)``: other link lengths, base height and the
+        masses that follow them), during a run as before it.
+
+        q and qd stay; the torque held over the present step stays (saturated at the new robot's
+        limits) and the new robot's dynamics act from the next step. The controller is reset now
+        when the run is under way: a PID's integral restarts at zero; a controller without a model
+        of its own (``model=None``: the simulated robot) computes with the new robot; an explicit
+        model stays. With a world, the robot's link bodies take the new sizes and their poses at q
+        and its self-collision exclusions are recomputed (:meth:`excluded_pairs`); the other bodies
+        keep their states. ValueError naming what is wrong: other joints or boxes, a robot that
+        holds a body (release it first), another gravity than the world's. :meth:`reset` keeps the
+        new robot, as the pickled description does.
+        """
+        if not isinstance(new, Robot):
+            raise ValueError(f"robot must be a coopsim.Robot, got {type(new).__name__}")
+        self._core.set_robot(_index(robot, self.robot_count), new)
+
     def set_controller(self, robot: int, controller: Controller) -> None:
         """Replaces a robot's controller by `controller` (a coopsim.Controller: PID, ComputedTorque
         or a subclass), keeping the robot's state, e.g. to change gains during a run.

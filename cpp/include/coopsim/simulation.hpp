@@ -141,6 +141,16 @@ class Simulation {
   // present time stays and the new controller drives the next step on.
   void set_controller(int i, std::shared_ptr<Controller> controller);
 
+  // Replaces robot i by `robot` (copied): the same dof and joint types, the same number of boxes on
+  // the same links (e.g. the same SCARA with other link lengths). q and qd stay; the held torque
+  // stays, saturated at the new robot's limits; the controller is reset now when the run is under
+  // way (a PID's integral restarts at zero; a controller without a model of its own takes the new
+  // robot as its model, an explicit model stays). With a world, the robot's link bodies take the
+  // new sizes and poses at q and its self-collision exclusions are recomputed (excluded_pairs),
+  // the other bodies keeping their states. Refused (std::invalid_argument) while the robot holds a
+  // body, with another gravity than the world's, or where the world cannot hold a box at q.
+  void set_robot(int i, const Robot& robot);
+
   int robot_count() const { return static_cast<int>(slots_.size()); }
   const Robot& robot(int i) const { return slot_(i).robot; }
   const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).control.controller; }

@@ -133,6 +133,12 @@ class World {
                  double friction);
   // Removes the robots' link bodies (the world keeps its own).
   void clear_robots();
+  // New sizes, first poses and exclusions of one robot's link bodies, ids first .. first + k - 1 (the
+  // same count, the same links), in place: the other bodies keep their states. Called by the
+  // simulation that owns the world when it replaces a robot.
+  void replace_robot_boxes(int first, const std::vector<Eigen::Vector3d>& half_extents,
+                           const std::vector<Eigen::Isometry3d>& poses,
+                           const std::vector<std::pair<int, int>>& excluded);
 
   // ---- bodies ----
   int body_count() const { return static_cast<int>(specs_.size()); }
