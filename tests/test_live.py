@@ -596,6 +596,57 @@ def test_gains_typed_in_the_page_reach_the_simulation(browser, views):  # noqa: 
         lp.close()
 
 
+
+def test_dimensions_set_from_the_view_rebuild_the_robot_and_the_run_goes_on(views):
+    sim = two_scaras(world=cs.World(), control_every=5)
+    r0 = sim.robots[0]
+    v = make(views, sim, speed=1.0)
+    until(lambda: sim.time > 0.02, "the run started")
+    v.set_dimensions(0, L1="0.35", L_base=0.45)
+    until(lambda: v.call(lambda: sim.robots[0].dimensions["L1"]) == 0.35, "the rebuilt robot")
+    got = v.call(lambda: sim.robots[0])
+    want = cs.robots.scara1(L1=0.35, L_base=0.45)
+    assert got.dimensions == want.dimensions and np.array_equal(got.dh, want.dh)
+    np.testing.assert_allclose(got.masses, want.masses, rtol=1e-14)   # the maker's masses, scaled as it scales
+    assert got.dimensions["L2"] == r0.dimensions["L2"] and v.robots[0].dimensions["L1"] == 0.35
+    # the page draws the new boxes: their sizes on the mesh (float32 on the wire)
+    half = v.call(lambda: np.concatenate([r.shapes(sim.state(i)[0])[1] for i, r in enumerate(sim.robots)]))
+    np.testing.assert_allclose(v._robot_mesh.batched_scales, 2 * half, rtol=1e-6)
+    assert "0.35" in v._dimensions_md[0].content
+    for dims, what in ((dict(L1="long"), "L1 of .* must be a number"), (dict(L2="-0.1"), "L2 must be finite and > 0"),
+                       (dict(L9="1"), "dimension must be one of")):
+        v.set_dimensions(0, **dims)
+        until(lambda: v.message.startswith("Refused:"), f"{dims} refused")
+        assert __import__("re").search(what, v.message), v.message
+        v._say("")
+    t = sim.time
+    until(lambda: sim.time > t + 0.02, "the run goes on")
+    assert v.error is None and v.call(lambda: sim.robots[0].dimensions["L1"]) == 0.35
+
+
+@pytest.mark.slow
+def test_dimensions_typed_in_the_page_rebuild_the_robot(browser, views):  # noqa: F811
+    sim = two_scaras(control_every=5)
+    v = make(views, sim, speed=1.0)
+    lp = LivePage(browser, v)
+    try:
+        page = lp.page
+        lp.tab("Robots")
+        assert float(lp.field("L2 (m)").input_value()) == sim.robots[0].dimensions["L2"]
+        lp.field("L2 (m)").fill("0.3")
+        page.get_by_role("button", name="Set dimensions").first.click()
+        until(lambda: v.call(lambda: sim.robots[0].dimensions["L2"]) == 0.3, "the typed L2")
+        assert np.array_equal(v.call(lambda: sim.robots[0]).dh, cs.robots.scara1(L2=0.3).dh)
+        lp.field("L2 (m)").fill("0")
+        page.get_by_role("button", name="Set dimensions").first.click()
+        page.get_by_text("Refused:").first.wait_for(timeout=WAIT * 1000)
+        t = sim.time
+        until(lambda: sim.time > t + 0.02, "the run goes on")
+        assert v.error is None and v.call(lambda: sim.robots[0].dimensions["L2"]) == 0.3
+    finally:
+        lp.close()
+
+
 @pytest.mark.slow
 def test_the_downloads_hold_the_logs_rows_and_columns(browser, views, tmp_path):  # noqa: F811
     from coopsim.log import SimulationLog

@@ -32,9 +32,10 @@ Gains typed in and set (:meth:`LiveView.set_gains`) build a new controller of th
 ``ComputedTorque``, its other settings kept) that replaces the robot's through ``Simulation.set_controller``
 from the next control step; a PID's integral restarts at zero. The constructor and ``set_controller`` check
 the values (>= 0, finite, 1 or n of them). "Reset to the start" keeps the gains last set. A Python
-controller's gains are its own: shown by name only. What the engine does not allow while a simulation
-runs, the panels show without editing: a robot's dimensions (a ``Simulation`` keeps the robots it was
-given; none can be replaced).
+controller's gains are its own: shown by name only. A built-in SCARA's L1, L2 and base height typed in
+and set (:meth:`LiveView.set_dimensions`) rebuild it by its maker (``cs.robots.scara1``/``scara2``) and
+replace it through ``Simulation.set_robot``, the run going on from the same state; another robot's
+dimensions are shown without editing.
 """
 from __future__ import annotations
 
@@ -61,6 +62,7 @@ _CONTACT_LENGTH = 0.04        # m, drawn length of a contact line
 _GHOST_MARGIN = 0.002         # m, ghost boxes this much smaller (a robot on its reference hides its ghost)
 _PLOT_EVERY = 0.1             # s of wall time between plot updates
 _TABLE_EVERY = 0.5            # s of wall time between updates of the data table
+_DIMENSION_FIELDS = (("L1", "L1 (m)"), ("L2", "L2 (m)"), ("L_base", "Base height (m)"))   # the built-in SCARAs'
 _TABLE_ROWS = 8
 _WINDOW = 1.0                 # s of wall time over which the supervision's rates are measured
 _ENVIRONMENT = 0.15          # intensity of the environment map's lighting (viser's default 1 washes colours out)
@@ -413,6 +415,7 @@ class LiveView:
 
         self._teach = []
         self._controller_md = []
+        self._dimensions_md = []
         with tabs.add_tab("Robots"):
             for i, r in enumerate(self.robots):
                 with gui.add_folder(f"{i}: {self.labels[i]}", expand_by_default=(i == 0)):
@@ -440,7 +443,13 @@ class LiveView:
                     move.on_update(lambda e: self._refusing(lambda: self.set_move_time(e.target.value)))
                     giz = gui.add_checkbox("Clamp gizmo (IK)", initial_value=False)
                     giz.on_update(lambda e, i=i: self._toggle_gizmo(i, e.target.value))
-                    gui.add_markdown(self._dimensions_text(i))
+                    self._dimensions_md.append(gui.add_markdown(self._dimensions_text(i)))
+                    if self._factory(i) is not None:
+                        dims = {key: gui.add_text(label, initial_value=repr(float(r.dimensions[key])))
+                                for key, label in _DIMENSION_FIELDS}
+                        rebuild = gui.add_button("Set dimensions")
+                        rebuild.on_click(lambda e, i=i, dims=dims: self.set_dimensions(
+                            i, **{key: f.value for key, f in dims.items()}))
                     self._teach.append((sliders, target))
 
         with tabs.add_tab("Plots"):
@@ -532,7 +541,64 @@ class LiveView:
         if not dims:
             return "**Dimensions**: none recorded"
         rows = ", ".join(f"{k} {v:.4g} m" for k, v in dims.items())
-        return f"**Dimensions** {rows}  \n_(a running simulation keeps its robots)_"
+        if self._factory(i) is None:
+            return f"**Dimensions** {rows}  \n_(not a built-in SCARA: fixed here)_"
+        return f"**Dimensions** {rows}  \n_(L1, L2, base height: the robot rebuilt, the run going on)_"
+
+    def _factory(self, i: int):
+        """The function of coopsim.robots that made robot i (scara1, scara2: known by its name, its joints and
+        its recorded dimensions), or None."""
+        from .. import robots
+
+        r = self.robots[i]
+        make = {"scara1": robots.scara1, "scara2": robots.scara2}.get(r.name)
+        if make is None or not r.dimensions or set(r.dimensions) != set(make().dimensions) or \
+                r.joint_types != make().joint_types:
+            return None
+        return make
+
+    def set_dimensions(self, i: int, **dims) -> None:
+        """Rebuilds robot i (a built-in SCARA) with other dimensions (m; e.g. L1, L2, L_base; numbers or texts)
+        by its maker (``cs.robots.scara1``/``scara2``: the other dimensions, base pose, friction, gravity and
+        backend kept, each link's mass scaled by its box's volume as the maker does), and replaces it through
+        ``Simulation.set_robot`` on the simulation's thread: the run goes on from the same q and qd. Refused
+        with a message: text, NaN, a dimension <= 0 or unknown, a robot not made by coopsim.robots, a start
+        that puts a box beyond the world (the maker's and set_robot's checks)."""
+        try:
+            i = self._robot_index(i)
+            make = self._factory(i)
+            if make is None:
+                raise ValueError(f"{self.labels[i]} is not a built-in SCARA: its dimensions are fixed here")
+            r = self.robots[i]
+            new_dims = dict(r.dimensions)
+            for key, text in dims.items():
+                if key not in new_dims:
+                    raise ValueError(f"dimension must be one of {sorted(new_dims)}, got {key!r}")
+                new_dims[key] = _number(text, f"{key} of {self.labels[i]}")
+            keep = dict(base_position=r.base_position, base_yaw=r.base_yaw, friction=r.friction_coefficients,
+                        gravity=r.gravity_acceleration, backend=r.backend)
+            # the masses as they are (given or the maker's), scaled by each box's volume as the maker scales them
+            scale = make(**new_dims).masses / make(**r.dimensions).masses
+            new = make(masses=r.masses * scale, **keep, **new_dims)
+        except ValueError as e:
+            self._say(f"Refused: {e}")
+            return
+
+        def go():
+            self.sim.set_robot(i, new)
+            self.robots[i] = self.sim.robots[i]
+            self._rescale()
+            self._dimensions_md[i].content = self._dimensions_text(i)
+            self._say(f"{self.labels[i]}: rebuilt with " + ", ".join(f"{k} {float(v):.4g} m" for k, v in dims.items()))
+        self.submit(go)
+
+    def _rescale(self) -> None:
+        """The robots' drawn boxes at their sizes now (after a robot was replaced)."""
+        self._half = np.concatenate([r.shapes(self.sim.state(i)[0])[1] for i, r in enumerate(self.robots)])
+        if self._robot_mesh is not None:
+            self._robot_mesh.batched_scales = 2 * self._half
+            self._ghost_mesh.batched_scales = 2 * np.concatenate(
+                [h[m] - np.minimum(_GHOST_MARGIN, 0.25 * h[m]) for h, m in zip(self._split(self._half), self._moving)])
 
     def _make_plots(self, i: int):
         import viser.uplot as up
