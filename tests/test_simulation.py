@@ -985,6 +985,14 @@ def test_a_robot_replaced_in_a_run_brings_its_new_boxes_into_the_world():
     assert not any(c["kind"] == "self" for c in contacts)   # its touching boxes excluded anew
     sim.step(200)   # the run goes on
     assert not sim.diverged and sim.body_state("crate")["position"][0] > crate["position"][0]
+    # after reset() (the robots' bodies leave the world until the next first step) the robot
+    # replaced again comes back with its own boxes
+    sim.reset()
+    sim.set_robot(0, r)
+    sim.step(1)
+    for b, name in enumerate(names):
+        np.testing.assert_array_equal(world.body(f"scara1/{name}")["half_extents"], r.boxes[b].half_extents)
+    assert not any("post" in (c["a"], c["b"]) for c in sim.contacts())
 
 
 # ---- the public calls that stand for the engine's ----

@@ -459,7 +459,7 @@ void Simulation::set_robot(int i, const Robot& robot) {
   std::vector<Eigen::Isometry3d> poses;
   std::vector<Eigen::Vector3d> half;
   std::vector<std::pair<int, int>> excluded;
-  const bool in_world = world_ && s.contact.first_body >= 0;
+  const bool in_world = world_ && started_ && s.contact.first_body >= 0;  // its bodies in the world now
   if (world_) {
     poses = box_poses_at(robot, s.state.q, ws);
     for (size_t k = 0; k < poses.size(); ++k)
