@@ -14,11 +14,12 @@ link boxes green (free) or red (in contact), and the contact points as red lines
 Panels (tabs): **Run**: speed 0-400 %, pause, resume, one step (one control period), reset to the start,
 and the time supervision (simulated and wall time, set and achieved speed, step time mean and max,
 frames per second). **Display**: collision boxes, contact lines, ghosts, labels, camera views.
-**Robots**: per robot its controller and its gains (editable: ``Simulation.set_controller``), its dimensions, and a teach mode: joint sliders, a joint
-target typed in, and a gizmo at the clamp; a target becomes a cubic from where the robot is (its
-measured q and qd now) to the target (closed-form IK ``robot.ik`` for the gizmo) as the robot's new
-reference. **Plots**: a chosen robot's joint positions against their references and its tracking error
-over the last seconds. **Data**: the last rows of the log; the log as CSV or Excel to download.
+**Robots**: per robot its controller and its gains (editable), its dimensions (editable for the built-in
+SCARAs), and a teach mode: joint sliders, a joint target typed in, and a gizmo at the clamp; a target
+becomes a cubic from where the robot is (its measured q and qd now) to the target (closed-form IK
+``robot.ik`` for the gizmo) as the robot's new reference. **Plots**: a chosen robot's joint positions
+against their references and its tracking error over the last seconds. **Data**: the last rows of the
+log; the log as CSV or Excel to download.
 
 One writer: the simulation runs paced (:class:`coopsim.Pacer`, the engine stepping with the GIL
 released) in one thread, the view's or the caller's (:meth:`LiveView.run_to`). What the page asks for is
@@ -31,11 +32,11 @@ unless another host is given, and never opens viser's share tunnel.
 Gains typed in and set (:meth:`LiveView.set_gains`) build a new controller of the same kind (``PID`` or
 ``ComputedTorque``, its other settings kept) that replaces the robot's through ``Simulation.set_controller``
 from the next control step; a PID's integral restarts at zero. The constructor and ``set_controller`` check
-the values (>= 0, finite, 1 or n of them). "Reset to the start" keeps the gains last set. A Python
-controller's gains are its own: shown by name only. A built-in SCARA's L1, L2 and base height typed in
-and set (:meth:`LiveView.set_dimensions`) rebuild it by its maker (``cs.robots.scara1``/``scara2``) and
-replace it through ``Simulation.set_robot``, the run going on from the same state; another robot's
-dimensions are shown without editing.
+the values (>= 0, finite, 1 or n of them). A Python controller's gains are its own: shown by name only. A
+built-in SCARA's L1, L2 and base height typed in and set (:meth:`LiveView.set_dimensions`) rebuild it by its
+maker (``cs.robots.scara1``/``scara2``) and replace it through ``Simulation.set_robot``, the run going on from
+the same state; another robot's dimensions are shown without editing. "Reset to the start" keeps the gains
+and dimensions last set.
 """
 from __future__ import annotations
 
