@@ -929,3 +929,33 @@ def test_build_info():
     assert set(info) == {"optimised", "sanitizers"}
     assert isinstance(info["optimised"], bool) and isinstance(info["sanitizers"], str)
     assert not (info["optimised"] and info["sanitizers"])       # a sanitized build is a Debug one
+
+
+def test_speed_zero_is_a_pause():
+    p = cs.Pacer(speed=1.0)
+    assert not p.paused
+    p.speed = 0.0
+    assert p.paused            # the docs: speed 0 is a pause
+    p.resume()
+    assert p.paused            # still: the speed is 0
+    p.speed = 0.5
+    assert not p.paused
+    p.pause()
+    assert p.paused
+    p.resume()
+    assert not p.paused
+
+
+def test_the_stats_report_the_frame_rate_reached_against_the_one_asked():
+    clock = FakeClock()
+    pacer = cs.Pacer(speed=1.0, frame_rate=50.0, clock=clock, sleep=clock.sleep)
+
+    def slow_frame(s, p):
+        clock.now += 0.05   # drawing a frame takes 50 ms: 20 frames per second at most
+    stats = pacer.run(make_sim(), 0.5, on_frame=slow_frame)
+    assert stats.frame_rate_asked == 50.0
+    assert stats.frame_rate == pytest.approx(20.0, rel=1e-9)
+    assert f"({stats.frame_rate:.1f}/s of 50/s asked)" in str(stats)
+    fast = cs.Pacer(speed=1.0, frame_rate=50.0, clock=clock, sleep=clock.sleep).run(make_sim(), 0.5,
+                                                                                       on_frame=lambda s, p: None)
+    assert fast.frame_rate == pytest.approx(50.0, rel=1e-9)
