@@ -121,19 +121,14 @@ actuator limits. Controllers keep state, so give each robot its own.)doc")
          return std::string("<coopsim.PID gravity_compensation=") + (c.gravity_compensation() ? "True" : "False") +
                 ">";
        })
-      .def(py::pickle(
-          [](const PID& c) {
-            return py::make_tuple(np(c.kp()), np(c.ki()), np(c.kd()), c.gravity_compensation(),
-                                  c.derivative_filter(),
-                                  c.integral_limit().size() ? py::object(np(c.integral_limit())) : py::none(),
-                                  model_out(c.model()));
-          },
-          [](py::tuple s) {
-            Eigen::VectorXd il;
-            if (!s[5].is_none()) il = gains(s[5], "integral_limit");
-            return std::make_shared<PID>(gains(s[0], "kp"), gains(s[1], "ki"), gains(s[2], "kd"), s[3].cast<bool>(),
-                                         s[4].cast<double>(), il, model_arg(s[6]));
-          }));
+      .def(pickle_by_call<PID>([](const PID& c) {
+        return py::make_tuple(
+            py::make_tuple(np(c.kp()), np(c.ki()), np(c.kd())),
+            py::dict(py::arg("gravity_compensation") = c.gravity_compensation(),
+                     py::arg("derivative_filter") = c.derivative_filter(),
+                     py::arg("integral_limit") = c.integral_limit().size() ? py::object(np(c.integral_limit())) : py::none(),
+                     py::arg("model") = model_out(c.model())));
+      }));
 
   py::class_<ComputedTorque, Controller, std::shared_ptr<ComputedTorque>>(m, "ComputedTorque", ComputedTorque::kDoc)
       .def(py::init([](const py::object& kp, const py::object& kd, const py::object& model) {
@@ -148,9 +143,7 @@ actuator limits. Controllers keep state, so give each robot its own.)doc")
          return std::string("<coopsim.ComputedTorque model=") + (c.model() ? "'" + c.model()->name() + "'" : "own") +
                 ">";
        })
-      .def(py::pickle(
-          [](const ComputedTorque& c) { return py::make_tuple(np(c.kp()), np(c.kd()), model_out(c.model())); },
-          [](py::tuple s) {
-            return std::make_shared<ComputedTorque>(gains(s[0], "kp"), gains(s[1], "kd"), model_arg(s[2]));
-          }));
+      .def(pickle_by_call<ComputedTorque>([](const ComputedTorque& c) {
+        return py::make_tuple(py::make_tuple(np(c.kp()), np(c.kd())), py::dict(py::arg("model") = model_out(c.model())));
+      }));
 }

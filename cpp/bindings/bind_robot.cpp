@@ -115,6 +115,19 @@ py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
   return out;
 }
 
+// Robot.poses_of_states for q (N, n): (N, 4, 4), or (N, k, 4, 4) of the k boxes
+py::array_t<double> poses_of_states(const Robot& r, const py::object& q, bool boxes) {
+  Arr Q = array(q, {-1, r.dof()}, "q");
+  std::vector<Eigen::Isometry3d> T;
+  {
+    py::gil_scoped_release nogil;
+    r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), boxes, T);
+  }
+  py::array_t<double> out = poses(T);
+  if (boxes) out.resize({Q.shape(0), static_cast<py::ssize_t>(r.boxes().size()), py::ssize_t(4), py::ssize_t(4)});
+  return out;
+}
+
 }  // namespace
 
 void bind_robot(py::module_& m) {
@@ -144,18 +157,10 @@ void bind_robot(py::module_& m) {
       .def_property_readonly("offset", [](const Tool& t) { return to_numpy(t.offset); })
       .def_readonly("second_link", &Tool::second_link)
       .def_property_readonly("second_point", [](const Tool& t) { return to_numpy(t.second_point); })
-      .def(py::pickle(
-          [](const Tool& t) {
-            return py::make_tuple(t.link, to_numpy(t.offset), t.second_link, to_numpy(t.second_point));
-          },
-          [](py::tuple s) {
-            Tool t;
-            t.link = s[0].cast<int>();
-            t.offset = pose(s[1], "offset");
-            t.second_link = s[2].cast<int>();
-            t.second_point = vecx(s[3], 3, "second_point");
-            return t;
-          }));
+      .def(pickle_by_call<Tool>([](const Tool& t) {
+        return py::make_tuple(py::make_tuple(t.link, to_numpy(t.offset), t.second_link, to_numpy(t.second_point)),
+                              py::dict());
+      }));
 
   py::class_<ExternalWrench>(m, "Wrench", kWrenchDoc)
       .def(py::init([](int link, const py::object& point, const py::object& wrench) {
@@ -185,17 +190,12 @@ void bind_robot(py::module_& m) {
          s << ", wrench=[" << w.wrench.transpose() << "])";
          return s.str();
        })
-      .def(py::pickle([](const ExternalWrench& w) {
-                        return py::make_tuple(w.link, to_numpy(w.point), to_numpy(w.wrench), w.at_tool);
-                      },
-                      [](py::tuple t) {
-                        ExternalWrench w;
-                        w.link = t[0].cast<int>();
-                        w.point = vecx(t[1], 3, "point");
-                        w.wrench = vecx(t[2], 6, "wrench");
-                        w.at_tool = t[3].cast<bool>();
-                        return w;
-                      }));
+      .def(py::pickle(
+          [](const ExternalWrench& w) { return py::make_tuple(w.link, to_numpy(w.point), to_numpy(w.wrench), w.at_tool); },
+          [](const py::tuple& t) {  // made again as it was made, checked
+            const py::object W = py::type::of<ExternalWrench>();
+            return (t[3].cast<bool>() ? W.attr("at_tool")(t[2]) : W(t[0], t[1], t[2])).cast<ExternalWrench>();
+          }));
 
   py::class_<LinkBox>(m, "LinkBox", kLinkBoxDoc)
       .def(py::init([](int link, const py::object& half_extents, const py::object& pose_obj, const std::string& name) {
@@ -218,15 +218,9 @@ void bind_robot(py::module_& m) {
            << "')";
          return s.str();
        })
-      .def(py::pickle([](const LinkBox& b) { return py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name); },
-                      [](py::tuple t) {
-                        LinkBox b;
-                        b.link = t[0].cast<int>();
-                        b.half_extents = vecx(t[1], 3, "half_extents");
-                        b.pose = pose(t[2], "pose");
-                        b.name = t[3].cast<std::string>();
-                        return b;
-                      }));
+      .def(pickle_by_call<LinkBox>([](const LinkBox& b) {
+        return py::make_tuple(py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name), py::dict());
+      }));
 
   py::class_<Clamp>(m, "Clamp", kClampDoc)
       .def(py::init([](int fixed_link, const py::object& fixed_face, int moving_joint, double jaw_length,
@@ -247,19 +241,10 @@ void bind_robot(py::module_& m) {
       .def_readonly("moving_joint", &Clamp::moving_joint)
       .def_readonly("jaw_length", &Clamp::jaw_length)
       .def_readonly("pad_width", &Clamp::pad_width)
-      .def(py::pickle([](const Clamp& c) {
-                        return py::make_tuple(c.fixed_link, to_numpy(c.fixed_face), c.moving_joint, c.jaw_length,
-                                              c.pad_width);
-                      },
-                      [](py::tuple t) {
-                        Clamp c;
-                        c.fixed_link = t[0].cast<int>();
-                        c.fixed_face = pose(t[1], "fixed_face");
-                        c.moving_joint = t[2].cast<int>();
-                        c.jaw_length = t[3].cast<double>();
-                        c.pad_width = t[4].cast<double>();
-                        return c;
-                      }));
+      .def(pickle_by_call<Clamp>([](const Clamp& c) {
+        return py::make_tuple(
+            py::make_tuple(c.fixed_link, to_numpy(c.fixed_face), c.moving_joint, c.jaw_length, c.pad_width), py::dict());
+      }));
 
   py::class_<Robot> R(m, "Robot",
                       "A serial robot: standard DH table, centre-of-mass table, mass properties, friction, "
@@ -360,18 +345,7 @@ void bind_robot(py::module_& m) {
   // kinematics
   R.def("fk", [](const Robot& r, const py::object& q) -> py::object {
          if (as_array(q, "q").ndim() != 2) return checked_pose(r.tool_pose(At(r, q).ws), "fk");
-         // N states at once
-         Arr Q = array(q, {-1, r.dof()}, "q");
-         std::vector<Eigen::Isometry3d> T(static_cast<size_t>(Q.shape(0)));
-         Workspace ws;
-         {
-           py::gil_scoped_release nogil;
-           for (size_t i = 0; i < T.size(); ++i) {
-             r.kinematics(Q.data() + i * r.dof(), ws, false);
-             T[i] = r.tool_pose(ws);
-           }
-         }
-         return poses(T);
+         return poses_of_states(r, q, false);  // N states at once
        },
         py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,); for N states q (N, n), "
         "the poses (N, 4, 4).")
@@ -398,30 +372,12 @@ void bind_robot(py::module_& m) {
       .def("shapes", [](const Robot& r, const py::object& q) -> py::tuple {
          const py::ssize_t k = static_cast<py::ssize_t>(r.boxes().size());
          py::array_t<double> he({k, py::ssize_t(3)});
-         for (py::ssize_t b = 0; b < k; ++b)
-           Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * b) = r.boxes()[b].half_extents.transpose();
+         for (py::ssize_t i = 0; i < k; ++i)
+           Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * i) = r.boxes()[i].half_extents.transpose();
+         if (as_array(q, "q").ndim() == 2) return py::make_tuple(poses_of_states(r, q, true), he);  // (N, k, 4, 4)
          std::vector<Eigen::Isometry3d> T;
-         if (as_array(q, "q").ndim() != 2) {
-           r.box_poses(At(r, q).ws, T);
-           return py::make_tuple(poses(T), he);
-         }
-         // N states at once: (N, k, 4, 4)
-         Arr Q = array(q, {-1, r.dof()}, "q");
-         const py::ssize_t N = Q.shape(0);
-         std::vector<Eigen::Isometry3d> all;
-         all.reserve(static_cast<size_t>(N * k));
-         Workspace ws;
-         {
-           py::gil_scoped_release nogil;
-           for (py::ssize_t i = 0; i < N; ++i) {
-             r.kinematics(Q.data() + i * r.dof(), ws, false);  // the boxes need the frames only
-             r.box_poses(ws, T);
-             all.insert(all.end(), T.begin(), T.end());
-           }
-         }
-         py::array_t<double> out = poses(all);
-         out.resize({N, k, py::ssize_t(4), py::ssize_t(4)});
-         return py::make_tuple(out, he);
+         r.box_poses(At(r, q).ws, T);
+         return py::make_tuple(poses(T), he);
        }, py::arg("q"),
        "World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,); "
        "for N states q (N, n), the poses (N, k, 4, 4).")
@@ -543,12 +499,8 @@ void bind_robot(py::module_& m) {
                                to_numpy(t.base_orientation), t.inertia_check),
                 r.backend(), r.has_generated() ? r.generated()->name : std::string());
           },
-          [](py::tuple t) {
-            py::tuple a = t[0];
-            auto str = [&](int i) { return a[i].cast<std::string>(); };
-            auto num = [&](int i) { return a[i].cast<double>(); };
-            Robot r = from_dh(a[0], a[1], a[2], a[3], str(4), a[5], a[6], a[7], a[8], a[9], num(10), a[11], str(12),
-                              num(13), num(14), a[15], a[16], a[17], a[18], a[19], a[20], a[21], str(22));
+          [](const py::tuple& t) {
+            Robot r = py::type::of<Robot>().attr("from_dh")(*t[0]).cast<Robot>();
             const std::string gen = t[2].cast<std::string>();
             if (gen.empty()) return r;
             if (!find_generated(gen))

@@ -164,19 +164,17 @@ void bind_trajectory(py::module_& m) {
                 ", t=[" + std::to_string(c.t_start()) + ", " + std::to_string(c.t_end()) + "] s, velocities='" +
                 rule_name(c.rule()) + "')";
        })
-      .def(py::pickle(
-          [](const CubicTrajectory& c) {  // the constructor's arguments: the knot velocities used, or the ends
-            const py::object V = rows(c.velocities()), none = py::none();
-            const bool given = c.rule() == KnotVelocities::Given;
-            return py::make_tuple(to_numpy(Eigen::Map<const Eigen::VectorXd>(c.times().data(), c.times().size())),
-                                  rows(c.points()), given ? V : none, c.rule() == KnotVelocities::Spline,
-                                  given ? none : py::object(V[py::int_(0)]), given ? none : py::object(V[py::int_(-1)]));
-          },
-          [](py::tuple s) {
-            return std::make_shared<CubicTrajectory>(CubicTrajectory::from_tables(
-                table(s[0], "times"), table(s[1], "q_points"), optional_table(s[2], "qd_points"), s[3].cast<bool>(),
-                optional_table(s[4], "qd_start"), optional_table(s[5], "qd_end")));
-          }));
+      .def(pickle_by_call<CubicTrajectory>([](const CubicTrajectory& c) {
+        // the knot velocities used when given, else the rule and the end velocities
+        const py::object V = rows(c.velocities()), none = py::none();
+        const bool given = c.rule() == KnotVelocities::Given;
+        return py::make_tuple(
+            py::make_tuple(to_numpy(Eigen::Map<const Eigen::VectorXd>(c.times().data(), c.times().size())),
+                           rows(c.points()), given ? V : none),
+            py::dict(py::arg("spline") = c.rule() == KnotVelocities::Spline,
+                     py::arg("qd_start") = given ? none : py::object(V[py::int_(0)]),
+                     py::arg("qd_end") = given ? none : py::object(V[py::int_(-1)])));
+      }));
 
   py::class_<ConstantReference, Reference, std::shared_ptr<ConstantReference>>(
       m, "SetPoint", "A constant reference: q_ref = q (n,) at all times, qd_ref = qdd_ref = 0.")
@@ -184,6 +182,6 @@ void bind_trajectory(py::module_& m) {
            py::arg("q"))
       .def_property_readonly("q", [](const ConstantReference& r) { return to_numpy(r.point()); }, "(n,) rad or m.")
       .def("__repr__", [](const ConstantReference& r) { return "SetPoint(dof=" + std::to_string(r.dof()) + ")"; })
-      .def(py::pickle([](const ConstantReference& r) { return py::make_tuple(to_numpy(r.point())); },
-                      [](py::tuple s) { return std::make_shared<ConstantReference>(table(s[0], "q")); }));
+      .def(pickle_by_call<ConstantReference>(
+          [](const ConstantReference& r) { return py::make_tuple(py::make_tuple(to_numpy(r.point())), py::dict()); }));
 }

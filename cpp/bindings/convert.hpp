@@ -138,6 +138,18 @@ inline void warn_if(const std::string& message) {
   if (PyErr_WarnEx(PyExc_RuntimeWarning, message.c_str(), 1) != 0) throw py::error_already_set();
 }
 
+// Pickling by a call: `get` gives (arguments, keywords) of T's constructor (or
+// of its static method `factory`), which unpickling calls again, so that a
+// pickled object is checked as when it was made.
+template <class T, class Get>
+auto pickle_by_call(Get get, const char* factory = nullptr) {
+  return py::pickle(get, [factory](const py::tuple& s) {
+    py::object f = py::type::of<T>();
+    if (factory) f = f.attr(factory);
+    return f(*s[0], **s[1]).template cast<T>();
+  });
+}
+
 inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T);
 
 template <class Derived>

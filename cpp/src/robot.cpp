@@ -493,6 +493,22 @@ void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
   }
 }
 
+void Robot::poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const {
+  Workspace ws;
+  std::vector<Eigen::Isometry3d> T;
+  out.clear();
+  out.reserve(static_cast<size_t>(N) * (boxes ? boxes_.size() : 1));
+  for (long i = 0; i < N; ++i) {
+    kinematics(Q + i * n_, ws, false);  // the frames only
+    if (!boxes) {
+      out.push_back(tool_pose(ws));
+      continue;
+    }
+    box_poses(ws, T);
+    out.insert(out.end(), T.begin(), T.end());
+  }
+}
+
 Eigen::Isometry3d Robot::frame(const Workspace& ws, int i) const {
   const int l = link_index_(i, "frame");
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -17,7 +17,7 @@ class Tool:
     fixed tool uses the same link and point twice; a clamp with one fixed and
     one moving jaw uses a point on each jaw, so the TCP stays between the jaws.
     """
-    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], int, numpy.typing.NDArray[numpy.float64]]:
+    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], int, numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, link: typing.SupportsInt | typing.SupportsIndex = -1, offset: typing.Any = ..., second_link: typing.SupportsInt | typing.SupportsIndex = -1, second_point: typing.Any = (0.0, 0.0, 0.0)) -> None:
         ...
@@ -80,7 +80,7 @@ class LinkBox:
     frame, for link 0). half_extents: (3,) m, > 0: the box spans +-half_extents
     along its own x, y, z. name: a label (e.g. "link1", "base", "fixed_jaw").
     """
-    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str]:
+    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str], dict]:
         ...
     def __init__(self, link: typing.SupportsInt | typing.SupportsIndex, half_extents: typing.Any, pose: typing.Any = ..., name: str = '') -> None:
         ...
@@ -113,7 +113,7 @@ class Clamp:
     to face back (Rx(pi)). jaw_length (along x) and pad_width (along y): the
     pads' size, m. The tool centre point is the robot's Tool.
     """
-    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], int, float, float]:
+    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], int, float, float], dict]:
         ...
     def __init__(self, fixed_link: typing.SupportsInt | typing.SupportsIndex, fixed_face: typing.Any, moving_joint: typing.SupportsInt | typing.SupportsIndex, jaw_length: typing.SupportsFloat | typing.SupportsIndex, pad_width: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
@@ -578,7 +578,7 @@ class CubicTrajectory(Reference):
     (a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
     qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], typing.Any, bool, typing.Any, typing.Any]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], typing.Any], dict]:
         ...
     def __init__(self, times: typing.Any, q_points: typing.Any, qd_points: typing.Any = None, *, spline: bool = False, qd_start: typing.Any = None, qd_end: typing.Any = None) -> None:
         ...
@@ -629,7 +629,7 @@ class SetPoint(Reference):
     """
     A constant reference: q_ref = q (n,) at all times, qd_ref = qdd_ref = 0.
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64]]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, q: typing.Any) -> None:
         ...
@@ -688,7 +688,7 @@ class PID(Controller):
     kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
     (n,) arrays, all >= 0 (N/m ... for prismatic joints).
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], bool, float, typing.Any, typing.Any]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, kp: typing.Any, ki: typing.Any, kd: typing.Any, *, gravity_compensation: bool = True, derivative_filter: typing.SupportsFloat | typing.SupportsIndex = 0.0, integral_limit: typing.Any = None, model: typing.Any = None) -> None:
         ...
@@ -751,7 +751,7 @@ class ComputedTorque(Controller):
     joint's error obeys e'' + kd e' + kp e = 0: kp = w^2, kd = 2 w is critically
     damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], typing.Any]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, kp: typing.Any, kd: typing.Any, *, model: typing.Any = None) -> None:
         ...

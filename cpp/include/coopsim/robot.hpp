@@ -266,6 +266,10 @@ to the base frame's origin.)doc";
   // World poses of every box, in the order of boxes(), for the kinematics
   // in ws (see kinematics()).
   void box_poses(const Workspace& ws, std::vector<Eigen::Isometry3d>& out) const;
+  // For N states Q (row-major N x n): the tool pose of each (N poses), or
+  // with boxes the poses of every box of each (N x boxes().size(), state by
+  // state).
+  void poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const;
   // World poses of the clamp's fixed and moving inner faces (see Clamp)
   // for the kinematics of q in ws; throws when the robot has no clamp.
   void clamp_faces(const Workspace& ws, const double* q, Eigen::Isometry3d& fixed,
