@@ -40,17 +40,6 @@ Clamp clamp_arg(const py::object& obj) {
   return obj.cast<Clamp>();
 }
 
-const GeneratedDynamics* generated_by_name(const std::string& name) {
-  const GeneratedDynamics* g = find_generated(name);
-  if (!g) throw py::value_error("no generated dynamics named '" + name + "' in this build or the build cache");
-  return g;
-}
-
-Robot with_generated_name(const Robot& r, const std::string& name) {
-  return r.with_generated(std::shared_ptr<const GeneratedDynamics>(generated_by_name(name),
-                                                                   [](const GeneratedDynamics*) {}));
-}
-
 py::object inertia_warning_category() {
   static py::object cat = py::reinterpret_steal<py::object>(
       PyErr_NewException("coopsim._core.InertiaWarning", PyExc_UserWarning, nullptr));
@@ -325,7 +314,7 @@ void bind_robot(py::module_& m) {
       .def_property_readonly("has_generated", &Robot::has_generated)
       .def("with_backend", &Robot::with_backend, py::arg("backend"),
            "A copy using 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).")
-      .def("with_generated", &with_generated_name, py::arg("name"),
+      .def("with_generated", py::overload_cast<const std::string&>(&Robot::with_generated, py::const_), py::arg("name"),
            "A copy with the generated dynamics `name` attached (structure checked) and selected: code compiled "
            "into the engine (compiled_generated_names()) or built by coopsim.codegen.compile.")
       .def("with_geometry", [](const Robot& r, const py::object& boxes, const py::object& clamp) {
@@ -505,7 +494,7 @@ void bind_robot(py::module_& m) {
             if (gen.empty()) return r;
             if (!find_generated(gen))
               throw py::value_error("cannot unpickle: generated dynamics '" + gen + "' not in this build");
-            return with_generated_name(r, gen).with_backend(t[1].cast<std::string>());
+            return r.with_generated(gen).with_backend(t[1].cast<std::string>());
           }));
 
   m.attr("InertiaWarning") = inertia_warning_category();

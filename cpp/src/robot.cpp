@@ -434,6 +434,12 @@ Robot Robot::with_generated(std::shared_ptr<const GeneratedDynamics> gen) const 
   return r;
 }
 
+Robot Robot::with_generated(const std::string& name) const {
+  const GeneratedDynamics* g = find_generated(name);
+  require(g, "no generated dynamics named '" + name + "' in this build or the build cache");
+  return with_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));  // kept for good
+}
+
 Robot Robot::with_backend(const std::string& backend) const {
   Robot r = *this;
   if (backend == "numeric") {

@@ -231,6 +231,8 @@ class Robot {
   Robot with_geometry(std::vector<LinkBox> boxes, Clamp clamp) const;
   Robot with_dimensions(std::map<std::string, double> dimensions) const;
   Robot with_generated(std::shared_ptr<const GeneratedDynamics> gen) const;
+  // the generated code named `name` (find_generated); std::invalid_argument when there is none
+  Robot with_generated(const std::string& name) const;
   Robot with_backend(const std::string& backend) const;
 
   // Dynamics backend: the numeric recursive algorithms (always available) or
