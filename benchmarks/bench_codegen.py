@@ -67,7 +67,7 @@ def main():
         t0 = time.perf_counter()
         codegen.compile(puma_like(), cache=cache)
         t_warm = time.perf_counter() - t0
-        info = cs._core.generated_info(r)
+        info = codegen.info(r)
         print(f"compile 6-DOF robot (RRRRRR): cold {t_cold:.1f} s, cached {t_warm * 1e3:.0f} ms, "
               f"operation count {info['operation_count']}")
         num = puma_like()

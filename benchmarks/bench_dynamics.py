@@ -132,15 +132,15 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="fewer calls and repeats")
     args = ap.parse_args(argv)
     calls, repeats = (2000, 3) if args.quick else (20000, 7)
-    print(f"coopsim {cs.__version__}, build optimised: {cs._core.build_optimised}")
-    if not cs._core.build_optimised:
+    print(f"coopsim {cs.__version__}, build optimised: {cs.build_info()['optimised']}")
+    if not cs.build_info()["optimised"]:
         print("figures from a debug build do not count")
     robots = [cs.robots.scara1(backend="numeric"), cs.robots.scara2(backend="numeric")]
     native = native_rows(robots, calls, repeats)
     what = ["mass_matrix", "coriolis_plus_gravity", "forward_dynamics", "inverse_dynamics", "rk4_step"]
     print(f"\n{'robot':8} {'what':24} {'from':7} {'numeric ns':>11} {'generated ns':>13} {'num/gen':>8}")
     for r in robots:
-        gen = r.name in cs._core.compiled_generated_names()
+        gen = getattr(cs.robots, r.name)().has_generated   # its generated dynamics are in the engine
         py = {"numeric": python_rows(r, calls // 4, repeats)}
         if gen:
             rg = getattr(cs.robots, r.name)(backend="generated")

@@ -761,12 +761,12 @@ def recorded_references():
 
     def add_robot(self, robot, controller, reference, **kw):
         i = add(self, robot, controller, reference, **kw)
-        seen.append((len(self._core.log_t()), i, _as_reference(reference)))
+        seen.append((len(self.log.t), i, _as_reference(reference)))
         return i
 
     def set_reference(self, robot, reference):
         put(self, robot, reference)
-        seen.append((len(self._core.log_t()), robot, _as_reference(reference)))
+        seen.append((len(self.log.t), robot, _as_reference(reference)))
 
     Simulation.add_robot, Simulation.set_reference = add_robot, set_reference
     try:
@@ -1032,7 +1032,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     repeats = args.repeats or (3 if args.quick else 15)
     robot = cs.robots.scara1()
-    print(f"# coopsim {cs.__version__} (optimised build: {cs._core.build_optimised}), numpy {np.__version__}, "
+    print(f"# coopsim {cs.__version__} (optimised build: {cs.build_info()['optimised']}), numpy {np.__version__}, "
           f"Python {platform.python_version()}, {platform.machine()}, {os.cpu_count()} cores, "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
     peers, notes = load_peers(robot)

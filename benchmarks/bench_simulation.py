@@ -78,8 +78,8 @@ def main():
     repeats = 3 if args.quick else 7
     steps = round(t_end / DT)
 
-    print(f"# coopsim {cs.__version__}, module built optimised: {cs._core.build_optimised}")
-    if not cs._core.build_optimised:
+    print(f"# coopsim {cs.__version__}, module built optimised: {cs.build_info()['optimised']}")
+    if not cs.build_info()["optimised"]:
         print("# WARNING: not an optimised build; these figures do not count")
     print(f"# {steps} steps of {DT * 1e3:g} ms ({t_end:g} s simulated) per run, median of {repeats}")
     rows = []  # (what, ns per step, steps per s, real-time factor, ratio text)

@@ -44,9 +44,9 @@ def main():
     # the per-step split, from the engine's profiler in a separate run (the timers cost a little)
     runner = H._Runner(H.default_bars(1), dt=2e-4, log_every=25, world_every=5, control_every=5, mouth=None,
                        slope=None, handover_yaw=None, t_limit=120.0)
-    runner.sim._core.set_profiling(True)
+    runner.sim.set_profiling(True)
     runner.cycle(0)
-    p, n = runner.sim._core.profile(), runner.sim.steps
+    p, n = runner.sim.profile(), runner.sim.steps
     split = ", ".join(f"{k} {p[k] / n * 1e6:.2f}" for k in ("controllers", "world", "grasp", "contacts", "robots"))
     print(f"per step (us), defaults: {split} (grasp within world)")
     t = time.perf_counter()

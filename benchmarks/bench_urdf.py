@@ -70,7 +70,7 @@ def main():
         t0 = time.perf_counter()
         gen = codegen.compile(num)
         t_compile = time.perf_counter() - t0
-        info = cs._core.generated_info(gen)
+        info = codegen.info(gen)
         model = pin.buildModelFromUrdf(path)
         if locked:
             model = pin.buildReducedModel(model, [model.getJointId(j) for j in locked], pin.neutral(model))

@@ -100,9 +100,9 @@ def main():
             walls.append(time.perf_counter() - t0)
         wall = statistics.median(walls)
         sim = build(t_end, every)
-        sim._core.set_profiling(True)
+        sim.set_profiling(True)
         sim.run(t_end, progress=False)
-        p = sim._core.profile()
+        p = sim.profile()
         split = ", ".join(f"{p[k] / steps * 1e6:.2f}" for k in ("controllers", "world", "contacts", "robots"))
         if every is not None:
             events = sim.log.contacts
@@ -119,10 +119,10 @@ def main():
         walls.append(time.perf_counter() - t0)
     wall = statistics.median(walls)
     sim = build_holding(t_end)
-    sim._core.set_profiling(True)
+    sim.set_profiling(True)
     sim.run(t_end, progress=False)
     assert sim.holding(0) == "box", "the benchmark's grasp failed"
-    p = sim._core.profile()
+    p = sim.profile()
     print(f"{'one SCARA holding a box':<28}{wall:9.3f}{t_end / wall:13.1f}{wall / steps * 1e6:9.2f}   "
           + ", ".join(f"{p[k] / steps * 1e6:.2f}" for k in ("controllers", "world", "contacts", "robots"))
           + f"; of the world's, the grasp (rule and weld) {p['grasp'] / steps * 1e6:.2f}")

@@ -95,7 +95,7 @@ def test_builtin_generated_equals_numeric(name, changed):
     # (gravity in frame 0 then has x and y components)
     kw = dict(CHANGED[name], base_yaw=0.7, gravity=(0.4, -0.3, -9.7)) if changed else {}
     gen, num = factory(**kw), factory(backend="numeric", **kw)
-    assert gen.has_generated and cs._core.generated_info(gen)["name"] == name
+    assert gen.has_generated and cs.codegen.info(gen)["name"] == name
     _compare(gen, num)
 
 
@@ -125,7 +125,7 @@ def test_backend_default_report_and_switch():
     assert _close(num.coriolis(q, qd), c_gen)
     assert num.with_backend("generated").backend == "generated"
     assert cs.robots.scara2(backend="numeric").backend == "numeric"
-    assert sorted(cs._core.compiled_generated_names()) == ["scara1", "scara2"]
+    assert sorted(cs.codegen.builtin_names()) == ["scara1", "scara2"]
     with pytest.raises(ValueError, match="backend"):
         r.with_backend("fast")
     assert not hasattr(r, "set_backend")
@@ -190,7 +190,7 @@ def test_generated_files_header_and_format():
             first = text.splitlines()[0]
             assert first.startswith(HEADER)
             ops = int(first.rsplit("Operation count: ", 1)[1].rstrip("."))
-            assert ops == cs._core.generated_info(getattr(cs.robots, name)())["operation_count"] > 0
+            assert ops == cs.codegen.info(getattr(cs.robots, name)())["operation_count"] > 0
             assert "pow(" not in text
         _check_emitted(texts["cpp"], s, f"{name}_")
     registry = (REPO / "cpp" / "generated" / "registry.cpp").read_text()
@@ -220,6 +220,7 @@ def _operations_without_cse(model):
     return out
 
 
+@pytest.mark.slow  # emits both SCARAs' code again
 def test_emitted_code_uses_cse(scara_models):
     """Every emitted function of both SCARAs has cse temporaries, and its operation count (as
     written in the file, after cse) is at most half the count without cse."""
@@ -250,6 +251,7 @@ def test_generation_independent_of_hash_seed():
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
 
 
+@pytest.mark.slow  # writes both SCARAs' files again (test_generated_files_do_not_drift checks them in memory)
 def test_command_writes_identical_files(tmp_path):
     """The documented command writes byte-identical files into another folder."""
     from coopsim.codegen.__main__ import main
@@ -266,6 +268,15 @@ def test_command_writes_identical_files(tmp_path):
     assert diff == "", "regenerated files differ (run `python -m coopsim.codegen`):\n" + diff[:20000]
     (tmp_path / "scara1_dynamics.cpp").write_bytes(written["scara1_dynamics.cpp"] + b" ")
     assert main(["--out", str(tmp_path), "--check"]) == 1
+
+
+def test_the_command_refuses_an_out_that_is_not_a_folder(tmp_path, capsys):
+    from coopsim.codegen.__main__ import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--out", str(tmp_path / "missing")])
+    assert e.value.code == 2 and "is not a folder" in capsys.readouterr().err
+    assert not (tmp_path / "missing").exists()
 
 
 # ---- textbook models: exact symbolic agreement ----
@@ -395,6 +406,7 @@ def _arm2(joint_types="RR", alpha=np.pi / 2, scale=1.0):
                             q_limits=q_limits, gravity=(0.3, -0.2, -9.81), name="arm2")
 
 
+@pytest.mark.slow  # g++ builds several libraries
 def test_compile_cache_key_is_the_structure(tmp_path):
     """The build is keyed by the structure: another joint type or alpha gives another key and
     library; other lengths, masses or name reuse the build."""
@@ -409,7 +421,7 @@ def test_compile_cache_key_is_the_structure(tmp_path):
 
     def build(robot):
         r = codegen.compile(robot, cache=tmp_path)
-        return cs._core.generated_info(r)["name"], r
+        return cs.codegen.info(r)["name"], r
 
     name, r = build(_arm2())
     assert name.startswith("gen_") and sorted(p.name for p in tmp_path.glob("*.so")) == [f"coopsim_{name}.so"]
@@ -439,7 +451,7 @@ def test_compile_rebuilds_a_damaged_cache_and_keys_the_compiler_version(tmp_path
     lib = tmp_path / f"coopsim_gen_{key}.so"
     lib.write_bytes(b"")  # a library left truncated, as by a full disk
     r = codegen.compile(_arm2(), cache=tmp_path)
-    assert lib.stat().st_size > 0 and cs._core.generated_info(r)["name"] == f"gen_{key}"
+    assert lib.stat().st_size > 0 and cs.codegen.info(r)["name"] == f"gen_{key}"
     _compare(r, _arm2(), n_states=50)
     # the key holds the compiler's version line, not only its path
     assert ident.startswith(cxx) and len(ident) > len(cxx) + 3
@@ -474,7 +486,7 @@ def test_friction_check_detects_wrong_friction(tmp_path):
         res = subprocess.run([cxx, "-O2", "-std=c++17", "-shared", "-fPIC", "-o", str(lib), str(src)],
                              capture_output=True, text=True)
         assert res.returncode == 0, res.stderr[-2000:]
-        assert cs._core.load_generated_library(str(lib)) == s.name
+        assert cs.codegen.load(lib) == s.name
         r = _arm2().with_generated(s.name)
         bad = {k for _, k in _mismatches(r, _arm2(), n_states=20)}
         assert bad == {"friction", "inverse", "forward"}, (label, bad)
@@ -506,10 +518,10 @@ def test_compile_six_dof_robot(tmp_path):
     r = codegen.compile(_arm6(), cache=tmp_path)
     assert r.backend == "generated"
     _compare(r, _arm6())
-    name = cs._core.generated_info(r)["name"]
+    name = cs.codegen.info(r)["name"]
     _check_emitted((tmp_path / f"coopsim_{name}.cpp").read_text(), codegen.structure_of(r), "coopsim_gen_")
     r2 = codegen.compile(_arm6(scale=1.2), cache=tmp_path)
-    assert cs._core.generated_info(r2)["name"] == name and len(list(tmp_path.glob("*.so"))) == 1
+    assert cs.codegen.info(r2)["name"] == name and len(list(tmp_path.glob("*.so"))) == 1
     _compare(r2, _arm6(scale=1.2), n_states=200, seed=1)
 
 
@@ -521,7 +533,7 @@ def test_compile_bad_input(tmp_path):
     with pytest.raises(ValueError, match="angles"):
         codegen.Structure("x", "RR", [(0, 0, 0, 0)])
     with pytest.raises(ValueError, match="path"):
-        cs._core.load_generated_library(str(tmp_path / "missing.so"))
+        cs.codegen.load(tmp_path / "missing.so")
 
 
 def test_structure_mismatch_is_refused():
@@ -551,26 +563,26 @@ def test_compile_loads_only_the_library_it_built_and_no_name_reaches_the_code(tm
     assert (tmp_path / (lib.name + ".sha256")).read_text().strip() == hashlib.sha256(lib.read_bytes()).hexdigest()
     # a foreign library in its place (another structure's build, which would load): rebuilt, not loaded
     other = codegen.compile(_arm2(joint_types="RP"), cache=tmp_path)
-    other_lib = tmp_path / f"coopsim_{cs._core.generated_info(other)['name']}.so"
+    other_lib = tmp_path / f"coopsim_{cs.codegen.info(other)['name']}.so"
     lib.unlink()   # (not written over in place: this process has it mapped)
     shutil.copy(other_lib, lib)
     r = codegen.compile(arm, cache=tmp_path)
-    assert cs._core.generated_info(r)["joint_types"] == "RR"
+    assert cs.codegen.info(r)["joint_types"] == "RR"
     _compare(r, arm, n_states=20)
     assert hashlib.sha256(lib.read_bytes()).hexdigest() != hashlib.sha256(other_lib.read_bytes()).hexdigest()
     # the engine's own check, before loading: writable by others, or in a folder others may write to
     lib.chmod(lib.stat().st_mode | stat.S_IWOTH)
     with pytest.raises(ValueError, match="refusing to load .*: other users may write to it"):
-        cs._core.load_generated_library(str(lib))
+        cs.codegen.load(lib)
     lib.chmod(lib.stat().st_mode & ~stat.S_IWOTH)
     open_dir = tmp_path / "open"
     open_dir.mkdir()
     shutil.copy(lib, open_dir / lib.name)
     open_dir.chmod(0o777)
     with pytest.raises(ValueError, match="its folder .* may be written to by other users"):
-        cs._core.load_generated_library(str(open_dir / lib.name))
+        cs.codegen.load(open_dir / lib.name)
     open_dir.chmod(0o777 | stat.S_ISVTX)   # sticky, like /tmp: others cannot replace what is ours
-    assert cs._core.load_generated_library(str(open_dir / lib.name)).startswith("gen_")
+    assert cs.codegen.load(open_dir / lib.name).startswith("gen_")
 
 
 def _cpu_runs_x86_64_v3():

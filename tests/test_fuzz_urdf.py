@@ -218,7 +218,7 @@ def test_coverage_guided_fuzzer_finds_no_crash_in_its_time(tmp_path):
     5 s): no exception but ValueError, no warning, no hang; and the mutations reach code the seeds
     do not (coverage grows)."""
     pytest.importorskip("atheris")
-    if cs._core.build_sanitizers:
+    if cs.build_info()["sanitizers"]:
         pytest.skip("against the sanitized engine (scripts/test_sanitized.sh) the preloaded GCC sanitizer runtimes "
                     "provide the coverage hooks libFuzzer needs, and atheris sees no coverage; the plain run fuzzes")
     corpus = tmp_path / "corpus"

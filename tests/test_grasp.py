@@ -137,7 +137,8 @@ def test_a_lifted_body_weighs_m_g_on_the_weld_and_loads_the_robot():
     F = sim.weld_wrench(0)
     assert F[2] == pytest.approx(0.1 * 9.81, rel=1e-6)
     assert np.abs(F[:2]).max() < 1e-6 * 0.981
-    # the robot feels it: the clamp link carries the weld's reaction, J^T (-F) at the body's centre
+    # the robot feels it: the clamp link carries the weld's reaction, J^T (-F) at the weld's point, midway
+    # between the pads; the box is gripped about its centre, which stands in for that point here
     q, _ = sim.state(0)
     link = r.clamp.fixed_link
     c = sim.body_state("box")["position"]
@@ -397,7 +398,9 @@ def test_the_log_gives_the_internal_wrench_of_a_dual_hold():
     both = (log[0].holding == "bar") & (log[1].holding == "bar")
     assert both.any() and np.all(iw[~both] == 0)
     np.testing.assert_allclose(iw[-1], (log[0].weld[-1] - log[1].weld[-1]) / 2)
-    # from the grasp module: both welds act at the bar's centre
+    # the log's formula is the grasp module's internal part for two welds at one point (here the
+    # bar's centre); the welds' own points lie between each gripper's pads, but the grips are
+    # symmetric about the centre, so the weight splits evenly and the formula shows no squeeze
     c = sim.body_state("bar")["position"]
     internal = cs.grasp.internal_wrenches(np.array([log[0].weld[-1], log[1].weld[-1]]), [c, c], c)
     np.testing.assert_allclose(internal[0], iw[-1], atol=1e-12)

@@ -1,13 +1,266 @@
-"""The shape of the code base itself: properties the project keeps as it grows."""
+"""The house rules of the code base, checked on its source."""
 from __future__ import annotations
 
+import ast
 import os
+import subprocess
 import sys
+from pathlib import Path
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import pytest
 
-from binding_ratio import code_lines, measure  # noqa: E402
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "python" / "coopsim"
+
+
+# ---- the package's import graph and the engine behind its facade ----
+
+def package_modules() -> dict:
+    """{dotted name: (path, is a package)} of every module of coopsim: the .py files, and the compiled
+    module by its stub (_core.pyi)."""
+    mods = {}
+    for p in sorted(PACKAGE.rglob("*.py")) + sorted(PACKAGE.rglob("*.pyi")):
+        parts = list(p.relative_to(PACKAGE.parent).with_suffix("").parts)
+        is_package = parts[-1] == "__init__"
+        name = ".".join(parts[:-1] if is_package else parts)
+        mods.setdefault(name, (p, is_package))
+    return mods
+
+
+def _target(mods: dict, name: str) -> str:
+    """The module of mods that importing `name` runs last: the name itself, or its nearest package."""
+    while name not in mods:
+        name = name.rpartition(".")[0]
+    return name
+
+
+def imports_of(name: str, path: Path, is_package: bool, mods: dict):
+    """[(module imported, line, at module level)] for every import in a module's source, at any depth
+    (module level, functions, methods), of coopsim's own modules."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    top = {id(n) for n in tree.body}
+    here = name if is_package else name.rpartition(".")[0]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names if a.name.split(".")[0] == "coopsim"]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                parts = here.split(".")
+                base = ".".join(parts[:len(parts) - node.level + 1] + [node.module or ""]).strip(".")
+            elif (node.module or "").split(".")[0] == "coopsim":
+                base = node.module
+            else:
+                continue
+            # `from pkg import sub` imports the module pkg.sub; `from mod import name` the module mod
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base for a in node.names]
+        else:
+            continue
+        for t in targets:
+            out.append((_target(mods, t), node.lineno, id(node) in top))
+    return out
+
+
+def import_graph() -> dict:
+    mods = package_modules()
+    graph = {}
+    for name, (path, is_package) in mods.items():
+        if path.suffix == ".pyi":
+            graph[name] = set()        # the compiled engine imports nothing of the package
+            continue
+        graph[name] = {t for t, _, _ in imports_of(name, path, is_package, mods) if t != name}
+    return graph
+
+
+def find_cycle(graph: dict):
+    """One cycle of the graph as a list of modules [a, b, ..., a], or None."""
+    state, stack = {}, []
+
+    def visit(v):
+        state[v] = "open"
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if state.get(w) == "open":
+                return stack[stack.index(w):] + [w]
+            if w not in state:
+                found = visit(w)
+                if found:
+                    return found
+        state[v] = "done"
+        stack.pop()
+        return None
+
+    for v in sorted(graph):
+        if v not in state:
+            found = visit(v)
+            if found:
+                return found
+    return None
+
+
+def test_the_cycle_finder_finds_cycles_and_only_cycles():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None          # a diamond is no cycle
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": {"b2"}, "b2": {"b"}}) == ["b", "b2", "b"]
+
+
+def test_the_graph_sees_module_and_function_level_imports(tmp_path):
+    # a package as the graph reads it: a module-level import, a function-level one, a package's submodule
+    mods = {"coopsim": (None, True), "coopsim.a": (None, False), "coopsim.b": (None, False),
+            "coopsim.view": (None, True), "coopsim.view.scene": (None, False), "coopsim._core": (None, False)}
+    src = tmp_path / "a.py"
+    src.write_text("from ._core import World\nfrom .view import scene\n\ndef f():\n    from . import b\n")
+    got = imports_of("coopsim.a", src, False, mods)
+    assert got == [("coopsim._core", 1, True), ("coopsim.view.scene", 2, True), ("coopsim.b", 5, False)]
+
+
+def test_the_package_imports_without_cycles():
+    graph = import_graph()
+    assert {"coopsim", "coopsim._core", "coopsim.simulation", "coopsim.view.scene",
+            "coopsim.tasks.handover.sequence"} <= set(graph)
+    assert "coopsim.view.world" in graph["coopsim.view.scene"] and "coopsim._core" in graph["coopsim.simulation"]
+    cycle = find_cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+#: modules a function may import where it needs them: their import is heavy (matplotlib, pandas, the
+#: standard library's importlib.metadata, ...) or optional (dask's distributed), and ``import coopsim``
+#: loads none of them
+LOCAL_IMPORTS = {"matplotlib", "mpl_toolkits", "pandas", "PIL", "imageio_ffmpeg", "tqdm", "xlsxwriter", "distributed",
+                 "importlib.metadata"}
+
+
+def _heavy(name: str) -> bool:
+    return any(name == m or name.startswith(m + ".") for m in LOCAL_IMPORTS)
+
+
+def test_function_level_imports_are_only_of_heavy_or_optional_dependencies():
+    mods = package_modules()
+    bad = []
+    for name, (path, is_package) in mods.items():
+        if path.suffix == ".pyi":
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        top = {id(n) for n in tree.body}
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    ["." if node.level else node.module or ""]
+                if not all(_heavy(n) for n in names):
+                    bad.append(f"{path.relative_to(ROOT)}:{node.lineno}: {ast.unparse(node)}")
+    assert not bad, "imports inside functions (move them to the top of the module):\n" + "\n".join(bad)
+    # and the reason they may wait: importing coopsim loads none of them
+    code = ("import sys, coopsim, coopsim.tasks.handover, coopsim.view; "
+            f"print(sorted(m for m in {sorted(LOCAL_IMPORTS)!r} if m in sys.modules))")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(PACKAGE.parent)] + sys.path))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]", out.stdout
+
+
+# ---- the engine (coopsim._core) behind the package's facade ----
+
+#: where the compiled module may be named outside the package: its stubs and their test (and this file,
+#: which names it to look for it)
+ENGINE_NAMED = {"python/coopsim/_core.pyi", "tests/test_stubs.py", "tests/test_house.py"}
+#: the package's modules that hold the engine's module object: the package (re-exports) and the simulation
+#: (its engine object, ``sim._core``, a SimulationCore, is nobody else's business)
+ENGINE_HOLDERS = {"python/coopsim/__init__.py", "python/coopsim/simulation.py"}
+
+
+def _sources():
+    """The package, its tests, benchmarks, examples and notebooks (the build scripts name the build target)."""
+    for folder in ("python", "tests", "benchmarks", "examples", "notebooks"):
+        for p in sorted((ROOT / folder).rglob("*")):
+            if p.suffix in (".py", ".pyi", ".ipynb") and "_core" in p.name + p.read_text(encoding="utf-8"):
+                yield p.relative_to(ROOT).as_posix(), p
+
+
+def test_nothing_outside_the_facade_touches_the_engine_module():
+    """Outside the package, only the stubs' own files name ``_core``; inside it, the package's __init__ and
+    simulation.py hold the module, and other modules import from it only named engine classes and functions,
+    at their top (``from .._core import World``): the bottom of the import graph, never ``sim._core``."""
+    bad = []
+    for rel, p in _sources():
+        if rel in ENGINE_NAMED or rel in ENGINE_HOLDERS:
+            continue
+        if not rel.startswith("python/coopsim/") or p.suffix != ".py":
+            bad.append(f"{rel}: names _core")
+            continue
+        tree = ast.parse(p.read_text(encoding="utf-8"))
+        allowed = set()
+        for node in tree.body:   # module level only
+            if isinstance(node, ast.ImportFrom) and node.level and (node.module or "").split(".")[-1] == "_core":
+                allowed.update(range(node.lineno, node.end_lineno + 1))
+        for k, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1):
+            if "_core" in line and k not in allowed:
+                bad.append(f"{rel}:{k}: {line.strip()}")
+    assert not bad, "the engine module used outside the facade:\n" + "\n".join(bad)
+
+
+def test_only_the_simulation_reaches_into_a_simulations_engine():
+    bad = []
+    for rel, p in _sources():
+        if p.suffix != ".py" or rel == "python/coopsim/simulation.py" or rel in ENGINE_NAMED:
+            continue
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr == "_core":
+                bad.append(f"{rel}:{node.lineno}")
+            if isinstance(node, ast.ImportFrom) and any(a.name == "_core" for a in node.names) \
+                    and rel not in ENGINE_HOLDERS:
+                bad.append(f"{rel}:{node.lineno}: imports the module")
+    assert not bad, "._core outside simulation.py:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("text, ok", [("from .._core import World\n", True),
+                                      ("from . import _core\n", False),
+                                      ("def f(sim):\n    return sim._core.run(1.0, None)\n", False),
+                                      ("def f():\n    from .._core import World\n", False)])
+def test_the_facade_check_tells_allowed_from_forbidden(tmp_path, monkeypatch, text, ok):
+    pkg = tmp_path / "python" / "coopsim"
+    pkg.mkdir(parents=True)
+    (pkg / "m.py").write_text(text)
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    checks = (test_nothing_outside_the_facade_touches_the_engine_module,
+              test_only_the_simulation_reaches_into_a_simulations_engine)
+    failed = 0
+    for check in checks:
+        try:
+            check()
+        except AssertionError:
+            failed += 1
+    assert (failed == 0) == ok
+
+
+def test_the_files_the_package_reads_ship_in_its_wheel():
+    """The files beside the modules that the package reads (the replay's page, the stubs, py.typed) lie in
+    the folder the wheel takes whole: scikit-build-core's wheel.packages copies every file under it that
+    no exclusion (wheel.exclude, .gitignore) drops."""
+    import fnmatch
+    import tomllib
+
+    conf = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["scikit-build"]["wheel"]
+    assert conf["packages"] == ["python/coopsim"] and not conf.get("exclude")
+    ignored = [p.strip() for p in (ROOT / ".gitignore").read_text(encoding="utf-8").splitlines()
+               if p.strip() and not p.startswith("#")]
+    for data in ("view/replay_template.html", "py.typed", "_core.pyi"):
+        assert (PACKAGE / data).is_file(), data
+        assert not any(fnmatch.fnmatch(Path(data).name, p) for p in ignored), data
+    from coopsim.view import replay
+
+    assert replay._template().startswith("<!DOCTYPE html>") and "@COMMANDS@" in replay._template()
+
+
+# ---- the bindings declare, the engine decides ----
+
+def _binding_ratio():
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import binding_ratio
+    finally:
+        sys.path.pop(0)
+    return binding_ratio
 
 
 def test_code_lines_count_code_not_comments():
@@ -24,12 +277,12 @@ def test_code_lines_count_code_not_comments():
             'two // not a comment)doc";\n'
             'int b; /* c */ int c;\n'
             '   /* only a comment */   \n')
-    assert code_lines(text) == 5
+    assert _binding_ratio().code_lines(text) == 5
 
 
 def test_the_bindings_are_at_most_a_third_of_the_engine():
     # the bindings declare (types, argument names, docstrings, GIL release) and convert Python objects;
     # every check and default lives in the engine, which the bindings call
-    binding, engine = measure()
+    binding, engine = _binding_ratio().measure(ROOT)
     b, e = sum(binding.values()), sum(engine.values())
     assert b / e <= 0.33, f"bindings {b} code lines / engine {e} = {b / e:.3f} > 0.33: {binding}"

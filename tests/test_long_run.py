@@ -7,12 +7,12 @@ import os
 import numpy as np
 import pytest
 
-from coopsim import _core
+import coopsim as cs
 from coopsim.tasks import handover as H
 
 #: 10^7 steps; against the engine built with sanitizers (scripts/test_sanitized.sh), where a step
 #: costs several times as much, 2 10^5: the same code instrumented (the length is the plain build's test)
-STEPS = 200_000 if _core.build_sanitizers else 10_000_000
+STEPS = 200_000 if cs.build_info()["sanitizers"] else 10_000_000
 
 
 def rss_bytes() -> int:

@@ -1,4 +1,4 @@
-"""Notebooks and example scripts run top to bottom without error."""
+"""Notebooks and example scripts run top to bottom without error (the documentation's code: test_docs.py)."""
 from __future__ import annotations
 
 import glob
@@ -40,25 +40,3 @@ def test_example_runs(path, tmp_path):
                          text=True, timeout=600)
     assert res.returncode == 0, res.stdout + res.stderr
     assert any(p.suffix == ".png" for p in tmp_path.iterdir()), "an example writes at least one figure"
-
-
-def readme_blocks():
-    import re
-
-    with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:
-        text = f.read()
-    # python blocks with no elided arguments ("...") are complete programs
-    return [b for b in re.findall(r"```python\n(.*?)```", text, flags=re.S) if "..." not in b]
-
-
-@pytest.mark.parametrize("index", range(len(readme_blocks())))
-def test_readme_code_runs(index, tmp_path):
-    (tmp_path / "out").mkdir()
-    code = "import numpy as np\nimport coopsim as cs\n" + readme_blocks()[index]
-    res = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=dict(os.environ, MPLBACKEND="Agg"),
-                         capture_output=True, text=True, timeout=300)
-    assert res.returncode == 0, res.stdout + res.stderr
-
-
-def test_readme_has_code_to_run():
-    assert len(readme_blocks()) >= 2

@@ -62,8 +62,8 @@ def test_what_the_package_says_of_the_task_is_there():
     # no file of the project points to design notes that are not part of it
     repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     notes = ("shared/design", "task.md", "world.md", "robots.md", "performance.md", "architecture.md")
-    for top in ("python", "notebooks", "benchmarks", "examples", "scripts", "README.md"):
-        for folder, _, files in os.walk(os.path.join(repo, top)) if top != "README.md" else [(repo, [], [top])]:
+    for top in ("python", "notebooks", "benchmarks", "examples", "scripts", "docs", "README.md", "CHANGELOG.md"):
+        for folder, _, files in os.walk(os.path.join(repo, top)) if not top.endswith(".md") else [(repo, [], [top])]:
             for name in files:
                 if name.endswith((".py", ".pyi", ".ipynb", ".md", ".sh")):
                     with open(os.path.join(folder, name), encoding="utf-8") as f:

@@ -1,5 +1,6 @@
 """coopsim.sweep: one table of per-run metrics in grid order on threads, a process pool and a Dask cluster;
-errors as rows; a worker killed mid-sweep loses no row; a sweep cut short returns what finished."""
+errors as rows; a worker killed mid-sweep loses no row; a sweep cut short returns what finished. The process pools
+and the Dask cluster take seconds to start: their tests are slow; the threads' tests are the fast loop's."""
 from __future__ import annotations
 
 import concurrent.futures
@@ -79,21 +80,21 @@ def test_grid_order_columns_and_metrics_equal_one_by_one():
                                   df.loc[1, metric_columns(df)].to_numpy(float))
 
 
-def test_a_diverging_run_is_a_row_with_its_error_and_the_others_are_unaffected():
+@pytest.mark.parametrize("executor", [None, pytest.param("pool", marks=pytest.mark.slow)])
+def test_a_diverging_run_is_a_row_with_its_error_and_the_others_are_unaffected(executor):
     sims = [make(100.0, 5.0), diverging(), make(400.0, 20.0)]
     clean = cs.sweep([make(100.0, 5.0), make(400.0, 20.0)], T_END)
-    for executor in (None, "pool"):
-        if executor == "pool":
-            with process_pool() as pool:
-                df = cs.sweep([make(100.0, 5.0), diverging(), make(400.0, 20.0)], T_END, executor=pool)
-        else:
-            df = cs.sweep(sims, T_END)
-        assert len(df) == 3
-        assert df.error[1].startswith("DivergenceError: ") and "step" in df.error[1], df.error[1]
-        assert 0 < df.simulated_time[1] < T_END  # metrics up to the failure
-        assert df.error[[0, 2]].isna().all()
-        pd.testing.assert_frame_equal(df.loc[[0, 2], metric_columns(df)].reset_index(drop=True),
-                                      clean[metric_columns(clean)].reset_index(drop=True))
+    if executor == "pool":
+        with process_pool() as pool:
+            df = cs.sweep(sims, T_END, executor=pool)
+    else:
+        df = cs.sweep(sims, T_END)
+    assert len(df) == 3
+    assert df.error[1].startswith("DivergenceError: ") and "step" in df.error[1], df.error[1]
+    assert 0 < df.simulated_time[1] < T_END  # metrics up to the failure
+    assert df.error[[0, 2]].isna().all()
+    pd.testing.assert_frame_equal(df.loc[[0, 2], metric_columns(df)].reset_index(drop=True),
+                                  clean[metric_columns(clean)].reset_index(drop=True))
 
 
 def test_task_runs_report_success_step_and_reason_and_an_unreachable_bar_is_a_row():
@@ -109,24 +110,61 @@ def test_task_runs_report_success_step_and_reason_and_an_unreachable_bar_is_a_ro
     assert np.isfinite(df.loc[0, metric_columns(df)].to_numpy(float)).all() and len(metric_columns(df)) == 36
 
 
+class Gate(cs.Controller):
+    """Holds its run at the first control step until `event` is set: an Event the test controls (a
+    multiprocessing manager's on a process pool; on Dask, the name of a distributed.Event). A run
+    behind a closed gate cannot finish, however fast or loaded the machine is."""
+
+    def __init__(self, event):
+        super().__init__()
+        self.event = event
+
+    def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+        event = self.event
+        if isinstance(event, str):
+            import distributed
+
+            event = distributed.Event(event)
+        event.wait()
+        return np.zeros(len(q))
+
+
+def gated(event):
+    sim = cs.Simulation(log_every=10)
+    sim.add_robot(ROBOT, Gate(event), TRAJ)
+    return sim
+
+
+# the runs that finish take a few ms each; the timeout gives them this long (s), far beyond what load
+# stretches them to, while the gated runs cannot finish before the test opens the gate, after the sweep
+# has returned: the timeout must fire, whatever the machine's speed
+TIMEOUT = 10.0
+
+
+@pytest.mark.slow
 def test_a_sweep_cut_short_returns_what_finished():
     seen = []
-    # two runs of a few ms and two of about 2 s (dt = 0.5 us: 800 000 steps) with 0.5 s to go
-    sims = [make(100.0, 5.0), make(100.0, 5.0, dt=5e-7), make(400.0, 20.0), make(400.0, 20.0, dt=5e-7)]
-    with process_pool() as pool:
+    with multiprocessing.get_context("spawn").Manager() as manager, process_pool() as pool:
+        gate = manager.Event()
         cs.sweep([make(100.0, 5.0), make(100.0, 5.0)], 0.01, executor=pool)  # the workers are up
-        df = cs.sweep(sims, T_END, executor=pool, timeout=0.5, on_result=lambda i, row: seen.append(i))
+        try:
+            sims = [make(100.0, 5.0), gated(gate), make(400.0, 20.0), gated(gate)]
+            df = cs.sweep(sims, T_END, executor=pool, timeout=TIMEOUT, on_result=lambda i, row: seen.append(i))
+        finally:
+            gate.set()  # the gated runs finish, and the pool can shut down
     assert len(df) == 4 and sorted(seen) == [0, 2]
     assert df.error[[0, 2]].isna().all() and (df.steps[[0, 2]] == 2000).all()
     assert (df.error[[1, 3]] == cs.sweeps.NOT_FINISHED).all() and df.steps[[1, 3]].isna().all()
 
 
+@pytest.mark.slow
 def test_a_dask_sweep_that_times_out_returns_what_finished(dask_client):
-    # one run of a few ms and one of about 1 s (400 000 steps) with 0.3 s to go, one on each worker;
-    # against the engine built with sanitizers (slower, and its workers slower to start) 1.5 s to go
-    # and a run of about 5 s (10^6 steps)
-    timeout, slow_dt = (1.5, 4e-7) if cs._core.build_sanitizers else (0.3, 1e-6)
-    df = cs.sweep([make(100.0, 5.0), make(100.0, 5.0, dt=slow_dt)], T_END, executor=dask_client, timeout=timeout)
+    distributed = pytest.importorskip("distributed")
+    gate = distributed.Event("gate-of-the-timeout-test", client=dask_client)
+    try:
+        df = cs.sweep([make(100.0, 5.0), gated(gate.name)], T_END, executor=dask_client, timeout=TIMEOUT)
+    finally:
+        gate.set()
     assert pd.isna(df.error[0]) and df.steps[0] == 2000 and df.error[1] == cs.sweeps.NOT_FINISHED
 
 
@@ -141,6 +179,7 @@ def interrupt_after(n):
     return on_result, seen
 
 
+@pytest.mark.slow
 def test_a_sweep_interrupted_from_the_client_returns_what_finished(dask_client):
     for executor in ("pool", dask_client):
         on_result, seen = interrupt_after(2)
@@ -186,6 +225,7 @@ def dask_client(tmp_path_factory):
         yield client
 
 
+@pytest.mark.slow
 def test_the_same_grid_gives_identical_metrics_on_threads_a_process_pool_and_dask(dask_client):
     threads = cs.sweep(make, T_END, grid=GRID, threads=2)
     with process_pool() as pool:
@@ -211,6 +251,7 @@ def test_the_same_grid_gives_identical_metrics_on_threads_a_process_pool_and_das
     assert H.sweep([1, 2], executor=dask_client) == H.sweep([1, 2], threads=2)  # its dict, the same either way
 
 
+@pytest.mark.slow
 def test_generated_dynamics_compiled_here_reach_the_workers(dask_client, tmp_path, monkeypatch):
     pytest.importorskip("sympy")
     from coopsim import codegen
@@ -241,12 +282,13 @@ def test_generated_dynamics_compiled_here_reach_the_workers(dask_client, tmp_pat
     # the same metrics as the engine's own generated dynamics of scara1 (make): equal, since both are
     # built by the same compiler with the same flags; against the engine built with sanitizers, whose
     # copy is compiled with theirs, they differ in rounding, which this closed loop amplifies
-    if not cs._core.build_sanitizers:
+    if not cs.build_info()["sanitizers"]:
         compiled_in = cs.sweep(make, T_END, grid=small)
         np.testing.assert_allclose(here[cols].to_numpy(float), compiled_in[cols].to_numpy(float), rtol=1e-6,
                                    atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_sweep_loses_no_row(dask_client):
     # 12 runs of 20 simulated s (about 0.25 s of wall time each) on the 2 workers
     kill_grid = dict(kp=[100.0, 200.0, 400.0, 800.0], kd=[5.0, 10.0, 20.0])

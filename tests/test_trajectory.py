@@ -273,9 +273,10 @@ def test_plot_trajectory(tmp_path):
     tr = cs.CubicTrajectory([0.0, 1.0, 2.0], [[0.0, 0.1], [1.0, 0.2], [0.5, 0.0]])
     fig = plot_trajectory(tr, "RP", samples=50, margin=0.2)
     axes = fig.axes
-    assert len(axes) == 3
+    assert len(axes) == 6  # q, qd, qdd for the revolute joint, then their twins (right) for the prismatic one
     # one curve per joint and panel, plus knot markers on q and qd
-    assert len(axes[0].lines) >= 4 and len(axes[2].lines) >= 2
+    # (and the knots' vertical lines on the left axes)
+    assert len(axes[0].lines) == 2 + 3 and len(axes[3].lines) == 2 and len(axes[2].lines) == 1 + 3
     np.testing.assert_allclose(axes[0].lines[0].get_xdata()[[0, -1]], [-0.2, 2.2])
     assert axes[0].get_legend().get_texts()[1].get_text() == "d2 (m)"
     fig.savefig(tmp_path / "t.png")

@@ -220,6 +220,7 @@ def test_general_origins_axes_and_tilted_first_axis_against_pinocchio():
         assert _rel(r.fk(q), d.oMf[m.getFrameId("tip")].homogeneous) <= 1e-12
 
 
+@pytest.mark.slow  # sympy and g++: about 15 s
 def test_generated_dynamics_for_an_imported_robot(tmp_path):
     """codegen.compile builds closed-form dynamics for an imported robot; they equal the numeric
     backend's (which equals Pinocchio's above)."""
@@ -380,3 +381,102 @@ def test_com_on_the_axis_to_rounding_has_no_angle():
     r = cs.Robot.from_dh(dh, com, [1.0, 2.0], np.array([np.eye(3) * 0.01] * 2), "RR")
     np.testing.assert_array_equal(r.com[:, 2], [0.0, 0.2])
     np.testing.assert_array_equal(r.com[:, 0], [0.3, 0.0])
+
+
+# ------------------------------------------------------------ names and placeholder limits
+
+def test_urdf_robots_keep_their_joint_and_link_names_in_the_order_of_q():
+    """q[i] is the joint named joint_names[i]: Pinocchio's order of the same file (its q), and the
+    link each joint moves is the body Pinocchio hangs on that joint."""
+    for path, locked in ((UR5, ()), (PANDA, ("panda_finger_joint1", "panda_finger_joint2"))):
+        r = cs.Robot.from_urdf(path, locked={j: 0.0 for j in locked})
+        m = _pin_model(path, locked)
+        assert r.joint_names == list(m.names)[1:]
+        for i, link in enumerate(r.link_names):
+            f = m.frames[m.getFrameId(link)]
+            assert f.type == pin.FrameType.BODY and f.parentJoint == i + 1, (link, i)
+    ur5 = cs.Robot.from_urdf(UR5)
+    assert ur5.joint_names[:3] == ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"]
+    assert ur5.link_names[0] == "shoulder_link" and ur5.link_names[-1] == "wrist_3_link"
+    # moving joint i alone moves link i and what follows, never the links before it
+    q = np.zeros(6)
+    q[2] = 0.7
+    moved = [not np.allclose(a, b) for a, b in zip(ur5.frames(np.zeros(6)), ur5.frames(q))]
+    assert moved[ur5.link_names.index("forearm_link") + 1] and not moved[ur5.link_names.index("upper_arm_link") + 1]
+
+
+def test_robots_from_tables_have_default_names_and_copies_keep_names():
+    import pickle
+
+    r = cs.robots.scara1()
+    assert r.joint_names == [f"joint{i}" for i in range(1, 7)] and r.link_names == [f"link{i}" for i in range(1, 7)]
+    ur5 = cs.Robot.from_urdf(UR5)
+    for copy in (ur5.with_base((0.1, 0.2, 0.0), 0.3), ur5.with_gravity((0, 0, -1.0)), ur5.with_backend("numeric"),
+                 ur5.with_base_orientation(np.eye(3)), ur5.with_geometry(ur5.boxes, None),
+                 pickle.loads(pickle.dumps(ur5))):
+        assert copy.joint_names == ur5.joint_names and copy.link_names == ur5.link_names
+    sim = cs.Simulation()
+    sim.add_robot(ur5, cs.PID(1.0, 0.0, 0.1), np.zeros(6))
+    assert sim.robots[0].joint_names == ur5.joint_names
+    # the export writes the names, so a round trip keeps them
+    back = cs.Robot.from_urdf(ur5.to_urdf())
+    assert back.joint_names == ur5.joint_names and back.link_names == ur5.link_names
+    named = r.with_names([f"j{i}" for i in range(6)], [f"l{i}" for i in range(6)])
+    assert named.joint_names[0] == "j0" and named.link_names[5] == "l5" and r.joint_names[0] == "joint1"
+    with pytest.raises(ValueError, match="joint_names must hold 6 names, got 2"):
+        r.with_names(["a", "b"], r.link_names)
+    with pytest.raises(ValueError, match="link_names must be unique: 'x' appears twice"):
+        r.with_names(r.joint_names, ["x"] * 6)
+    with pytest.raises(ValueError, match=r"joint_names\[0\] must not be empty"):
+        r.with_names([""] + r.joint_names[1:], r.link_names)
+
+
+def test_names_the_export_needs_for_its_own_frames_fall_back_to_the_defaults():
+    r = cs.robots.scara1().with_names([f"j{i}" for i in range(6)], ["world"] + [f"l{i}" for i in range(5)])
+    back = cs.Robot.from_urdf(r.to_urdf())
+    assert back.joint_names == [f"j{i}" for i in range(6)] and back.link_names == [f"link{i}" for i in range(1, 7)]
+
+
+# what CAD exporters write for a joint they know no limits of
+PLACEHOLDER = '<limit lower="0" upper="0" effort="0" velocity="0"/>'
+
+
+def test_placeholder_limits_are_refused_naming_the_joint_the_values_and_the_option():
+    old = 'lower="-2.530727415391778" upper="2.530727415391778" effort="20.0" velocity="1000.0"/>'
+    assert SCARA1.count(old) == 1
+    text = SCARA1.replace("<limit " + old, PLACEHOLDER)
+    with pytest.raises(ValueError, match=r"joint 'joint2': its <limit> has lower = upper = 0 \(effort 0\).*"
+                                         r"placeholder.*limits='ignore'"):
+        cs.Robot.from_urdf(text)
+    # lower above upper is refused too, pointing at the option
+    with pytest.raises(ValueError, match="lower must be below upper.*limits='ignore'"):
+        cs.Robot.from_urdf(SCARA1.replace("<limit " + old, '<limit lower="1" upper="-1" effort="1" velocity="1"/>'))
+    with pytest.raises(ValueError, match="limits must be 'file' or 'ignore', got 'none'"):
+        cs.Robot.from_urdf(text, limits="none")
+
+
+def test_limits_ignore_loads_a_cad_export_without_limits_and_with_the_same_dynamics():
+    # a hand-written chain as a CAD exporter writes it: every joint with placeholder limits
+    links = "".join(f'<link name="{ln}"><inertial><origin xyz="0.1 0 0"/><mass value="{m}"/>'
+                    f'<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.02"/></inertial></link>'
+                    for ln, m in (("base", 1.0), ("upper", 2.0), ("lower", 1.5), ("slider", 0.5)))
+    joints = "".join(f'<joint name="{jn}" type="{kind}"><parent link="{p}"/><child link="{c}"/>'
+                     f'<origin xyz="{x} 0 0.1"/><axis xyz="{ax}"/>{PLACEHOLDER}</joint>'
+                     for jn, kind, p, c, x, ax in (("shoulder", "revolute", "base", "upper", 0.0, "0 0 1"),
+                                                   ("elbow", "revolute", "upper", "lower", 0.3, "0 1 0"),
+                                                   ("slide", "prismatic", "lower", "slider", 0.25, "1 0 0")))
+    text = f'<robot name="cad">{links}{joints}</robot>'
+    with pytest.raises(ValueError, match="joint 'shoulder'.*limits='ignore'"):
+        cs.Robot.from_urdf(text)
+    r = cs.Robot.from_urdf(text, limits="ignore")
+    assert r.joint_types == "RRP" and r.joint_names == ["shoulder", "elbow", "slide"]
+    assert r.link_names == ["upper", "lower", "slider"]
+    assert np.all(np.isinf(r.q_limits)) and np.all(np.isinf(r.tau_limits))
+    # the same file with real limits: the same dynamics, only the limits differ
+    real = cs.Robot.from_urdf(text.replace(PLACEHOLDER, '<limit lower="-1" upper="1" effort="5" velocity="1"/>'))
+    np.testing.assert_array_equal(real.q_limits, np.tile([-1.0, 1.0], (3, 1)))
+    q, qd = np.array([0.3, -0.4, 0.05]), np.array([0.2, 0.1, -0.3])
+    np.testing.assert_array_equal(r.mass_matrix(q), real.mass_matrix(q))
+    np.testing.assert_array_equal(r.inverse_dynamics(q, qd, qd), real.inverse_dynamics(q, qd, qd))
+    # limits='ignore' on a file with real limits drops them too
+    assert np.all(np.isinf(cs.Robot.from_urdf(UR5, limits="ignore").q_limits))

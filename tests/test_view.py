@@ -421,7 +421,7 @@ def test_a_wall_contact_draws_the_touching_box_red_a_free_one_green_and_the_cont
 
 def rows_expected(log, robot, label="scara1"):
     """Colliding masks from the contact points (an independent count): row r is True when a point of the box
-    (depth >= 0, as the events count them) falls in (t[r-1], t[r]]."""
+    (depth >= 0, as the events count them) falls in [t[r], t[r+1]): the row that held at its time."""
     cp = log.contact_points
     cp = cp[cp["depth"] >= 0]
     t = log.t
@@ -429,9 +429,7 @@ def rows_expected(log, robot, label="scara1"):
     for k, name in enumerate(box_names(robot)):
         mine = cp[(cp["a"] == f"{label}/{name}") | (cp["b"] == f"{label}/{name}")]
         for tp in mine["t"].to_numpy():
-            r = int(np.searchsorted(t, tp - 1e-12, side="left"))
-            if r < len(t):
-                out[r, k] = True
+            out[max(0, int(np.searchsorted(t, tp + 1e-12, side="right")) - 1), k] = True
     return out
 
 
@@ -455,13 +453,14 @@ def test_colliding_masks_from_the_log_of_a_wall_contact(wall_sim):
         if mine.empty:
             assert not m[:, k].any(), name
             continue
+        following = np.concatenate([t[1:], [np.inf]])      # row r stands for [t[r], t[r+1])
         for _, e in mine.iterrows():
             end = np.inf if np.isnan(e["end"]) else e["end"]
-            inside = (t >= e["begin"] - 1e-12) & (np.concatenate([[-np.inf], t[:-1]]) < end - 1e-12)
+            inside = (following > e["begin"] + 1e-12) & (t < end - 1e-12)
             assert m[inside, k].all(), name
-        # outside every event of the box: False (the row after an event's end and before its beginning)
+        # outside every event of the box: False (the rows before its first beginning)
         first = mine["begin"].min()
-        assert not m[t < first - 1e-12, k].any(), name
+        assert not m[following <= first + 1e-12, k].any(), name
     assert not m[:, [names.index(n) for n in ("base", "link1", "link2")]].any()
     quill = names.index("link3")
     assert m[-1, quill] and not m[0, quill]
@@ -470,7 +469,8 @@ def test_colliding_masks_from_the_log_of_a_wall_contact(wall_sim):
     assert len(short)
     for _, e in short.iterrows():
         assert m[:, names.index(e["b"].split("/")[1])].sum() == 1
-    # contact points per row: the latest world step's points of each pair in the row's interval
+    # contact points per row: the first world step's points of each pair in the row's interval (the last
+    # row: the contacts of the final state)
     pts = view.contacts_from_log(log)
     assert len(pts) == len(t) and pts[0] is not None                 # the bar and the cube on the floor
     last = log.contact_points[log.contact_points["t"] == log.contact_points["t"].max()]
@@ -869,8 +869,10 @@ def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_lo
     tr = cs.CubicTrajectory([0.0, 1.0], [[0.0, 0.1], [1.0, 0.2]])
     fig = plot_trajectory(tr, "RP", samples=20)
     try:
-        assert [ax.get_ylabel() for ax in fig.axes] == ["position (rad | m)", "velocity (rad/s | m/s)",
-                                                       "acceleration (rad/s² | m/s²)"]
+        # no axis mixes rad and m: the prismatic joint on a twin axis at the right
+        assert [ax.get_ylabel() for ax in fig.axes] == [
+            "position (rad, solid)", "velocity (rad/s, solid)", "acceleration (rad/s², solid)",
+            "position (m, dashed)", "velocity (m/s, dashed)", "acceleration (m/s², dashed)"]
     finally:
         plt.close(fig)
     fig = plot_trajectory(tr, samples=20)
@@ -882,6 +884,7 @@ def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_lo
 
 # ---- the live view example ----
 
+@pytest.mark.slow  # a subprocess importing matplotlib and coopsim, drawing frames: seconds
 def test_live_view_example_writes_its_frames(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
     res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--frames", "3",
@@ -905,3 +908,70 @@ if __name__ == "__main__":
         print("wrote", REFERENCE)
     else:
         sys.exit(f"usage: python3 {sys.argv[0]} --write-reference")
+
+
+# ---- one row for one time: the video, the replay and the contact masks ----
+
+def test_rows_at_is_the_row_that_held_at_each_time():
+    t = np.array([0.0, 0.1, 0.2, 0.2, 0.3])     # two rows at 0.2: the applied inputs changed there
+    rows_at = cs.log.rows_at
+    assert rows_at(t, [0.0, 0.1, 0.2, 0.3]).tolist() == [0, 1, 3, 4]        # at a row's time: that row, the last
+    assert rows_at(t, [0.05, 0.15, 0.25, 0.2999]).tolist() == [0, 1, 3, 3]  # of two; between rows: the one before
+    assert rows_at(t, [-1.0, -1e-3]).tolist() == [0, 0]                      # before the first row: the first
+    assert rows_at(t, [0.3001, 7.0]).tolist() == [4, 4]                      # after the last row: the last
+    assert 3 * 0.1 > 0.3 and rows_at(t, 3 * 0.1) == 4 and rows_at(t, 0.3 - 1e-12) == 4   # computed times meet
+    assert rows_at(t, 0.3 - 1e-6) == 3                                       # their row; a microsecond is not it
+    assert rows_at(t, np.full((2, 3), 0.1)).shape == (2, 3) and rows_at(t, 0.1).shape == ()
+    assert rows_at([5.0], [0.0, 5.0, 9.0]).tolist() == [0, 0, 0]
+    with pytest.raises(ValueError, match="at least one row"):
+        rows_at([], 0.0)
+
+
+def test_the_video_and_the_replay_show_the_row_that_held_at_each_time(tmp_path):
+    # a bar thrown across the floor, logged every 40 ms, seen at 30 frames per second: most frames fall
+    # between rows, and the nearest row would often be the next one
+    w = cs.World()
+    w.add_free_box("bar", [0.1, 0.03, 0.03], 0.15, position=[-0.3, 0.0, 0.35], velocity=[1.2, 0.0, 0.5], friction=0.5)
+    sim = cs.Simulation(dt=2e-4, world=w, log_every=200)
+    log = sim.run(0.4, progress=False)
+    t = np.asarray(log.t)
+    poses = log.bodies["bar"].poses()
+    anim = view.animate(sim, fps=30, figsize=(3.2, 2.4), dpi=50)
+    held = [int(np.flatnonzero(t <= tau + 1e-12)[-1]) for tau in anim.times]   # by hand: the last row at or before
+    nearest = [int(np.argmin(np.abs(t - tau))) for tau in anim.times]
+    assert sum(h != n for h, n in zip(held, nearest)) >= 3
+    for k in range(len(anim)):
+        anim.show_frame(k)
+        drawn = anim.scene.faces("body", anim.scene.body_index("bar")).reshape(-1, 3)
+        assert on_box(drawn, poses[held[k]], np.array([0.1, 0.03, 0.03]), tol=1e-9), k
+    # the replay at the same rate: its keyframes are the rows that held at the frames' times (and the last
+    # row), so at each of those times the replay holds the same row as the video
+    import json
+    import re
+
+    with open(view.replay_html(sim, tmp_path / "r.html", fps=30), encoding="utf-8") as f:
+        meta = json.loads(re.search(r'<script type="application/json" id="cs-meta">(.*?)</script>', f.read(),
+                                    re.S).group(1))
+    keys = np.array(meta["frames"])
+    assert keys.tolist() == t[sorted(set(held) | {len(t) - 1})].tolist()
+    for tau, h in zip(anim.times, held):
+        assert keys[np.flatnonzero(keys <= tau + 1e-12)[-1]] == t[h]
+
+
+def test_a_contact_shows_in_the_rows_that_held_while_it_lasted():
+    # a log with two rows at one time (an applied force set between runs), contact events of one box
+    # beginning and ending between rows, at a row's time and at the duplicate time: row r stands for
+    # [t[r], t[r+1]), so a contact shows from the row that held at its beginning to the last row before its end
+    t = np.array([0.0, 0.1, 0.2, 0.2, 0.3])
+    robot = cs.robots.scara1()
+    rl = cs.RobotLog("scara1", t, holding=np.full(len(t), ""), weld=np.zeros((len(t), 6)),
+                     **{k: np.zeros((len(t), 6)) for k in cs.log.STORED})
+    box = [b.name for b in robot.boxes].index("link3")
+    for begin, end, rows in ((0.05, 0.07, [0]), (0.05, 0.1, [0]), (0.05, 0.1001, [0, 1]), (0.1, 0.2, [1]),
+                             (0.2, 0.25, [3]), (0.15, np.nan, [1, 2, 3, 4]), (0.3, np.nan, [4])):
+        events = dict(a=["wall"], b=["scara1/link3"], kind=["robot-scenery"], begin=[begin], end=[end],
+                      peak_force=[1.0], max_depth=[0.0], steps=[1])
+        log = cs.SimulationLog(t, [rl], dt=0.01, control_every=1, log_every=10, contacts=events)
+        mask = view.colliding_from_log(log, [robot])[0]
+        assert np.flatnonzero(mask[:, box]).tolist() == rows, (begin, end)
+        assert not np.delete(mask, box, axis=1).any()

@@ -279,7 +279,7 @@ def test_a_robot_driven_into_a_wall_is_stopped_by_it_and_feels_its_force():
         assert c["a"] == "wall" and link is not None
         p = np.linalg.solve(frames[link], [*c["point_b"], 1.0])[:3]
         tau += robot.jacobian(q, link, p)[:3].T @ (-c["force"])
-    np.testing.assert_allclose(sim._core.tau_ext(0), tau, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(sim.tau_ext(0), tau, rtol=1e-9, atol=1e-9)
     assert np.abs(log.tau_ext[-1]).max() > 1.0
     # without contact forces the arm passes through
     sim2, log2 = wall_run(contact_forces=False)
@@ -351,7 +351,7 @@ def test_link_bodies_move_with_the_exact_twist():
     P0, _ = r.shapes(q - h * qd)
     P1, _ = r.shapes(q + h * qd)
     fd = (P1[:, :3, 3] - P0[:, :3, 3]) / (2 * h)
-    states = [sim._core.link_body_state(0, b) for b in range(len(r.boxes))]
+    states = [sim.link_state(0, b) for b in range(len(r.boxes))]
     np.testing.assert_allclose([s["velocity"] for s in states], fd, rtol=1e-7, atol=1e-9)
     np.testing.assert_allclose([s["pose"] for s in states], r.shapes(q)[0], rtol=0, atol=1e-12)
 

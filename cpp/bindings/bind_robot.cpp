@@ -255,6 +255,14 @@ void bind_robot(py::module_& m) {
   R.def_property_readonly("dof", &Robot::dof, "Number of joints n.")
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("joint_types", &Robot::joint_types, "e.g. 'RRPRRP'.")
+      .def_property_readonly("joint_names", &Robot::joint_names,
+                             "Names of the joints (n,), in the order of q: from a URDF its joints' names, else "
+                             "'joint1'..'jointn'.")
+      .def_property_readonly("link_names", &Robot::link_names,
+                             "Names of the moving links (n,), link i moved by joint i: from a URDF the child "
+                             "link of each chain joint, else 'link1'..'linkn'.")
+      .def("with_names", &Robot::with_names, py::arg("joint_names"), py::arg("link_names"),
+           "A copy with these joint and link names (n each, unique, not empty); all else equal.")
       .def_property_readonly("dh", [](const Robot& r) { return to_numpy(r.tables().dh); }, "(n, 4) [theta, d, a, alpha].")
       .def_property_readonly("com", [](const Robot& r) { return to_numpy(r.tables().com); }, "(n, 4) CoM rows.")
       .def_property_readonly("masses", [](const Robot& r) { return to_numpy(r.tables().masses); }, "(n,) kg.")
@@ -476,7 +484,7 @@ void bind_robot(py::module_& m) {
                 " dof, backend=" + r.backend() + ">";
        })
       .def(py::pickle(
-          [](const Robot& r) {  // from_dh's arguments, in its order, then the dynamics backend
+          [](const Robot& r) {  // from_dh's arguments, in its order, the dynamics backend, the names
             const RobotTables t = r.tables();
             return py::make_tuple(
                 py::make_tuple(to_numpy(t.dh), to_numpy(t.com), to_numpy(t.masses), to_numpy(t.inertias),
@@ -486,10 +494,12 @@ void bind_robot(py::module_& m) {
                                t.clamp.present() ? py::cast(t.clamp) : py::none(), t.dimensions,
                                to_numpy(t.armature), to_numpy(t.coulomb), to_numpy(t.coulomb_width),
                                to_numpy(t.base_orientation), t.inertia_check),
-                r.backend(), r.has_generated() ? r.generated()->name : std::string());
+                r.backend(), r.has_generated() ? r.generated()->name : std::string(), r.joint_names(),
+                r.link_names());
           },
           [](const py::tuple& t) {
-            Robot r = py::type::of<Robot>().attr("from_dh")(*t[0]).cast<Robot>();
+            Robot r = py::type::of<Robot>().attr("from_dh")(*t[0]).cast<Robot>().with_names(
+                t[3].cast<std::vector<std::string>>(), t[4].cast<std::vector<std::string>>());
             const std::string gen = t[2].cast<std::string>();
             if (gen.empty()) return r;
             if (!find_generated(gen))

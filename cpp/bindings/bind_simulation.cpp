@@ -6,6 +6,8 @@
 #include <memory>
 
 #include "convert.hpp"
+#include "coopsim/batch.hpp"
+#include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/simulation.hpp"
 #include "coopsim/world.hpp"
@@ -130,6 +132,22 @@ py::list names(const World& w, const std::vector<T>& rows, F field) {
   return out;
 }
 
+// The options a default-constructed SimulationOptions holds: the one source of the defaults.
+const SimulationOptions kDefaults{};
+
+// Sets grasp option `name` (engine's table; weld_moment a flag) from a Python value.
+void set_grasp_option(GraspOptions& g, const std::string& name, const py::handle& value) {
+  if (name == "weld_moment") g.weld_moment = value.cast<bool>();
+  else grasp_option(g, name) = scalar_arg(value, name.c_str());
+}
+
+py::dict grasp_options_dict(const GraspOptions& g) {
+  py::dict d;
+  for (const GraspOptionField& f : grasp_option_fields()) d[f.name] = g.*f.field;
+  d["weld_moment"] = g.weld_moment;
+  return d;
+}
+
 }  // namespace
 
 py::dict body_state_dict(const BodyState& s);  // bind_world.cpp
@@ -159,27 +177,6 @@ torques between controller updates, the log and tracking metrics.)doc")
                        double max_position, const std::string& integrator, std::shared_ptr<World> world,
                        int world_every, bool contact_forces, bool log_contacts, bool grasp, const py::dict& grasp_options) {
              SimulationOptions o;
-             o.grasp.enabled = grasp;
-             for (auto item : grasp_options) {
-               const std::string k = item.first.cast<std::string>();
-               GraspOptions& g = o.grasp;
-               if (k == "weld_moment") {
-                 g.weld_moment = item.second.cast<bool>();
-                 continue;
-               }
-               const double v = scalar_arg(item.second, k.c_str());
-               double* field = k == "hold_time" ? &g.hold_time : k == "gap" ? &g.gap : k == "penetration" ? &g.penetration
-                             : k == "angle" ? &g.angle : k == "speed" ? &g.speed : k == "angular_speed" ? &g.angular_speed
-                             : k == "open_margin" ? &g.open_margin : k == "slip" ? &g.slip
-                             : k == "weld_omega_dt" ? &g.weld_omega_dt
-                             : k == "release_time" ? &g.release_time : nullptr;
-               if (!field) throw py::value_error("grasp_options: unknown option '" + k + "'");
-               if (!(v >= 0)) throw py::value_error("grasp_options: " + k + " must be >= 0");
-               *field = v;
-             }
-             o.world_every = world_every;
-             o.contact_forces = contact_forces;
-             o.log_contacts = log_contacts;
              o.dt = dt;
              o.control_every = control_every;
              o.log_every = log_every;
@@ -187,12 +184,20 @@ torques between controller updates, the log and tracking metrics.)doc")
              o.max_speed = max_speed;
              o.max_position = max_position;
              o.integrator = method_from_name(integrator, "integrator");
-             return Simulation(o, std::move(world));
+             o.world_every = world_every;
+             o.contact_forces = contact_forces;
+             o.log_contacts = log_contacts;
+             o.grasp.enabled = grasp;
+             for (auto item : grasp_options) set_grasp_option(o.grasp, item.first.cast<std::string>(), item.second);
+             return Simulation(o, std::move(world));  // checks every option
            }),
-           py::arg("dt") = 2e-4, py::arg("control_every") = 1, py::arg("log_every") = 1, py::arg("end_stops") = true,
-           py::arg("max_speed") = 1e4, py::arg("max_position") = 1e6, py::arg("integrator") = "rk4",
-           py::arg("world") = py::none(), py::arg("world_every") = 1, py::arg("contact_forces") = true,
-           py::arg("log_contacts") = false, py::arg("grasp") = true, py::arg("grasp_options") = py::dict())
+           py::arg("dt") = kDefaults.dt, py::arg("control_every") = kDefaults.control_every,
+           py::arg("log_every") = kDefaults.log_every, py::arg("end_stops") = kDefaults.end_stops,
+           py::arg("max_speed") = kDefaults.max_speed, py::arg("max_position") = kDefaults.max_position,
+           py::arg("integrator") = method_name(kDefaults.integrator), py::arg("world") = py::none(),
+           py::arg("world_every") = kDefaults.world_every, py::arg("contact_forces") = kDefaults.contact_forces,
+           py::arg("log_contacts") = kDefaults.log_contacts, py::arg("grasp") = kDefaults.grasp.enabled,
+           py::arg("grasp_options") = py::dict())
       .def("add_robot", [](Simulation& s, const Robot& robot, std::shared_ptr<Controller> controller,
                            const py::object& reference, const py::object& q0, const py::object& qd0) {
              const int n = robot.dof();
@@ -292,15 +297,8 @@ torques between controller updates, the log and tracking metrics.)doc")
            "The clamp rule's conditions for robot i and a free body now: closing, aligned, touching, in_pads, "
            "slow, ok (all of them), with angle (rad), gap_fixed, gap_moving (m, < 0 penetrating), speed (m/s), "
            "angular_speed (rad/s) and width (m).")
-      .def("grasp_options", [](const Simulation& s) {
-             const GraspOptions& g = s.options().grasp;
-             py::dict d;
-             d["hold_time"] = g.hold_time; d["gap"] = g.gap; d["penetration"] = g.penetration; d["angle"] = g.angle;
-             d["speed"] = g.speed; d["angular_speed"] = g.angular_speed; d["open_margin"] = g.open_margin;
-             d["slip"] = g.slip; d["weld_omega_dt"] = g.weld_omega_dt; d["release_time"] = g.release_time;
-             d["weld_moment"] = g.weld_moment;
-             return d;
-           })
+      .def("grasp_options", [](const Simulation& s) { return grasp_options_dict(s.options().grasp); },
+           "The clamp rule's options of this simulation: {name: value} (see simulation_defaults()).")
       .def_property_readonly("grasp", [](const Simulation& s) { return s.options().grasp.enabled; })
       .def("grasp_events", [](const Simulation& s) {
              py::dict d;
@@ -422,6 +420,20 @@ torques between controller updates, the log and tracking metrics.)doc")
            "of the rows so far, which later steps and reset() do not change.")
       .def("metrics", &metrics_dict, py::arg("i"),
            "Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).");
+
+  m.def("simulation_defaults", []() {
+    using namespace py::literals;
+    const SimulationOptions& o = kDefaults;
+    return py::dict("dt"_a = o.dt, "control_every"_a = o.control_every, "log_every"_a = o.log_every,
+                    "end_stops"_a = o.end_stops, "max_speed"_a = o.max_speed, "max_position"_a = o.max_position,
+                    "integrator"_a = method_name(o.integrator), "world_every"_a = o.world_every,
+                    "contact_forces"_a = o.contact_forces, "log_contacts"_a = o.log_contacts,
+                    "grasp"_a = o.grasp.enabled, "grasp_options"_a = grasp_options_dict(o.grasp));
+  }, "The engine's defaults of SimulationCore's options, the only place they are written: a dict with dt "
+     "(s), control_every, log_every, end_stops, max_speed (rad/s or m/s), max_position (rad or m), integrator, "
+     "world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, "
+     "penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, "
+     "release_time s, weld_moment).");
 
   m.def("log_schema", []() {
     py::list out;

@@ -4,6 +4,7 @@
 #include <pybind11/stl.h>
 
 #include "convert.hpp"
+#include "coopsim/box_distance.hpp"
 #include "coopsim/world.hpp"
 
 namespace py = pybind11;

@@ -471,6 +471,41 @@ Robot Robot::with_dimensions(std::map<std::string, double> dimensions) const {
   return r;
 }
 
+namespace {
+std::vector<std::string> default_names(const char* prefix, int n) {
+  std::vector<std::string> out;
+  for (int i = 1; i <= n; ++i) out.push_back(prefix + std::to_string(i));
+  return out;
+}
+
+void check_names(const std::vector<std::string>& names, int n, const char* what) {
+  require(static_cast<int>(names.size()) == n,
+          std::string(what) + " must hold " + std::to_string(n) + " names, got " + std::to_string(names.size()));
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    require(!names[i].empty(), std::string(what) + "[" + std::to_string(i) + "] must not be empty");
+    for (std::size_t j = 0; j < i; ++j)
+      require(names[i] != names[j], std::string(what) + " must be unique: '" + names[i] + "' appears twice");
+  }
+}
+}  // namespace
+
+std::vector<std::string> Robot::joint_names() const {
+  return joint_names_.empty() ? default_names("joint", n_) : joint_names_;
+}
+
+std::vector<std::string> Robot::link_names() const {
+  return link_names_.empty() ? default_names("link", n_) : link_names_;
+}
+
+Robot Robot::with_names(std::vector<std::string> joint_names, std::vector<std::string> link_names) const {
+  check_names(joint_names, n_, "joint_names");
+  check_names(link_names, n_, "link_names");
+  Robot r = *this;
+  r.joint_names_ = std::move(joint_names);
+  r.link_names_ = std::move(link_names);
+  return r;
+}
+
 // ---------------------------------------------------------------- kinematics
 
 void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {

@@ -35,11 +35,19 @@ from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 from .batch import run_batch, simulate
 from . import sweeps
-from .sweeps import TaskRun, sweep
+from .sweeps import sweep
+from .tasks import TaskRun
 from . import view
 
 Robot.to_urdf = to_urdf
 Robot.from_urdf = staticmethod(from_urdf)
+
+
+def build_info() -> dict:
+    """How the compiled engine was built: optimised (bool; timings count only from an optimised build) and
+    sanitizers (str: the sanitizers compiled in, e.g. 'address,undefined'; '' for none)."""
+    return {"optimised": bool(_core.build_optimised), "sanitizers": str(_core.build_sanitizers)}
+
 
 __version__ = "0.1.0"
 
@@ -59,6 +67,7 @@ __all__ = [
     "box_distance",
     "box_distances",
     "box_inertia",
+    "build_info",
     "clamp_pose",
     "plan_cartesian",
     "planning",

@@ -3,10 +3,11 @@
 coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)
 """
 from __future__ import annotations
+import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'simulation_defaults']
 class Tool:
     """
     The tool centre point (TCP).
@@ -182,13 +183,16 @@ class Robot:
         dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
-    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09):
+    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file'):
         """
         A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
         
             Joints: revolute, continuous (unbounded) and prismatic ones make the
             chain, in order from the root link; fixed joints merge their child link
-            (mass, CoM, inertia, boxes) into its parent. Each joint's origin and axis
+            (mass, CoM, inertia, boxes) into its parent. The robot keeps their names:
+            ``robot.joint_names[i]`` is the URDF joint whose position is q[i] (and
+            whose torque is tau[i]), ``robot.link_names[i]`` the child link it moves
+            (the one Robot link i + 1 stands for, with the links fixed to it). Each joint's origin and axis
             (any direction) become a standard DH row; frame 0 lies on the first axis
             (z0 along it, nearest the root's origin) and is the robot's base
             (position, yaw and, for a first axis that is not the root's z, a
@@ -212,6 +216,11 @@ class Robot:
                 or m) and merged like fixed joints (e.g. fingers kept with their mass).
             name: the robot's name (default the URDF's). gravity: (3,) m/s^2 in the
                 root link's frame. inertia_check: as Robot.from_dh.
+            limits: 'file' (default) takes each joint's lower/upper and effort from
+                its ``<limit>``; 'ignore' takes none (q and tau unbounded), for
+                files whose limits are placeholders, as CAD exporters write them
+                (lower = upper = 0, effort = 0), which 'file' refuses, naming the
+                joint and this option.
             snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
                 read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
                 5e-12 rad would make every derived angle general (and generated code
@@ -238,7 +247,7 @@ class Robot:
             carry an explicit zero ``<inertial>``. See the module's docstring.
             
         """
-    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str, typing.Any, typing.Any, typing.Any, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, Tool, str, float, float, list[LinkBox] | None, typing.Any, dict[str, float], typing.Any, typing.Any, typing.Any, typing.Any, str], str, str]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str, typing.Any, typing.Any, typing.Any, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, Tool, str, float, float, list[LinkBox] | None, typing.Any, dict[str, float], typing.Any, typing.Any, typing.Any, typing.Any, str], str, str, list[str], list[str]]:
         ...
     def __repr__(self) -> str:
         ...
@@ -392,6 +401,10 @@ class Robot:
         """
         A copy with another gravity vector (3,) m/s^2.
         """
+    def with_names(self, joint_names: collections.abc.Sequence[str], link_names: collections.abc.Sequence[str]) -> Robot:
+        """
+        A copy with these joint and link names (n each, unique, not empty); all else equal.
+        """
     @property
     def armature(self) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -498,6 +511,11 @@ class Robot:
         (n, 3, 3) kg m^2 about each CoM in its CoM frame.
         """
     @property
+    def joint_names(self) -> list[str]:
+        """
+        Names of the joints (n,), in the order of q: from a URDF its joints' names, else 'joint1'..'jointn'.
+        """
+    @property
     def joint_types(self) -> str:
         """
         e.g. 'RRPRRP'.
@@ -506,6 +524,11 @@ class Robot:
     def link_inertias(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n, 3, 3) inertia of each link about its CoM in DH frame i's axes, kg m^2.
+        """
+    @property
+    def link_names(self) -> list[str]:
+        """
+        Names of the moving links (n,), link i moved by joint i: from a URDF the child link of each chain joint, else 'link1'..'linkn'.
         """
     @property
     def masses(self) -> numpy.typing.NDArray[numpy.float64]:
@@ -894,7 +917,9 @@ class SimulationCore:
         Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force (3) N and moment (3) N m on it.
         """
     def grasp_options(self) -> dict:
-        ...
+        """
+        The clamp rule's options of this simulation: {name: value} (see simulation_defaults()).
+        """
     def holding(self, i: typing.SupportsInt | typing.SupportsIndex) -> typing.Any:
         """
         The name of the free body robot i holds, or None.
@@ -1100,6 +1125,10 @@ def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: t
 def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[list, list]:
     """
     Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time (s) its run took.
+    """
+def simulation_defaults() -> dict:
+    """
+    The engine's defaults of SimulationCore's options, the only place they are written: a dict with dt (s), control_every, log_every, end_stops, max_speed (rad/s or m/s), max_position (rad or m), integrator, world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, release_time s, weld_moment).
     """
 build_optimised: bool
 build_sanitizers: str

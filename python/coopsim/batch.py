@@ -12,8 +12,6 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import _core
-from .pacing import RunStats
 from .simulation import Simulation
 
 __all__ = ["run_batch", "simulate"]
@@ -63,14 +61,11 @@ def run_batch(sims: Sequence[Simulation], t_end: float, *, threads: Optional[int
     for i, s in enumerate(sims):
         if not s.robot_count:
             raise ValueError(f"sims[{i}] has no robot")
-        s._core.steps_until(float(t_end))  # t_end in the past -> ValueError now, not per thread
-    marks = [(s.time, s.steps) for s in sims]
-    errs, seconds = _core.run_batch([s._core for s in sims], float(t_end), int(threads))
+        s.steps_until(float(t_end))  # t_end in the past -> ValueError now, not per thread
+    errs = Simulation.advance_all(sims, float(t_end), int(threads))
     results = []
     first = None
-    for i, (s, e, (t0, k0)) in enumerate(zip(sims, errs, marks)):
-        # each run's own wall time: the runs overlap on the threads
-        s.stats = RunStats._make(s.time, s.time - t0, seconds[i], seconds[i], s.dt, s.steps - k0)
+    for i, (s, e) in enumerate(zip(sims, errs)):
         if e is not None:
             if first is None:
                 first = (i, e)

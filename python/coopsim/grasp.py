@@ -5,9 +5,17 @@ Wrenches are [fx, fy, fz, mx, my, mz] (N, N m) in the world frame; each holder a
 point p_k (m, world). The grasp matrix G (6, 6k) maps the holders' wrenches to the net wrench about the
 body's reference point c: w = sum_k [f_k; m_k + (p_k - c) x f_k] = G [w_1; ...; w_k]. Any set of holder
 wrenches splits into the minimum-norm share of the net wrench, G^+ w, and an internal part in G's null
-space that squeezes or twists the body without moving it. In the simulation the welds act at the body's
-centre of mass, so there c = p_k for every holder, G = [I I ...] and the internal part of two welds is
-+-(w_1 - w_2) / 2.
+space that squeezes or twists the body without moving it.
+
+In the simulation each weld acts at its own point: midway between the centres of its clamp's two pads
+when it grasped (the fixed pad's centre moved by half the jaw opening along the jaw axis), fixed from
+then on in the clamp's link and in the body. ``sim.weld_wrench(i)`` and the log's ``weld`` columns are
+that weld's force on the body and its moment about that point. Two holders' points differ (in the
+cooperative task #1 grips 0.075 m on one side of the bar's centre and #2 0.125 m on the other), so
+with c the body's centre of mass G is not [I I] and the internal part is :func:`internal_wrenches` at
+those points (the log does not keep them). ``SimulationLog.internal_wrench`` is not that: it takes +-(w_1 - w_2) / 2, which is the
+internal part only when both welds act at one point; with the points apart it counts an uneven split of
+the weight between the holders as internal.
 """
 from __future__ import annotations
 

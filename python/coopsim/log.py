@@ -4,7 +4,7 @@
 robot as numpy arrays; it exports to pandas, CSV and Excel (written
 atomically: a failure midway leaves any earlier file intact) and reads them
 back. The columns per robot are the engine's log schema
-(``coopsim._core.log_schema()``), defined once in C++, plus the tracking
+(the engine's ``log_schema()``), defined once in C++, plus the tracking
 error ``e`` derived from it for tables.
 
 Units: s, rad or m, N m or N. Arrays are float64, (rows, n) per robot.
@@ -18,14 +18,33 @@ from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import _core
+from ._core import log_schema as _engine_log_schema
+from .plotting import plot_log
 
-__all__ = ["BODY_COLUMNS", "BodyLog", "QUANTITIES", "RobotLog", "SimulationLog", "log_schema"]
+__all__ = ["BODY_COLUMNS", "BodyLog", "QUANTITIES", "RobotLog", "SimulationLog", "log_schema", "rows_at"]
+
+
+def rows_at(t, times) -> np.ndarray:
+    """The log row that held at each of `times` (s): the last row at or before it, whose state lasts from
+    its time until the next row's. The one rule by which the views find a row for a time (a video frame,
+    a replay's keyframe, a contact's beginning or end): the same time shows the same row everywhere.
+
+    t: the log's times (rows,), ascending; two rows may share a time (when the applied inputs change
+    between runs: the last of them holds from then on). A time less than 1e-9 of the log's time scale (at
+    least 1e-9 s) before a row's counts as at it, so that computed times (t0 + k / fps) meet the rows they
+    aim at. Times before the first row give the first row (0), after the last row the last. Returns int
+    indices in the shape of `times`. ValueError for a log without rows.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or len(t) == 0:
+        raise ValueError(f"t must be a log's times (rows,) with at least one row, got shape {t.shape}")
+    eps = 1e-9 * max(1.0, abs(float(t[0])), abs(float(t[-1])))
+    return np.clip(np.searchsorted(t, np.asarray(times, dtype=float) + eps, side="right") - 1, 0, len(t) - 1)
 
 
 def log_schema() -> List[Tuple[str, str]]:
     """The quantities logged per robot, in column order: [(name, description)], one column per joint."""
-    return [tuple(x) for x in _core.log_schema()]
+    return [tuple(x) for x in _engine_log_schema()]
 
 
 #: Quantities stored per robot (the engine's schema), in column order.
@@ -47,23 +66,26 @@ class RobotLog:
     (rad, rad/s, rad/s^2, or m... for prismatic joints); tau, the torque
     applied from that row's time to the next step (held, saturated), and
     tau_ext, the joint torque of the applied forces and wrenches over that
-    step (N m or N); q_ref, qd_ref, the reference at that time; error =
+    step (N m or N); q_ref, qd_ref, qdd_ref, the reference at that time; error =
     q_ref - q. Arrays taken from a simulation are read-only views of its log
     (later steps or a reset do not change them); copy one to modify it.
     """
 
-    __slots__ = ("name", "t", "holding", "weld") + STORED
+    __slots__ = ("name", "t", "holding", "weld", "joint_types") + STORED
 
-    def __init__(self, name, t, holding=None, weld=None, **arrays):
+    def __init__(self, name, t, holding=None, weld=None, joint_types=None, **arrays):
         missing = [k for k in STORED if k not in arrays]
         unknown = [k for k in arrays if k not in STORED]
         if missing or unknown:
             raise ValueError(f"RobotLog needs the arrays {list(STORED)}; missing {missing}, unknown {unknown}")
         self.name = str(name)
         self.t = t
-        #: per row, the name of the body held ('' when none), and the weld's force and moment on it (rows, 6)
+        #: per row, the name of the body held ('' when none), and the weld's force on it and its moment about
+        #: the weld's point, midway between the clamp's pads (rows, 6; N, N m, world frame)
         self.holding = np.full(len(t), "", dtype=object) if holding is None else holding
         self.weld = np.zeros((len(t), 6)) if weld is None else weld
+        #: the robot's joint types, e.g. 'RRPRRP' (which joints are in rad, which in m), or None if unknown
+        self.joint_types = joint_types
         for k in STORED:
             setattr(self, k, arrays[k])
 
@@ -71,6 +93,7 @@ class RobotLog:
         return {k: getattr(self, k) for k in self.__slots__}
 
     def __setstate__(self, state):
+        self.joint_types = None  # a log pickled before it had them
         for k, v in state.items():
             setattr(self, k, v)
 
@@ -218,9 +241,15 @@ class SimulationLog:
         return self
 
     def internal_wrench(self, a: int = 0, b: int = 1) -> np.ndarray:
-        """The internal wrench (rows, 6) of robots a and b holding one body: in the rows where both hold
-        the same body, (w_a - w_b) / 2 of their welds' wrenches on it (N, N m; both act at the body's
-        centre, so this is the part that cancels on the body, see :mod:`coopsim.grasp`); zeros elsewhere."""
+        """(w_a - w_b) / 2 (rows, 6) of robots a and b's weld wrenches on a body both hold (N, N m; each
+        weld's force and its moment about its own point, midway between its clamp's pads); zeros in the
+        rows where they do not hold the same body.
+
+        This is the part that cancels on the body only when both welds act at one point. They do not:
+        each acts between its own clamp's pads, so an uneven split of the weight (holders at different
+        distances from the body's centre of mass do not carry half each) shows here as internal force
+        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points
+        gives the part that cancels (the log does not keep those points)."""
         n = len(self.robots)
         for name, i in (("a", a), ("b", b)):
             if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not -n <= i < n:
@@ -233,7 +262,7 @@ class SimulationLog:
     def grasps(self):
         """Grasps and releases as a pandas DataFrame: t (s), robot (index), body, event ('grasp' or
         'release'), reason ('grasp', 'opened', 'slipped', 'released')."""
-        import pandas as pd
+        import pandas as pd  # pandas' import is heavy: only when a table is asked for
 
         cols = ("t", "robot", "body", "event", "reason")
         data = self._grasps or {k: [] for k in cols}
@@ -242,7 +271,7 @@ class SimulationLog:
     @property
     def contacts(self):
         """The contact events as a pandas DataFrame (one row per contact from begin to end)."""
-        import pandas as pd
+        import pandas as pd  # pandas' import is heavy: only when a table is asked for
 
         data = self._contacts or {k: [] for k in EVENT_COLUMNS}
         return pd.DataFrame({k: data[k] for k in EVENT_COLUMNS})
@@ -250,7 +279,7 @@ class SimulationLog:
     @property
     def contact_points(self):
         """Every contact point of every world step (log_contacts=True) as a pandas DataFrame, else None."""
-        import pandas as pd
+        import pandas as pd  # pandas' import is heavy: only when a table is asked for
 
         return None if self._contact_points is None else pd.DataFrame(self._contact_points)
 
@@ -306,7 +335,7 @@ class SimulationLog:
 
     def to_dataframe(self):
         """A pandas DataFrame, one row per logged step, columns as :meth:`columns`."""
-        import pandas as pd
+        import pandas as pd  # pandas' import is heavy: only when a table is asked for
 
         return pd.DataFrame(self.to_array(), columns=self.columns())
 
@@ -376,7 +405,7 @@ class SimulationLog:
         if len(self.t) + 1 > _EXCEL_MAX_ROWS:
             raise ValueError(f"the log has {len(self.t)} rows, more than an Excel sheet holds "
                              f"({_EXCEL_MAX_ROWS - 1}): log less often (log_every) or use to_csv")
-        import xlsxwriter
+        import xlsxwriter  # only when writing Excel
 
         data = self.to_array()
         info = [("dt", _none_str(self.dt)), ("control_every", _none_str(self.control_every)),
@@ -409,7 +438,7 @@ class SimulationLog:
     @classmethod
     def read_csv(cls, path) -> "SimulationLog":
         """Reads a log written by :meth:`to_csv`."""
-        import pandas as pd
+        import pandas as pd  # pandas' import is heavy: only when a table is asked for
 
         # exact decimal -> binary parsing: the default from pandas 3, an option before
         exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
@@ -418,14 +447,12 @@ class SimulationLog:
     @classmethod
     def read_excel(cls, path, sheet_name: str = "log") -> "SimulationLog":
         """Reads a log written by :meth:`to_excel`."""
-        import pandas as pd
+        import pandas as pd  # pandas' import is heavy: only when a table is asked for
 
         return cls.from_dataframe(pd.read_excel(path, sheet_name=sheet_name, engine="openpyxl"))
 
     def plot(self, robot: int = 0, quantity: str = "q", **kwargs):
         """Joints against time, one panel each, references dashed; see coopsim.plotting.plot_log."""
-        from .plotting import plot_log
-
         return plot_log(self, robot=robot, quantity=quantity, **kwargs)
 
 

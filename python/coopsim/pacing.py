@@ -2,19 +2,19 @@
 
 :class:`RunStats` is the paper's time supervision window for any run;
 :class:`Pacer` runs a simulation at 0 % (pause) to 400 % of real time,
-calling a frame callback for live drawing or control.
+calling a frame callback for live drawing or control. The pacer drives a
+simulation through its public calls alone (``time``, ``dt``, ``steps``,
+``steps_until``, ``step`` and ``stats``: a :class:`coopsim.Simulation` or
+anything that has them).
 """
 from __future__ import annotations
 
 import math
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Optional
+from typing import Callable, Optional
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from .simulation import Simulation
 
 __all__ = ["Pacer", "RunStats"]
 
@@ -64,6 +64,10 @@ class RunStats:
                 f"real-time factor {self.real_time_factor:.3g}"
                 + (f", {self.frames} frames ({self.frame_rate:.1f}/s)" if self.frames else ""))
 
+
+
+#: what the pacer uses of a simulation
+_DRIVEN = ("time", "dt", "steps", "steps_until", "step", "stats")
 
 
 class Pacer:
@@ -149,13 +153,13 @@ class Pacer:
         sim, t0, s0, w0, busy, frames = self._live
         return RunStats._make(sim.time, sim.time - t0, self._clock() - w0, busy, sim.dt, sim.steps - s0, frames)
 
-    def run(self, sim: "Simulation", t_end: float, *, on_frame: Optional[Callable] = None,
+    def run(self, sim, t_end: float, *, on_frame: Optional[Callable] = None,
             max_wall_time: Optional[float] = None) -> RunStats:
-        """Runs `sim` up to t_end (s) paced to the wall clock; returns the statistics."""
-        from .simulation import Simulation
-
-        if not isinstance(sim, Simulation):
-            raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
+        """Runs `sim` (a coopsim.Simulation, see the module's docstring) up to t_end (s) paced to the wall
+        clock; returns the statistics, also left in ``sim.stats``."""
+        if not all(hasattr(sim, a) for a in _DRIVEN):
+            raise ValueError(f"sim must be a coopsim.Simulation (or have {', '.join(_DRIVEN)}), "
+                             f"got {type(sim).__name__}")
         if not isinstance(t_end, (int, float, np.floating, np.integer)) or isinstance(t_end, bool) \
                 or not math.isfinite(t_end):
             raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
@@ -165,8 +169,7 @@ class Pacer:
             raise ValueError("on_frame must be callable as on_frame(sim, pacer)")
         if (self._speed == 0 or self._paused) and on_frame is None and max_wall_time is None:
             raise ValueError("speed 0 (paused) with no on_frame and no max_wall_time would never finish")
-        core = sim._core
-        core.steps_until(float(t_end))  # checks t_end is not in the past
+        sim.steps_until(float(t_end))  # checks t_end is not in the past
         self._stop = False
         clock = self._clock
         w0 = clock()
@@ -175,16 +178,16 @@ class Pacer:
         t0, s0, busy, frames = sim.time, sim.steps, 0.0, 0
         self._live = [sim, t0, s0, w0, busy, frames]
         try:
-            while not self._stop and core.steps_until(float(t_end)) > 0:
+            while not self._stop and sim.steps_until(float(t_end)) > 0:
                 start = clock()
                 elapsed = min(start - last, self.max_catch_up)
                 last = start
                 if not self._paused:
                     target = min(float(t_end), max(target, sim.time) + elapsed * self._speed)
-                n = core.steps_until(max(target, sim.time))
+                n = sim.steps_until(max(target, sim.time))
                 if n:
                     b = clock()
-                    core.advance(n)
+                    sim.step(n)
                     busy += clock() - b
                 frames += 1
                 self._live[4:] = [busy, frames]

@@ -31,17 +31,23 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
     controller), default none; color: its line colour (any matplotlib
     colour), default 'C0' with the reference in 'C1' (with a color, the
     reference is dashed in the same colour). reference: draw q_ref / qd_ref.
-    Revolute joints are in rad, prismatic ones in m; joint_types (e.g.
-    robot.joint_types, "RRPRRP") names each joint θ1, d3, ... with its unit
-    (default q1, q2, ...). Each panel's legend names its joint; tick labels
-    show whole values (no offset such as "+3e-1" hiding them).
+    Each panel is one joint, its y axis named with the joint and its unit:
+    revolute joints θ1, ... in rad (rad/s, rad/s², N m), prismatic ones d3,
+    ... in m (m/s, m/s², N). The joint types come from the log (a
+    simulation's log carries its robot's ``joint_types``); joint_types
+    (e.g. "RRPRRP") overrides them, and a log that has none (one read from
+    CSV) names the joints q1, q2, ... "(rad or m)". Legends stand to the
+    right of the panels, off the data; tick labels show whole values (no
+    offset such as "+3e-1" hiding them).
     Returns the Figure.
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     if quantity not in _LOG_LABELS:
         raise ValueError(f"quantity must be one of {sorted(_LOG_LABELS)}, got {quantity!r}")
     rlog = log.robots[robot] if hasattr(log, "robots") else log
+    if joint_types is None:
+        joint_types = getattr(rlog, "joint_types", None)
     t = rlog.t
     data = getattr(rlog, quantity)
     ref = {"q": rlog.q_ref, "qd": rlog.qd_ref}.get(quantity) if reference else None
@@ -51,7 +57,7 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
         if not 0 <= j < n:
             raise ValueError(f"joints must be indices in [0, {n}), got {j}")
     if color is not None:
-        from matplotlib.colors import is_color_like
+        from matplotlib.colors import is_color_like  # matplotlib loads only to draw
 
         if not is_color_like(color):
             raise ValueError(f"color must be a matplotlib colour, got {color!r}")
@@ -74,16 +80,18 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
         if ref is not None:
             ax.plot(t, ref[:, j], "--", color=color or "C1", lw=1.2, label=f"{prefix}{shown} reference")
         if joint_types is None:
-            ax.set_ylabel(f"{quantity}{j + 1}")
+            per = {"q": "", "qd": "/s", "qdd": "/s²"}.get(quantity)
+            ax.set_ylabel(f"{quantity}{j + 1} " + (f"(rad{per} or m{per})" if per is not None else
+                                                   "(N m or N)" if quantity == "tau" else "(rad or m)"))
         else:
             ax.set_ylabel(f"{'' if quantity == 'q' else quantity + ' '}{names[j]} "
                           f"({unit.split(' | ')[0 if units[j] == 'rad' else 1]})")
         _plain_ticks(ax)
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="x-small")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="x-small", borderaxespad=0.0)
     axes[-1].set_xlabel("t (s)")
     if new_figure or title is not None:
-        fig.suptitle(title or f"{rlog.name}: {name} ({unit})")
+        fig.suptitle(title or f"{rlog.name}: {name}")
     if new_figure:
         fig.tight_layout()
     return fig
@@ -91,7 +99,7 @@ def plot_log(log, robot: int = 0, quantity: str = "q", joints=None, axes=None, t
 
 def _plain_ticks(ax, axis: str = "y") -> None:
     """Tick labels with their whole values: no offset ("+3e-1") and a ×10ⁿ factor only for tiny or huge values."""
-    from matplotlib.ticker import ScalarFormatter
+    from matplotlib.ticker import ScalarFormatter  # matplotlib loads only to draw
 
     fmt = ScalarFormatter(useOffset=False, useMathText=True)
     fmt.set_powerlimits((-4, 5))
@@ -108,7 +116,7 @@ def _joint_labels(n, joint_types):
 
 
 def _unit_label(units, joints, order: int) -> str:
-    """'rad', 'm', 'rad | m' (mixed) or 'rad or m' (unknown) with /s or /s² for derivative `order`."""
+    """'rad', 'm' or 'rad or m' (unknown types) with /s or /s² for derivative `order`."""
     per = "" if order == 0 else "/s" if order == 1 else "/s²"
     kinds = sorted({units[j] for j in joints}, key=lambda u: u != "rad")
     if kinds == [""]:
@@ -126,10 +134,13 @@ def plot_trajectory(trajectory, robot=None, t=None, samples: int = 600, joints=N
     trajectory, extended by `margin` s on each side to show the held ends.
     joints: indices (from 0) to draw, default all. axes: three matplotlib
     Axes (q, qd, qdd), default a new figure. knots: mark the via-points of a
-    CubicTrajectory. Revolute joints in rad, rad/s, rad/s²; prismatic in m,
-    m/s, m/s². Returns the Figure.
+    CubicTrajectory. Revolute joints in rad, rad/s, rad/s² on the left y
+    axes (solid), prismatic ones in m, m/s, m/s² on twin axes at the right
+    (dashed), so that no axis mixes units; without joint types every joint
+    shares one axis "(rad or m)". Returns the Figure (its axes: the three
+    given or made, then the twins).
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     n = trajectory.dof
     joint_types = robot if isinstance(robot, str) or robot is None else robot.joint_types
@@ -152,18 +163,29 @@ def plot_trajectory(trajectory, robot=None, t=None, samples: int = 600, joints=N
             raise ValueError(f"axes must hold 3 Axes (q, qd, qdd), got {len(axes)}")
         fig = axes[0].figure
     has_knots = knots and hasattr(trajectory, "q_points")
+    # one kind of joint per y axis: revolute (rad) on the left, prismatic (m) on a twin axis at the right
+    kinds = [[j for j in joints if units[j] == u] for u in ("rad", "m", "")]
+    kinds = [g for g in kinds if g]
+    handles = []
     for k, (ax, data, what) in enumerate(zip(axes, (q, qd, qdd), ("position", "velocity", "acceleration"))):
-        for c, j in enumerate(joints):
-            unit = units[j] + ("" if k == 0 else "/s" if k == 1 else "/s²") if units[j] else ""
-            label = names[j] + (f" ({unit})" if unit else "")
-            ax.plot(t, data[:, j], color=f"C{c % 10}", lw=1.4, label=label)
-            if has_knots and k < 2:
-                pts = trajectory.q_points if k == 0 else trajectory.qd_points
-                ax.plot(trajectory.times, pts[:, j], "o", color=f"C{c % 10}", ms=3.5)
-        ax.set_ylabel(f"{what} ({_unit_label(units, joints, k)})")
-        _plain_ticks(ax)
+        for g, group in enumerate(kinds):
+            gax = ax if g == 0 else ax.twinx()
+            for j in group:
+                c = f"C{joints.index(j) % 10}"
+                unit = units[j] + ("" if k == 0 else "/s" if k == 1 else "/s²") if units[j] else ""
+                line, = gax.plot(t, data[:, j], color=c, lw=1.4, ls="-" if g == 0 else "--",
+                                 label=names[j] + (f" ({unit})" if unit else ""))
+                if k == 0:
+                    handles.append(line)
+                if has_knots and k < 2:
+                    pts = trajectory.q_points if k == 0 else trajectory.qd_points
+                    gax.plot(trajectory.times, pts[:, j], "o", color=c, ms=3.5)
+            side = "" if len(kinds) == 1 else (", solid" if g == 0 else ", dashed")
+            gax.set_ylabel(f"{what} ({_unit_label(units, group, k)}{side})")
+            _plain_ticks(gax)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small")
+    axes[0].legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.02), ncol=min(len(handles), 6),
+                   fontsize="small", borderaxespad=0.0)
     axes[-1].set_xlabel("t (s)")
     if has_knots:
         for ax in axes:
@@ -182,7 +204,7 @@ def plot_tool_path(robot, trajectory, poses=None, samples: int = 400, ax=None, l
     straight dashed lines (the intended path). ax: a matplotlib Axes, default
     a new figure. Returns the Figure.
     """
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
     if int(samples) < 2:
         raise ValueError(f"samples must be >= 2, got {samples}")

@@ -37,8 +37,7 @@ import math
 
 import numpy as np
 
-from . import _core
-from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, dh_transform
+from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, compiled_generated_names, dh_transform
 
 __all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS"]
 
@@ -140,7 +139,7 @@ def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backen
         q_limits=spec["q_limits"], tau_limits=spec["tau_limits"], gravity=gravity, base_position=base_position,
         base_yaw=base_yaw, tool=tool, name=spec["name"], boxes=_shapes(dh, com, boxes, jaw, d),
         clamp=_clamp(jaw, d), dimensions=d)
-    if robot.name in _core.compiled_generated_names():
+    if robot.name in compiled_generated_names():
         robot = robot.with_generated(robot.name)
     return robot.with_backend(backend if robot.has_generated else "numeric")
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from typing import Callable, List, Optional
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -21,6 +21,10 @@ from . import _core
 from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, World
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
+
+#: the engine's defaults of the options (its SimulationOptions, the one place they are written), which the
+#: signature below shows; grasp_options=None takes the engine's defaults of the grasp options
+_DEFAULTS = _core.simulation_defaults()
 
 __all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation"]
 
@@ -78,10 +82,13 @@ class Simulation:
     unpickled simulation starts at t = 0.
     """
 
-    def __init__(self, dt: float = 2e-4, *, world: Optional[World] = None, integrator: str = "rk4",
-                 control_every: int = 1, log_every: int = 1, end_stops: bool = True, max_speed: float = 1e4,
-                 max_position: float = 1e6, world_every: int = 1, contact_forces: bool = True,
-                 log_contacts: bool = False, grasp: bool = True, grasp_options: Optional[dict] = None):
+    def __init__(self, dt: float = _DEFAULTS["dt"], *, world: Optional[World] = None,
+                 integrator: str = _DEFAULTS["integrator"], control_every: int = _DEFAULTS["control_every"],
+                 log_every: int = _DEFAULTS["log_every"], end_stops: bool = _DEFAULTS["end_stops"],
+                 max_speed: float = _DEFAULTS["max_speed"], max_position: float = _DEFAULTS["max_position"],
+                 world_every: int = _DEFAULTS["world_every"], contact_forces: bool = _DEFAULTS["contact_forces"],
+                 log_contacts: bool = _DEFAULTS["log_contacts"], grasp: bool = _DEFAULTS["grasp"],
+                 grasp_options: Optional[dict] = None):
         if world is not None and not isinstance(world, World):
             raise ValueError(f"world must be a coopsim.World or None, got {type(world).__name__}")
         grasp_options = _grasp_options(grasp_options)
@@ -132,6 +139,11 @@ class Simulation:
     @property
     def log_every(self) -> int:
         return self._core.log_every
+
+    @staticmethod
+    def defaults() -> dict:
+        """The options' defaults, the engine's: {name: value}, grasp_options a dict of its own."""
+        return _core.simulation_defaults()
 
     @property
     def options(self) -> dict:
@@ -239,7 +251,7 @@ class Simulation:
         """A robot's applied inputs now: {'forces': (n,), 'wrenches': [Wrench], 'tau_ext': (n,)}."""
         i = _index(robot, self.robot_count)
         forces, wrenches = self._core.applied(i)
-        return {"forces": forces, "wrenches": list(wrenches), "tau_ext": self._core.tau_ext(i)}
+        return {"forces": forces, "wrenches": list(wrenches), "tau_ext": self.tau_ext(i)}
 
     def clear_applied(self, robot: int = 0) -> None:
         """Removes a robot's applied forces and wrenches."""
@@ -254,6 +266,27 @@ class Simulation:
         -force): Bullet's solver force where a free body is involved, coopsim's penalty force
         between robots and scenery (contact_forces=True; else zero)."""
         return self._core.contacts()
+
+    def contact_events(self) -> dict:
+        """The contact events so far as columns (the log's ``contacts`` without building the log): a, b
+        (body names), kind, begin, end (s; NaN while ongoing), peak_force (N), max_depth (m), steps;
+        empty columns without a world."""
+        return self._core.contact_events() if self._core.world is not None else {}
+
+    def tau_ext(self, robot: int = 0) -> np.ndarray:
+        """The joint torque of a robot's applied inputs (forces and wrenches), held over the next step, (n,)
+        N m or N (the same as ``applied(robot)['tau_ext']``)."""
+        return self._core.tau_ext(_index(robot, self.robot_count))
+
+    def link_state(self, robot: int, box: int) -> dict:
+        """The pose and twist the world holds for a robot's link box (``robot.boxes[box]``), as set at the
+        last world step: pose (4, 4), position (3,) m, quaternion (4,) [w, x, y, z], velocity (3,) m/s,
+        angular_velocity (3,) rad/s. Needs a world."""
+        i = _index(robot, self.robot_count)
+        k = self._core.robot(i).boxes
+        if not isinstance(box, (int, np.integer)) or isinstance(box, bool) or not 0 <= box < len(k):
+            raise ValueError(f"box must be an index in [0, {len(k)}) of robot {i}'s boxes, got {box!r}")
+        return self._core.link_body_state(i, int(box))
 
     def body_state(self, name: str) -> dict:
         """A free or static body's state now: pose (4, 4), position (3,) m, quaternion (4,)
@@ -317,20 +350,54 @@ class Simulation:
         total = self._core.steps_until(t_end)
         bar = None
         if progress or (progress is None and total >= _PROGRESS_MIN_STEPS):
-            from tqdm import tqdm
+            from tqdm import tqdm  # only when a bar is shown: tqdm's import is not free
 
             bar = tqdm(total=total, unit="step", unit_scale=True, delay=0.0 if progress else _PROGRESS_DELAY,
                        desc="simulating", leave=False)
-        cb = None if bar is None else (lambda done, tot: bar.update(done - bar.n))
-        t0, s0, w0 = self.time, self.steps, time.perf_counter()
         try:
-            self._core.run(t_end, cb)
+            self._run(t_end, None if bar is None else (lambda done, tot: bar.update(done - bar.n)))
         finally:
             if bar is not None:
                 bar.close()
+        return self.log
+
+    def advance(self, t_end: float) -> float:
+        """Runs headless up to time t_end (s) as :meth:`run` does, without a progress bar and without
+        building the log's arrays; returns the new time (s).
+
+        For a caller that advances in many short pieces and reads the state between them (a task
+        sequenced phase by phase, a wait for a grasp): the engine keeps logging as configured, and
+        :attr:`log` gives every row whenever it is read. Statistics go to :attr:`stats`.
+        """
+        self._run(t_end, None)
+        return self.time
+
+    @staticmethod
+    def advance_all(sims: Sequence["Simulation"], t_end: float, threads: int = 0) -> list:
+        """Advances each of `sims` up to time t_end (s) as :meth:`advance` does, all in one engine call on
+        a pool of `threads` threads (0: every core) with the GIL released; the simulations must not share
+        controller instances. Returns per simulation the exception that stopped it (e.g. a
+        DivergenceError), or None. Each one's :attr:`stats` give the wall time of its own run (the runs
+        overlap on the threads). :func:`coopsim.run_batch` checks the arguments and gathers the results.
+        """
+        marks = [(s.time, s.steps) for s in sims]
+        errors, seconds = _core.run_batch([s._core for s in sims], float(t_end), int(threads))
+        for s, w, (t0, k0) in zip(sims, seconds, marks):
+            s.stats = RunStats._make(s.time, s.time - t0, w, w, s.dt, s.steps - k0)
+        return list(errors)
+
+    def _run(self, t_end: float, callback) -> None:
+        t0, s0, w0 = self.time, self.steps, time.perf_counter()
+        try:
+            self._core.run(t_end, callback)
+        finally:
             w = time.perf_counter() - w0
             self.stats = RunStats._make(self.time, self.time - t0, w, w, self.dt, self.steps - s0)
-        return self.log
+
+    def steps_until(self, t_end: float) -> int:
+        """The steps from now to time t_end (s), rounded down (0 at or past it); ValueError for a t_end in
+        the past or not finite."""
+        return self._core.steps_until(t_end)
 
     def run_paced(self, t_end: float, *, speed: float = 1.0, frame_rate: float = 60.0,
                   on_frame: Optional[Callable] = None, max_wall_time: Optional[float] = None,
@@ -360,7 +427,8 @@ class Simulation:
         for i in range(self.robot_count):
             g = c.grasp_log(i)
             held = names[g[:, 0].astype(int)]  # -1 (none) picks the trailing ""
-            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:], **c.log(i)))
+            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:],
+                                   joint_types=c.robot(i).joint_types, **c.log(i)))
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,
@@ -377,6 +445,18 @@ class Simulation:
             out.append(m)
         return out
 
+
+    def set_profiling(self, on: bool = True) -> None:
+        """Switches the engine's step profiler on (its timers cost a little) or off; :meth:`profile` reads it."""
+        if not isinstance(on, (bool, np.bool_)):
+            raise ValueError(f"on must be True or False, got {on!r}")
+        self._core.set_profiling(bool(on))
+
+    def profile(self) -> dict:
+        """Seconds spent since profiling was switched on (:meth:`set_profiling`), per part of the step:
+        controllers, world (its step, the grasp rule included), grasp (the grasp rule and welds), contacts
+        (mapping the contacts' wrenches onto the robots) and robots (their integration)."""
+        return self._core.profile()
 
 def _grasp_options(options) -> dict:
     """grasp_options as a dict of option names; the engine checks the values (and the names)."""

@@ -1,9 +1,9 @@
 """Sweeps: many independent runs (a gain grid, a task over seeds) on threads, any executor or a Dask cluster.
 
 :func:`sweep` takes simulations (their descriptions pickle to the workers)
-or task runs (:class:`TaskRun`, the keywords of
-:func:`coopsim.tasks.handover.run`), built from a grid or given as a list,
-runs them on this machine's threads (``executor=None``: simulations through
+or runs that run themselves (:class:`coopsim.TaskRun`, the cooperative task
+with the keywords of :func:`coopsim.tasks.handover.run`: see :func:`run_one`),
+built from a grid or given as a list, runs them on this machine's threads (``executor=None``: simulations through
 :func:`coopsim.run_batch`, tasks on a thread pool, the engine releasing the
 GIL), on any ``concurrent.futures.Executor`` (a process pool), or on a Dask
 ``distributed.Client`` (a ``LocalCluster`` or a real scheduler: ``pip
@@ -27,28 +27,13 @@ from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Seque
 
 import numpy as np
 
+from ._core import compiled_generated_names, generated_cache_dir, generated_info, load_generated_library
+from .batch import run_batch
 from .simulation import Simulation
 
-__all__ = ["sweep", "grid", "TaskRun", "run_one", "run_shipped", "generated_libraries", "install_libraries"]
+__all__ = ["sweep", "grid", "run_one", "run_shipped", "generated_libraries", "install_libraries"]
 
 NOT_FINISHED = "not finished"
-
-
-class TaskRun:
-    """One run of the cooperative task: `options` are the keywords of
-    :func:`coopsim.tasks.handover.run` (seed=, bars=, cycles=, container_shift=, ...;
-    score=False unless given). Plain values only, so it pickles anywhere."""
-
-    def __init__(self, **options):
-        self.options = dict(options)
-
-    def __eq__(self, other):
-        return isinstance(other, TaskRun) and self.options == other.options
-
-    __hash__ = None
-
-    def __repr__(self) -> str:
-        return "TaskRun(" + ", ".join(f"{k}={v!r}" for k, v in self.options.items()) + ")"
 
 
 def grid(**axes) -> List[dict]:
@@ -91,50 +76,43 @@ def _run_simulation(sim: Simulation, t_end: float, keep_log: bool) -> dict:
     return row
 
 
-def _run_task(task: TaskRun, keep_log: bool) -> dict:
-    from .tasks import handover as H
+def _is_run(x) -> bool:
+    """A Simulation, or a run that runs itself (an instance with sweep_run(), such as coopsim.TaskRun)."""
+    return isinstance(x, Simulation) or (not isinstance(x, type) and callable(getattr(x, "sweep_run", None)))
 
-    options = dict(task.options)
-    options.setdefault("score", False)
+
+def _run_item(item, keep_log: bool) -> dict:
     w0 = time.perf_counter()
     row = dict(error=None, worker=_where())
-    try:
-        res = H.run(**options)
-    except Exception as e:  # an IKError at planning time (step 'planning'), a bad option: a row with its error
-        from ._core import IKError
-
-        row.update(success=False, step="planning" if isinstance(e, IKError) else None, reason=_error_text(e),
-                   error=_error_text(e), wall_time=time.perf_counter() - w0, simulated_time=0.0)
-        return row
+    columns, sim = item.sweep_run()
+    row.update(columns)
     row["wall_time"] = time.perf_counter() - w0
-    c = res.report["cycles"][-1]
-    row.update(success=bool(res.success), step=c.get("failed_step"), reason=c.get("reason"),
-               simulated_time=float(res.report["simulated_time"]), steps=res.sim.steps)
-    bar = res.report["bars"][0]
-    row.update(bar_x=float(bar[0][3]), bar_y=float(bar[1][3]), bar_yaw=float(math.atan2(bar[1][0], bar[0][0])))
-    row.update(_sim_metrics(res.sim))
-    if keep_log:
-        row["log"] = res.log
+    if sim is not None:
+        row["steps"] = sim.steps
+        row.update(_sim_metrics(sim))
+        if keep_log:
+            row["log"] = sim.log
     return row
 
 
 def run_one(item, t_end: Optional[float] = None, keep_log: bool = False) -> dict:
-    """Runs one item of a sweep (a Simulation up to t_end, or a TaskRun) and returns its row as a dict.
+    """Runs one item of a sweep and returns its row as a dict: a Simulation up to t_end, or a run that runs
+    itself (such as :class:`coopsim.TaskRun`): ``item.sweep_run()`` returns its own columns and the
+    Simulation it ran (or None), whose metrics and log the row takes, and the class's ``sweep_columns``
+    name the columns the sweep's table shows first.
 
     A module-level function, so any executor can run it; it never raises for a run that fails
     (the row's 'error' says why)."""
     try:
-        if isinstance(item, TaskRun):
-            return _run_task(item, keep_log)
-        return _run_simulation(item, t_end, keep_log)
+        if isinstance(item, Simulation):
+            return _run_simulation(item, t_end, keep_log)
+        return _run_item(item, keep_log)
     except Exception as e:  # noqa: BLE001 - whatever happens, the sweep gets its row
         return dict(error=_error_text(e), worker=_where())
 
 
 def _cache_folder() -> Path:
-    from . import _core
-
-    d = _core.generated_cache_dir()
+    d = generated_cache_dir()
     return Path(d) if d else Path.home() / ".cache" / "coopsim"
 
 
@@ -142,14 +120,12 @@ def generated_libraries(items) -> Dict[str, bytes]:
     """The shared libraries of the generated dynamics (``codegen.compile``) that the simulations among
     `items` use, as {name: bytes}, read from this process's ``codegen.cache_dir()`` (dynamics compiled
     into the engine need none). The sweep ships them to its workers (:func:`install_libraries`)."""
-    from . import _core
-
-    builtin = set(_core.compiled_generated_names())
+    builtin = set(compiled_generated_names())
     names = set()
     for it in items:
         if isinstance(it, Simulation):
             for r in it.robots:
-                info = _core.generated_info(r)
+                info = generated_info(r)
                 if info is not None and info["name"] not in builtin:
                     names.add(info["name"])
     libs = {}
@@ -166,8 +142,6 @@ def generated_libraries(items) -> Dict[str, bytes]:
 def install_libraries(libs: Mapping[str, bytes]) -> List[str]:
     """On a worker: writes each generated library into this process's cache folder (unless the same bytes
     are there) and loads it, so robots compiled on the client unpickle here. Returns the names."""
-    from . import _core
-
     folder = _cache_folder()
     folder.mkdir(parents=True, exist_ok=True)
     for name, data in libs.items():
@@ -176,7 +150,7 @@ def install_libraries(libs: Mapping[str, bytes]) -> List[str]:
             tmp = folder / f".coopsim_{name}.{os.getpid()}.tmp"
             tmp.write_bytes(data)
             os.replace(tmp, path)  # atomic: workers sharing the folder never see half a library
-        _core.load_generated_library(str(path))
+        load_generated_library(str(path))
     return list(libs)
 
 
@@ -199,12 +173,12 @@ def _is_dask_client(executor) -> bool:
 
 def _items_from(runs, grid_points) -> tuple:
     """(items, params): params a list of dicts (grid columns) or None."""
-    if callable(runs) and not isinstance(runs, (Simulation, TaskRun)):
+    if callable(runs) and not _is_run(runs):
         if grid_points is None:
             raise ValueError("a callable `runs` needs grid= (a dict of axes or a list of dicts)")
         points = grid(**grid_points) if isinstance(grid_points, Mapping) else [dict(p) for p in grid_points]
         return [runs(**p) for p in points], points
-    if isinstance(runs, (Simulation, TaskRun)):
+    if _is_run(runs):
         raise ValueError("runs must be a sequence of Simulation or TaskRun (or a callable with grid=), got one "
                          f"{type(runs).__name__}")
     items = list(runs)
@@ -223,7 +197,7 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     """Runs many independent runs and returns a pandas DataFrame, one row per run in the order given.
 
     runs: a sequence of coopsim.Simulation (run from their state up to t_end, s) and/or
-    :class:`TaskRun` (the cooperative task; t_end unused), or a callable called here, on the client,
+    :class:`coopsim.TaskRun` (the cooperative task; t_end unused), or a callable called here, on the client,
     with each point of `grid` as keywords and returning one of those (``grid`` a dict of axes, see
     :func:`grid`, or a list of dicts; its values become the first columns).
 
@@ -253,12 +227,12 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     ``codegen.cache_dir()``) have their libraries shipped with the runs and installed on the workers
     (same platform and coopsim as here; no compiler needed there).
     """
-    import pandas as pd
+    import pandas as pd  # pandas' import is heavy: only when a sweep builds its table
 
     items, points = _items_from(runs, grid)
     for i, it in enumerate(items):
-        if not isinstance(it, (Simulation, TaskRun)):
-            raise ValueError(f"runs[{i}] must be a coopsim.Simulation or a sweeps.TaskRun, got {type(it).__name__}")
+        if not _is_run(it):
+            raise ValueError(f"runs[{i}] must be a coopsim.Simulation or a coopsim.TaskRun, got {type(it).__name__}")
     if any(isinstance(it, Simulation) for it in items):
         if t_end is None or not isinstance(t_end, (int, float, np.integer, np.floating)) or not math.isfinite(t_end):
             raise ValueError(f"t_end must be a finite number of seconds for simulations, got {t_end!r}")
@@ -289,8 +263,8 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
             rows[i] = dict(error=NOT_FINISHED)
     df = pd.DataFrame(rows)
     first = ["error", "wall_time", "simulated_time", "steps", "worker"]
-    if any(isinstance(it, TaskRun) for it in items):
-        first = ["success", "step", "reason", "bar_x", "bar_y", "bar_yaw"] + first
+    lead = [c for it in items if not isinstance(it, Simulation) for c in getattr(it, "sweep_columns", ())]
+    first = list(dict.fromkeys(lead)) + first
     for c in first:
         if c not in df:
             df[c] = None
@@ -303,10 +277,8 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
 
 
 def _sweep_local(items, t_end, threads, keep_logs, timeout, done):
-    from .batch import run_batch
-
     sims = [(i, s) for i, s in enumerate(items) if isinstance(s, Simulation)]
-    tasks = [(i, s) for i, s in enumerate(items) if isinstance(s, TaskRun)]
+    tasks = [(i, s) for i, s in enumerate(items) if not isinstance(s, Simulation)]
     if sims:
         # one C++ call on a thread pool, GIL released; a run that raises returns its exception
         out = run_batch([s for _, s in sims], t_end, threads=threads, output="none", errors="return")
@@ -373,7 +345,7 @@ def _sweep_executor(executor, items, t_end, keep_logs, timeout, done, chunk):
 
 
 def _sweep_dask(client, items, t_end, keep_logs, timeout, done, chunk):
-    from distributed import as_completed
+    from distributed import as_completed  # the optional cluster extra: only with a Dask client
 
     libs = generated_libraries(items)
     parts = _chunks(items, chunk)

@@ -2,9 +2,11 @@
 serial URDF chain as a coopsim robot.
 
 Export layout: a fixed ``world`` link; ``base_link`` (DH frame 0) fixed to it
-at the robot's base placement; then for each joint i a link ``link<i>``
-whose frame is DH frame i-1 moved by joint i alone (Rz(q_i) or Tz(q_i)), so
-the joint axis is z in every joint frame. The constant part of DH row i-1
+at the robot's base placement; then for each joint i (named
+``Robot.joint_names[i]``, ``joint<i>`` by default) a link
+(``Robot.link_names[i]``, ``link<i>``) whose frame is DH frame i-1 moved by
+joint i alone (Rz(q_i) or Tz(q_i)), so the joint axis is z in every joint
+frame. The constant part of DH row i-1
 becomes the origin of joint i. The last DH row appears as the fixed frame
 ``flange``. The tool centre point has no URDF frame: on the SCARAs it lies
 midway between two jaws on two links, so no single link carries it.
@@ -31,6 +33,8 @@ from collections.abc import Mapping
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+
+from ._core import LinkBox, Robot
 
 __all__ = ["to_urdf", "from_urdf", "rpy_from_matrix"]
 
@@ -96,6 +100,22 @@ def _boxes(boxes, frame):
     return out
 
 
+_RESERVED_LINKS = {"world", "base_link", "flange"}
+_RESERVED_JOINTS = {"base_fixed", "flange_fixed"}
+
+
+def _export_names(robot):
+    """The robot's joint and link names for the URDF, or joint1.. / link1.. where one cannot stand in it
+    (characters XML does not allow, or a name the export gives its own frames)."""
+    n = robot.dof
+    jn, ln = list(robot.joint_names), list(robot.link_names)
+    if any(_XML_ILLEGAL.search(x) for x in jn) or _RESERVED_JOINTS & set(jn):
+        jn = [f"joint{i + 1}" for i in range(n)]
+    if any(_XML_ILLEGAL.search(x) for x in ln) or _RESERVED_LINKS & set(ln):
+        ln = [f"link{i + 1}" for i in range(n)]
+    return jn, ln
+
+
 def to_urdf(robot, name: str | None = None) -> str:
     """URDF text (str) for `robot`, with its kinematics, masses, inertias, axes, limits and boxes.
 
@@ -118,6 +138,7 @@ def to_urdf(robot, name: str | None = None) -> str:
         raise ValueError(f"name must be a string of characters allowed in XML, got {rname!r}")
     ns = f' xmlns:drake="{_DRAKE_NS}"' if np.any(Ia > 0) else ""
     boxes = robot.boxes
+    jnames, lnames = _export_names(robot)
     out = ['<?xml version="1.0"?>', f"<robot name={quoteattr(rname)}{ns}>", '  <link name="world">',
            *_ZERO_INERTIAL, "  </link>", '  <link name="base_link">', *_ZERO_INERTIAL,
            *_boxes([b for b in boxes if b.link == 0], np.eye(4)), "  </link>",
@@ -140,17 +161,17 @@ def to_urdf(robot, name: str | None = None) -> str:
             pre = _dh(th, d, 0.0, 0.0)
             C = _dh(-th, 0.0, 0.0, 0.0) @ _dh(0.0, -d, 0.0, 0.0) @ _dh(*com[i])
         T = pre if i == 0 else rest(i - 1) @ pre
-        lname = f"link{i + 1}"
+        lname = lnames[i]
         I = inertias[i]
         jtype = "prismatic" if types[i] == "P" else (
             "continuous" if not np.all(np.isfinite(qlim[i])) else "revolute")
-        out += [f'  <link name="{lname}">', "    <inertial>", f"      {_origin(C)}",
+        out += [f'  <link name={quoteattr(lname)}>', "    <inertial>", f"      {_origin(C)}",
                 f'      <mass value="{_fmt(masses[i])}"/>',
                 f'      <inertia ixx="{_fmt(I[0, 0])}" ixy="{_fmt(I[0, 1])}" ixz="{_fmt(I[0, 2])}" '
                 f'iyy="{_fmt(I[1, 1])}" iyz="{_fmt(I[1, 2])}" izz="{_fmt(I[2, 2])}"/>',
                 "    </inertial>", *_boxes([b for b in boxes if b.link == i + 1], rest(i)), "  </link>",
-                f'  <joint name="joint{i + 1}" type="{jtype}">', f'    <parent link="{parent}"/>',
-                f'    <child link="{lname}"/>', f"    {_origin(T)}", '    <axis xyz="0 0 1"/>']
+                f'  <joint name={quoteattr(jnames[i])} type="{jtype}">', f'    <parent link={quoteattr(parent)}/>',
+                f'    <child link={quoteattr(lname)}/>', f"    {_origin(T)}", '    <axis xyz="0 0 1"/>']
         effort = taulim[i] if math.isfinite(taulim[i]) else 1e9
         if jtype == "continuous":
             out.append(f'    <limit effort="{_fmt(effort)}" velocity="1000.0"/>')
@@ -163,12 +184,12 @@ def to_urdf(robot, name: str | None = None) -> str:
     # flange: DH frame n
     F = rest(n - 1)
     out += ['  <link name="flange">', *_ZERO_INERTIAL, "  </link>", '  <joint name="flange_fixed" type="fixed">',
-            f'    <parent link="{parent}"/>', '    <child link="flange"/>', f"    {_origin(F)}", "  </joint>"]
+            f'    <parent link={quoteattr(parent)}/>', '    <child link="flange"/>', f"    {_origin(F)}", "  </joint>"]
     for i in range(n):
         if Ia[i] > 0:
             out += [f'  <transmission name="transmission{i + 1}">',
                     "    <type>transmission_interface/SimpleTransmission</type>",
-                    f'    <joint name="joint{i + 1}"><hardwareInterface>EffortJointInterface</hardwareInterface>'
+                    f'    <joint name={quoteattr(jnames[i])}><hardwareInterface>EffortJointInterface</hardwareInterface>'
                     "</joint>",
                     f'    <actuator name="motor{i + 1}">', "      <mechanicalReduction>1</mechanicalReduction>",
                     f'      <drake:rotor_inertia value="{_fmt(Ia[i])}"/>', '      <drake:gear_ratio value="1.0"/>',
@@ -351,12 +372,16 @@ _UNBOUNDED = 1e9
 
 
 def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None,
-              gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn", snap: float = 1e-9):
+              gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn", snap: float = 1e-9,
+              limits: str = "file"):
     """A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
 
     Joints: revolute, continuous (unbounded) and prismatic ones make the
     chain, in order from the root link; fixed joints merge their child link
-    (mass, CoM, inertia, boxes) into its parent. Each joint's origin and axis
+    (mass, CoM, inertia, boxes) into its parent. The robot keeps their names:
+    ``robot.joint_names[i]`` is the URDF joint whose position is q[i] (and
+    whose torque is tau[i]), ``robot.link_names[i]`` the child link it moves
+    (the one Robot link i + 1 stands for, with the links fixed to it). Each joint's origin and axis
     (any direction) become a standard DH row; frame 0 lies on the first axis
     (z0 along it, nearest the root's origin) and is the robot's base
     (position, yaw and, for a first axis that is not the root's z, a
@@ -380,6 +405,11 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         or m) and merged like fixed joints (e.g. fingers kept with their mass).
     name: the robot's name (default the URDF's). gravity: (3,) m/s^2 in the
         root link's frame. inertia_check: as Robot.from_dh.
+    limits: 'file' (default) takes each joint's lower/upper and effort from
+        its ``<limit>``; 'ignore' takes none (q and tau unbounded), for
+        files whose limits are placeholders, as CAD exporters write them
+        (lower = upper = 0, effort = 0), which 'file' refuses, naming the
+        joint and this option.
     snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
         read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
         5e-12 rad would make every derived angle general (and generated code
@@ -390,8 +420,8 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     planar joints, mimic joints in the chain, branches of movable joints (a
     tree; pass tip= or locked=) or no movable joint.
     """
-    from ._core import LinkBox, Robot
-
+    if limits not in ("file", "ignore"):
+        raise ValueError(f"limits must be 'file' or 'ignore', got {limits!r}")
     if not _is_real(snap) or not 0.0 <= snap < 0.1:
         raise ValueError(f"snap must be in [0, 0.1) rad, got {snap!r}")
     snap = float(snap)
@@ -570,13 +600,19 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         el = joints[jn]
         lim = el.find("limit")
         what = f"joint {jn!r}"
-        if lim is not None:
+        if lim is not None and limits == "file":
+            e = _attr(lim, "effort", what, 0.0, bounded=False)
             if el.get("type") != "continuous" and (lim.get("lower") is not None or lim.get("upper") is not None):
                 qlim[i] = [_attr(lim, key, what, 0.0, bounded=False) for key in ("lower", "upper")]
                 qlim[i] = np.where(np.abs(qlim[i]) >= _UNBOUNDED, np.copysign(np.inf, qlim[i]), qlim[i])
+                if qlim[i, 0] == qlim[i, 1]:
+                    raise ValueError(f"{what}: its <limit> has lower = upper = {qlim[i, 0]:g} (effort {e:g}), "
+                                     "which leaves the joint no motion: placeholder values, as CAD exporters "
+                                     "write them? Pass limits='ignore' to load the robot without the file's "
+                                     "joint and effort limits")
                 if not qlim[i, 0] < qlim[i, 1]:
-                    raise ValueError(f"{what}: limit lower must be below upper, got {qlim[i].tolist()}")
-            e = _attr(lim, "effort", what, 0.0, bounded=False)
+                    raise ValueError(f"{what}: limit lower must be below upper, got {qlim[i].tolist()} "
+                                     "(limits='ignore' loads the robot without the file's limits)")
             tau[i] = e if 0 < e < _UNBOUNDED else np.inf
         dyn = el.find("dynamics")
         if dyn is not None:
@@ -597,4 +633,4 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
                           name=name or root.get("name") or "robot", boxes=box_list or None, armature=Ia,
                           coulomb=Fc, coulomb_width=coulomb_width, base_orientation=Rb,
                           inertia_check=inertia_check)
-    return robot
+    return robot.with_names(chain, [joints[jn].find("child").get("link") for jn in chain])

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "coopsim/batch.hpp"
 #include "coopsim/controller.hpp"
 #include "coopsim/generated.hpp"
 #include "coopsim/ik.hpp"

@@ -193,6 +193,8 @@ class Robot {
 
   int dof() const { return n_; }
   const std::string& name() const { return name_; }
+  std::vector<std::string> joint_names() const;
+  std::vector<std::string> link_names() const;
   std::string joint_types() const;
   const std::vector<Link>& links() const { return links_; }
   // The world's gravitational acceleration (3), m/s^2 (G(q) is gravity()).
@@ -230,6 +232,9 @@ class Robot {
   Robot with_gravity(const Eigen::Vector3d& gravity) const;
   Robot with_geometry(std::vector<LinkBox> boxes, Clamp clamp) const;
   Robot with_dimensions(std::map<std::string, double> dimensions) const;
+  // Names of the joints and of the moving links (n each, link i the one joint i moves; unique, not
+  // empty); default "joint1".."jointn" and "link1".."linkn".
+  Robot with_names(std::vector<std::string> joint_names, std::vector<std::string> link_names) const;
   Robot with_generated(std::shared_ptr<const GeneratedDynamics> gen) const;
   // the generated code named `name` (find_generated); std::invalid_argument when there is none
   Robot with_generated(const std::string& name) const;
@@ -358,6 +363,7 @@ to the base frame's origin.)doc";
   bool default_boxes_ = true;  // boxes_ are default_boxes() (re-made with the base)
   Clamp clamp_;
   std::map<std::string, double> dimensions_;
+  std::vector<std::string> joint_names_, link_names_;  // empty: the defaults
   // precomputed constants per link: fixed part of the DH transform and the
   // transform from DH frame i to the CoM frame of link i
   struct Pre {

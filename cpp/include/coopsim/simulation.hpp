@@ -23,7 +23,7 @@
 // (log_every = 0: no log), including k = 0. Its columns are log_schema():
 // t_k, then per robot q and qd at t_k, the acceleration at t_k, the torque
 // and the external torque applied over [t_k, t_k+1) (held), and the
-// reference q_ref, qd_ref at t_k. Log storage is reserved before each
+// reference q_ref, qd_ref, qdd_ref at t_k. Log storage is reserved before each
 // advance, so the stepping loop does not allocate.
 //
 // Metrics (every step, whatever log_every): per joint, the sum of squared
@@ -36,6 +36,17 @@
 // marks itself diverged and throws DivergenceError naming the step, time,
 // robot and state. A controller that throws leaves the state at t_k with
 // the log complete up to t_k-1; advancing again retries that update.
+//
+// The step's stages, in order (Simulation::stages_ and advance() in simulation.cpp):
+//   control      references and controllers at t_k                        simulation.cpp
+//   world        (world steps) link poses and twists into the world       contact_coupling.cpp
+//   grasp        the clamp rule, the welds' wrenches                      grasp.cpp
+//   world step   Bullet's step; its contacts as joint torques, held       contact_coupling.cpp
+//   external     applied inputs and contacts: tau_ext over the step       simulation.cpp
+//   log          the row at t_k, when due                                 log.cpp
+//   integrate    RK4 or Euler to t_k+1 under the held torques             simulation.cpp
+// Divergence checks and their messages are in divergence.cpp, the self-collision exclusions in
+// self_collision.cpp, run_batch (batch.hpp) in batch.cpp.
 #pragma once
 
 #include <algorithm>
@@ -51,66 +62,16 @@
 #include <Eigen/Cholesky>
 
 #include "coopsim/controller.hpp"
+#include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
+#include "coopsim/log.hpp"
 #include "coopsim/reference.hpp"
 #include "coopsim/robot.hpp"
 #include "coopsim/world.hpp"
 
 namespace coopsim {
 
-// The clamp grasp (shared/design/world.md, "The clamp grasp"; the paper's
-// clamp algorithm). A robot with a clamp grasps a free body when, for
-// hold_time in a row: its jaw is commanded closing or closed (q_ref of the
-// moving joint at or below the opening, or closing); a face of the body is
-// normal to the jaw axis within `angle`; both inner faces touch the body
-// (gap at most `gap`, penetration at most `penetration`); the body covers
-// the pads' centre and does not reach into the palm beyond the pads; and
-// it moves with the clamp (relative speed below `speed`, relative angular
-// speed below `angular_speed`). The body is then tied to the clamp's link
-// by a soft weld at the pose it has at that instant, anchored at the point
-// midway between the pads' centres: a 6-DOF spring-damper
-// (stiffness from the reduced mass and inertia between body and robot so
-// that omega * h = weld_omega_dt for the world step h, critical damping
-// shared among the welds on the body) whose force and moment act on the
-// body and, opposite, on the clamp's link through J^T; the moving jaw meets
-// the body as a stop at the body's width. It is released when the jaw is
-// commanded open beyond the width plus open_margin, when the weld stretches
-// beyond `slip`, or by release(); the body then leaves with the clamp's
-// rigid twist at its centre of mass. Opening lets go over release_time: the
-// weld's gains fade smoothly to zero, so the load passes to another holder
-// or to the world without a jump; slip and release() let go at once.
-struct GraspOptions {
-  bool enabled = true;
-  double hold_time = 2e-3;        // s
-  double gap = 5e-4;              // m
-  double penetration = 1e-3;      // m
-  double angle = 0.17453292519943295;  // rad (10 deg)
-  double speed = 0.05;            // m/s
-  double angular_speed = 0.5;     // rad/s
-  double open_margin = 1e-3;      // m
-  double slip = 5e-3;             // m
-  double weld_omega_dt = 0.2;
-  double release_time = 0.1;      // s
-  bool weld_moment = true;        // false: point welds, forces only (a pin at the body's centre)
-};
-
-// The clamp rule's conditions for one robot and one body, and the measures behind them.
-struct GraspCheck {
-  bool closing = false, aligned = false, touching = false, in_pads = false, slow = false;
-  double angle = 0, gap_fixed = 0, gap_moving = 0, speed = 0, angular_speed = 0;  // rad, m, m, m/s, rad/s
-  double width = 0;  // m, the body's width along the jaw axis
-  bool ok() const { return closing && aligned && touching && in_pads && slow; }
-};
-
-// A grasp or a release.
-struct GraspEvent {
-  double t = 0.0;     // s
-  int robot = -1;
-  int body = -1;      // world body id
-  bool grasp = true;  // false: a release
-  std::string reason; // "grasp", "opened", "slipped", "released"
-};
-
+// The defaults written here are the only ones: the bindings and the Python package read them.
 struct SimulationOptions {
   double dt = 2e-4;           // s, > 0
   int control_every = 1;      // controller update every k-th step, >= 1
@@ -125,68 +86,6 @@ struct SimulationOptions {
   GraspOptions grasp;
   double max_speed = 1e4;     // rad/s or m/s: faster counts as divergence
   double max_position = 1e6;  // rad or m: farther counts as divergence
-};
-
-// Append-only rows of `width` doubles, row-major in one memory block.
-// Growing moves the rows to a new block and clear() starts a new one, so
-// rows already written never change in a block: whoever shares a block
-// (e.g. a numpy view) sees a fixed history. Blocks come from, and go back
-// to, a bounded process-wide pool, so that repeated runs reuse memory whose
-// pages are already mapped.
-class LogColumn {
- public:
-  explicit LogColumn(int width = 1) : width_(width) {}
-  int width() const { return width_; }
-  long rows() const { return rows_; }
-  long capacity() const { return cap_; }
-  const std::shared_ptr<double[]>& block() const { return block_; }
-  const double* data() const { return block_.get(); }
-  double back() const { return block_[(rows_ - 1) * width_ + width_ - 1]; }
-  // Room for `rows` rows in all; grows at least geometrically.
-  void reserve(long rows);
-  // Appends one row (reserve first to keep allocation out of loops).
-  void push(const double* row) {
-    if (rows_ == cap_) reserve(rows_ + 1);
-    std::copy(row, row + width_, block_.get() + rows_ * width_);
-    ++rows_;
-  }
-  void clear() {
-    block_.reset();
-    rows_ = cap_ = 0;
-  }
-
- private:
-  std::shared_ptr<double[]> block_;
-  long rows_ = 0, cap_ = 0;
-  int width_ = 1;
-};
-
-// The log's schema: the quantities logged per robot, in column order, each
-// one column per joint. Units per joint type: rad or m, rad/s or m/s,
-// rad/s^2 or m/s^2, N m or N.
-enum LogQuantity : int { kLogQ, kLogQd, kLogQdd, kLogTau, kLogTauExt, kLogQRef, kLogQdRef, kLogQuantities };
-struct LogQuantityInfo {
-  const char* name;  // column prefix, e.g. "tau_ext"
-  const char* doc;   // what a row holds
-};
-const std::array<LogQuantityInfo, kLogQuantities>& log_schema();
-
-// One robot's log: one (rows x n) column per quantity of log_schema().
-struct RobotLog {
-  std::array<LogColumn, kLogQuantities> columns;
-  // per row: the world id of the body held (-1: none), then the weld's force
-  // (N) and moment (N m) on it over the world step, world frame (7 values)
-  LogColumn grasp{7};
-  const LogColumn& operator[](int quantity) const { return columns[quantity]; }
-};
-
-struct TrackingMetrics {
-  long steps = 0;      // samples counted
-  VecN sum_sq_error;   // sum of e_i^2
-  VecN max_abs_error;  // max |e_i|
-  VecN max_abs_tau;    // max |tau_i| applied
-  // Root-mean-square tracking error per joint over the samples (zeros before any).
-  VecN rms_error() const;
 };
 
 // A contact point of one world step, with the time the step began.
@@ -205,11 +104,12 @@ class Simulation {
  public:
   // With a world, every robot added brings its boxes into it as kinematic
   // bodies at the first step, and the step runs, in order: controllers;
-  // link poses and twists into the world; the world's step (free bodies
-  // advance, contacts with the solver's forces); penalty forces where both
-  // sides are robots or scenery; contact wrenches mapped by J^T into each
-  // robot's tau_ext, held over the world step; the robots' integration; the
-  // log. A world belongs to one simulation.
+  // link poses and twists into the world; the grasp rule and the welds; the
+  // world's step (free bodies advance, contacts with the solver's forces);
+  // penalty forces where both sides are robots or scenery; contact wrenches
+  // mapped by J^T into each robot's tau_ext, held over the world step; the
+  // log; the robots' integration. A world belongs to one simulation.
+  // Throws std::invalid_argument naming an option out of range.
   explicit Simulation(SimulationOptions options = SimulationOptions(), std::shared_ptr<World> world = nullptr);
   ~Simulation();
   Simulation(Simulation&&) = default;
@@ -235,8 +135,8 @@ class Simulation {
 
   int robot_count() const { return static_cast<int>(slots_.size()); }
   const Robot& robot(int i) const { return slot_(i).robot; }
-  const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).controller; }
-  const std::shared_ptr<const Reference>& reference(int i) const { return slot_(i).reference; }
+  const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).control.controller; }
+  const std::shared_ptr<const Reference>& reference(int i) const { return slot_(i).control.reference; }
   const SimulationOptions& options() const { return opt_; }
   const std::shared_ptr<World>& world() const { return world_; }
   // The world body of robot i's box b (-1 without a world or before the first step).
@@ -252,13 +152,13 @@ class Simulation {
   const StepProfile& profile() const { return profile_; }
   // ---- grasps ----
   // The free body robot i holds (world id), or -1.
-  int holding(int i) const { return slot_(i).held; }
+  int holding(int i) const { return slot_(i).grasp.held; }
   // Releases what robot i holds (nothing if it holds nothing), now.
   void release(int i);
   const std::vector<GraspEvent>& grasp_events() const { return grasp_events_; }
   // The weld's force and moment on the body held by robot i over the last world step, (6).
   // (at the weld's point: midway between the pads' centres when it attached)
-  const Vec6& weld_wrench(int i) const { return slot_(i).weld; }
+  const Vec6& weld_wrench(int i) const { return slot_(i).grasp.weld; }
   // The rule's conditions for robot i and free body `body` in the present state.
   GraspCheck grasp_check(int i, int body);
   void set_profiling(bool on) { profiling_ = on; }
@@ -267,10 +167,10 @@ class Simulation {
   double time() const { return k_ * opt_.dt; }
   bool started() const { return started_; }
   bool diverged() const { return diverged_; }
-  const VecN& q(int i) const { return slot_(i).q; }
-  const VecN& qd(int i) const { return slot_(i).qd; }
-  const VecN& tau(int i) const { return slot_(i).tau; }  // held torque
-  const VecN& tau_ext(int i) const { return slot_(i).tau_ext; }  // held external torque of the applied inputs
+  const VecN& q(int i) const { return slot_(i).state.q; }
+  const VecN& qd(int i) const { return slot_(i).state.qd; }
+  const VecN& tau(int i) const { return slot_(i).control.tau; }  // held torque
+  const VecN& tau_ext(int i) const { return slot_(i).external.tau; }  // held external torque of the applied inputs
 
   // ---- applied inputs (kept until changed; cleared by reset()) ----
   // Joint forces (n) N m or N, added to the torque; link wrenches, world
@@ -279,10 +179,10 @@ class Simulation {
   // out of range.
   void set_applied_forces(int i, const VecN& forces);
   void set_applied_wrenches(int i, std::vector<ExternalWrench> wrenches);
-  const VecN& applied_forces(int i) const { return slot_(i).applied_forces; }
-  const std::vector<ExternalWrench>& applied_wrenches(int i) const { return slot_(i).applied_wrenches; }
-  const VecN& initial_q(int i) const { return slot_(i).q0; }
-  const VecN& initial_qd(int i) const { return slot_(i).qd0; }
+  const VecN& applied_forces(int i) const { return slot_(i).external.forces; }
+  const std::vector<ExternalWrench>& applied_wrenches(int i) const { return slot_(i).external.wrenches; }
+  const VecN& initial_q(int i) const { return slot_(i).state.q0; }
+  const VecN& initial_qd(int i) const { return slot_(i).state.qd0; }
 
   // Back to t = 0 and the initial states; clears the log and the metrics;
   // controllers are reset at the next step.
@@ -307,69 +207,102 @@ class Simulation {
   // per row, position (3) m, quaternion w x y z (4), velocity (3) m/s,
   // angular velocity (3) rad/s, sampled at the world's steps.
   const std::vector<LogColumn>& body_log() const { return body_log_; }
-  const RobotLog& log(int i) const { return slot_(i).log; }
-  const TrackingMetrics& metrics(int i) const { return slot_(i).metrics; }
+  const RobotLog& log(int i) const { return slot_(i).record.log; }
+  const TrackingMetrics& metrics(int i) const { return slot_(i).record.metrics; }
 
  private:
+  // One robot and what the simulation keeps for it, grouped by the stage that uses it.
   struct Slot {
-    // M_llt starts as the factor of the identity: Eigen leaves a decomposition's info unset until
-    // compute(), and moving a Slot (the vector of slots growing) would copy that unset enum (UB)
-    explicit Slot(const Robot& r) : robot(r) { M_llt.compute(MatN::Identity(r.dof(), r.dof())); }
-    Robot robot;
-    std::shared_ptr<Controller> controller;
-    std::shared_ptr<const Reference> reference;
-    VecN q0, qd0, q, qd, tau, tau_max;
-    VecN applied_forces, tau_ext;  // applied joint forces; their total with the wrenches' J^T w and contacts, held
-    VecN tau_contact;              // J^T of the contact wrenches of the last world step, held
-    std::vector<ExternalWrench> applied_wrenches, contact_wrenches;
-    bool has_applied = false, has_contact = false;
-    int first_body = -1;           // world body of box 0
-    bool ext_held = false;         // tau_ext held nonzero from the step before
-    std::array<Eigen::Vector3d, kMaxDof + 1> frame_w, frame_v;  // frame velocities at the last world step
-    Eigen::LLT<MatN> M_llt;  // M = L L^T (M is positive definite)
-    bool M_valid = false;
-    // grasp
-    int held = -1, candidate = -1;
-    long candidate_since = -1;
-    Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame at attach
-    Eigen::Vector3d anchor_link = Eigen::Vector3d::Zero();     // the weld's point: between the pads, in the link frame
-    Eigen::Vector3d anchor_body = Eigen::Vector3d::Zero();     // the same point in the body's frame
-    double held_width = 0.0;   // m, the body's width between the jaws
-    double fade = 1.0;         // the weld's gain while letting go by opening (1: holding)
-    double release_progress = 0.0;
-    bool releasing = false;
-    Vec6 weld = Vec6::Zero();  // force, moment on the body
-    VecN q_ref, qd_ref, qdd_ref;
-    VecN k1;  // qdd at (q, qd, tau), valid when k1_valid
-    VecN q_prev, qd_prev;
-    bool k1_valid = false;
-    long updated_at = -1;  // step of the last controller / reference update
-    Workspace ws;
-    RobotLog log;
-    TrackingMetrics metrics;
+    // contact.M_llt starts as the factor of the identity: Eigen leaves a decomposition's info unset
+    // until compute(), and moving a Slot (the vector of slots growing) would copy that unset enum (UB)
+    explicit Slot(const Robot& r) : robot(r) { contact.M_llt.compute(MatN::Identity(r.dof(), r.dof())); }
+    Robot robot;   // immutable copy
+    Workspace ws;  // the robot's kinematics and dynamics scratch, shared by every stage
+    struct Control {  // the control stage: the reference at t_k and the torque held until the next update
+      std::shared_ptr<Controller> controller;
+      std::shared_ptr<const Reference> reference;
+      VecN q_ref, qd_ref, qdd_ref;  // the reference at the last update
+      VecN tau, tau_max;            // held torque (saturated at tau_max)
+      long updated_at = -1;         // step of the last controller / reference update
+    } control;
+    struct State {  // the integration: the state and the first stage of the next step
+      VecN q0, qd0;                 // initial state
+      VecN q, qd;
+      VecN q_prev, qd_prev;         // before the last step: where a rejected step goes back to
+      VecN k1;                      // qdd at (q, qd, tau, tau_ext), valid when k1_valid
+      bool k1_valid = false;
+    } state;
+    struct External {  // applied inputs (kept until changed) and the external torque held over a step
+      VecN forces;                            // applied joint forces
+      std::vector<ExternalWrench> wrenches;   // applied link wrenches
+      bool applied = false;                   // any applied input nonzero
+      VecN tau;                               // applied forces + the wrenches' J^T w + contact.tau, held
+      bool held = false;                      // tau held nonzero from the step before
+    } external;
+    struct Contact {  // the coupling with the world: link bodies, contact wrenches and their torques
+      int first_body = -1;                                        // world body of box 0
+      std::array<Eigen::Vector3d, kMaxDof + 1> frame_w, frame_v;  // frame velocities at the last world step
+      std::vector<ExternalWrench> wrenches;                       // on the links, of the last world step
+      VecN tau;                                                   // their J^T, held over the world step
+      bool any = false;                                           // contact wrenches or a jaw stop act
+      Eigen::LLT<MatN> M_llt;                                     // M = L L^T at the last world step
+      bool M_valid = false;
+    } contact;
+    struct Grasp {  // the clamp's hold on a free body
+      int held = -1, candidate = -1;  // world body ids (-1: none)
+      long candidate_since = -1;      // step from which the candidate met the rule
+      Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame at attach
+      Eigen::Vector3d anchor_link = Eigen::Vector3d::Zero();     // the weld's point: between the pads, in the link frame
+      Eigen::Vector3d anchor_body = Eigen::Vector3d::Zero();     // the same point in the body's frame
+      double width = 0.0;             // m, the body's width between the jaws
+      double fade = 1.0;              // the weld's gain while letting go by opening (1: holding)
+      double release_progress = 0.0;
+      bool releasing = false;
+      Vec6 weld = Vec6::Zero();       // force, moment on the body
+    } grasp;
+    struct Record {  // the log stage
+      RobotLog log;
+      TrackingMetrics metrics;
+    } record;
   };
 
   Slot& slot_(int i);
   const Slot& slot_(int i) const;
   void start_();
-  void update_();
-  void step_();
+  // ---- the step's stages (see the header comment) ----
+  void stages_();                        // the stages at t_k, in order
+  bool control_();                       // control: true when some robot was updated
+  bool world_due_() const { return world_ && world_at_ != k_ && k_ % opt_.world_every == 0; }
+  void links_to_world_();                // world: the links' poses and twists; the free bodies at t_k
+  void grasp_(double h);                 // grasp: the clamp rule, the welds
+  void world_advance_(double h);         // the world's step
+  void contacts_to_robots_(double h);    // its contacts as joint torques, held; its events
+  void hold_external_();                 // every robot's external torque at t_k, held over the step
+  void log_();                           // log: the row at t_k
+  void integrate_();                     // integrate: to t_k+1
+  // ---- divergence (divergence.cpp) ----
   [[noreturn]] void diverge_(int i, const std::string& why, bool in_step, bool state_is_result);
+  [[noreturn]] void torque_diverged_(const Slot& s, const VecN& u);
+  [[noreturn]] void world_diverged_(const WorldDivergence& e, double h);
+  void state_diverged_(int i);  // robot i's state beyond the limits after a step: diverges, naming why
+  // ---- dynamics and external torques ----
   void qdd_(Slot& s, VecN& out);
   void external_(Slot& s);
-  void world_step_();
+  void applied_changed_(Slot& s);
+  bool has_ext_(const Slot& s) const { return s.external.applied || s.contact.any; }
+  // ---- contact coupling (contact_coupling.cpp) ----
   void contact_wrenches_(double h);
-  void grasp_rule_(double h);
   void link_contacts_(double h);
+  static void frames_(Slot& s);  // s's kinematics and frame velocities at its q, qd
+  static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
+  double inverse_mass_along(Slot& s, const VecN& u);
+  void factor_mass_(Slot& s);  // M(q) of the slot's robot, Cholesky-factored once per world step
+  // ---- grasp (grasp.cpp) ----
+  void grasp_rule_(double h);
   void ignore_held_();
   void welds_(double h);
   void release_(Slot& s, const std::string& why, bool set_twist = true);
   GraspCheck grasp_check_(const Slot& s, const BodyState& st, int body) const;
-  bool has_ext_(const Slot& s) const { return s.has_applied || s.has_contact; }
-  static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
-  double inverse_mass_along(Slot& s, const VecN& u);
-  void factor_mass_(Slot& s);  // M(q) of the slot's robot, Cholesky-factored once per world step
-  void applied_changed_(Slot& s);
 
   SimulationOptions opt_;
   std::shared_ptr<World> world_;
@@ -390,12 +323,5 @@ class Simulation {
   bool diverged_ = false;
   std::string divergence_;
 };
-
-// Runs each simulation up to time t_end on a pool of `threads` threads
-// (0: hardware concurrency). Simulations must be distinct and must not share
-// controller instances. Returns one exception per simulation (null when it
-// finished), so that one failed run does not stop the others.
-std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, double t_end, int threads,
-                                          std::vector<double>* seconds = nullptr);
 
 }  // namespace coopsim

@@ -1,7 +1,8 @@
 // The world: a Bullet dynamics world with a floor, static scenery and free
 // rigid bodies, into which a simulation brings every robot's link boxes as
-// kinematic bodies (design: shared/design/world.md). Bullet appears only in
-// world.cpp.
+// kinematic bodies. Bullet appears only in world.cpp (and, for its GJK
+// distance alone, box_distance.cpp): this header and the rest of the engine
+// see Eigen types only.
 //
 // Division of labour: coopsim's dynamics move the robots; Bullet does the
 // geometry of everything and moves the free bodies, with its own solver,
@@ -35,26 +36,6 @@ struct BodySpec;
 // "robot-robot", "robot-scenery" (a link and the floor or a static box),
 // "robot-body" (a link and a free body), "body-scenery", "body-body".
 const char* contact_kind(const BodySpec& a, const BodySpec& b);
-
-// Distance between two boxes (world poses of their centres, half extents), m:
-// > 0 the gap between their nearest points, <= 0 minus the depth of their
-// overlap (Bullet's GJK with EPA, margins zero, double precision). Rows i, j
-// of `out` (na x nb) for every pair of the two lists (box_distances).
-double box_distance(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
-                    const Eigen::Vector3d& half_b);
-void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
-                   const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
-                   double* out);
-// The clearance between two sets of boxes in each of `rows` configurations: the smallest
-// box_distance over every pair (box of set A, box of set B) and the pair that has it (d, ia, ib:
-// rows values each). a: rows x na poses, row by row; b: rows x nb poses, or nb poses when
-// b_static (boxes that do not move). The same minimum as box_distances on every pair, found with
-// far fewer GJK calls: each row starts from the previous row's nearest pair, and a pair goes to
-// GJK only if no lower bound of its distance shows it cannot be nearer: its bound from an earlier
-// row less how far its boxes can have moved since, its bounding spheres, its separating axes.
-void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
-                    const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
-                    bool b_static, double* d, long* ia, long* ib);
 
 // A body of the world: the floor (the plane z = 0 within 100 m of the
 // origin: the top face of a static 200 m cube), a static box, a free box

@@ -4,6 +4,7 @@ from __future__ import annotations
 import difflib
 from pathlib import Path
 
+from .. import robots
 from .files import builtin_sources, registry_source
 from .symbolic import structure_of
 
@@ -11,9 +12,7 @@ __all__ = ["builtin_structures", "generate_files", "write_generated", "check_gen
 
 
 def builtin_structures() -> list:
-    """Structures of scara1 and scara2, read from coopsim.robots (needs the compiled module)."""
-    from .. import robots
-
+    """Structures of scara1 and scara2, read from coopsim.robots."""
     return [structure_of(robots.scara1(backend="numeric")), structure_of(robots.scara2(backend="numeric"))]
 
 

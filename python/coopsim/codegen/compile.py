@@ -10,13 +10,15 @@ import sysconfig
 import tempfile
 import time
 from pathlib import Path
+from typing import List, Optional
 
 import sympy as sp
 
+from .._core import Robot, compiled_generated_names, generated_cache_dir, generated_info, load_generated_library
 from .files import GENERATOR_VERSION, runtime_source
 from .symbolic import Structure, SymbolicModel, structure_of
 
-__all__ = ["compile", "cache_dir", "structure_key"]
+__all__ = ["compile", "cache_dir", "structure_key", "info", "builtin_names", "load"]
 
 _FLAGS = ["-O2", "-std=c++17", "-shared", "-fPIC", "-fno-math-errno"]
 
@@ -26,10 +28,31 @@ def cache_dir() -> Path:
 
     Libraries there are also found by name when a compiled robot is unpickled
     in another process (e.g. a worker of a process pool)."""
-    from .. import _core
-
-    d = _core.generated_cache_dir()
+    d = generated_cache_dir()
     return Path(d) if d else Path.home() / ".cache" / "coopsim"
+
+
+def info(robot) -> Optional[dict]:
+    """The generated dynamics attached to `robot` (built into the engine or by :func:`compile`): a dict with
+    name, dof, joint_types, angles, generator_version, operation_count and in_use; None for a robot
+    without any."""
+    if not isinstance(robot, Robot):
+        raise ValueError(f"robot must be a coopsim.Robot, got {type(robot).__name__}")
+    return generated_info(robot)
+
+
+def builtin_names() -> List[str]:
+    """The names of the generated dynamics compiled into the engine (the built-in SCARAs')."""
+    return list(compiled_generated_names())
+
+
+def load(path) -> str:
+    """Loads a library of generated dynamics (``coopsim_<name>.so``, built by :func:`compile`) into this
+    process, so that robots compiled with it elsewhere unpickle here; returns its name. ValueError for a
+    file that is missing or not such a library."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be a file name, got {path!r}")
+    return load_generated_library(os.fspath(path))
 
 
 def structure_key(s: Structure, compiler: str) -> str:
@@ -134,9 +157,7 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     numeric path's speed; arms with arbitrary angles can be slower than
     numeric): compare both backends before choosing.
     """
-    from .. import _core
-
-    if not isinstance(robot, _core.Robot):
+    if not isinstance(robot, Robot):
         raise ValueError(f"robot must be a coopsim.Robot, got {type(robot).__name__}")
     cxx = _compiler()
     key = structure_key(structure_of(robot, name="robot"), _compiler_id(cxx))
@@ -149,9 +170,9 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
         # never loaded
         _build(s, cxx, folder, lib, verbose)
     try:
-        name = _core.load_generated_library(str(lib))
+        name = load(lib)
     except ValueError:
         # a damaged cached library (e.g. truncated by a full disk): build it again, once
         _build(s, cxx, folder, lib, verbose)
-        name = _core.load_generated_library(str(lib))
+        name = load(lib)
     return robot.with_generated(name)

@@ -1,14 +1,7 @@
 """Tasks built on the simulator: the cooperative bar handover (:mod:`coopsim.tasks.handover`, run it with
-``python -m coopsim.tasks.handover``) and its scene (:mod:`coopsim.tasks.scene`)."""
-import importlib
+``python -m coopsim.tasks.handover``; :class:`TaskRun`, one run of it as an item of :func:`coopsim.sweep`)
+and its scene (:mod:`coopsim.tasks.scene`)."""
+from . import handover, scene
+from .handover import TaskRun
 
-from . import scene
-
-__all__ = ["handover", "scene"]
-
-
-def __getattr__(name):
-    # imported on first use, so that ``python -m coopsim.tasks.handover`` runs it once, as __main__
-    if name == "handover":
-        return importlib.import_module(".handover", __name__)
-    raise AttributeError(name)
+__all__ = ["TaskRun", "handover", "scene"]

@@ -18,7 +18,12 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .scene import Body, Scene, _array, _contacts, _is_simulation, _robot_list
+from ..log import _atomic_write, rows_at
+from .bodies import Body, _array, _is_simulation, _robot_list
+from .geometry import box_corners
+from .scene import Scene, _contacts
+from .world import (_holding_mode, colliding_from_log, contacts_from_log, holding_from_log, resolve_world,
+                    world_bodies)
 
 __all__ = ["Animation", "animate", "ffmpeg_path"]
 
@@ -32,10 +37,10 @@ def ffmpeg_path() -> str:
     Also sets matplotlib's ``rcParams['animation.ffmpeg_path']`` to it when that is still the default
     'ffmpeg', so matplotlib's own writers (``FuncAnimation.save``, ``to_html5_video``) find it too.
     """
-    import matplotlib
+    import matplotlib  # matplotlib loads only to draw
 
     try:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # only to find or run ffmpeg
     except ImportError:  # pragma: no cover - a declared dependency
         raise RuntimeError("MP4 needs imageio-ffmpeg: pip install imageio-ffmpeg") from None
     exe = imageio_ffmpeg.get_ffmpeg_exe()
@@ -107,7 +112,7 @@ class Animation:
         the next frame), drawn with :meth:`Scene.redraw` (the background once, then the moving artists)."""
         fig = self.fig
         if not hasattr(fig.canvas, "buffer_rgba"):
-            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib loads only to draw
 
             FigureCanvasAgg(fig)
         for k in range(len(self.times)):
@@ -130,7 +135,6 @@ class Animation:
             quality = _number(quality, "quality")
             if not 0 <= quality <= 10:
                 raise ValueError(f"quality must be in 0 .. 10, got {quality!r}")
-        from ..log import _atomic_write
 
         def write(tmp):
             if suffix == ".mp4":
@@ -143,7 +147,7 @@ class Animation:
         return self.path
 
     def _write_mp4(self, path: str, quality: float) -> None:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # only to find or run ffmpeg
 
         ffmpeg_path()
         w, h = self.fig.canvas.get_width_height(physical=True)
@@ -161,7 +165,7 @@ class Animation:
             writer.close()
 
     def _write_gif(self, path: str) -> None:
-        from PIL import Image
+        from PIL import Image  # Pillow loads only to write a GIF
 
         images = []
         for frame in self.frames():
@@ -192,7 +196,7 @@ class Animation:
     def animation(self):
         """A matplotlib ``FuncAnimation`` over the same frames (interval 1000 / fps ms), made on first use."""
         if self._anim is None:
-            from matplotlib.animation import FuncAnimation
+            from matplotlib.animation import FuncAnimation  # matplotlib loads only to draw
 
             ffmpeg_path()
             self._anim = FuncAnimation(self.fig, self.show_frame, frames=len(self.times), interval=1000.0 / self.fps,
@@ -202,11 +206,6 @@ class Animation:
     def __repr__(self) -> str:
         return (f"<coopsim.view.Animation {len(self.times)} frames at {self.fps:g} fps, speed {self.speed:g} "
                 f"(t = {self.times[0]:.4g} .. {self.times[-1]:.4g} s), {self.duration:.3g} s>")
-
-
-def _rows_at(t_log: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Index of the last log row at or before each time."""
-    return np.clip(np.searchsorted(t_log, times, side="right") - 1, 0, len(t_log) - 1)
 
 
 def _interp(t_log: np.ndarray, X: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -322,9 +321,6 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     arrays of the wrong shape, times outside the log, an unknown suffix, a
     world that is not a World or Simulation.
     """
-    from .world import (_holding_mode, colliding_from_log, contacts_from_log, holding_from_log, resolve_world,
-                        world_bodies)
-
     # ---- arguments ----
     sim = None
     if _is_simulation(log):
@@ -391,7 +387,7 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     else:
         given = _per_robot_rows(reference, n, rows, "reference", [(r.dof,) for r in robots])
         R = [None if g is None else _interp(t_log, g, times) for g in given]
-    at = _rows_at(t_log, times)
+    at = rows_at(t_log, times)
     if holding is None or isinstance(holding, str):
         mode = _holding_mode("shared" if holding is None else holding, "holding")
         holding = holding_from_log(log, mode=mode)
@@ -453,8 +449,8 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
 
     # ---- the scene: fixed camera, floor and limits fitted to every frame ----
     if ax is None:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib loads only to draw
+        from matplotlib.figure import Figure  # matplotlib loads only to draw
 
         dpi = _number(dpi, "dpi")
         w, h = figsize
@@ -470,8 +466,6 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     if not robots and not checked_bodies:
         raise ValueError("nothing to draw: the log has no robots and the world no bodies")
     scene = Scene(ax, robots, collision_boxes=collision_boxes, **scene_options)
-    from .geometry import box_corners
-
     pts = []
     sample = np.unique(np.linspace(0, n_frames - 1, min(n_frames, 200)).astype(int))
     for k in sample:

@@ -25,7 +25,7 @@ three.js keyframes: per moving box a position track and a quaternion track
 at the chosen frame rate (``fps``, default 30), with times and values as
 float32 arrays (msgpack extension 0x17, decoded as ``Float32Array``), so a
 20 s run of both SCARAs is well under 2 MB, the viewer bundle (0.85 MB)
-included. Frames are log rows (the row nearest each multiple of 1/fps),
+included. Frames are log rows (the row that held at each multiple of 1/fps),
 so a frame shows exactly what the log holds at its time; three.js
 interpolates between frames while playing. meshcat's scene root turns the
 z-up world into three.js's y-up one; the poses in the commands are z-up.
@@ -48,6 +48,8 @@ from __future__ import annotations
 import base64
 import functools
 import html
+import importlib.resources
+import importlib.util
 import json
 import math
 import os
@@ -56,8 +58,12 @@ import uuid
 from typing import List, Optional
 
 import numpy as np
+import umsgpack  # the msgpack meshcat's Python client uses (a dependency of meshcat)
 
-from .scene import COLORS
+from .._core import Robot
+from ..log import SimulationLog, _atomic_write, rows_at
+from .bodies import COLORS
+from .world import holding_from_log
 
 __all__ = ["replay_html"]
 
@@ -68,7 +74,13 @@ _DISCRETE = 2300              # THREE.InterpolateDiscrete: a colour switches at 
 _LOOP_ONCE = 2200             # THREE.LoopOnce: a seek to the end shows the end (LoopRepeat would wrap to 0)
 
 
-# ---- meshcat's bundle and client ----
+# ---- the page's template, meshcat's bundle and client ----
+
+@functools.lru_cache(maxsize=1)
+def _template() -> str:
+    """The page (replay_template.html, package data beside this module) with @NAME@ where values go."""
+    return importlib.resources.files(__package__).joinpath("replay_template.html").read_text(encoding="utf-8")
+
 
 @functools.lru_cache(maxsize=1)
 def _meshcat_assets():
@@ -76,9 +88,7 @@ def _meshcat_assets():
 
     The package is found, not imported: importing meshcat loads its ZMQ server and IPython machinery,
     none of which a file needs."""
-    import importlib.util
-    from importlib.metadata import PackageNotFoundError, version
-
+    from importlib.metadata import PackageNotFoundError, version  # its import costs 50 ms: only for a page
     spec = importlib.util.find_spec("meshcat")
     if spec is None or not spec.submodule_search_locations:
         raise ImportError("coopsim.view.replay_html needs the meshcat package for its viewer bundle "
@@ -108,20 +118,16 @@ def _meshcat_assets():
 
 
 def _pack(cmd: dict) -> str:
-    import umsgpack   # the msgpack meshcat's Python client uses (a dependency of meshcat)
-
     return base64.b64encode(umsgpack.packb(cmd)).decode("ascii")
 
 
 def _f32(a: np.ndarray):
     """A float32 array as msgpack extension 0x17, which meshcat's decoder turns into a Float32Array."""
-    import umsgpack
-
     return umsgpack.Ext(0x17, np.ascontiguousarray(a, dtype="<f4").tobytes())
 
 
 def _hex(color) -> int:
-    from matplotlib.colors import to_rgb
+    from matplotlib.colors import to_rgb  # matplotlib loads only to draw
 
     try:
         r, g, b = to_rgb(color)
@@ -247,7 +253,8 @@ _MAX_DISTANCE = 1e6  # m: boxes drawn lie within the world's extent
 
 
 def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
-    """Indices of the log rows shown: the row nearest each t0 + k / fps within [t0, t1], the last row in it."""
+    """Indices of the log rows shown, among the rows within [t0, t1]: the row that held at each frame's time,
+    the first of them + k / fps (:func:`coopsim.log.rows_at`), and the last row in it."""
     lo = int(np.searchsorted(t, t0 - 1e-12, side="left"))
     hi = int(np.searchsorted(t, t1 + 1e-12, side="right")) - 1
     if hi < lo:
@@ -258,22 +265,8 @@ def _frame_rows(t: np.ndarray, fps: float, t0: float, t1: float) -> np.ndarray:
         raise ValueError(f"{frames:.3g} frames is too many (at most {_MAX_FRAMES:g}): lower fps or replay a part "
                          "of the log (t_start, t_end)")
     n = int(math.floor(frames + 1e-9)) + 1
-    targets = seg[0] + np.arange(n) / fps
-    j = np.clip(np.searchsorted(seg, targets), 1, max(len(seg) - 1, 1))
-    if len(seg) > 1:
-        j = np.where(np.abs(seg[j - 1] - targets) <= np.abs(seg[j] - targets), j - 1, j)
-    else:
-        j = np.zeros(n, dtype=int)
-    rows = np.unique(np.append(j, len(seg) - 1)) + lo
-    return rows
-
-
-def _nearest(t_src: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Index of the row of t_src nearest each time."""
-    if len(t_src) == 1:
-        return np.zeros(len(times), dtype=int)
-    j = np.clip(np.searchsorted(t_src, times), 1, len(t_src) - 1)
-    return np.where(np.abs(t_src[j - 1] - times) <= np.abs(t_src[j] - times), j - 1, j)
+    j = rows_at(seg, seg[0] + np.arange(n) / fps)
+    return np.unique(np.append(j, len(seg) - 1)) + lo
 
 
 def _safe(name: str) -> str:
@@ -294,8 +287,6 @@ def _number(x, what: str, lo: float, hi: float = math.inf, lo_open: bool = False
 
 def _unpack_sources(log, robots, world):
     """(log, robots, world) from a SimulationLog or a Simulation."""
-    from ..log import SimulationLog
-
     if not isinstance(log, SimulationLog) and hasattr(log, "log") and hasattr(log, "robots"):   # a Simulation
         sim = log
         log = sim.log
@@ -310,8 +301,6 @@ def _unpack_sources(log, robots, world):
         robots = []
         if len(log.robots):
             raise ValueError("robots must be given with a log (the robots it was run with), or pass the Simulation")
-    from .. import Robot
-
     if isinstance(robots, Robot):
         robots = [robots]
     robots = list(robots)
@@ -333,8 +322,6 @@ def _holding(holding, log, rows: int) -> list:
     if holding is None or holding is True or isinstance(holding, str):
         # the views' rule: by default green while another robot holds the same body too (the paper's
         # dual hold), 'any' while the robot holds anything
-        from .world import holding_from_log
-
         mode = holding if isinstance(holding, str) else "shared"
         if any(len(getattr(rl, "holding", ())) != rows for rl in log.robots):
             return [None] * n
@@ -384,7 +371,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     colour; needed when the log has free bodies.
 
     fps: frames per second of the replay's keyframes (> 0; each frame is
-    the log row nearest its time, so a log coarser than 1/fps keeps all its
+    the log row that held at its time, :func:`coopsim.log.rows_at`, as in
+    :func:`~coopsim.view.animate`, so a log coarser than 1/fps keeps all its
     rows). speed: the speed the page starts at, 0 to 4 (400 %). t_start,
     t_end: the part of the log to replay (s; default all). reference: draw
     the desired pose (``q_ref``) as a transparent blue ghost (robots whose
@@ -521,7 +509,7 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
             if bl is None:
                 poses = np.asarray(b["pose"], float)
             else:
-                poses = np.asarray(bl.poses(), float)[_nearest(np.asarray(bl.t, float), times)]
+                poses = np.asarray(bl.poses(), float)[rows_at(bl.t, times)]
             bar = str(name).startswith("bar")             # the bar red, other free bodies in their colour
             add_box(f"bodies/{_safe(name)}", b["half_extents"], _hex(c["body"] if bar else c["free_body"]), 1.0,
                     poses)
@@ -582,178 +570,10 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
               "NOTICES_TEXT": html.escape(notices), "MESHCAT_VERSION": html.escape(str(mc_version)),
               "COMMANDS": json.dumps([_pack(x) for x in cmds]), "META": json.dumps(meta).replace("</", "<\\/"),
               "MESHCAT_JS": js}
-    page = re.sub(r"@([A-Z_]+)@", lambda m: values[m.group(1)], _TEMPLATE)     # one pass: no value is rescanned
-    from ..log import _atomic_write
+    page = re.sub(r"@([A-Z_]+)@", lambda m: values[m.group(1)], _template())     # one pass: no value is rescanned
 
     def write(tmp):
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(page)
 
     return _atomic_write(path, ".html", write)  # no half-written page under the name
-
-
-_TEMPLATE = r"""<!DOCTYPE html>
-<html lang="en">
-<head>
-<meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>@TITLE@</title>
-<!-- Written by coopsim.view.replay_html. The viewer is MeshCat's (meshcat @MESHCAT_VERSION@, viewer/dist/main.min.js),
-which bundles three.js; their licence notices follow.
-
-@NOTICES@
--->
-<style>
-  html, body { margin: 0; height: 100%; overflow: hidden; font: 13px/1.3 system-ui, sans-serif; }
-  #meshcat-pane { width: 100vw; height: 100vh; overflow: hidden; }
-  #cs-title { position: absolute; left: 10px; top: 8px; color: #223; background: rgba(255,255,255,0.7);
-              padding: 2px 6px; border-radius: 3px; pointer-events: none; }
-  #cs-bar { position: fixed; left: 0; right: 0; bottom: 0; display: flex; align-items: center; gap: 10px;
-            padding: 6px 12px; background: rgba(250,250,252,0.92); border-top: 1px solid #c8ccd4; }
-  #cs-title, #cs-bar { user-select: none; -webkit-user-select: none; }
-  #cs-licences pre { user-select: text; -webkit-user-select: text; }
-  #cs-bar button { width: 38px; height: 28px; font-size: 15px; cursor: pointer; }
-  #cs-scrub { flex: 1; min-width: 120px; }
-  #cs-speed { width: 130px; }
-  #cs-time, #cs-speed-value { font-variant-numeric: tabular-nums; white-space: nowrap; }
-  #cs-licences { position: relative; }
-  #cs-licences summary { cursor: pointer; color: #556; }
-  #cs-licences pre { position: absolute; right: 0; bottom: 28px; width: 560px; max-height: 60vh; overflow: auto;
-                     background: #fff; border: 1px solid #aab; padding: 8px; font-size: 11px; white-space: pre-wrap; }
-</style>
-</head>
-<body>
-<div id="meshcat-pane"></div>
-<div id="cs-title">@TITLE@</div>
-<div id="cs-bar">
-  <button id="cs-play" title="play / pause (space)">&#9654;</button>
-  <span id="cs-time">0.000 s</span>
-  <input id="cs-scrub" type="range" min="0" max="1" step="0.001" value="0" title="time (arrow keys: one frame)">
-  <label for="cs-speed">speed</label>
-  <input id="cs-speed" type="range" min="0" max="400" step="5" value="100" title="playback speed, 0 to 400 %">
-  <span id="cs-speed-value">100 %</span>
-  <details id="cs-licences"><summary>licences</summary><pre>@NOTICES_TEXT@</pre></details>
-</div>
-<script>@MESHCAT_JS@</script>
-<script type="application/json" id="cs-commands">@COMMANDS@</script>
-<script type="application/json" id="cs-meta">@META@</script>
-<script>
-(function () {
-  "use strict";
-  var meta = JSON.parse(document.getElementById("cs-meta").textContent);
-  var commands = JSON.parse(document.getElementById("cs-commands").textContent);
-  var THREE = MeshCat.THREE;
-  var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-  function bytes(b64) {
-    var s = atob(b64), a = new Uint8Array(s.length);
-    for (var i = 0; i < s.length; i++) a[i] = s.charCodeAt(i);
-    return a;
-  }
-  for (var i = 0; i < commands.length; i++) viewer.handle_command_bytearray(bytes(commands[i]));
-  var animator = viewer.animator;
-  animator.pause();                                       // the page's own clock drives the replay
-  if (animator.folder && viewer.gui) {                    // and its own controls: no second set in meshcat's menu
-    try { viewer.gui.removeFolder(animator.folder); } catch (e) { /* an older dat.gui */ }
-  }
-
-  var t0 = meta.t0, t1 = meta.t1, current = t0, playing = false, speed = meta.speed, last = 0;
-  var playBtn = document.getElementById("cs-play"), timeEl = document.getElementById("cs-time");
-  var scrub = document.getElementById("cs-scrub"), speedEl = document.getElementById("cs-speed");
-  var speedVal = document.getElementById("cs-speed-value");
-  scrub.min = 0; scrub.max = Math.max(t1 - t0, 0); scrub.step = "any";
-
-  function show(t) {
-    current = Math.min(Math.max(t, t0), t1);
-    if (animator.actions.length) animator.seek(current - t0);
-    scrub.value = current - t0;
-    timeEl.textContent = current.toFixed(3) + " s / " + t1.toFixed(3) + " s";
-    viewer.set_dirty();
-  }
-  function setPlaying(p) {
-    playing = p && t1 > t0;
-    last = performance.now();                             // the replay's clock runs from this moment
-    playBtn.innerHTML = playing ? "&#10074;&#10074;" : "&#9654;";
-  }
-  function setSpeed(s) {
-    if (playing) advance();                               // the time played so far at the old speed
-    speed = Math.min(Math.max(Number(s), 0), 4);
-    speedEl.value = Math.round(speed * 100);
-    speedVal.textContent = Math.round(speed * 100) + " %";
-  }
-  function frameStep(dir) {
-    var f = meta.frames, k = 0;
-    if (dir > 0) { while (k < f.length - 1 && f[k] <= current + 1e-9) k++; }
-    else { k = f.length - 1; while (k > 0 && f[k] >= current - 1e-9) k--; }
-    setPlaying(false); show(f[k]);
-  }
-  playBtn.addEventListener("click", function () {
-    if (playing) { advance(); setPlaying(false); return; }
-    if (current >= t1) show(t0);
-    setPlaying(true);
-  });
-  scrub.addEventListener("input", function () { show(t0 + Number(scrub.value)); });
-  speedEl.addEventListener("input", function () { setSpeed(Number(speedEl.value) / 100); });
-  document.addEventListener("keydown", function (e) {
-    if (e.target && e.target.tagName === "INPUT" && e.key !== " ") return;
-    if (e.key === " ") { e.preventDefault(); playBtn.click(); }
-    else if (e.key === "ArrowRight") frameStep(1);
-    else if (e.key === "ArrowLeft") frameStep(-1);
-  });
-  function advance() {                                    // wall time since the last call, times the speed
-    var now = performance.now(), t = current + (now - last) / 1000 * speed;
-    last = now;
-    if (t >= t1) { t = t1; setPlaying(false); }
-    show(t);
-  }
-  function tick() {
-    if (playing) advance();
-    requestAnimationFrame(tick);
-  }
-
-  var scene = viewer.scene;
-  function node(name) {
-    var n = viewer.scene_tree.children[meta.group];
-    var parts = String(name).split("/");
-    for (var i = 0; n && i < parts.length; i++) n = n.children[parts[i]];
-    return n ? n.object : null;
-  }
-  window.coopsim = {
-    t0: t0, t1: t1, fps: meta.fps, frames: meta.frames, ready: false, viewer: viewer,
-    names: function () { return meta.names.slice(); },
-    seek: function (t) { setPlaying(false); show(Number(t)); viewer.render(); return current; },
-    time: function () { if (playing) advance(); return current; },
-    play: function () { if (current >= t1) show(t0); setPlaying(true); },
-    pause: function () { if (playing) advance(); setPlaying(false); },
-    playing: function () { return playing; },
-    setSpeed: setSpeed,
-    speed: function () { return speed; },
-    color: function (name) {
-      var obj = node(name), mesh = null;
-      if (obj) obj.traverse(function (o) { if (!mesh && o.material) mesh = o; });
-      return mesh ? "#" + mesh.material.color.getHexString() : null;
-    },
-    pose: function (name) {
-      var obj = node(name);
-      if (!obj) return null;
-      obj.updateWorldMatrix(true, false);
-      var m = new THREE.Matrix4().copy(scene.matrixWorld).invert().multiply(obj.matrixWorld).elements;
-      return [[m[0], m[4], m[8], m[12]], [m[1], m[5], m[9], m[13]], [m[2], m[6], m[10], m[14]],
-              [m[3], m[7], m[11], m[15]]];
-    }
-  };
-  // the camera (z-up world in meta; three.js is y-up: (x, y, z) -> (x, z, -y)); its parents are identity in
-  // three.js's frame (meshcat's scene root turns by -90 deg about x, the camera's 'rotated' node back by +90 deg)
-  var cp = meta.camera.position, ct = meta.camera.target;
-  viewer.camera.position.set(cp[0], cp[2], -cp[1]);
-  viewer.controls.target.set(ct[0], ct[2], -ct[1]);
-  viewer.controls.update();
-  setSpeed(speed);
-  show(t0);
-  setPlaying(!!meta.autoplay);
-  requestAnimationFrame(tick);
-  window.coopsim.ready = true;
-})();
-</script>
-</body>
-</html>
-"""

@@ -14,133 +14,22 @@ robots green while they hold something, collision boxes green (free) or red
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import List, Optional
 
 import numpy as np
 
+from .bodies import COLORS, Body, _array, _is_simulation, _robot_list
 from .geometry import (box_corners, box_faces, box_normals, box_samples, floor_tiles, hidden, light_direction, shade,
                        split_quads, view_direction)
+from .world import _holding_mode, colliding_from_contacts, contact_lines, holding_now, resolve_world, world_bodies
 
 __all__ = ["Body", "COLORS", "Scene", "draw"]
-
-#: The colour conventions (any matplotlib colour). robots: the normal colour of robot i's links, cycling;
-#: base: base columns; jaw: the clamp's jaws; holding: a robot that holds something; free / colliding:
-#: collision boxes without / with contact; ghost: the desired pose (drawn with ghost_alpha);
-#: contact: contact lines; body: extra boxes without their own colour (the bar); floor: two tile colours;
-#: scenery: a world's static boxes; free_body: a world's free bodies other than the bar.
-COLORS = {
-    "robots": ("#f0a23c", "#e4e4e8", "#c07a4a", "#a5a5a5"),
-    "base": "#757575",
-    "jaw": "#2f3237",
-    "holding": "#2ca02c",
-    "free": "#3cc43c",
-    "colliding": "#e8231e",
-    "ghost": "#1f5bff",
-    "ghost_alpha": 0.3,
-    "contact": "#e8231e",
-    "body": "#d62728",
-    "floor": ("#b9bec6", "#a9aeb7"),
-    "scenery": "#8d9099",
-    "free_body": "#8a5fb8",
-}
 
 _KEEP = object()   # update(): leave as it is
 
 #: The default camera (degrees, matplotlib's convention): from the front right, above the floor.
 DEFAULT_ELEV = 22.0
 DEFAULT_AZIM = -62.0
-
-
-@dataclass
-class Body:
-    """Extra boxes drawn with the robots: world bodies such as the bar, or scenery.
-
-    name: a label. half_extents: (3,) m for one box, or (m, 3) for m boxes.
-    poses: the boxes' centres and axes in the world, (4, 4) (one box, fixed),
-    (m, 4, 4) (m boxes, fixed), or one pose per log row for
-    :func:`~coopsim.view.animate`: (rows, 4, 4) for one box, (rows, m, 4, 4)
-    for m boxes. color: any matplotlib colour (default the bar's red);
-    alpha: 0..1. scenery: fixed surroundings (a world's static boxes; see
-    :meth:`Scene.choose_azimuth` for how they turn the default camera).
-    tiled: faces longer than the scene's tile drawn as tiles without
-    edges between them, so that they sort by depth piece by piece against
-    what lies on them or beside them (matplotlib sorts whole polygons);
-    the world's bodies are tiled.
-    """
-
-    name: str
-    half_extents: object
-    poses: object
-    color: object = COLORS["body"]
-    alpha: float = 1.0
-    scenery: bool = False
-    tiled: bool = False
-
-    def _checked(self, what: str, rows: Optional[int] = None):
-        """(half (m, 3), poses, rgba (4,)), checked; poses (m, 4, 4), or with `rows` given either that
-        (fixed boxes) or (rows, m, 4, 4) (one pose per log row)."""
-        from matplotlib.colors import to_rgba
-
-        h = _array(self.half_extents, f"{what}.half_extents")
-        if h.ndim == 1:
-            h = h[None, :]
-        if h.ndim != 2 or h.shape[1] != 3 or not np.all(h > 0):
-            raise ValueError(f"{what}.half_extents must be (3,) or (m, 3) lengths > 0 m, got shape "
-                             f"{np.shape(self.half_extents)}")
-        m = h.shape[0]
-        p = _array(self.poses, f"{what}.poses")
-        fixed = [(m, 4, 4)] + ([(4, 4)] if m == 1 else [])
-        moving = [] if rows is None else [(rows, m, 4, 4)] + ([(rows, 4, 4)] if m == 1 else [])
-        if p.shape in fixed:
-            p = p.reshape(m, 4, 4)
-        elif p.shape in moving:
-            p = p.reshape(rows, m, 4, 4)
-        else:
-            raise ValueError(f"wrong shape for {what}.poses: expected {' or '.join(map(str, fixed + moving))} "
-                             f"for {m} box(es), got {p.shape}")
-        try:
-            rgba = np.array(to_rgba(self.color, float(self.alpha)))
-        except (ValueError, TypeError) as e:
-            raise ValueError(f"{what}.color / alpha: {e}") from None
-        return h, p, rgba
-
-
-def _array(x, what: str) -> np.ndarray:
-    try:
-        a = np.asarray(x, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be an array of numbers, got {type(x).__name__}") from None
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{what} must be finite (no NaN or inf)")
-    return a
-
-
-def _is_simulation(x) -> bool:
-    from ..simulation import Simulation
-
-    return isinstance(x, Simulation)
-
-
-def _robot_list(robots, allow_empty: bool = False) -> list:
-    """A list of Robot from one Robot, a sequence of them or a Simulation (its robots); empty only when
-    allowed (a scene of a world's bodies alone)."""
-    from .. import Robot
-
-    if isinstance(robots, Robot):
-        return [robots]
-    if _is_simulation(robots):
-        robots = robots.robots
-    elif robots is None and allow_empty:
-        robots = []
-    try:
-        robots = list(robots)
-    except TypeError:
-        raise ValueError(f"robots must be a coopsim.Robot, a sequence of them or a Simulation, got "
-                         f"{type(robots).__name__}") from None
-    if (not robots and not allow_empty) or not all(isinstance(r, Robot) for r in robots):
-        raise ValueError("robots must be a coopsim.Robot or a non-empty sequence of them")
-    return robots
 
 
 def _per_robot_q(q, robots, what: str, allow_none: bool = False) -> list:
@@ -245,7 +134,7 @@ def _bodies(bodies, what: str = "bodies") -> list:
 
 
 def _rgba(c, what: str) -> np.ndarray:
-    from matplotlib.colors import to_rgba
+    from matplotlib.colors import to_rgba  # matplotlib loads only to draw
 
     try:
         return np.array(to_rgba(c))
@@ -273,7 +162,7 @@ class Scene:
                  limits=None, elev: Optional[float] = 22.0, azim: Optional[float] = None, axis: bool = False,
                  zoom: Optional[float] = None, contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4,
                  cull: bool = False, ghost_margin: float = 0.002):
-        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # matplotlib loads only to draw
 
         self.robots = _robot_list(robots, allow_empty=True)
         self.ax = ax
@@ -347,7 +236,7 @@ class Scene:
         self.label = self.fig.text(0.02, 0.975, "", va="top", ha="left", fontsize=9, zorder=4)
         # the boxes may use the whole subplot, not only the square a 3D Axes draws into: an empty frame over
         # the subplot keeps all of it in a tight bounding box (notebooks show figures with bbox_inches='tight')
-        from matplotlib.patches import Rectangle
+        from matplotlib.patches import Rectangle  # matplotlib loads only to draw
 
         pos = ax.get_position(original=True)
         self.extent = Rectangle((pos.x0, pos.y0), pos.width, pos.height, transform=self.fig.transFigure,
@@ -510,7 +399,7 @@ class Scene:
         """How far the points (m, 3) reach from the middle of the axes' place in the figure towards its edges,
         at most: 1 at an edge (the larger of x and y, as fractions of the half width and half height). A 3D
         Axes draws into a square, but its artists are not clipped: the place is the whole subplot."""
-        from mpl_toolkits.mplot3d import proj3d
+        from mpl_toolkits.mplot3d import proj3d  # matplotlib loads only to draw
 
         self.ax.apply_aspect()           # as drawing will: the square the Axes draws into
         x, y, _ = proj3d.proj_transform(points[:, 0], points[:, 1], points[:, 2], self.ax.get_proj())
@@ -736,7 +625,7 @@ class Scene:
         """Pixel coordinates (m, 2) of world points (m, 3) m in the figure's image: x to the right, y down
         from the top-left corner, as in ``np.asarray(fig.canvas.buffer_rgba())[y, x]``. Draw the figure
         first (e.g. ``fig.canvas.draw()``) so that the layout is final."""
-        from mpl_toolkits.mplot3d import proj3d
+        from mpl_toolkits.mplot3d import proj3d  # matplotlib loads only to draw
 
         p = _array(points, "points").reshape(-1, 3)
         x, y, _ = proj3d.proj_transform(p[:, 0], p[:, 1], p[:, 2], self.ax.get_proj())
@@ -759,7 +648,7 @@ def _finite(x, what: str) -> float:
 
 
 def _is_colour(c) -> bool:
-    from matplotlib.colors import is_color_like
+    from matplotlib.colors import is_color_like  # matplotlib loads only to draw
 
     if isinstance(c, str):
         return is_color_like(c)
@@ -828,8 +717,6 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
 
     Raises ValueError naming the argument for wrong shapes or values.
     """
-    from .world import _holding_mode, colliding_from_contacts, contact_lines, holding_now, resolve_world, world_bodies
-
     sim = robots if _is_simulation(robots) else None
     if isinstance(holding, str) or (holding is None and sim is not None):
         mode = _holding_mode("shared" if holding is None else holding, "holding")
@@ -859,7 +746,7 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
     if not robots and not shown:
         raise ValueError("nothing to draw: give robots, bodies or a world with bodies")
     if ax is None:
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # matplotlib loads only to draw
 
         fig = plt.figure(figsize=(6.4, 4.8))
         ax = fig.add_subplot(projection="3d")

@@ -15,12 +15,14 @@ simulation's contacts or from its log.
 - :func:`colliding_from_contacts` and :func:`contact_lines`: the same from
   ``sim.contacts()``, for one picture of a simulation now.
 
-Which log row a contact belongs to: row r stands for the interval
-(t[r-1], t[r]], so a contact of any length, even one shorter than the
-logging interval, shows in the first row at or after its beginning and in
+Which log row a contact belongs to: the row that held at its time, the
+last row at or before it (:func:`coopsim.log.rows_at`, the rule of the
+animation's frames and the replay's keyframes too). Row r stands for the
+interval [t[r], t[r + 1]), so a contact of any length, even one shorter than
+the logging interval, shows in the row that held at its beginning and in
 every row until its end. A contact event is active over [begin, end) (end
-NaN: still active at the log's end); a contact point at time t (the world
-step from t to t + dt) belongs to the first row with t[r] >= t.
+NaN: still active at the log's end); a contact point at time t (the
+contacts of the state at t) belongs to the row that held at t.
 """
 from __future__ import annotations
 
@@ -28,7 +30,9 @@ from typing import List, Optional
 
 import numpy as np
 
-from .scene import COLORS, Body
+from .._core import World
+from ..log import rows_at
+from .bodies import COLORS, Body, _is_simulation, _robot_list
 
 __all__ = ["colliding_from_contacts", "colliding_from_log", "contact_lines", "contacts_from_log", "holding_from_log",
            "holding_now", "is_bar", "world_bodies"]
@@ -39,17 +43,9 @@ def is_bar(name: str) -> bool:
     return str(name).startswith("bar")
 
 
-def _is_simulation(x) -> bool:
-    from ..simulation import Simulation
-
-    return isinstance(x, Simulation)
-
-
 def resolve_world(world, what: str = "world"):
     """(World or None, Simulation or None) from a World, a Simulation (its world, maybe None) or None;
     ValueError naming `what` otherwise."""
-    from .._core import World
-
     if world is None or world is False:
         return None, None
     if isinstance(world, World):
@@ -131,21 +127,12 @@ def _log_and_robots(log, robots):
         raise ValueError(f"log must be a coopsim.SimulationLog or a Simulation, got {type(log).__name__}")
     if hasattr(log, "check"):
         log.check()
-    from .scene import _robot_list
-
     if robots is None:
         raise ValueError("robots must be given with a log (the robots in log order, for their boxes)")
     robots = _robot_list(robots, allow_empty=True)
     if len(robots) != len(log.robots):
         raise ValueError(f"robots must match the log's robots: the log has {len(log.robots)}, got {len(robots)}")
     return log, robots
-
-
-def _rows_of(t_log: np.ndarray, t) -> np.ndarray:
-    """The row each time belongs to: the first row with t_log >= t (row r stands for (t[r-1], t[r]]);
-    len(t_log) for times after the last row."""
-    eps = 1e-9 * max(1.0, float(abs(t_log[-1]))) if len(t_log) else 0.0
-    return np.searchsorted(t_log, np.asarray(t, dtype=float) - eps, side="left")
 
 
 def colliding_from_log(log, robots=None) -> List[np.ndarray]:
@@ -156,7 +143,7 @@ def colliding_from_log(log, robots=None) -> List[np.ndarray]:
     Simulation (its log and robots). robots: the simulated robots in log
     order (default the Simulation's). Row r is True when one of the box's
     contact events, active over [begin, end) (end NaN: until the end), meets
-    (t[r-1], t[r]]: a contact shorter than the logging interval still shows
+    [t[r], t[r + 1]): a contact shorter than the logging interval still shows
     in one row. Link bodies are matched by name, '<log label>/<box name>'.
     Give the result to ``animate(..., collision_boxes=True, colliding=...)``;
     with collision_boxes=True and no colliding, animate derives it itself.
@@ -173,11 +160,11 @@ def colliding_from_log(log, robots=None) -> List[np.ndarray]:
     index = _box_index(robots, log.labels)
     begin = ev["begin"].to_numpy(dtype=float)
     end = ev["end"].to_numpy(dtype=float)
-    first = _rows_of(t, begin)                                  # first row at or after begin
-    # last row: the last one whose interval (t[r-1], t[r]] starts before end, i.e. t[r-1] < end
-    eps = 1e-9 * max(1.0, float(abs(t[-1])))
-    last = np.where(np.isnan(end), rows - 1, np.searchsorted(t, np.nan_to_num(end) - eps, side="left"))
-    last = np.minimum(last, rows - 1)
+    first = rows_at(t, begin)                                   # the row that held at the beginning
+    # the last row: the last one whose interval [t[r], t[r + 1]) starts before the end (t[r] < end): the
+    # row that held just before it, unless it began in that row
+    eps = 1e-9 * max(1.0, abs(float(t[0])), abs(float(t[-1])))
+    last = np.where(np.isnan(end), rows - 1, np.maximum(rows_at(t, np.nan_to_num(end) - 2 * eps), first))
     for side in ("a", "b"):
         for name, r0, r1 in zip(ev[side].to_numpy(), first, last):
             ik = index.get(name)
@@ -214,8 +201,9 @@ def contacts_from_log(log) -> Optional[list]:
     :func:`contact_lines`), or None where there are none; None altogether when the log has no contact
     points (run the simulation with ``log_contacts=True``).
 
-    Row r shows, for each touching pair, its points at the last world step in (t[r-1], t[r]] (the row's
-    interval, as :func:`colliding_from_log`).
+    Row r shows, for each touching pair, its points at the first world step in [t[r], t[r + 1]) (the row's
+    interval, as :func:`colliding_from_log`): the contacts of the row's own state where the pair touched
+    then.
     """
     if _is_simulation(log):
         log = log.log
@@ -229,18 +217,14 @@ def contacts_from_log(log) -> Optional[list]:
     if len(cp) == 0 or len(t) == 0:
         return out
     tt = cp["t"].to_numpy(dtype=float)
-    row = _rows_of(t, tt)
-    keep = row < len(t)
-    cp, tt, row = cp[keep], tt[keep], row[keep]
-    if not len(cp):
-        return out
-    # per (row, pair): the last world step's points
+    row = rows_at(t, tt)
+    # per (row, pair): the first world step's points
     key = cp["a"].astype(str).to_numpy() + "\x00" + cp["b"].astype(str).to_numpy()
-    import pandas as pd
+    import pandas as pd  # pandas' import is heavy: only when the log has contact points
 
     df = pd.DataFrame({"row": row, "key": key, "t": tt})
-    latest = df.groupby(["row", "key"])["t"].transform("max").to_numpy()
-    sel = tt == latest
+    first = df.groupby(["row", "key"])["t"].transform("min").to_numpy()
+    sel = tt == first
     P = cp[["point_x", "point_y", "point_z"]].to_numpy(dtype=float)[sel]
     N = -cp[["normal_x", "normal_y", "normal_z"]].to_numpy(dtype=float)[sel]
     r = row[sel]
@@ -306,8 +290,6 @@ def holding_from_log(log, robots=None, *, mode: str = "shared") -> List[np.ndarr
     if hasattr(log, "check"):
         log.check()
     if robots is not None:
-        from .scene import _robot_list
-
         robots = _robot_list(robots, allow_empty=True)
         if len(robots) != len(log.robots):
             raise ValueError(f"robots must match the log's robots: the log has {len(log.robots)}, got {len(robots)}")

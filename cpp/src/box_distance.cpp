@@ -1,0 +1,191 @@
+// Distances between boxes, free of any world: Bullet's GJK (margins zero, double precision) for
+// separated boxes, the separating-axis overlap of geometry.cpp (box_gap) for overlapping ones, and
+// the clearance of two moving sets of boxes over many configurations with few GJK calls.
+#include "coopsim/box_distance.hpp"
+#include "coopsim/robot.hpp"
+
+#include <BulletCollision/CollisionShapes/btBoxShape.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
+#include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
+#include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
+#include <BulletCollision/NarrowPhaseCollision/btVoronoiSimplexSolver.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace coopsim {
+
+namespace {
+
+btTransform bt_pose(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.rotation();
+  btTransform t;
+  t.setBasis(btMatrix3x3(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)));
+  t.setOrigin(btVector3(T.translation().x(), T.translation().y(), T.translation().z()));
+  return t;
+}
+
+void check_half(const Eigen::Vector3d& h, const char* what) {
+  if (!h.allFinite() || (h.array() <= 0.0).any())
+    throw std::invalid_argument(std::string(what) + ": half extents must be finite and > 0 m");
+}
+
+// The gap by GJK; overlapping boxes get minus the separating-axis overlap,
+// which for boxes is the exact penetration depth (the 15 axes hold every
+// candidate direction of the minimum translation), where EPA is not exact.
+// `gap`, `exact`: box_gap of the pair; when it is the distance, no GJK.
+double gjk_distance(const btBoxShape& a, const btTransform& ta, const btBoxShape& b, const btTransform& tb,
+                    const Eigen::Isometry3d& ea, const Eigen::Vector3d& ha, const Eigen::Isometry3d& eb,
+                    const Eigen::Vector3d& hb, double gap, bool exact) {
+  if (exact) return gap;
+  if (gap <= 0) return gap;  // they overlap (the separating-axis depth), or touch
+  btVoronoiSimplexSolver simplex;
+  btGjkEpaPenetrationDepthSolver epa;
+  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
+  btDiscreteCollisionDetectorInterface::ClosestPointInput in;
+  in.m_transformA = ta;
+  in.m_transformB = tb;
+  btPointCollector out;
+  gjk.getClosestPoints(in, out, nullptr);
+  // GJK's distance is at least the separating-axis bound, up to its own round-off
+  if (out.m_hasResult && out.m_distance > 0.0) return std::max(out.m_distance, gap);
+  return gap;  // no result: the separating-axis bound is the best known
+}
+
+double exact_distance(const btBoxShape& a, const btTransform& ta, const btBoxShape& b, const btTransform& tb,
+                      const Eigen::Isometry3d& ea, const Eigen::Vector3d& ha, const Eigen::Isometry3d& eb,
+                      const Eigen::Vector3d& hb) {
+  bool exact = false;
+  const double gap = box_gap(ea, ha, eb, hb, &exact);
+  return gjk_distance(a, ta, b, tb, ea, ha, eb, hb, gap, exact);
+}
+
+btBoxShape zero_margin_box(const Eigen::Vector3d& h) {
+  btBoxShape box(btVector3(h.x(), h.y(), h.z()));
+  box.setMargin(0.0);  // keeps the half extents: the box is exact, not rounded
+  return box;
+}
+
+}  // namespace
+
+double box_distance(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
+                    const Eigen::Vector3d& half_b) {
+  check_half(half_a, "half_a");
+  check_half(half_b, "half_b");
+  const btBoxShape ba = zero_margin_box(half_a), bb = zero_margin_box(half_b);
+  return exact_distance(ba, bt_pose(a), bb, bt_pose(b), a, half_a, b, half_b);
+}
+
+void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
+                   const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
+                   double* out) {
+  if (a.size() != half_a.size() || b.size() != half_b.size())
+    throw std::invalid_argument("box_distances: as many half extents as poses are needed");
+  std::vector<btBoxShape> sa, sb;
+  std::vector<btTransform> ta, tb;
+  sa.reserve(a.size());
+  sb.reserve(b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    check_half(half_a[i], "half_a");
+    sa.push_back(zero_margin_box(half_a[i]));
+    ta.push_back(bt_pose(a[i]));
+  }
+  for (size_t j = 0; j < b.size(); ++j) {
+    check_half(half_b[j], "half_b");
+    sb.push_back(zero_margin_box(half_b[j]));
+    tb.push_back(bt_pose(b[j]));
+  }
+  for (size_t i = 0; i < a.size(); ++i)
+    for (size_t j = 0; j < b.size(); ++j) out[i * b.size() + j] = exact_distance(sa[i], ta[i], sb[j], tb[j], a[i], half_a[i], b[j], half_b[j]);
+}
+
+void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
+                    const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
+                    bool b_static, double* d, long* ia, long* ib) {
+  const size_t na = half_a.size(), nb = half_b.size(), n = static_cast<size_t>(std::max(rows, 0));
+  if (rows < 0) throw std::invalid_argument("box_clearances: rows must be >= 0");
+  if (na == 0 || nb == 0) throw std::invalid_argument("box_clearances: both sets need at least one box");
+  if (a.size() != n * na || b.size() != (b_static ? nb : n * nb))
+    throw std::invalid_argument("box_clearances: as many poses as rows times boxes are needed");
+  std::vector<btBoxShape> sa, sb;
+  std::vector<double> ra, rb;
+  for (const auto& h : half_a) {
+    check_half(h, "half_a");
+    sa.push_back(zero_margin_box(h));
+    ra.push_back(h.norm());
+  }
+  for (const auto& h : half_b) {
+    check_half(h, "half_b");
+    sb.push_back(zero_margin_box(h));
+    rb.push_back(h.norm());
+  }
+  // Lower bounds of each pair's distance carried from row to row: a bound at one row, less how far
+  // any point of either box can have moved since (its centre's displacement plus its radius times
+  // the change of its rotation matrix, Frobenius norm), still bounds the distance. Most pairs are
+  // ruled out by it for many rows after one look.
+  const double slack = 1e-12;  // round-off of the bounds, m
+  std::vector<double> moved_a(na, 0.0), moved_b(nb, 0.0);             // cumulative motion bound per box
+  std::vector<double> bound(na * nb, -std::numeric_limits<double>::infinity()), at(na * nb, 0.0);
+  auto motion = [](const Eigen::Isometry3d& now, const Eigen::Isometry3d& before, double radius) {
+    return (now.translation() - before.translation()).norm() + radius * (now.linear() - before.linear()).norm();
+  };
+  long pi = -1, pj = -1;
+  for (size_t r = 0; r < n; ++r) {
+    const Eigen::Isometry3d* A = &a[r * na];
+    const Eigen::Isometry3d* B = b_static ? b.data() : &b[r * nb];
+    if (r > 0) {
+      for (size_t i = 0; i < na; ++i) moved_a[i] += motion(A[i], a[(r - 1) * na + i], ra[i]);
+      if (!b_static)
+        for (size_t j = 0; j < nb; ++j) moved_b[j] += motion(B[j], b[(r - 1) * nb + j], rb[j]);
+    }
+    double best = std::numeric_limits<double>::infinity();
+    long bi = -1, bj = -1;
+    // a pair's distance, exact; remembered as its bound
+    auto exact = [&](size_t i, size_t j, double gap, bool certain) {
+      const double e = gjk_distance(sa[i], bt_pose(A[i]), sb[j], bt_pose(B[j]), A[i], half_a[i], B[j], half_b[j], gap,
+                                    certain);
+      bound[i * nb + j] = e;
+      at[i * nb + j] = moved_a[i] + moved_b[j];
+      if (e < best) {
+        best = e;
+        bi = static_cast<long>(i);
+        bj = static_cast<long>(j);
+      }
+    };
+    if (pi >= 0) {  // the previous row's nearest pair first: a tight bound for the others
+      bool certain = false;
+      const double gap = box_gap(A[pi], half_a[pi], B[pj], half_b[pj], &certain);
+      exact(static_cast<size_t>(pi), static_cast<size_t>(pj), gap, certain);
+    }
+    for (size_t i = 0; i < na; ++i)
+      for (size_t j = 0; j < nb; ++j) {
+        if (static_cast<long>(i) == pi && static_cast<long>(j) == pj) continue;
+        const size_t k = i * nb + j;
+        // three lower bounds of the distance, the cheapest first
+        double lb = bound[k] - (moved_a[i] + moved_b[j] - at[k]);
+        if (lb - slack >= best) continue;
+        const double sphere = (A[i].translation() - B[j].translation()).norm() - ra[i] - rb[j];
+        if (sphere > lb) {
+          lb = bound[k] = sphere;
+          at[k] = moved_a[i] + moved_b[j];
+          if (lb - slack >= best) continue;
+        }
+        bool certain = false;
+        const double gap = box_gap(A[i], half_a[i], B[j], half_b[j], &certain);
+        if (gap > lb) {
+          bound[k] = gap;
+          at[k] = moved_a[i] + moved_b[j];
+          if (gap - slack >= best) continue;
+        }
+        exact(i, j, gap, certain);
+      }
+    d[r] = best;
+    ia[r] = pi = bi;
+    ib[r] = pj = bj;
+  }
+}
+
+}  // namespace coopsim

@@ -1,0 +1,45 @@
+// The self-collision exclusion list of a robot: the pairs of its link boxes that the world never
+// tests against each other (Simulation::excluded_pairs).
+#include <cmath>
+#include <random>
+
+#include "coopsim/simulation.hpp"
+
+namespace coopsim {
+
+std::vector<std::pair<int, int>> Simulation::excluded_pairs(const Robot& r, int samples) {
+  const std::vector<LinkBox>& boxes = r.boxes();
+  const int k = static_cast<int>(boxes.size()), n = r.dof();
+  std::vector<std::pair<int, int>> out, candidates;
+  for (int i = 0; i < k; ++i)
+    for (int j = i + 1; j < k; ++j) {
+      if (std::abs(boxes[i].link - boxes[j].link) <= 1) out.emplace_back(i, j);
+      else candidates.emplace_back(i, j);
+    }
+  // the others that touch at every sampled pose (MoveIt's way), from a fixed seed
+  std::mt19937 rng(12345);
+  std::vector<char> always(candidates.size(), 1);
+  Workspace ws;
+  std::vector<Eigen::Isometry3d> poses;
+  VecN q(n);
+  for (int s = 0; s < samples; ++s) {
+    for (int j = 0; j < n; ++j) {
+      const Link& L = r.links()[j];
+      const double span = L.type == JointType::Revolute ? M_PI : 0.5;
+      const double lo = std::isfinite(L.q_min) ? L.q_min : -span, hi = std::isfinite(L.q_max) ? L.q_max : span;
+      q[j] = std::uniform_real_distribution<double>(lo, hi)(rng);
+    }
+    r.kinematics(q.data(), ws);
+    r.box_poses(ws, poses);
+    for (size_t c = 0; c < candidates.size(); ++c) {
+      const auto [i, j] = candidates[c];
+      if (always[c] && box_penetration(poses[i], boxes[i].half_extents, poses[j], boxes[j].half_extents) <= -1e-9)
+        always[c] = 0;
+    }
+  }
+  for (size_t c = 0; c < candidates.size(); ++c)
+    if (always[c]) out.push_back(candidates[c]);
+  return out;
+}
+
+}  // namespace coopsim

@@ -1,0 +1,126 @@
+"""The task's outputs: the report as JSON, a summary of a few lines per cycle, and the plots of a run."""
+from __future__ import annotations
+
+import json
+import os
+from typing import List
+
+import numpy as np
+
+from ...log import _atomic_write
+from ...plotting import plot_log
+from .sequence import TaskResult
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def write_report(report: dict, path) -> str:
+    """The report as JSON, written atomically (a temporary file renamed into place); returns the path."""
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(_jsonable(report), f, indent=1)
+
+    return _atomic_write(path, ".json", write)
+
+
+def summary(report: dict) -> str:
+    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure."""
+    lines = []
+    for c in report["cycles"]:
+        head = f"cycle {c['cycle']} ({c['bar']}): "
+        if not c["success"]:
+            lines.append(head + f"FAILED in {c['failed_step']} at t = {c['failed_at']:.3f} s: {c['reason']}")
+            continue
+        lines.append(head + f"success in {c['duration']:.2f} s, the bar {c.get('outcome')}")
+        if "tracking" in c:
+            tr = ", ".join(f"{x['robot']} {x['rms_tool'] * 1e3:.2f} / {x['max_tool'] * 1e3:.2f} mm"
+                           for x in c["tracking"])
+            lines.append(f"  tool tracking error RMS / max: {tr}")
+            cr, cc = c["clearance_robots"], c["clearance_container"]
+            lines.append(f"  min clearance robot-robot {cr['min'] * 1e3:.1f} mm ({' - '.join(cr['between'])}, "
+                         f"t = {cr['t']:.2f} s), robot-container {cc['min'] * 1e3:.1f} mm "
+                         f"({' - '.join(cc['between'])})")
+            lines.append(f"  dual hold {c['dual_hold']:.3f} s; peak weld force #1 {c['peak_weld_force'][0]:.2f} N, "
+                         f"#2 {c['peak_weld_force'][1]:.2f} N; peak internal force {c['peak_internal_force']:.2f} N; "
+                         f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
+    ok = sum(c["success"] for c in report["cycles"])
+    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded")
+    return "\n".join(lines)
+
+
+def report_figures(result: TaskResult) -> dict:
+    """The figures of a run's report, {file name: matplotlib Figure}: the joints with their references (one
+    per robot, ``joints_<robot>.png``), the tracking errors (``tracking.png``) and the clearances with the
+    grasp forces (``clearance_forces.png``), all over time. Every y axis names its quantity and unit, one
+    unit per axis (revolute joints in rad, prismatic ones in m); legends stand beside the panels."""
+    import matplotlib.pyplot as plt  # matplotlib's import is heavy: only when plotting
+
+    log, series, figs = result.log, result.series, {}
+    for i, rl in enumerate(log.robots):
+        fig, axes = plt.subplots(rl.dof, 1, figsize=(10, 1.6 * rl.dof), sharex=True)
+        plot_log(log, robot=i, quantity="q", axes=axes, title=f"{rl.name}: joints (solid) and references (dashed)")
+        fig.tight_layout()
+        figs[f"joints_{rl.name}.png"] = fig
+    cycles = [(c["t_start"], c.get("t_end", c["t_start"])) for c in result.report["cycles"]]
+
+    def finish(fig, axes, title, name):
+        """Legends beside the panels, the cycles' bounds and a title on a figure of panels over time."""
+        for ax in axes:
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize="small")
+            for t0, _ in cycles[1:]:
+                ax.axvline(t0, color="0.6", lw=0.8, ls=":")
+        fig.suptitle(title)
+        fig.tight_layout()
+        figs[name] = fig
+
+    fig, axes = plt.subplots(3, 1, figsize=(10, 6.5), sharex=True)
+    for i, rl in enumerate(log.robots):
+        axes[0].plot(series["t"], series["tool_error"][:, i] * 1e3, label=rl.name)
+        types = rl.joint_types or ""
+        for ax, kind in ((axes[1], "R"), (axes[2], "P")):
+            cols = [j for j, c in enumerate(types) if c == kind]
+            if cols:
+                ax.plot(log.t, np.abs(rl.error[:, cols]).max(axis=1), label=rl.name)
+    axes[0].set_ylabel("tool position\nerror (mm)")
+    axes[1].set_ylabel("largest revolute\njoint error (rad)")
+    axes[2].set_ylabel("largest prismatic\njoint error (m)")
+    axes[2].set_xlabel("t (s)")
+    finish(fig, axes, "Tracking errors", "tracking.png")
+
+    fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
+    axes[0].plot(series["t"], series["clearance_container"] * 1e3, label="robot - container")
+    axes[0].set_ylabel("clearance (mm)")
+    axes[0].set_ylim(0, 300)
+    for i, rl in enumerate(log.robots):
+        axes[1].plot(series["t"], series["weld_force"][:, i], label=f"weld force, {rl.name}")
+    axes[1].plot(series["t"], series["internal_force"], label="internal force\n(dual hold)", color="k", lw=1)
+    axes[1].set_ylabel("force (N)")
+    axes[1].set_xlabel("t (s)")
+    finish(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
+    return figs
+
+
+def plot_report(result: TaskResult, out_dir) -> List[str]:
+    """The plots of a run into out_dir (:func:`report_figures`, as PNG). Returns the paths."""
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
+
+    os.makedirs(out_dir, exist_ok=True)
+    paths = []
+    for name, fig in report_figures(result).items():
+        p = os.path.join(out_dir, name)
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+    return paths
+

@@ -1,0 +1,357 @@
+"""The teaching labs: how to open them, exercises that are exercises (nbgrader's conventions and the
+student versions), and plots whose axes carry names and units."""
+from __future__ import annotations
+
+import glob
+import importlib.util
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+from coopsim.plotting import plot_log, plot_trajectory
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+NOTEBOOKS = sorted(glob.glob(os.path.join(ROOT, "notebooks", "*.ipynb")))
+IDS = [os.path.basename(p)[:2] for p in NOTEBOOKS]
+
+
+def _student_labs():
+    spec = importlib.util.spec_from_file_location("student_labs", os.path.join(ROOT, "scripts", "student_labs.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _read(path):
+    import nbformat
+
+    return nbformat.read(path, as_version=4)
+
+
+def _grader(cell) -> dict:
+    return cell.get("metadata", {}).get("nbgrader", {})
+
+
+# ---------------------------------------------------------------- opening the labs
+
+def test_the_command_that_opens_the_labs_is_installed_and_documented():
+    with open(os.path.join(ROOT, "docs", "labs.md"), encoding="utf-8") as f:
+        doc = f.read()
+    assert "python3 -m jupyter lab notebooks/" in doc and "python3 scripts/student_labs.py" in doc
+    res = subprocess.run([sys.executable, "-m", "jupyter", "lab", "--version"], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert int(res.stdout.strip().split(".")[0]) >= 4, res.stdout
+    with open(os.path.join(ROOT, "pyproject.toml"), encoding="utf-8") as f:
+        extra = re.search(r"^notebooks = \[(.*?)\]", f.read(), flags=re.M | re.S).group(1)
+    assert '"jupyterlab>=4"' in extra
+
+
+# ---------------------------------------------------------------- exercises (static, cheap)
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=IDS)
+def test_every_your_turn_is_an_answer_cell_and_a_locked_check_in_nbgraders_format(path):
+    nb = _read(path)
+    cells = nb.cells
+    answers = [k for k, c in enumerate(cells) if _grader(c).get("solution")]
+    assert answers, "a lab has exercises"
+    for k in answers:
+        a, c = _grader(cells[k]), _grader(cells[k + 1])
+        assert a == {"grade": False, "grade_id": a["grade_id"], "locked": False, "schema_version": 3,
+                     "solution": True, "task": False}
+        assert c == {"grade": True, "grade_id": c["grade_id"], "locked": True, "points": 1, "schema_version": 3,
+                     "solution": False, "task": False}
+        src = cells[k].source
+        assert src.count("### BEGIN SOLUTION") == src.count("### END SOLUTION") >= 1
+        assert "assert" not in src, "the answer cell holds no check: the check cell does"
+        assert cells[k + 1].source.lstrip().startswith("assert"), cells[k + 1].source
+    ids = [_grader(c)["grade_id"] for c in cells if _grader(c)]
+    assert len(ids) == len(set(ids)) == 2 * len(answers)
+    # every "Your turn" text is followed by its exercise, and nothing outside an exercise holds markers
+    for k, c in enumerate(cells):
+        if c.cell_type == "markdown" and "**Your turn.**" in c.source:
+            assert _grader(cells[k + 1]).get("solution"), c.source[:80]
+        if not _grader(c):
+            assert "### BEGIN" not in c.source
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=IDS)
+def test_the_student_version_has_stubs_for_answers_keeps_checks_and_drops_hidden_tests(path):
+    sl = _student_labs()
+    nb = _read(path)
+    student = sl.student_version(nb, os.path.basename(path))
+    assert len(student.cells) == len(nb.cells)
+    hidden = 0
+    for inst, stud in zip(nb.cells, student.cells):
+        g = _grader(inst)
+        if stud.cell_type == "code":
+            assert stud.outputs == [] and stud.execution_count is None
+        if g.get("solution"):
+            answers = re.findall(r"### BEGIN SOLUTION\n(.*?)\n[ \t]*### END SOLUTION", inst.source, flags=re.S)
+            assert stud.source.count(sl.STUB) == len(answers) >= 1
+            assert "SOLUTION" not in stud.source
+            for ans in answers:
+                assert ans.strip() not in stud.source
+            # the scaffold around the answer stays as it was
+            assert stud.source.splitlines()[0] == inst.source.splitlines()[0] or "### BEGIN" in inst.source.splitlines()[0]
+        elif g.get("grade"):
+            hidden += "### BEGIN HIDDEN TESTS" in inst.source
+            assert "HIDDEN" not in stud.source
+            assert stud.source == re.sub(r"\n?### BEGIN HIDDEN TESTS.*?### END HIDDEN TESTS", "", inst.source,
+                                         flags=re.S)
+        else:
+            assert stud.source == inst.source
+    assert nb == _read(path), "the instructor's notebook is not changed"
+    if path.endswith("01_robots_and_dynamics.ipynb"):
+        assert hidden == 1
+
+
+def test_student_stub_keeps_the_indentation_of_its_markers_and_bad_markers_are_errors():
+    sl = _student_labs()
+    src = "def f(x):\n    y = 1\n    ### BEGIN SOLUTION\n    return x + y\n    ### END SOLUTION\n"
+    out = sl.student_source(src)
+    assert out == "def f(x):\n    y = 1\n    # YOUR CODE HERE\n    " + sl.STUB + "\n"
+    compile(out, "stub", "exec")
+    with pytest.raises(ValueError, match="1 '### BEGIN SOLUTION' but 0 '### END SOLUTION'"):
+        sl.student_source("### BEGIN SOLUTION\nx = 1\n")
+    with pytest.raises(ValueError, match="needs a ### BEGIN SOLUTION"):
+        sl.student_source("x = 1\n")
+
+
+def test_the_script_writes_the_student_versions(tmp_path):
+    res = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "student_labs.py"), str(tmp_path / "out")],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout + res.stderr
+    written = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert written == [os.path.basename(p) for p in NOTEBOOKS]
+    assert "01_robots_and_dynamics.ipynb: 5 exercises" in res.stdout
+
+
+# ---------------------------------------------------------------- executing notebooks (a kernel each)
+
+def _run_cells(nb, upto, tmp_path):
+    """Execute cells 0..upto of nb (modified in place); returns the error output of the cell that failed,
+    or None. Only cells up to `upto` are run."""
+    import nbclient
+
+    nb = nb.copy()
+    nb.cells = nb.cells[:upto + 1]
+    env_backend = os.environ.get("MPLBACKEND")
+    os.environ["MPLBACKEND"] = "Agg"
+    try:
+        nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
+                                resources={"metadata": {"path": str(tmp_path)}}).execute()
+    except nbclient.exceptions.CellExecutionError:
+        failed = [(k, o) for k, c in enumerate(nb.cells) if c.cell_type == "code"
+                  for o in c.get("outputs", []) if o.get("output_type") == "error"]
+        assert len(failed) == 1
+        return failed[0]
+    finally:
+        if env_backend is None:
+            os.environ.pop("MPLBACKEND", None)
+        else:
+            os.environ["MPLBACKEND"] = env_backend
+    return None
+
+
+# a kernel each: lab 01 (the cheapest, about 3 s) in the fast loop, the others slow
+@pytest.mark.parametrize("path", [p if p.endswith("01_robots_and_dynamics.ipynb") else
+                                  pytest.param(p, marks=pytest.mark.slow) for p in NOTEBOOKS], ids=IDS)
+def test_a_student_notebook_runs_up_to_its_first_exercise_and_stops_there(path, tmp_path):
+    pytest.importorskip("nbclient")
+    student = _student_labs().student_version(_read(path))
+    first = next(k for k, c in enumerate(student.cells) if _grader(c).get("solution"))
+    failed = _run_cells(student, first + 1, tmp_path)  # the check after it would fail too: it is not reached
+    assert failed is not None
+    k, err = failed
+    assert k == first and err["ename"] == "NotImplementedError" and err["evalue"].startswith("Your turn: ")
+
+
+# (notebook, grade_id of the answer, the instructor's answer line, a wrong answer in its place)
+WRONG = [
+    ("01_robots_and_dynamics", "lab01-ex1-answer", "M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2 + I1 + I2",
+     "M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2"),  # the links' own inertias forgotten
+    ("01_robots_and_dynamics", "lab01-ex2-answer", "g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),
+    ("02_planning_and_control", "lab02-ex1-answer", "q_try = r.ik(T_try, opening=0.02)",
+     "q_try = r.ik(T_try, opening=0.03)"),
+    ("03_collisions_and_grasping", "lab03-ex2-answer", "mu_stick = 0.5", "mu_stick = 0.3"),  # below tan 20°
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, grade_id, right, wrong", WRONG, ids=[w[1] for w in WRONG])
+def test_a_check_passes_on_the_answer_and_fails_on_a_wrong_one(name, grade_id, right, wrong, tmp_path):
+    pytest.importorskip("nbclient")
+    nb = _read(os.path.join(ROOT, "notebooks", f"{name}.ipynb"))
+    k = next(i for i, c in enumerate(nb.cells) if _grader(c).get("grade_id") == grade_id)
+    assert nb.cells[k].source.count(right) == 1
+    assert _run_cells(nb, k + 1, tmp_path) is None          # the instructor's answer passes its check
+    nb.cells[k].source = nb.cells[k].source.replace(right, wrong)
+    failed = _run_cells(nb, k + 1, tmp_path)
+    assert failed is not None and failed[0] == k + 1 and failed[1]["ename"] == "AssertionError"
+
+
+# ---------------------------------------------------------------- plot axes: names and units
+
+def _ylabels(fig):
+    return [ax.get_ylabel() for ax in fig.axes]
+
+
+def _mixes_units(label: str) -> bool:
+    return bool(re.search(r"\brad\b", label)) and bool(re.search(r"\bm\b|\bN\b(?! m)", label.replace("N m", "")))
+
+
+@pytest.fixture(scope="module")
+def scara_log():
+    r = cs.robots.scara1()
+    q0 = np.array([0.2, 0.4, 0.1, 0.0, 1.2, 0.02])
+    traj = cs.CubicTrajectory([0.0, 0.2], np.array([q0, q0 + [0.2, -0.1, 0.03, 0.1, 0.0, 0.005]]))
+    sim = cs.Simulation(dt=2e-4, log_every=10)
+    sim.add_robot(r, cs.PID(400.0, 0.0, 40.0), traj)
+    return r, traj, sim.run(0.25)
+
+
+QUANTITY_UNITS = {"q": ["rad", "rad", "m", "rad", "rad", "m"],
+                  "qd": ["rad/s", "rad/s", "m/s", "rad/s", "rad/s", "m/s"],
+                  "tau": ["N m", "N m", "N", "N m", "N m", "N"],
+                  "error": ["rad", "rad", "m", "rad", "rad", "m"]}
+
+
+def test_plot_log_names_each_joint_with_its_unit_from_the_robot(scara_log):
+    import matplotlib.pyplot as plt
+
+    r, _, log = scara_log
+    assert log[0].joint_types == r.joint_types == "RRPRRP"
+    names = ["θ1", "θ2", "d3", "θ4", "θ5", "d6"]
+    for quantity, units in QUANTITY_UNITS.items():
+        fig = plot_log(log, quantity=quantity, joints=[1, 2] if quantity != "q" else None)
+        prefix = "" if quantity == "q" else quantity + " "
+        shown = range(6) if quantity == "q" else [1, 2]
+        assert _ylabels(fig) == [f"{prefix}{names[j]} ({units[j]})" for j in shown]
+        assert fig.axes[-1].get_xlabel() == "t (s)" and not _mixes_units(fig._suptitle.get_text())
+        if quantity == "q":
+            # every legend stands beside its panel, off the data
+            fig.canvas.draw()
+            for ax in fig.axes:
+                assert ax.get_legend().get_window_extent().x0 >= ax.get_window_extent().x1
+        plt.close(fig)
+    # told nothing and knowing nothing (a log read back from CSV): named, and the unit left open
+    from coopsim.log import STORED, RobotLog
+
+    bare = RobotLog("x", log.t, **{k: getattr(log[0], k) for k in STORED})
+    fig = plot_log(bare, quantity="q", joints=[0])
+    assert _ylabels(fig) == ["q1 (rad or m)"]
+    plt.close(fig)
+
+
+def test_plot_trajectory_puts_revolute_and_prismatic_joints_on_separate_axes(scara_log):
+    import matplotlib.pyplot as plt
+
+    r, traj, _ = scara_log
+    fig = plot_trajectory(traj, r)
+    labels = _ylabels(fig)
+    assert labels[:3] == ["position (rad, solid)", "velocity (rad/s, solid)", "acceleration (rad/s², solid)"]
+    assert sorted(labels[3:]) == sorted(["position (m, dashed)", "velocity (m/s, dashed)",
+                                         "acceleration (m/s², dashed)"])
+    assert not any(_mixes_units(lab) for lab in labels)
+    # each axis holds one kind of joint: its lines' labels carry its unit alone
+    for ax in fig.axes:
+        unit = re.search(r"\((\S+?)[,)]", ax.get_ylabel()).group(1)
+        lines = [ln.get_label() for ln in ax.get_lines() if not ln.get_label().startswith("_")]
+        assert lines and all(lab.endswith(f"({unit})") for lab in lines), (ax.get_ylabel(), lines)
+    plt.close(fig)
+    fig = plot_trajectory(traj, "RRRRRR")  # one kind: one axis per row
+    assert _ylabels(fig) == ["position (rad)", "velocity (rad/s)", "acceleration (rad/s²)"]
+    plt.close(fig)
+
+
+@pytest.mark.slow
+def test_the_tasks_report_figures_name_every_axis_with_one_unit_and_keep_legends_off_the_data():
+    import matplotlib.pyplot as plt
+
+    from coopsim.tasks import handover as H
+
+    res = H.run(cycles=1)
+    figs = H.report_figures(res)
+    assert sorted(figs) == ["clearance_forces.png", "joints_scara1.png", "joints_scara2.png", "tracking.png"]
+    # the joint types come from the robots, not from the caller
+    assert _ylabels(figs["joints_scara1.png"]) == ["θ1 (rad)", "θ2 (rad)", "d3 (m)", "θ4 (rad)", "θ5 (rad)", "d6 (m)"]
+    assert _ylabels(figs["joints_scara2.png"]) == ["θ1 (rad)", "θ2 (rad)", "θ3 (rad)", "d4 (m)", "θ5 (rad)", "d6 (m)"]
+    assert _ylabels(figs["tracking.png"]) == ["tool position\nerror (mm)", "largest revolute\njoint error (rad)",
+                                              "largest prismatic\njoint error (m)"]
+    assert _ylabels(figs["clearance_forces.png"]) == ["clearance (mm)", "force (N)"]
+    for name, fig in figs.items():
+        fig.canvas.draw()
+        width = fig.bbox.x1
+        for ax in fig.axes:
+            assert re.search(r"\((rad|m|mm|N)\)$", ax.get_ylabel()), (name, ax.get_ylabel())
+            assert not _mixes_units(ax.get_ylabel())
+            # the legend stands right of the panel, inside the picture: it covers no data (the weld force of
+            # SCARA #1 from 8 to 14 s was under it)
+            leg = ax.get_legend().get_window_extent()
+            assert ax.get_window_extent().x1 <= leg.x0 and leg.x1 <= width, name
+        plt.close(fig)
+
+
+# ---------------------------------------------------------------- what lab 03 says of its runs
+
+def _wall_impact(dt):
+    """Lab 03's wall run (SCARA #1 turned into a wall by a stiff PID) at step dt, logged every step: the
+    quill's (link3) first contact event, its contact points and the robot's state just before."""
+    w = cs.World()
+    w.add_static_box("wall", [0.3, 0.0025, 0.4], position=[0.45, 0.25, 0.4])
+    sim = cs.Simulation(dt=dt, world=w, log_every=1, log_contacts=True)
+    q0 = np.array([0.0, 0.3, 0.10, 0.0, np.pi / 2, 0.02])
+    sim.add_robot(cs.robots.scara1(), cs.PID(400.0, 0.0, 40.0),
+                  cs.CubicTrajectory([0.0, 0.6], np.array([q0, q0 + [1.2, 0, 0, 0, 0, 0]])))
+    log = sim.run(0.25)
+    ev = log.contacts[log.contacts.b == "scara1/link3"].iloc[0]
+    pts = log.contact_points[log.contact_points.b == "scara1/link3"]
+    k = int(np.searchsorted(log.t, ev["begin"])) - 1
+    return sim.robots[0], ev, pts, log.q[k], log.qd[k]
+
+
+def test_the_wall_impacts_peak_force_is_the_contacts_damping_and_its_impulse_does_not_depend_on_the_step():
+    """Lab 03: the quill's ~14 kN peak is the penalty contact's m w^2 depth + 2 m w v at its two points
+    (m the effective mass 1 / n^T J M^-1 J^T n, v the approach speed, w = 0.2 / dt), so it doubles when dt
+    halves, while the impulse that stops the arm, the physical quantity, stays."""
+    peaks, impulses = {}, {}
+    for dt in (2e-4, 1e-4):
+        r, ev, pts, q, qd = _wall_impact(dt)
+        first = pts[pts.t == ev["begin"]]
+        assert len(first) == 2  # the quill box's upper and lower edges
+        n, w, predicted = np.array([0.0, -1.0, 0.0]), 0.2 / dt, 0.0
+        for _, p in first.iterrows():
+            u = n @ r.jacobian(q, 3, np.linalg.solve(r.frames(q)[3], [p.point_x, p.point_y, p.point_z, 1.0])[:3])[:3]
+            m = 1.0 / (u @ np.linalg.solve(r.mass_matrix(q), u))
+            predicted += m * w * w * p.depth + 2.0 * m * w * (-u @ qd)
+        assert abs(predicted - ev["peak_force"]) < 1e-3 * ev["peak_force"]
+        force = pts.groupby("t").force_y.sum()
+        peaks[dt] = ev["peak_force"]
+        impulses[dt] = force[force.index < ev["begin"] + 0.002].sum() * dt  # N s over the impact's 2 ms
+    assert 13e3 < peaks[2e-4] < 15e3 and abs(peaks[1e-4] / peaks[2e-4] - 2.0) < 0.05
+    assert abs(impulses[1e-4] - impulses[2e-4]) < 0.02 * impulses[2e-4]
+
+
+def test_the_dropped_bar_makes_one_contact_event_that_never_ends():
+    """Lab 03 said two events (a landing, a hop, a landing); the bar, tilted 10°, lands on an edge and rocks
+    onto its face, one of its edges touching the floor at every step: one event, still going at the end."""
+    w = cs.World(floor=True)
+    a = np.radians(10.0)
+    w.add_free_box("bar", [0.175, 0.01, 0.01], 0.15, position=[0.0, 0.0, 0.06],
+                   quaternion=[np.cos(a / 2), np.sin(a / 2), 0, 0], friction=0.5)
+    sim = cs.Simulation(dt=2e-4, world=w, log_every=10, log_contacts=True)
+    log = sim.run(1.0)
+    ev = log.contacts
+    assert len(ev) == 1 and (ev.a.iloc[0], ev.b.iloc[0]) == ("floor", "bar") and np.isnan(ev.end.iloc[0])
+    # it lands after a free fall of its lowest edge: the 2 x 2 cm section turned 10° about the bar's axis puts
+    # that edge 0.01 (cos 10° + sin 10°) m below the centre, which starts 6 cm up; t = sqrt(2 h / g), to 2 steps
+    drop = 0.06 - 0.01 * (np.cos(a) + np.sin(a))
+    assert abs(ev.begin.iloc[0] - np.sqrt(2 * drop / 9.81)) < 4e-4
+    steps = np.round(log.contact_points.t.unique() / 2e-4).astype(int)
+    assert steps[-1] == round(1.0 / 2e-4) and np.all(np.diff(steps) == 1)
