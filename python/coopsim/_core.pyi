@@ -1080,11 +1080,17 @@ def integrate(robot: Robot, q0: typing.Any, qd0: typing.Any, tau: typing.Any, dt
     """
     Integrates `steps` fixed steps of dt seconds in C++ (GIL released).
     
-    tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold).
+    tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold),
+    N m or N, applied as given: integrate does not saturate it at the robot's
+    tau_limits (a Simulation's control stage does; np.clip(tau, -robot.tau_limits,
+    robot.tau_limits) first to model saturated drives).
     method: 'rk4' (default) or 'euler' (semi-implicit).
     Returns (t (m,), q (m, n), qd (m, n)) with every record_every-th state, the
     first and the last included. Raises DivergenceError (a RuntimeError) naming the
-    step if the state stops being finite.
+    step if the state stops being finite, or if the dynamics fail in a stage: a
+    runaway (a stage's state not finite, or beyond 1e4 rad/s or 1e6 rad) names that
+    state and the bound; a mass matrix not positive definite at a sane state names
+    q (links without mass or inertia).
     """
 def load_generated_library(path: str) -> str:
     """
