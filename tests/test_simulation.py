@@ -216,26 +216,29 @@ def test_log_keeps_the_reference_acceleration():
 
 
 def test_the_defaults_are_the_engines():
-    """simulation_defaults(): the engine's SimulationOptions, what SimulationCore takes when an argument is
-    left out, and what coopsim.Simulation's signature shows."""
+    """Simulation.defaults(): the engine's SimulationOptions (the one source, checked against the compiled
+    module in test_stubs.py), what coopsim.Simulation's signature shows; the grasp options left out are the
+    engine's, and the engine checks the ones given."""
     import inspect
 
-    d = cs._core.simulation_defaults()
+    d = cs.Simulation.defaults()
     assert d["dt"] == 2e-4 and d["integrator"] == "rk4" and d["grasp_options"]["hold_time"] == 2e-3
-    core = cs._core.SimulationCore(world=cs.World())
-    for name, value in d.items():
-        got = core.grasp_options() if name == "grasp_options" else getattr(core, name)
-        assert got == value and type(got) is type(value), name
+    opts = cs.Simulation(world=cs.World()).options
+    assert opts == d
     params = inspect.signature(cs.Simulation.__init__).parameters
-    for name, value in d.items():
+    for name, value in opts.items():
         if name != "grasp_options":
-            assert params[name].default == value, name
+            assert value == params[name].default and type(value) is type(params[name].default), name
+    assert sorted(opts["grasp_options"]) == sorted(
+        ["hold_time", "gap", "penetration", "angle", "speed", "angular_speed", "open_margin", "slip",
+         "weld_omega_dt", "release_time", "weld_moment"])
+    given = cs.Simulation(world=cs.World(), grasp_options={"slip": 0.01}).options["grasp_options"]
+    assert given == dict(opts["grasp_options"], slip=0.01)
     # one check of the grasp options, in the engine: the message names the option, its unit and value
     with pytest.raises(ValueError, match=r"grasp_options: slip must be >= 0 m, got -0\.5"):
-        cs._core.SimulationCore(grasp_options={"slip": -0.5})
+        cs.Simulation(grasp_options={"slip": -0.5})
     with pytest.raises(ValueError, match="grasp_options: unknown option 'grip'"):
-        cs._core.SimulationCore(grasp_options={"grip": 1.0})
-
+        cs.Simulation(grasp_options={"grip": 1.0})
 
 
 # ---- export ----

@@ -102,6 +102,7 @@ class Pacer:
         self._paused = False
         self._stop = False
         self._live = None
+        self._carry = None       # (sim, last frame's clock, simulated time due) of the last run, for keep_clock
 
     @property
     def speed(self) -> float:
@@ -163,9 +164,15 @@ class Pacer:
                               self._frame_rate)
 
     def run(self, sim, t_end: float, *, on_frame: Optional[Callable] = None,
-            max_wall_time: Optional[float] = None) -> RunStats:
+            max_wall_time: Optional[float] = None, keep_clock: bool = False) -> RunStats:
         """Runs `sim` (a coopsim.Simulation, see the module's docstring) up to t_end (s) paced to the wall
-        clock; returns the statistics, also left in ``sim.stats``."""
+        clock; returns the statistics, also left in ``sim.stats``.
+
+        keep_clock: continue the pacing of this pacer's previous run of the same simulation, for a run
+        sequenced in short pieces (a task's phases): the wall time since that run's last frame (at most
+        max_catch_up) and the simulated time it was due beyond its t_end count in this one, and the run
+        returns as soon as it reaches t_end, without waiting for a next frame. Without it, each run
+        starts its clock afresh."""
         if not all(hasattr(sim, a) for a in _DRIVEN):
             raise ValueError(f"sim must be a coopsim.Simulation (or have {', '.join(_DRIVEN)}), "
                              f"got {type(sim).__name__}")
@@ -182,8 +189,10 @@ class Pacer:
         self._stop = False
         clock = self._clock
         w0 = clock()
-        last = w0
-        target = sim.time
+        carry = self._carry if keep_clock and self._carry is not None and self._carry[0] is sim else None
+        last = w0 if carry is None else carry[1]
+        # the simulated time the wall clock asks for (beyond t_end at the end of a run: kept for keep_clock)
+        due = sim.time if carry is None else min(max(carry[2], sim.time), sim.time + self.max_catch_up * self._speed)
         t0, s0, busy, frames = sim.time, sim.steps, 0.0, 0
         self._live = [sim, t0, s0, w0, busy, frames]
         try:
@@ -192,7 +201,8 @@ class Pacer:
                 elapsed = min(start - last, self.max_catch_up)
                 last = start
                 if not self._paused:
-                    target = min(float(t_end), max(target, sim.time) + elapsed * self._speed)
+                    due = max(due, sim.time) + elapsed * self._speed
+                target = min(float(t_end), due)
                 n = sim.steps_until(max(target, sim.time))
                 if n:
                     b = clock()
@@ -204,10 +214,13 @@ class Pacer:
                     break
                 if max_wall_time is not None and clock() - w0 >= max_wall_time:
                     break
+                if keep_clock and sim.steps_until(float(t_end)) == 0:
+                    break
                 delay = start + 1.0 / self._frame_rate - clock()
                 if delay > 0:
                     self._sleep(delay)
         finally:
             self._live[4:] = [busy, frames]
+            self._carry = (sim, last, due)
             sim.stats = self.stats
         return sim.stats

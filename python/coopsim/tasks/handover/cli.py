@@ -34,6 +34,12 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
     ap.add_argument("--speed", type=float, default=2.0,
                     help=f"simulated seconds per video second, > 0 and <= {MAX_SPEED:g} (default 2)")
+    ap.add_argument("--live", action="store_true",
+                    help="run in a live page in the browser (coopsim.view.live, 127.0.0.1) at 100 %% speed; the page "
+                         "stays after the run until Ctrl-C (--hold s)")
+    ap.add_argument("--port", type=int, default=0, help="--live: the page's port (default any free one)")
+    ap.add_argument("--hold", type=float, default=None,
+                    help="--live: seconds the page stays after the run (default: until Ctrl-C in a terminal, else 0)")
     return ap
 
 
@@ -66,6 +72,10 @@ def parse_args(argv=None) -> argparse.Namespace:
         os.makedirs(args.out, exist_ok=True)
     except OSError as e:
         ap.error(f"argument --out: cannot make the folder {args.out!r}: {e.strerror}")
+    if not 0 <= args.port <= 65535:
+        ap.error(f"argument --port: must be 0 (any free port) .. 65535, got {args.port}")
+    if args.hold is not None and not (args.hold >= 0 and math.isfinite(args.hold)):
+        ap.error(f"argument --hold: must be a finite number of seconds >= 0, got {args.hold:g}")
     if not os.access(args.out, os.W_OK | os.X_OK):
         ap.error(f"argument --out: the folder {args.out!r} is not writable")
     return args
@@ -86,7 +96,16 @@ def sweep_table(sw: dict) -> str:
 def main(argv=None) -> int:
     """``python -m coopsim.tasks.handover``: runs the task, writes its outputs, prints the summary."""
     args = parse_args(argv)
-    res = run(seed=args.seed) if args.seed is not None else run(cycles=args.cycles)
+    live = dict(port=args.port) if args.live else None
+    res = run(seed=args.seed, live=live) if args.seed is not None else run(cycles=args.cycles, live=live)
+    try:
+        return _outputs(args, res)
+    finally:
+        if res.live is not None:
+            res.live.hold(args.hold)
+
+
+def _outputs(args, res) -> int:
     rep, wall = res.report, res.timing["run"]
     # what was asked for: the run's own inputs are in the report already (seed, cycles_planned, ...)
     rep["command_line"] = dict(cycles=args.cycles, seed=args.seed, sweep=args.sweep, threads=args.threads,

@@ -13,6 +13,7 @@ import numpy as np
 from ..._core import ComputedTorque, CubicTrajectory, DivergenceError, IKError
 from ...planning import plan_cartesian, rotz
 from ...simulation import Simulation
+from ... import view
 from .. import scene
 from .constants import (BACK_OFF, BEFORE_MOUTH, BESIDE, BRANCH, CLEAR_ABOVE, CLOSE_SPEED, DEG, GRASP_TIMEOUT, GRIP1,
                         INSERT_BRANCH, INSERT_DEPTH, MAX_CYCLES, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
@@ -40,6 +41,7 @@ class TaskResult:
     #                                 weld_force (rows, 2) N, internal_force (rows,) N
     timing: Optional[dict] = None  # wall seconds of the run (planning and simulation) and of the scoring; kept out of
     #                                the report, which is the same bit for bit for the same input
+    live: Optional[object] = None  # the coopsim.view.LiveView of a run with live=..., or None
 
     @property
     def success(self) -> bool:
@@ -66,6 +68,7 @@ class _Runner(Planner):
         self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every,
                               control_every=control_every)
         self.t_limit = t_limit
+        self.live = None     # a coopsim.view.LiveView that runs the phases paced, or None (headless)
         # start: #1 waiting above its handover grip, #2 above its first pick
         self.q1_wait = self._ik(0, self._wait1_pose(), OPEN)
         for k, T in enumerate(self.bars):   # every bar pickable where it lies: checked before the run
@@ -136,7 +139,10 @@ class _Runner(Planner):
             raise TaskError(self.step, self.sim.time, f"the task would run past its time limit of {self.t_limit} s")
         # advance, not run: phases end hundreds of times per cycle, and a log of the whole run built at
         # each end would cost more than the steps
-        self.sim.advance(t_end)
+        if self.live is not None:
+            self.live.run_to(t_end)        # paced, with the page live (coopsim.view.live)
+        else:
+            self.sim.advance(t_end)
         self.check_contacts()
 
     def wait_for(self, predicate, timeout, what):
@@ -328,7 +334,7 @@ class _Runner(Planner):
 def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, dt: float = 2e-4,
         log_every: int = 25, world_every: int = 5, control_every: int = 5, mouth=None, slope=None,
         handover_yaw=None, t_limit: float = 120.0, score: bool = True, container_shift=None,
-        grip1_turn: float = 0.0) -> TaskResult:
+        grip1_turn: float = 0.0, live=None) -> TaskResult:
     """Runs the task and scores it.
 
     bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars` of
@@ -344,6 +350,9 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     Faults, to see failures reported: container_shift (3,) m moves the container in the world by that
     much while the plan still aims at the container where it should be; grip1_turn (rad) turns SCARA
     #1's clamp about its approach when it comes down on the bar at the handover.
+
+    live: run in a live page (:func:`coopsim.view.live`, paced, 100 % by default): True, or a dict of
+    its options (speed, port, host, ...); the view is ``result.live`` (close it when done).
 
     The report records every input that changes the run: the seed (None when the bars were given or
     defaulted), the bars' poses and the keywords above.
@@ -371,6 +380,11 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                      mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit,
                      container_shift=container_shift, grip1_turn=grip1_turn)
+    if live:
+        options = dict(speed=1.0, title="coopsim: the cooperative bar handover")
+        options.update(live if isinstance(live, dict) else {})
+        # sequenced from Python phase by phase: the page cannot send the run back to its start
+        runner.live = view.live(runner.sim, start=False, resettable=False, **options)
     results = []
     t_wall = time.perf_counter()
     for k in range(cycles):
@@ -398,4 +412,4 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
                   handover_yaw=runner.handover_yaw,
                   container_shift=None if container_shift is None else np.asarray(container_shift, float).tolist(),
                   grip1_turn=float(grip1_turn))
-    return TaskResult(report, runner.sim, runner.sim.log, series, timing)
+    return TaskResult(report, runner.sim, runner.sim.log, series, timing, runner.live)
