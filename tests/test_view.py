@@ -887,8 +887,8 @@ def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_lo
 @pytest.mark.slow  # a subprocess importing matplotlib and coopsim, drawing frames: seconds
 def test_live_view_example_writes_its_frames(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
-    res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--frames", "3",
-                          "--speed", "4", "--out", str(tmp_path)], cwd=ROOT, env=env, capture_output=True, text=True,
+    res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--matplotlib",
+                          "--frames", "3", "--speed", "4", "--out", str(tmp_path)], cwd=ROOT, env=env, capture_output=True, text=True,
                          timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
     frames = sorted(p.name for p in tmp_path.iterdir())
