@@ -52,8 +52,11 @@ from typing import Callable, List, Optional
 
 import numpy as np
 
-from .geometry import view_direction
-from .scene import COLORS, DEFAULT_ELEV
+from .._core import PID, ComputedTorque, CubicTrajectory
+from ..pacing import Pacer
+from ..simulation import Simulation
+from .geometry import box_corners, view_direction
+from .scene import COLORS, DEFAULT_ELEV, Scene
 from .world import colliding_from_contacts, contact_lines, holding_now, is_bar, robot_labels
 
 __all__ = ["LiveView", "live"]
@@ -172,9 +175,6 @@ class LiveView:
                  contact_lines: bool = True, ghosts: bool = True, labels: bool = False, holding: str = "shared",
                  history: float = 5.0, move_time: float = 1.0, resettable: bool = True,
                  title: Optional[str] = None, quiet: bool = False):
-        from ..pacing import Pacer
-        from ..simulation import Simulation
-
         if not isinstance(sim, Simulation):
             raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
         if t_end is not None:
@@ -192,7 +192,7 @@ class LiveView:
         holding_now(sim, mode=holding)      # checks the mode
         self._holding_mode = holding
         try:
-            import viser
+            import viser  # the optional live extra: only for a live view
         except ImportError:
             raise ImportError("coopsim.view.live needs viser: pip install 'coopsim[live]' "
                               "(scripts/setup.sh installs it)") from None
@@ -259,7 +259,7 @@ class LiveView:
         """In Jupyter, shows the live page in the cell (an IPython IFrame of :attr:`url`) and returns it;
         elsewhere prints the URL and returns it."""
         if _in_notebook():
-            from IPython.display import IFrame, display
+            from IPython.display import IFrame, display  # only inside a notebook
 
             frame = IFrame(self.url, width="100%", height=int(height))
             display(frame)
@@ -345,8 +345,6 @@ class LiveView:
         bodies seen past each other (Scene.choose_azimuth, on a figure never drawn)."""
         from matplotlib.figure import Figure
 
-        from .scene import Scene
-
         ax = Figure().add_subplot(projection="3d")
         frame = [(True, *r.shapes(self.sim.state(i)[0]), False) for i, r in enumerate(self.robots)]
         frame += [(False, P[None], H[None], True) for _, P, H in scenery]
@@ -356,8 +354,6 @@ class LiveView:
 
     @staticmethod
     def _corners(poses, half):
-        from .geometry import box_corners
-
         return box_corners(poses, half).reshape(-1, 3)
 
     def _split(self, rows) -> list:
@@ -470,8 +466,6 @@ class LiveView:
             xls_btn.on_click(lambda e: self.download("xlsx", e.client))
 
     def _controller_text(self, i: int) -> str:
-        from .._core import ComputedTorque, PID
-
         c = self.sim.controllers[i]
         fmt = lambda a: ", ".join(f"{x:.4g}" for x in np.atleast_1d(a))      # noqa: E731
         if isinstance(c, PID):
@@ -602,7 +596,7 @@ class LiveView:
                 [h[m] - np.minimum(_GHOST_MARGIN, 0.25 * h[m]) for h, m in zip(self._split(self._half), self._moving)])
 
     def _make_plots(self, i: int):
-        import viser.uplot as up
+        import viser.uplot as up  # the optional live extra
 
         r = self.robots[i]
         palette = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
@@ -770,8 +764,6 @@ class LiveView:
 
     def _move(self, i: int, target: np.ndarray) -> None:
         """On the simulation's thread: robot i's new reference, a cubic from its state now to target."""
-        from .._core import CubicTrajectory
-
         q, qd = self.sim.state(i)
         t = self.sim.time
         ref = CubicTrajectory([t, t + self._move_time], np.vstack([q, target]),

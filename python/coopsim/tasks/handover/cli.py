@@ -34,6 +34,12 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
     ap.add_argument("--speed", type=float, default=2.0,
                     help=f"simulated seconds per video second, > 0 and <= {MAX_SPEED:g} (default 2)")
+    ap.add_argument("--live", action="store_true",
+                    help="run in a live page in the browser (coopsim.view.live, 127.0.0.1) at 100 %% speed; the page "
+                         "stays after the run until Ctrl-C (--hold s)")
+    ap.add_argument("--port", type=int, default=0, help="--live: the page's port (default any free one)")
+    ap.add_argument("--hold", type=float, default=None,
+                    help="--live: seconds the page stays after the run (default: until Ctrl-C in a terminal, else 0)")
     return ap
 
 

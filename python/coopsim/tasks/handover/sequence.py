@@ -13,6 +13,7 @@ import numpy as np
 from ..._core import ComputedTorque, CubicTrajectory, DivergenceError, IKError
 from ...planning import plan_cartesian, rotz
 from ...simulation import Simulation
+from ... import view
 from .. import scene
 from .constants import (BACK_OFF, BEFORE_MOUTH, BESIDE, BRANCH, CLEAR_ABOVE, CLOSE_SPEED, DEG, GRASP_TIMEOUT, GRIP1,
                         INSERT_BRANCH, INSERT_DEPTH, MAX_CYCLES, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
@@ -380,8 +381,6 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
                      mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit,
                      container_shift=container_shift, grip1_turn=grip1_turn)
     if live:
-        from ... import view
-
         options = dict(speed=1.0, title="coopsim: the cooperative bar handover")
         options.update(live if isinstance(live, dict) else {})
         # sequenced from Python phase by phase: the page cannot send the run back to its start
