@@ -54,6 +54,7 @@ import numpy as np
 
 from .._core import PID, ComputedTorque, CubicTrajectory
 from ..pacing import Pacer
+from ..robots import scara1, scara2
 from ..simulation import Simulation
 from .geometry import box_corners, view_direction
 from .scene import COLORS, DEFAULT_ELEV, Scene
@@ -141,10 +142,15 @@ def _number(text, what: str) -> float:
     return v
 
 
+def _items(text) -> list:
+    """The items of a text "a, b, c" (commas, semicolons or spaces between them) or of a sequence."""
+    return [s for s in text.replace(";", ",").replace(" ", ",").split(",") if s] if isinstance(text, str) \
+        else list(np.atleast_1d(text))
+
+
 def _numbers(text, n: int, what: str) -> np.ndarray:
     """n finite floats from a text "a, b, c" (or a sequence); ValueError naming `what` otherwise."""
-    items = [s for s in str(text).replace(";", ",").replace(" ", ",").split(",") if s] \
-        if isinstance(text, str) else list(text)
+    items = _items(text)
     if len(items) != n:
         raise ValueError(f"{what} must be {n} numbers, got {len(items)} ({text!r})")
     return np.array([_number(s, f"{what}[{j}]") for j, s in enumerate(items)])
@@ -478,8 +484,6 @@ class LiveView:
 
     def _gain_labels(self, i: int) -> tuple:
         """(gain name, field label) of robot i's controller: PID kp, ki, kd; ComputedTorque kp, kd; else none."""
-        from .._core import ComputedTorque, PID
-
         c = self.sim.controllers[i]
         if isinstance(c, PID):
             return (("kp", "kp"), ("ki", "ki"), ("kd", "kd"))
@@ -498,8 +502,6 @@ class LiveView:
         and the other settings kept), through ``Simulation.set_controller`` on the simulation's thread: it
         acts from the next control step, a PID's integral restarting at zero. Refused with a message: text,
         NaN, a negative gain, a wrong count (the constructor's and set_controller's checks)."""
-        from .._core import ComputedTorque, PID
-
         try:
             i = self._robot_index(i)
             allowed = [name for name, _ in self._gain_labels(i)]
@@ -509,8 +511,7 @@ class LiveView:
             for name, text in gains.items():
                 if name not in allowed:
                     raise ValueError(f"gain must be one of {allowed} for {self.labels[i]}, got {name!r}")
-                items = [t for t in str(text).replace(";", ",").replace(" ", ",").split(",") if t] \
-                    if isinstance(text, str) else list(np.atleast_1d(text))
+                items = _items(text)
                 if not items:
                     raise ValueError(f"{name} of {self.labels[i]} must be 1 or {self.robots[i].dof} numbers, got none")
                 values[name] = np.array([_number(t, f"{name}[{j}] of {self.labels[i]}") for j, t in enumerate(items)])
@@ -543,10 +544,8 @@ class LiveView:
     def _factory(self, i: int):
         """The function of coopsim.robots that made robot i (scara1, scara2: known by its name, its joints and
         its recorded dimensions), or None."""
-        from .. import robots
-
         r = self.robots[i]
-        make = {"scara1": robots.scara1, "scara2": robots.scara2}.get(r.name)
+        make = {"scara1": scara1, "scara2": scara2}.get(r.name)
         if make is None or not r.dimensions or set(r.dimensions) != set(make().dimensions) or \
                 r.joint_types != make().joint_types:
             return None
