@@ -935,6 +935,19 @@ def test_a_robot_replaced_in_a_run_keeps_its_state_and_drives_as_a_run_built_wit
     fresh.step(400)
     for name in ("q", "qd", "tau"):
         np.testing.assert_array_equal(getattr(switched.log, name)[301:], getattr(fresh.log, name), err_msg=name)
+    # an explicit model stays the controller's: the run equals one built with the new robot and that model
+    explicit = cs.Simulation(dt=DT)
+    explicit.add_robot(r, cs.ComputedTorque(400.0, 40.0, model=r), q_goal, q0=q_start)
+    explicit.step(300)
+    explicit.set_robot(0, longer)
+    explicit.step(1)
+    fresh = cs.Simulation(dt=DT)
+    fresh.add_robot(longer, cs.ComputedTorque(400.0, 40.0, model=r), q_goal, q0=explicit.state(0)[0],
+                    qd0=explicit.state(0)[1])
+    explicit.step(400)
+    fresh.step(400)
+    np.testing.assert_array_equal(explicit.log.tau[301:], fresh.log.tau)
+    assert np.abs(explicit.log.tau[301:] - switched.log.tau[301:702]).max() > 1e-3   # the model matters
     switched.run(2.0, progress=False)   # the run goes on, to its goal
     assert not switched.diverged and np.abs(switched.state(0)[0] - q_goal).max() < 1e-3
     with pytest.raises(ValueError, match="robot must have the joints of robot 'scara1' \\(RRPRRP\\), got 'scara2'"):
