@@ -14,6 +14,7 @@ import pytest
 
 import coopsim as cs
 from conftest import python_ran_during
+from test_grasp import BOX, closing, scene  # a SCARA #1 closing its clamp on a box
 from coopsim.log import log_schema
 
 DT = 2e-4
@@ -1006,6 +1007,21 @@ def test_a_robot_replaced_in_a_run_brings_its_new_boxes_into_the_world():
     for b, name in enumerate(names):
         np.testing.assert_array_equal(world.body(f"scara1/{name}")["half_extents"], r.boxes[b].half_extents)
     assert not any("post" in (c["a"], c["b"]) for c in sim.contacts())
+
+
+
+def test_a_robot_holding_a_body_is_not_replaced():
+    r, w = scene(BOX)
+    sim = closing(r, w)
+    sim.run(0.3, progress=False)
+    assert sim.holding(0) == "box"
+    with pytest.raises(ValueError, match="robot 0 holds a body: release it before replacing the robot"):
+        sim.set_robot(0, cs.robots.scara1(L1=0.35))
+    assert sim.robots[0].dimensions["L1"] == r.dimensions["L1"]
+    sim.release(0)
+    sim.set_robot(0, cs.robots.scara1(L1=0.35))   # let go: replaced
+    sim.run(0.35, progress=False)
+    assert sim.robots[0].dimensions["L1"] == 0.35 and not sim.diverged
 
 
 # ---- the public calls that stand for the engine's ----
