@@ -480,6 +480,12 @@ std::vector<std::string> World::body_names() const {
   return out;
 }
 
+std::vector<std::string> World::names(const std::vector<int>& ids) const {
+  std::vector<std::string> out;
+  for (int id : ids) out.push_back(body(id).name);
+  return out;
+}
+
 std::vector<BodySpec> World::own_bodies() const {
   std::vector<BodySpec> out;
   std::copy_if(specs_.begin(), specs_.end(), std::back_inserter(out),

@@ -164,6 +164,7 @@ class World {
   std::string describe() const;
   BodyState state(int id) const;
   std::vector<int> free_bodies() const;     // ids of the free bodies, in order added
+  std::vector<std::string> names(const std::vector<int>& ids) const;  // the bodies' names
 
   // ---- stepping (by the owning simulation) ----
   // Sets a link body's pose and twist (velocity of the box centre); a base box (link 0) stays
