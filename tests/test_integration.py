@@ -233,3 +233,35 @@ def test_batch_forward_dynamics_releases_the_gil():
     QD, TAU = rng.normal(size=(N, 6)), rng.normal(size=(N, 6))
     # another Python thread gets to run during the call (see python_ran_during)
     assert python_ran_during(lambda: cs.forward_dynamics_batch(robot, Q, QD, TAU, threads=1)) > 0
+
+
+def test_a_runaway_is_reported_as_one_not_as_a_robot_without_mass():
+    # torques far beyond the drives at a large step: the state runs away within the first steps, and an RK4
+    # stage evaluated there finds the mass matrix lost to rounding; integrate applies tau as given (no
+    # saturation at tau_limits), which is what lets it run away
+    r = cs.robots.scara1()
+    with pytest.warns(RuntimeWarning, match="end stops"):
+        with pytest.raises(cs.DivergenceError) as err:
+            cs.integrate(r, np.zeros(6), np.zeros(6), np.full(6, 1e12), dt=0.01, steps=200)
+    msg = str(err.value)
+    assert "the state ran away: the rk4 stage" in msg and "was evaluated at q = [" in msg and "qd = [" in msg
+    assert "(a joint beyond 10000 rad/s or 1e+06 rad (m/s, m))" in msg or "(state is no longer finite)" in msg
+    assert "links without mass" not in msg and "not positive definite" not in msg
+    assert err.value.step == 1
+    # tau is not saturated: tau at the limits moves the robot less than tau twice over them
+    tl = r.tau_limits
+    _, Q1, _ = cs.integrate(r, np.zeros(6), np.zeros(6), tl, dt=1e-3, steps=20, end_stops=False)
+    _, Q2, _ = cs.integrate(r, np.zeros(6), np.zeros(6), 2 * tl, dt=1e-3, steps=20, end_stops=False)
+    assert np.all(np.abs(Q2[-1]) > 1.5 * np.abs(Q1[-1]))
+
+
+def test_a_singular_mass_matrix_at_a_sane_state_still_names_the_links_without_mass():
+    dh = np.array([[0, 0.3, 0, np.pi / 2], [0, 0, 0.4, 0], [0, 0, 0.3, 0]])
+    com = np.array([[0, 0, 0], [-0.2, 0, 0], [-0.15, 0, 0]])
+    I = np.array([np.diag([0.01, 0.01, 0.01]), np.diag([0.01, 0.05, 0.05]), np.zeros((3, 3))])
+    r = cs.Robot.from_dh(dh, com, [1.0, 2.0, 0.0], I, "RRR")
+    with pytest.raises(cs.DivergenceError) as err:
+        cs.integrate(r, np.array([0.25, -0.5, 0.75]), np.zeros(3), np.zeros(3), dt=1e-3, steps=10)
+    msg = str(err.value)
+    assert "the dynamics failed in the rk4 stage 1 (" in msg and "not positive definite at q = [0.25, -0.5, 0.75]" in msg
+    assert "links without mass" in msg and "ran away" not in msg

@@ -959,3 +959,20 @@ def test_the_stats_report_the_frame_rate_reached_against_the_one_asked():
     fast = cs.Pacer(speed=1.0, frame_rate=50.0, clock=clock, sleep=clock.sleep).run(make_sim(), 0.5,
                                                                                        on_frame=lambda s, p: None)
     assert fast.frame_rate == pytest.approx(50.0, rel=1e-9)
+
+
+def test_a_runaway_past_raised_limits_is_reported_with_its_state_and_step():
+    # limits raised out of the way: the state grows until an RK4 stage evaluates the dynamics at q ~ 1e9, where
+    # the mass matrix is lost to rounding; that is a runaway, not a robot without mass
+    r = cs.robots.scara1()
+    free = cs.Robot.from_dh(r.dh, r.com, r.masses, r.inertias, joint_types=r.joint_types, name="free")
+    sim = cs.Simulation(dt=5e-3, max_speed=1e300, max_position=1e300)
+    sim.add_robot(free, cs.PID(1e3, 0.0, 10.0, gravity_compensation=False), np.full(6, 0.1),
+                  q0=np.full(6, 0.1 + 1e-9))
+    with pytest.raises(cs.DivergenceError) as err:
+        sim.run(1.0, progress=False)
+    msg, e = str(err.value), err.value
+    assert f"simulation diverged at step {e.step}" in msg and "robot 0 'free': the state ran away: the rk4 stage" in msg
+    assert "(a joint beyond 10000 rad/s or 1e+06 rad (m/s, m))" in msg
+    assert "links without mass" not in msg and "not positive definite" not in msg
+    assert np.all(np.isfinite(sim.log.q)) and len(sim.log) == e.step

@@ -887,8 +887,8 @@ def test_plot_log_overlays_runs_with_labels_colours_and_whole_tick_values(run_lo
 @pytest.mark.slow  # a subprocess importing matplotlib and coopsim, drawing frames: seconds
 def test_live_view_example_writes_its_frames(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
-    res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--frames", "3",
-                          "--speed", "4", "--out", str(tmp_path)], cwd=ROOT, env=env, capture_output=True, text=True,
+    res = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "live_view.py"), "--matplotlib",
+                          "--frames", "3", "--speed", "4", "--out", str(tmp_path)], cwd=ROOT, env=env, capture_output=True, text=True,
                          timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
     frames = sorted(p.name for p in tmp_path.iterdir())
@@ -975,3 +975,39 @@ def test_a_contact_shows_in_the_rows_that_held_while_it_lasted():
         mask = view.colliding_from_log(log, [robot])[0]
         assert np.flatnonzero(mask[:, box]).tolist() == rows, (begin, end)
         assert not np.delete(mask, box, axis=1).any()
+
+
+# ---- what the picture tells: the world's axes and a scale, the robots' names, two holding robots ----
+
+def test_the_scene_draws_the_worlds_axes_with_their_scale_and_names_the_robots():
+    s = known_scene(new_axes())
+    # the floor (1.4 x 1.1 m) takes axes 0.2 m long (the largest scale below a fifth of its smaller side)
+    assert s.scale == 0.2
+    seg = s.triad_segments
+    assert seg.shape == (3, 2, 3)
+    np.testing.assert_allclose(seg[:, 1] - seg[:, 0], 0.2 * np.eye(3), atol=1e-12)   # x, y, z, 0.2 m each
+    np.testing.assert_allclose(seg[:, 0], [[FLOOR[0] + 0.05, FLOOR[2] + 0.05, 0.05]] * 3, atol=1e-12)
+    assert [t.get_text() for t in s.triad_labels] == ["x", "y", "z", "axes 0.2 m"]
+    # each robot's name on the floor at the foot of its base, on the camera's side, over the floor, under the boxes
+    assert [t.get_text() for t in s.names] == [R1.name, R2.name]
+    cam = np.array([np.cos(np.radians(s.ax.azim)), np.sin(np.radians(s.ax.azim))])
+    for t, r, base_xy in zip(s.names, (R1, R2), ((0.0, 0.0), (0.75, 0.0))):
+        x, y, z = t.get_position_3d()
+        off = np.array([x, y]) - base_xy
+        assert z == 0.0 and 0.06 < off @ cam < 0.25 and abs(off @ [-cam[1], cam[0]]) < 1e-6, off
+        assert s.floor.get_zorder() < t.get_zorder() < s.polys.get_zorder()
+    # off on request; with matplotlib's own axes (axis=True) no triad
+    off = known_scene(new_axes(), triad=False, names=False)
+    assert len(off.triad_segments) == 0 and off.triad_labels == [] and off.names == []
+    assert len(known_scene(new_axes(), axis=True, limits=None).triad_segments) == 0
+
+
+def test_two_holding_robots_are_different_greens():
+    s = known_scene(new_axes(), holding=[True, True], cull=False)
+    # the same face (the top of link 2, facing up in both) of each robot: both green, told apart
+    a, b = s.colors("robot", 0, box=2, face=1)[0][:3], s.colors("robot", 1, box=2, face=1)[0][:3]
+    for c in (a, b):
+        assert c[1] > c[0] + 0.1 and c[1] > c[2] + 0.1, c
+    assert np.abs(a - b).max() > 0.2, (a, b)
+    # the shades are COLORS' holding_shades, the first the holding colour
+    assert view.COLORS["holding_shades"][0] == view.COLORS["holding"]

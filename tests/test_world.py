@@ -529,6 +529,34 @@ def test_a_body_at_rest_sleeps_after_sleep_after_and_keeps_its_contacts(sleep_af
         cs.World(sleep_after=0.0)
 
 
+@pytest.mark.parametrize("drop", [0.0, 0.01])
+def test_a_bar_standing_on_its_end_comes_to_rest_and_sleeps(drop):
+    """The task's bar stood on its 2 cm end on the floor (or dropped onto it from 1 cm) rocks in the contact
+    solver's residual at 0.02 .. 0.08 rad/s and 1 .. 3 mm/s without going anywhere (its corners 0.06 mm back
+    and forth): below Bullet's speeds it never came, and it did not sleep in 10 s. A body none of whose corners
+    moves 0.25 mm over sleep_after now sleeps: standing, after 0.51 s (dropped, 1.48 s); then it stands still."""
+    T = rot_y(-np.pi / 2)                       # the bar's long x axis vertical
+    T[2, 3] = BAR[0] + drop
+    w = cs.World(floor_friction=0.6)
+    w.add_free_box("bar", BAR, BAR_MASS, T, friction=0.5)
+    sim = cs.Simulation(dt=DT, world=w, world_every=5, log_every=25)
+    t_sleep = None
+    while sim.time < 2.0 and t_sleep is None:
+        sim.advance(sim.time + 0.01)
+        if sim.body_state("bar")["asleep"]:
+            t_sleep = sim.time
+    assert t_sleep is not None and t_sleep <= (0.6 if drop == 0 else 2.0), t_sleep
+    s = sim.body_state("bar")
+    assert s["pose"][2, 3] == pytest.approx(BAR[0], abs=2e-4)          # still standing on its end
+    assert abs(s["pose"][2, 0]) > 1 - 1e-6                               # its axis vertical
+    np.testing.assert_array_equal(s["velocity"], 0.0)
+    np.testing.assert_array_equal(s["angular_velocity"], 0.0)
+    pose = s["pose"]
+    sim.advance(sim.time + 1.0)                                          # and stays so, asleep
+    assert sim.body_state("bar")["asleep"]
+    np.testing.assert_array_equal(sim.body_state("bar")["pose"], pose)
+
+
 def test_a_pickled_world_is_made_again_with_the_checks_of_making_it():
     w = cs.World(floor=False, gravity=(0.0, 0.0, -3.0))
     w.add_static_box("wall", [0.1, 0.2, 0.3], position=[1, 0, 0.3], friction=0.7)

@@ -77,11 +77,17 @@ void bind_integrator(py::module_& m) {
        py::arg("steps") = 1, py::arg("method") = "rk4", py::arg("end_stops") = true, py::arg("record_every") = 1,
        R"doc(Integrates `steps` fixed steps of dt seconds in C++ (GIL released).
 
-tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold).
+tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold),
+N m or N, applied as given: integrate does not saturate it at the robot's
+tau_limits (a Simulation's control stage does; np.clip(tau, -robot.tau_limits,
+robot.tau_limits) first to model saturated drives).
 method: 'rk4' (default) or 'euler' (semi-implicit).
 Returns (t (m,), q (m, n), qd (m, n)) with every record_every-th state, the
 first and the last included. Raises DivergenceError (a RuntimeError) naming the
-step if the state stops being finite.)doc");
+step if the state stops being finite, or if the dynamics fail in a stage: a
+runaway (a stage's state not finite, or beyond 1e4 rad/s or 1e6 rad) names that
+state and the bound; a mass matrix not positive definite at a sane state names
+q (links without mass or inertia).)doc");
   m.def("forward_dynamics_batch", [](const Robot& r, const py::object& Q, const py::object& QD,
                                      const py::object& TAU, const py::object& threads_obj) {
          const int threads = static_cast<int>(index_arg(threads_obj, "threads", 0, 4096));

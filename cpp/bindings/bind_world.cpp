@@ -113,7 +113,8 @@ links' default 1, so a free body's own coefficient decides).
 floor: add the floor. gravity: (3,) m/s^2, the robots' too. floor_friction,
 floor_restitution: the floor's coefficients. solver_iterations: Bullet's
 contact solver iterations per step. sleep_after: s; a free body below
-0.1 mm/s and 1 mrad/s for this long sleeps, with the bodies it touches, until
+0.1 mm/s and 1 mrad/s for this long, or none of whose corners moved more than
+0.25 mm in that time, sleeps, with the bodies it touches, until
 something moving touches it: it costs nothing meanwhile (Bullet's own delay
 is 2 s).)doc")
       .def(py::init([](bool floor, const py::object& gravity, double floor_friction, double floor_restitution,

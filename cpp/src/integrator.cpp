@@ -38,11 +38,25 @@ std::string end_stop_step_warning(const Robot& robot, double dt) {
   return s.str();
 }
 
+namespace {
+
+// forward dynamics of one stage; a failure becomes StageError with the stage and its state
+void stage_dynamics(const Robot& robot, int stage, const VecN& q, const VecN& qd, const double* tau,
+                    const double* tau_ext, Workspace& ws, VecN& qdd, bool end_stops) {
+  try {
+    robot.forward_dynamics(q.data(), qd.data(), tau, tau_ext, ws, qdd, end_stops);
+  } catch (const std::domain_error& e) {
+    throw StageError(e.what(), stage, q, qd);
+  }
+}
+
+}  // namespace
+
 void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, const double* tau,
           const double* tau_ext, double dt, bool end_stops, const VecN* qdd0) {
   VecN k1v;
   if (qdd0) k1v = *qdd0;
-  else robot.forward_dynamics(q.data(), qd.data(), tau, tau_ext, ws, k1v, end_stops);
+  else stage_dynamics(robot, 1, q, qd, tau, tau_ext, ws, k1v, end_stops);
   if (method == Method::SemiImplicitEuler) {
     qd += dt * k1v;
     q += dt * qd;
@@ -54,15 +68,15 @@ void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, c
   qs = q + 0.5 * dt * qd;
   vs = qd + 0.5 * dt * k1v;
   k2q = vs;
-  robot.forward_dynamics(qs.data(), vs.data(), tau, tau_ext, ws, k2v, end_stops);
+  stage_dynamics(robot, 2, qs, vs, tau, tau_ext, ws, k2v, end_stops);
   qs = q + 0.5 * dt * k2q;
   vs = qd + 0.5 * dt * k2v;
   k3q = vs;
-  robot.forward_dynamics(qs.data(), vs.data(), tau, tau_ext, ws, k3v, end_stops);
+  stage_dynamics(robot, 3, qs, vs, tau, tau_ext, ws, k3v, end_stops);
   qs = q + dt * k3q;
   vs = qd + dt * k3v;
   k4q = vs;
-  robot.forward_dynamics(qs.data(), vs.data(), tau, tau_ext, ws, k4v, end_stops);
+  stage_dynamics(robot, 4, qs, vs, tau, tau_ext, ws, k4v, end_stops);
   q += (dt / 6.0) * (qd + 2.0 * k2q + 2.0 * k3q + k4q);
   qd += (dt / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
 }
@@ -95,6 +109,20 @@ std::string divergence_reason(const VecN& q, const VecN& qd, const DivergenceLim
   return std::string();
 }
 
+std::string stage_failure_reason(const StageError& e, Method method, const DivergenceLimits& limits) {
+  std::string why = divergence_reason(e.q, e.qd, limits);
+  if (why.empty() && !divergence_reason(e.q, e.qd, DivergenceLimits{kRunawaySpeed, kRunawayPosition}).empty())
+    why = "a joint beyond " + num(kRunawaySpeed) + " rad/s or " + num(kRunawayPosition) + " rad (m/s, m)";
+  const std::string stage = std::string(method_name(method)) + " stage " + std::to_string(e.stage);
+  if (why.empty()) return "the dynamics failed in the " + stage + " (" + e.what() + ")";
+  std::ostringstream s;
+  s.precision(6);
+  s << "the state ran away: the " << stage << " was evaluated at q = [" << e.q.transpose() << "], qd = ["
+    << e.qd.transpose() << "] (" << why << "), where the dynamics lose the mass matrix to rounding or overflow "
+    << "(a smaller dt, lower gains or smaller torques keep it bounded)";
+  return s.str();
+}
+
 IntegrationResult integrate(const Robot& robot, const double* q0, const double* qd0, const double* tau,
                             int tau_rows, double dt, int steps, Method method, bool end_stops, int record_every,
                             const DivergenceLimits& limits) {
@@ -125,8 +153,8 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
     try {
       step(robot, ws, method, q, qd, u, nullptr, dt, end_stops);
       why = divergence_reason(q, qd, limits);
-    } catch (const std::domain_error& e) {
-      why = std::string("the dynamics failed (") + e.what() + ")";
+    } catch (const StageError& e) {
+      why = stage_failure_reason(e, method, limits);
     }
     if (!why.empty()) {
       const VecN q_bad = q, qd_bad = qd;

@@ -387,6 +387,10 @@ void Simulation::integrate_() {
       step(s.robot, s.ws, opt_.integrator, s.state.q, s.state.qd, s.control.tau.data(),
            has_ext_(s) ? s.external.tau.data() : nullptr, opt_.dt, opt_.end_stops,
            s.state.k1_valid ? &s.state.k1 : nullptr);
+    } catch (const StageError& e) {
+      diverge_(static_cast<int>(i),
+               stage_failure_reason(e, opt_.integrator, DivergenceLimits{opt_.max_speed, opt_.max_position}), true,
+               false);
     } catch (const std::exception& e) {
       diverge_(static_cast<int>(i),
                std::string("the dynamics failed in a ") + method_name(opt_.integrator) + " stage (" + e.what() + ")",

@@ -95,6 +95,10 @@ class KinematicWorld : public btDiscreteDynamicsWorld {
 // A body at rest: below these speeds (m/s, rad/s) a free body counts
 // towards sleeping, and its contacts are warm-started in full (RestingSolver).
 constexpr btScalar kRestSpeed = 1e-4, kRestTurn = 1e-3;
+// A free body none of whose corners moves farther than this (m) from where it was over sleep_after is at
+// rest too, whatever its speed: a bar standing on its 2 cm end rocks in the contact solver's residual at
+// a few mm/s and tens of mrad/s for ever, going nowhere (0.06 mm back and forth, 0.1 mm/s of drift).
+constexpr double kStillDistance = 2.5e-4;
 
 bool at_rest(const btCollisionObject* o) {
   if (o->isStaticObject() && !o->isKinematicObject()) return true;  // floor and scenery
@@ -283,6 +287,11 @@ struct World::Impl {
   std::vector<std::unique_ptr<btCollisionShape>> shapes;
   std::vector<std::unique_ptr<btRigidBody>> bodies;  // by body id
   std::vector<Bounds> bounds;                         // by body id
+  // per free body, by id: the pose it has stayed near (kStillDistance) and for how long (s; < 0: not
+  // anchored), and whether it was pushed (apply_wrench, set_velocity) since the last step
+  std::vector<btTransform> anchor;
+  std::vector<double> still;
+  std::vector<char> pushed;
 
   ~Impl() {
     for (auto& b : bodies) world.removeRigidBody(b.get());
@@ -553,6 +562,9 @@ void World::build_() {
   static BoxBox::CreateFunc box_box;
   I.dispatcher.registerCollisionCreateFunc(BOX_SHAPE_PROXYTYPE, BOX_SHAPE_PROXYTYPE, &box_box);
   I.bounds.resize(specs_.size());
+  I.anchor.resize(specs_.size());
+  I.still.assign(specs_.size(), -1.0);
+  I.pushed.assign(specs_.size(), 0);
   I.world.setGravity(bt(options_.gravity));
   // static bodies keep their bounding boxes: only moving ones are updated
   I.world.setForceUpdateAllAabbs(false);
@@ -630,6 +642,7 @@ void World::apply_wrench(int id, const Eigen::Vector3d& force, const Eigen::Vect
   if (!impl_) build_();
   btRigidBody& b = *impl_->bodies[id];
   b.activate();
+  impl_->pushed[id] = 1;
   b.applyCentralForce(bt(force));
   b.applyTorque(bt(moment));
 }
@@ -638,6 +651,7 @@ void World::set_velocity(int id, const Eigen::Vector3d& velocity, const Eigen::V
   if (!impl_) build_();
   btRigidBody& b = *impl_->bodies[id];
   b.activate();
+  impl_->pushed[id] = 1;
   b.setLinearVelocity(bt(velocity));
   b.setAngularVelocity(bt(angular_velocity));
 }
@@ -686,6 +700,36 @@ void World::step(double dt, double t) {
     const int state = b->getActivationState();
     if ((state == ACTIVE_TAG || state == WANTS_DEACTIVATION) && b->getDeactivationTime() > 0)
       b->setDeactivationTime(std::max<btScalar>(b->getDeactivationTime() + extra, dt));
+  }
+  // a free body that stayed within kStillDistance of a pose for sleep_after sleeps as Bullet's own rule would
+  // put it to sleep (its island's other bodies, if any are awake, wake it again at the next step); a body
+  // pushed since the last step is not at rest
+  for (size_t id = 0; id < I.bodies.size(); ++id) {
+    btRigidBody* b = I.bodies[id].get();
+    if (!b || specs_[id].kind != BodyKind::Free) continue;
+    const int state = b->getActivationState();
+    if (I.pushed[id] || (state != ACTIVE_TAG && state != WANTS_DEACTIVATION)) {
+      I.pushed[id] = 0;
+      I.still[id] = -1.0;
+      continue;
+    }
+    const btTransform& T = b->getWorldTransform();
+    const btVector3 h = bt(specs_[id].half_extents);
+    double moved = 0.0;
+    if (I.still[id] >= 0.0)
+      for (int c = 0; c < 8; ++c) {
+        const btVector3 p((c & 1 ? 1 : -1) * h.x(), (c & 2 ? 1 : -1) * h.y(), (c & 4 ? 1 : -1) * h.z());
+        moved = std::max<double>(moved, (T(p) - I.anchor[id](p)).length());
+      }
+    if (I.still[id] < 0.0 || moved > kStillDistance) {
+      I.anchor[id] = T;
+      I.still[id] = 0.0;
+    } else if ((I.still[id] += dt) >= options_.sleep_after) {
+      b->setLinearVelocity(btVector3(0, 0, 0));
+      b->setAngularVelocity(btVector3(0, 0, 0));
+      b->setActivationState(ISLAND_SLEEPING);
+      I.still[id] = -1.0;
+    }
   }
   // a free body that left the world or whose state stopped being finite: the run has diverged
   for (size_t id = 0; id < I.bodies.size(); ++id) {

@@ -809,7 +809,8 @@ class World:
     floor: add the floor. gravity: (3,) m/s^2, the robots' too. floor_friction,
     floor_restitution: the floor's coefficients. solver_iterations: Bullet's
     contact solver iterations per step. sleep_after: s; a free body below
-    0.1 mm/s and 1 mrad/s for this long sleeps, with the bodies it touches, until
+    0.1 mm/s and 1 mrad/s for this long, or none of whose corners moved more than
+    0.25 mm in that time, sleeps, with the bodies it touches, until
     something moving touches it: it costs nothing meanwhile (Bullet's own delay
     is 2 s).
     """
@@ -1104,11 +1105,17 @@ def integrate(robot: Robot, q0: typing.Any, qd0: typing.Any, tau: typing.Any, dt
     """
     Integrates `steps` fixed steps of dt seconds in C++ (GIL released).
     
-    tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold).
+    tau: (n,) held throughout, or (steps, n), one row per step (zero-order hold),
+    N m or N, applied as given: integrate does not saturate it at the robot's
+    tau_limits (a Simulation's control stage does; np.clip(tau, -robot.tau_limits,
+    robot.tau_limits) first to model saturated drives).
     method: 'rk4' (default) or 'euler' (semi-implicit).
     Returns (t (m,), q (m, n), qd (m, n)) with every record_every-th state, the
     first and the last included. Raises DivergenceError (a RuntimeError) naming the
-    step if the state stops being finite.
+    step if the state stops being finite, or if the dynamics fail in a stage: a
+    runaway (a stage's state not finite, or beyond 1e4 rad/s or 1e6 rad) names that
+    state and the bound; a mass matrix not positive definite at a sane state names
+    q (links without mass or inertia).
     """
 def load_generated_library(path: str) -> str:
     """

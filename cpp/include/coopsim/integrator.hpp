@@ -38,8 +38,9 @@ std::string end_stop_step_warning(const Robot& robot, double dt);
 // (n, may be null) held over the step. qdd0, when given, is qdd(q, qd) at the
 // start of the step (RK4's first stage, or Euler's only one), already
 // computed with the same tau and tau_ext; it is then not recomputed. Throws
-// std::domain_error when the dynamics fail (e.g. an overflowing state); q
-// and qd are then unchanged.
+// StageError (a std::domain_error) when the dynamics fail in a stage (e.g. an
+// overflowing state, a mass matrix not positive definite); q and qd are then
+// unchanged.
 void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, const double* tau,
           const double* tau_ext, double dt, bool end_stops, const VecN* qdd0 = nullptr);
 
@@ -59,6 +60,29 @@ struct DivergenceLimits {
 // Why (q, qd) counts as diverged ("state is no longer finite", "a joint
 // speed exceeds max_speed = ...", ...), or an empty string when it does not.
 std::string divergence_reason(const VecN& q, const VecN& qd, const DivergenceLimits& limits);
+
+// The dynamics failed in a stage of a step: the stage (1 .. 4 for RK4, 1 for
+// Euler), the state (q, qd) it was evaluated at, and the dynamics' reason.
+class StageError : public std::domain_error {
+ public:
+  StageError(const std::string& what, int stage, VecN q, VecN qd)
+      : std::domain_error(what), stage(stage), q(std::move(q)), qd(std::move(qd)) {}
+  int stage;
+  VecN q, qd;
+};
+
+// Beyond these a state has run away whatever the limits (no robot turns a
+// joint at 1e4 rad/s or sends it 1e6 rad or m away): they only decide how a
+// failed stage is reported (stage_failure_reason), never reject a state.
+constexpr double kRunawaySpeed = 1e4, kRunawayPosition = 1e6;
+
+// Why a step failed in its dynamics, for DivergenceError: when the stage's
+// state is not finite, leaves `limits` or exceeds kRunawaySpeed /
+// kRunawayPosition, the runaway (that state and which bound it broke: the
+// mass matrix there is lost to rounding or overflow, not to a robot without
+// mass); otherwise the dynamics' own reason (a genuinely singular mass
+// matrix names q and the links without mass).
+std::string stage_failure_reason(const StageError& e, Method method, const DivergenceLimits& limits);
 
 // A run stopped by a diverged state (or a non-finite torque): the step whose
 // result was rejected, its time, the robot, and the rejected state.

@@ -105,8 +105,9 @@ struct WorldOptions {
   double floor_friction = 1.0, floor_restitution = 0.0;
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81);  // m/s^2
   int solver_iterations = 10;
-  // a free body below 0.1 mm/s and 1 mrad/s for this long (s) sleeps, with the bodies it touches
-  // (Bullet's islands), until something moving touches it (Bullet's own delay is 2 s)
+  // a free body below 0.1 mm/s and 1 mrad/s for this long (s), or none of whose corners moved more than
+  // 0.25 mm in that time (a bar on its end rocking in the solver's residual), sleeps, with the bodies it
+  // touches (Bullet's islands), until something moving touches it (Bullet's own delay is 2 s)
   double sleep_after = 0.5;
 };
 

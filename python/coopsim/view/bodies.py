@@ -16,12 +16,15 @@ __all__ = ["Body", "COLORS"]
 #: base: base columns; jaw: the clamp's jaws; holding: a robot that holds something; free / colliding:
 #: collision boxes without / with contact; ghost: the desired pose (drawn with ghost_alpha);
 #: contact: contact lines; body: extra boxes without their own colour (the bar); floor: two tile colours;
-#: scenery: a world's static boxes; free_body: a world's free bodies other than the bar.
+#: scenery: a world's static boxes; free_body: a world's free bodies other than the bar; holding_shades: robot
+#: i's green while it holds (cycling; the first is holding), so that two holding robots tell apart in the
+#: matplotlib views.
 COLORS = {
     "robots": ("#f0a23c", "#e4e4e8", "#c07a4a", "#a5a5a5"),
     "base": "#757575",
     "jaw": "#2f3237",
     "holding": "#2ca02c",
+    "holding_shades": ("#2ca02c", "#00e000", "#176b17", "#5fd35f"),
     "free": "#3cc43c",
     "colliding": "#e8231e",
     "ghost": "#1f5bff",

@@ -161,7 +161,7 @@ class Scene:
     def __init__(self, ax, robots, *, colors=None, collision_boxes: bool = False, floor=True, tile: float = 0.1,
                  limits=None, elev: Optional[float] = 22.0, azim: Optional[float] = None, axis: bool = False,
                  zoom: Optional[float] = None, contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4,
-                 cull: bool = False, ghost_margin: float = 0.002):
+                 cull: bool = False, ghost_margin: float = 0.002, triad: bool = True, names: bool = True):
         from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # matplotlib loads only to draw
 
         self.robots = _robot_list(robots, allow_empty=True)
@@ -185,6 +185,13 @@ class Scene:
         self._ghost_face = _rgba(c["ghost"], "COLORS['ghost']")
         self._ghost_face[3] = c["ghost_alpha"]
         self._holding = _rgba(c["holding"], "COLORS['holding']")
+        shades = c.get("holding_shades") or (c["holding"],)
+        self._holding_shades = [_rgba(x, "COLORS['holding_shades']") for x in shades]
+        self._show_triad, self._show_names = bool(triad) and not axis, bool(names)
+        self.triad_labels: list = []     # x, y, z and the scale, figure texts placed in 3D (fit)
+        self.triad_segments = np.zeros((0, 2, 3))
+        self.scale = None                # m, the axes' length
+        self.names: list = []            # the robots' names over their bases
         self._free = _rgba(c["free"], "COLORS['free']")
         self._colliding = _rgba(c["colliding"], "COLORS['colliding']")
 
@@ -231,7 +238,11 @@ class Scene:
         self.lines = Line3DCollection(np.zeros((0, 2, 3)), colors=[_rgba(c["contact"], "COLORS['contact']")],
                                       linewidths=2.2, zorder=3)
         ax.add_collection3d(self.lines, autolim=False)
-        for a in (self.floor, self.polys, self.lines):
+        # the world's axes at the floor's near corner, one scale length long (fit places them)
+        self.triad = Line3DCollection(np.zeros((0, 2, 3)), colors=["#d62728", "#2ca02c", "#1f5bff"], linewidths=1.8,
+                                      zorder=0.7)
+        ax.add_collection3d(self.triad, autolim=False)
+        for a in (self.floor, self.polys, self.lines, self.triad):
             a.set_clip_on(False)       # a 3D Axes draws into a square: use the whole (wider) figure
         self.label = self.fig.text(0.02, 0.975, "", va="top", ha="left", fontsize=9, zorder=4)
         # the boxes may use the whole subplot, not only the square a 3D Axes draws into: an empty frame over
@@ -394,6 +405,60 @@ class Scene:
             self._zoom_now = zoom
         else:
             self._zoom_now = self._zoom
+        self._place_triad()
+        self._name_robots()      # the bases (link 0) do not move: where they are with any q
+
+    #: lengths (m) the world's axes may have: the largest below a fifth of the floor's (or the view's) smaller side
+    SCALES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+
+    def _place_triad(self) -> None:
+        """The world's x, y, z axes (red, green, blue) from the floor's corner nearest the camera's left, each
+        ``scale`` m long, labelled, with the scale written beside them."""
+        for t in self.triad_labels:
+            t.remove()
+        self.triad_labels = []
+        self.triad_segments = np.zeros((0, 2, 3))
+        if not self._show_triad or self._limits is None:
+            self.triad.set_segments(self.triad_segments)
+            return
+        ext = self.floor_extent or (*self._limits[0], *self._limits[1])
+        side = min(ext[1] - ext[0], ext[3] - ext[2])
+        self.scale = max([s for s in self.SCALES if s <= side / 5] or [self.SCALES[0]])
+        o = np.array([ext[0], ext[2], 0.0]) + 0.25 * self.scale
+        L = self.scale
+        ends = o + L * np.eye(3)
+        self.triad_segments = np.stack([np.tile(o, (3, 1)), ends], axis=1)    # (3, 2, 3) m: x, y, z
+        self.triad.set_segments(self.triad_segments)
+        for name, e in zip("xyz", ends):
+            self.triad_labels.append(self.ax.text(*(e + 0.12 * L * (e - o) / L), name, fontsize=8, ha="center",
+                                                  va="center", zorder=4))
+        text = f"{L * 100:g} cm" if L < 0.1 else f"{L:g} m"
+        self.triad_labels.append(self.ax.text(*(o + np.array([0.0, 0.0, 1.45 * L])), f"axes {text}", fontsize=7,
+                                              ha="center", va="bottom", zorder=4, color="#333333"))
+
+    def _name_robots(self) -> None:
+        """Each robot's name on the floor at the foot of its base (its boxes on link 0), on the camera's side,
+        framed in its links' colour; drawn over the floor and under the boxes, so that it hides nothing."""
+        for t in self.names:
+            t.remove()
+        self.names = []
+        if not self._show_names:
+            return
+        for i, r in enumerate(self.robots):
+            poses, half = r.shapes(self._q[i])
+            base = [j for j, b in enumerate(r.boxes) if b.link == 0] or list(range(len(r.boxes)))
+            pts = box_faces(poses[base], half[base]).reshape(-1, 3)
+            centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+            towards = view_direction(self.ax.elev, self.ax.azim)[:2]
+            towards = towards / max(np.linalg.norm(towards), 1e-12)
+            reach = float(np.abs((pts[:, :2] - centre[:2]) @ towards).max())     # the base's half width that way
+            x, y = centre[:2] + (reach + 0.06) * towards
+            label = r.name or f"robot {i}"
+            colour = COLORS["robots"][i % len(COLORS["robots"])]
+            self.names.append(self.ax.text(x, y, 0.0, label, fontsize=8, ha="center",
+                                           va="center", zorder=0.9, fontweight="bold",
+                                           bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=colour, lw=1.2,
+                                                     alpha=0.8)))
 
     def _reach(self, points) -> float:
         """How far the points (m, 3) reach from the middle of the axes' place in the figure towards its edges,
@@ -458,7 +523,7 @@ class Scene:
                 col = np.where(self._mask[i][:, None], self._colliding, self._free)
             elif self._hold[i]:
                 col = self._colors[i].copy()
-                col[self._moving[i]] = self._holding
+                col[self._moving[i]] = self._holding_shades[i % len(self._holding_shades)]
             else:
                 col = self._colors[i]
             boxes.append((0, i, poses, half, col, np.arange(len(half))))
@@ -659,7 +724,7 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
          contacts=None, bodies=None, world=None, floor=None, tile: float = 0.1, colors=None, limits=None,
          elev: Optional[float] = None, azim: Optional[float] = None, axis: bool = False, zoom: Optional[float] = None,
          contact_length: float = 0.04, edges: bool = True, cull: bool = False, ghost_margin: float = 0.002,
-         label: Optional[str] = None) -> Scene:
+         label: Optional[str] = None, triad: bool = True, names: bool = True) -> Scene:
     """Draws robots as shaded boxes in a 3D Axes; returns a :class:`Scene` to update with new q cheaply.
 
     ax: a 3D matplotlib Axes (``fig.add_subplot(projection='3d')``), or
@@ -714,6 +779,12 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
     shoulder, with darker edges (edges=False: none). cull: leave out faces
     turned away from the camera (faster, and right only while the camera
     stays where it is: animations use it). label: text at the top left.
+    triad: the world's x, y, z axes (red, green, blue) at the floor's
+    corner, ``scene.scale`` m long (0.01 .. 5 m, under a fifth of the
+    floor's smaller side), labelled with that length (not with axis=True).
+    names: each robot's name over its base. Robots holding are green in
+    shades of their own (``COLORS['holding_shades']``), so two holding at
+    once tell apart.
 
     Raises ValueError naming the argument for wrong shapes or values.
     """
@@ -755,7 +826,7 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
         raise ValueError("ax must be a 3D Axes (fig.add_subplot(projection='3d')) or None")
     scene = Scene(ax, robots, colors=colors, collision_boxes=collision_boxes, floor=floor, tile=tile,
                   limits=limits, elev=elev, azim=azim, axis=axis, zoom=zoom, contact_length=contact_length,
-                  edges=edges, cull=cull, ghost_margin=ghost_margin)
+                  edges=edges, cull=cull, ghost_margin=ghost_margin, triad=triad, names=names)
     scene.update(q, reference=reference, holding=holding, colliding=colliding, contacts=contacts, bodies=shown,
                  label=label)
     return scene
