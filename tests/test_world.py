@@ -556,3 +556,25 @@ def test_a_bar_standing_on_its_end_comes_to_rest_and_sleeps(drop):
     assert sim.body_state("bar")["asleep"]
     np.testing.assert_array_equal(sim.body_state("bar")["pose"], pose)
 
+
+def test_a_pickled_world_is_made_again_with_the_checks_of_making_it():
+    w = cs.World(floor=False, gravity=(0.0, 0.0, -3.0))
+    w.add_static_box("wall", [0.1, 0.2, 0.3], position=[1, 0, 0.3], friction=0.7)
+    w.add_free_box("box", [0.05, 0.05, 0.05], 0.4, position=[0, 0, 1], quaternion=[0.6, 0.8, 0, 0],
+                   velocity=[1, 0, 0], restitution=0.2)
+    again = pickle.loads(pickle.dumps(w))
+    assert repr(again) == repr(w) == "<coopsim.World floor=False, 1 static, 1 free bodies>"
+    assert again.body_names == w.body_names == ["wall", "box"]
+    np.testing.assert_array_equal(again.gravity, [0.0, 0.0, -3.0])
+    for name in w.body_names:
+        a, b = w.body(name), again.body(name)
+        assert a.keys() == b.keys()
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+    state = w.__getstate__()
+    for body, message in [(dict(state[5][1], kind="link"), "not a link body"),
+                          (dict(state[5][1], kind="cloud"), "no body kind 'cloud'"),
+                          (dict(state[5][1], mass=-1.0), "mass must be in")]:
+        fresh = cs.World.__new__(cs.World)
+        with pytest.raises(ValueError, match=message):
+            fresh.__setstate__(state[:5] + ([body],) + state[6:])

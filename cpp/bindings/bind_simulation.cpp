@@ -111,11 +111,7 @@ const World& world_of(const Simulation& s) {
   return *s.world();
 }
 
-int body_id(const Simulation& s, const std::string& name) {
-  const int id = world_of(s).find(name);
-  if (id < 0) throw py::value_error("no body named '" + name + "' in the world");
-  return id;
-}
+int body_id(const Simulation& s, const std::string& name) { return world_of(s).id(name); }
 
 // Columns of a table of n rows, as a dict of arrays: one per field.
 template <class T, class F>
@@ -328,10 +324,7 @@ torques between controller updates, the log and tracking metrics.)doc")
            }, py::arg("i"), py::arg("box"),
            "The pose and twist the world holds for robot i's box (as set at the last world step).")
       .def("free_body_names", [](const Simulation& s) {
-             std::vector<std::string> out;
-             if (s.world())
-               for (int id : s.world()->free_bodies()) out.push_back(s.world()->body(id).name);
-             return out;
+             return s.world() ? s.world()->names(s.world()->free_bodies()) : std::vector<std::string>();
            })
       .def("body_log", [](const Simulation& s) {
              py::list out;

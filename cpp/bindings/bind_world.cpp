@@ -13,23 +13,9 @@ using namespace coopsim::py_convert;
 
 namespace {
 
-// A pose as (4, 4), or as a position (3,) m with a unit quaternion (4,) [w, x, y, z].
-Eigen::Isometry3d pose_arg(const py::object& pose_obj, const py::object& position, const py::object& quaternion) {
-  if (!pose_obj.is_none()) {
-    if (!position.is_none() || !quaternion.is_none())
-      throw py::value_error("give either pose (4, 4) or position and quaternion, not both");
-    return pose(pose_obj, "pose");
-  }
-  if (position.is_none()) throw py::value_error("a body needs a pose (4, 4) or a position (3,)");
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = vecx(position, 3, "position");
-  if (!quaternion.is_none()) {
-    const Eigen::VectorXd q = vecx(quaternion, 4, "quaternion");
-    if (std::abs(q.norm() - 1.0) > 1e-9)
-      throw py::value_error("quaternion must have unit norm [w, x, y, z], got norm " + std::to_string(q.norm()));
-    T.linear() = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
-  }
-  return T;
+Eigen::Isometry3d pose_arg(const py::object& pose, const py::object& position, const py::object& quaternion) {
+  return body_pose(optional_table(pose, "pose"), optional_table(position, "position"),
+                   optional_table(quaternion, "quaternion"));
 }
 
 py::dict spec_dict(const BodySpec& b) {
@@ -46,6 +32,21 @@ py::dict spec_dict(const BodySpec& b) {
   return d;
 }
 
+BodySpec spec_from(const py::handle& h) {
+  const py::dict d = h.cast<py::dict>();
+  BodySpec b;
+  b.name = d["name"].cast<std::string>();
+  b.kind = body_kind(d["kind"].cast<std::string>());
+  b.half_extents = vecx(d["half_extents"], 3, "half_extents");
+  b.mass = d["mass"].cast<double>();
+  b.pose = pose(d["pose"], "pose");
+  b.velocity = vecx(d["velocity"], 3, "velocity");
+  b.angular_velocity = vecx(d["angular_velocity"], 3, "angular_velocity");
+  b.friction = d["friction"].cast<double>();
+  b.restitution = d["restitution"].cast<double>();
+  return b;
+}
+
 }  // namespace
 
 py::dict body_state_dict(const BodyState& s) {
@@ -60,64 +61,24 @@ py::dict body_state_dict(const BodyState& s) {
   return d;
 }
 
-std::string index_name(const char* name, std::initializer_list<py::ssize_t> idx) {
-  std::string s = name;
-  for (py::ssize_t i : idx) s += "[" + std::to_string(i) + "]";
-  return s;
-}
-
-std::vector<Eigen::Isometry3d> pose_list(const py::handle& obj, const char* name) {
-  Arr a = array(obj, {-1, 4, 4}, name);
-  std::vector<Eigen::Isometry3d> out;
-  out.reserve(static_cast<size_t>(a.shape(0)));
-  for (py::ssize_t i = 0; i < a.shape(0); ++i) out.push_back(pose_from(a.data() + 16 * i, index_name(name, {i})));
-  return out;
-}
-
-std::vector<Eigen::Vector3d> half_list(const py::handle& obj, size_t n, const char* name) {
-  Arr a = array(obj, {static_cast<py::ssize_t>(n), 3}, name);
-  std::vector<Eigen::Vector3d> out;
-  for (size_t i = 0; i < n; ++i) out.emplace_back(a.data()[3 * i], a.data()[3 * i + 1], a.data()[3 * i + 2]);
-  return out;
-}
-
 void bind_world(py::module_& m) {
   m.def("box_distance", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb) {
-          const Eigen::Isometry3d a = pose(pa, "pose_a"), b = pose(pb, "pose_b");
-          Arr x = array(ha, {3}, "half_a"), y = array(hb, {3}, "half_b");
-          return box_distance(a, Eigen::Vector3d(x.data()[0], x.data()[1], x.data()[2]), b,
-                              Eigen::Vector3d(y.data()[0], y.data()[1], y.data()[2]));
+          return box_distance(table(pa, "pose_a"), table(ha, "half_a"), table(pb, "pose_b"), table(hb, "half_b"));
         }, py::arg("pose_a"), py::arg("half_a"), py::arg("pose_b"), py::arg("half_b"),
         "Distance between two boxes, m: the gap between their nearest points (> 0), or minus the depth of "
         "their overlap (<= 0).\n\npose_a, pose_b: (4, 4) world poses of the box centres; half_a, half_b: (3,) "
         "half extents (m, > 0). Bullet's GJK and EPA on exact boxes (no collision margin).");
   m.def("box_clearances", [](const py::object& pa, const py::object& ha, const py::object& pb,
                              const py::object& hb) {
-          Arr A = array(pa, {-1, -1, 4, 4}, "poses_a");
-          const py::ssize_t rows = A.shape(0), na = A.shape(1);
-          const auto x = half_list(ha, static_cast<size_t>(na), "half_a");
-          Arr B = as_array(pb, "poses_b");
-          const bool fixed = B.ndim() == 3;
-          if (fixed) B = array(pb, {-1, 4, 4}, "poses_b");
-          else B = array(pb, {rows, -1, 4, 4}, "poses_b");
-          const py::ssize_t nb = fixed ? B.shape(0) : B.shape(1);
-          const auto y = half_list(hb, static_cast<size_t>(nb), "half_b");
-          if (na == 0 || nb == 0) throw py::value_error("poses_a and poses_b need at least one box each");
-          std::vector<Eigen::Isometry3d> a, b;
-          a.reserve(static_cast<size_t>(rows * na));
-          for (py::ssize_t r = 0; r < rows; ++r)
-            for (py::ssize_t i = 0; i < na; ++i) a.push_back(pose_from(A.data() + 16 * (r * na + i), index_name("poses_a", {r, i})));
-          const py::ssize_t mb = fixed ? nb : rows * nb;
-          for (py::ssize_t k = 0; k < mb; ++k)
-            b.push_back(pose_from(B.data() + 16 * k, fixed ? index_name("poses_b", {k}) : index_name("poses_b", {k / nb, k % nb})));
-          py::array_t<double> d(rows);
-          py::array_t<long> ia(rows), ib(rows);
+          const Array A = table(pa, "poses_a"), x = table(ha, "half_a"), B = table(pb, "poses_b"), y = table(hb, "half_b");
+          BoxClearances c;
           {
             py::gil_scoped_release nogil;
-            box_clearances(static_cast<int>(rows), a, x, b, y, fixed, d.mutable_data(), ia.mutable_data(),
-                           ib.mutable_data());
+            c = box_clearances(A, x, B, y);
           }
-          return py::make_tuple(d, ia, ib);
+          const auto n = static_cast<py::ssize_t>(c.d.size());
+          return py::make_tuple(py::array_t<double>(n, c.d.data()), py::array_t<long>(n, c.ia.data()),
+                                py::array_t<long>(n, c.ib.data()));
         }, py::arg("poses_a"), py::arg("half_a"), py::arg("poses_b"), py::arg("half_b"),
         "The clearance between two sets of boxes in each of N configurations: the smallest box_distance "
         "(m; <= 0: minus the overlap depth) over every pair of a box of one set and a box of the other, and "
@@ -129,24 +90,13 @@ void bind_world(py::module_& m) {
         "and separating axes rule the others out): rows in time order are fastest. GIL released.");
   m.def("box_distances", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb,
                             bool pairwise) {
-          const auto a = pose_list(pa, "poses_a"), b = pose_list(pb, "poses_b");
-          const auto x = half_list(ha, a.size(), "half_a"), y = half_list(hb, b.size(), "half_b");
-          if (pairwise && a.size() != b.size())
-            throw py::value_error("pairwise: poses_a and poses_b must have the same length, got " +
-                                  std::to_string(a.size()) + " and " + std::to_string(b.size()));
-          std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(a.size())};
-          if (!pairwise) shape.push_back(static_cast<py::ssize_t>(b.size()));
-          py::array_t<double> out(shape);
-          double* o = out.mutable_data();
+          const Array A = table(pa, "poses_a"), x = table(ha, "half_a"), B = table(pb, "poses_b"), y = table(hb, "half_b");
+          Array d;
           {
             py::gil_scoped_release nogil;
-            if (pairwise) {
-              for (size_t i = 0; i < a.size(); ++i) o[i] = box_distance(a[i], x[i], b[i], y[i]);
-            } else {
-              box_distances(a, x, b, y, o);
-            }
+            d = box_distances(A, x, B, y, pairwise);
           }
-          return out;
+          return to_numpy(d);
         }, py::arg("poses_a"), py::arg("half_a"), py::arg("poses_b"), py::arg("half_b"), py::arg("pairwise") = false,
         "Distances between boxes, m (as box_distance): (Na, Nb) for every box of one list with every box of "
         "the other, or with pairwise=True (N,) for box i of one with box i of the other.\n\n"
@@ -209,58 +159,25 @@ is 2 s).)doc")
       .def_property_readonly("gravity", [](const World& w) { return to_numpy(w.options().gravity); })
       .def_property_readonly("floor", [](const World& w) { return w.options().floor; })
       .def_property_readonly("attached", &World::attached, "Whether a simulation owns the world.")
-      .def_property_readonly("body_names", [](const World& w) {
-             std::vector<std::string> out;
-             for (int i = 0; i < w.body_count(); ++i) out.push_back(w.body(i).name);
-             return out;
-           }, "Names of every body, by id (robots' link bodies once a simulation has stepped).")
-      .def("body", [](const World& w, const std::string& name) {
-             const int id = w.find(name);
-             if (id < 0) throw py::value_error("no body named '" + name + "' in the world");
-             return spec_dict(w.body(id));
-           }, py::arg("name"), "A body's description: name, kind, half_extents, mass, pose, velocity, ... .")
+      .def_property_readonly("body_names", &World::body_names,
+                             "Names of every body, by id (robots' link bodies once a simulation has stepped).")
+      .def("body", [](const World& w, const std::string& name) { return spec_dict(w.body(name)); }, py::arg("name"),
+           "A body's description: name, kind, half_extents, mass, pose, velocity, ... .")
       .def("__len__", &World::body_count)
-      .def("__repr__", [](const World& w) {
-         int free = 0, fixed = 0;
-         for (int i = 0; i < w.body_count(); ++i) {
-           free += w.body(i).kind == BodyKind::Free;
-           fixed += w.body(i).kind == BodyKind::Static;
-         }
-         return "<coopsim.World floor=" + std::string(w.options().floor ? "True" : "False") + ", " +
-                std::to_string(fixed) + " static, " + std::to_string(free) + " free bodies>";
-       })
+      .def("__repr__", &World::describe)
       .def(py::pickle(
           [](const World& w) {
             const WorldOptions& o = w.options();
             py::list bodies;
-            for (int i = 0; i < w.body_count(); ++i) {
-              const BodySpec& b = w.body(i);
-              if (b.kind == BodyKind::Static || b.kind == BodyKind::Free) bodies.append(spec_dict(b));
-            }
+            for (const BodySpec& b : w.own_bodies()) bodies.append(spec_dict(b));
             return py::make_tuple(o.floor, to_numpy(o.gravity), o.floor_friction, o.floor_restitution,
                                   o.solver_iterations, bodies, o.sleep_after);
           },
-          [](py::tuple t) {
-            WorldOptions o;
-            o.floor = t[0].cast<bool>();
-            o.gravity = vecx(t[1], 3, "gravity");
-            o.floor_friction = t[2].cast<double>();
-            o.floor_restitution = t[3].cast<double>();
-            o.solver_iterations = t[4].cast<int>();
-            if (t.size() > 6) o.sleep_after = t[6].cast<double>();
-            auto w = std::make_shared<World>(o);
-            for (py::handle h : t[5].cast<py::list>()) {
-              py::dict d = h.cast<py::dict>();
-              const std::string name = d["name"].cast<std::string>();
-              const Eigen::Vector3d he = vecx(d["half_extents"], 3, "half_extents");
-              const Eigen::Isometry3d T = pose(d["pose"], "pose");
-              if (d["kind"].cast<std::string>() == "static")
-                w->add_static_box(name, he, T, d["friction"].cast<double>(), d["restitution"].cast<double>());
-              else
-                w->add_free_box(name, he, d["mass"].cast<double>(), T, d["friction"].cast<double>(),
-                                d["restitution"].cast<double>(), vecx(d["velocity"], 3, "velocity"),
-                                vecx(d["angular_velocity"], 3, "angular_velocity"));
-            }
+          [](const py::tuple& t) {
+            py::dict later;  // made again as when it was made, by the constructor and add_body
+            if (t.size() > 6) later["sleep_after"] = t[6];
+            auto w = py::type::of<World>()(t[0], t[1], t[2], t[3], t[4], **later).cast<std::shared_ptr<World>>();
+            for (py::handle h : t[5]) w->add_body(spec_from(h));
             return w;
           }));
 }

@@ -188,4 +188,64 @@ void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std
   }
 }
 
+namespace {
+
+// n half extents from a (n, 3) table.
+std::vector<Eigen::Vector3d> halves(const Array& h, std::ptrdiff_t n, const char* name) {
+  check_shape(h, {n, 3}, name);
+  check_finite(h, name);
+  std::vector<Eigen::Vector3d> out;
+  for (std::ptrdiff_t i = 0; i < n; ++i) out.emplace_back(h.values[3 * i], h.values[3 * i + 1], h.values[3 * i + 2]);
+  return out;
+}
+
+// The k-th pose of a table of poses (its rows of `per_row` poses when per_row > 0), named "NAME[r][i]".
+Eigen::Isometry3d pose_at(const Array& a, std::ptrdiff_t k, std::ptrdiff_t per_row, const char* name) {
+  std::string who = name;
+  if (per_row > 0) who += "[" + std::to_string(k / per_row) + "]";
+  return rigid_pose(a.values.data() + 16 * k, who + "[" + std::to_string(per_row > 0 ? k % per_row : k) + "]");
+}
+
+}  // namespace
+
+double box_distance(const Array& pose_a, const Array& half_a, const Array& pose_b, const Array& half_b) {
+  const Eigen::Isometry3d a = rigid_pose(pose_a, "pose_a"), b = rigid_pose(pose_b, "pose_b");
+  return box_distance(a, vector_of(half_a, 3, "half_a"), b, vector_of(half_b, 3, "half_b"));
+}
+
+Array box_distances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b,
+                    bool pairwise) {
+  const auto a = rigid_poses(poses_a, "poses_a"), b = rigid_poses(poses_b, "poses_b");
+  const std::ptrdiff_t na = static_cast<std::ptrdiff_t>(a.size()), nb = static_cast<std::ptrdiff_t>(b.size());
+  const auto x = halves(half_a, na, "half_a"), y = halves(half_b, nb, "half_b");
+  if (pairwise && na != nb)
+    throw std::invalid_argument("pairwise: poses_a and poses_b must have the same length, got " + std::to_string(na) +
+                                " and " + std::to_string(nb));
+  Array out{std::vector<double>(pairwise ? na : na * nb), {na}};
+  if (!pairwise) out.shape.push_back(nb);
+  if (!pairwise) box_distances(a, x, b, y, out.values.data());
+  for (std::ptrdiff_t i = 0; pairwise && i < na; ++i) out.values[i] = box_distance(a[i], x[i], b[i], y[i]);
+  return out;
+}
+
+BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b) {
+  check_shape(poses_a, {-1, -1, 4, 4}, "poses_a");
+  check_finite(poses_a, "poses_a");
+  const std::ptrdiff_t rows = poses_a.shape[0], na = poses_a.shape[1];
+  const auto x = halves(half_a, na, "half_a");
+  const bool fixed = poses_b.ndim() == 3;  // boxes that do not move
+  if (fixed) check_shape(poses_b, {-1, 4, 4}, "poses_b");
+  else check_shape(poses_b, {rows, -1, 4, 4}, "poses_b");
+  check_finite(poses_b, "poses_b");
+  const std::ptrdiff_t nb = fixed ? poses_b.shape[0] : poses_b.shape[1];
+  const auto y = halves(half_b, nb, "half_b");
+  if (na == 0 || nb == 0) throw std::invalid_argument("poses_a and poses_b need at least one box each");
+  std::vector<Eigen::Isometry3d> a, b;
+  for (std::ptrdiff_t k = 0; k < rows * na; ++k) a.push_back(pose_at(poses_a, k, na, "poses_a"));
+  for (std::ptrdiff_t k = 0; k < (fixed ? nb : rows * nb); ++k) b.push_back(pose_at(poses_b, k, fixed ? 0 : nb, "poses_b"));
+  BoxClearances out{std::vector<double>(rows), std::vector<long>(rows), std::vector<long>(rows)};
+  box_clearances(static_cast<int>(rows), a, x, b, y, fixed, out.d.data(), out.ia.data(), out.ib.data());
+  return out;
+}
+
 }  // namespace coopsim

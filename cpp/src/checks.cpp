@@ -46,6 +46,12 @@ std::vector<double> per_joint(const Array& a, int n, const char* name) {
   return a.values;
 }
 
+Eigen::VectorXd vector_of(const Array& a, std::ptrdiff_t n, const char* name) {
+  check_shape(a, {n}, name);
+  check_finite(a, name);
+  return Eigen::Map<const Eigen::VectorXd>(a.values.data(), n);
+}
+
 bool is_rotation(const Eigen::Matrix3d& R) {
   return R.allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 &&
          R.determinant() > 0;
@@ -68,6 +74,20 @@ Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name) {
   T.matrix() = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(row_major);
   check_rigid(T.matrix(), name);
   return T;
+}
+
+std::vector<Eigen::Isometry3d> rigid_poses(const Array& a, const char* name) {
+  check_shape(a, {-1, 4, 4}, name);
+  check_finite(a, name);
+  std::vector<Eigen::Isometry3d> out;
+  for (std::ptrdiff_t k = 0; k < a.shape[0]; ++k)
+    out.push_back(rigid_pose(a.values.data() + 16 * k, std::string(name) + "[" + std::to_string(k) + "]"));
+  return out;
+}
+
+Eigen::Isometry3d rigid_pose(const Array& a, const char* name) {
+  check_shape(a, {4, 4}, name);
+  return rigid_pose(a.values.data(), name);
 }
 
 }  // namespace coopsim

@@ -227,6 +227,12 @@ const char* body_kind_name(BodyKind k) {
   }
 }
 
+BodyKind body_kind(const std::string& name) {
+  for (BodyKind k : {BodyKind::Floor, BodyKind::Static, BodyKind::Free, BodyKind::Link})
+    if (name == body_kind_name(k)) return k;
+  throw std::invalid_argument("no body kind '" + name + "' (floor, static, free, link)");
+}
+
 const char* contact_kind(const BodySpec& a, const BodySpec& b) {
   const bool la = a.kind == BodyKind::Link, lb = b.kind == BodyKind::Link;
   const bool fa = a.kind == BodyKind::Free, fb = b.kind == BodyKind::Free;
@@ -405,6 +411,32 @@ int World::add_free_box(const std::string& name, const Eigen::Vector3d& half_ext
   return add_(s);
 }
 
+int World::add_body(const BodySpec& s) {
+  require(s.kind == BodyKind::Static || s.kind == BodyKind::Free,
+          std::string("add_body: a world adds static and free bodies, not a ") + body_kind_name(s.kind) + " body");
+  if (s.kind == BodyKind::Static) return add_static_box(s.name, s.half_extents, s.pose, s.friction, s.restitution);
+  return add_free_box(s.name, s.half_extents, s.mass, s.pose, s.friction, s.restitution, s.velocity,
+                      s.angular_velocity);
+}
+
+Eigen::Isometry3d body_pose(const std::optional<Array>& pose, const std::optional<Array>& position,
+                            const std::optional<Array>& quaternion) {
+  if (pose) {
+    require(!position && !quaternion, "give either pose (4, 4) or position and quaternion, not both");
+    return rigid_pose(*pose, "pose");
+  }
+  require(position.has_value(), "a body needs a pose (4, 4) or a position (3,)");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = vector_of(*position, 3, "position");
+  if (quaternion) {
+    const Eigen::VectorXd q = vector_of(*quaternion, 4, "quaternion");
+    require(std::abs(q.norm() - 1.0) <= 1e-9,
+            "quaternion must have unit norm [w, x, y, z], got norm " + std::to_string(q.norm()));
+    T.linear() = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
+  }
+  return T;
+}
+
 void World::check_pose(const Eigen::Isometry3d& T, const std::string& who) {
   require(T.matrix().allFinite(), who + ": pose must be finite");
   require(T.translation().norm() <= kMaxDistance, who + ": pose must lie within 1e6 m of the origin");
@@ -443,6 +475,39 @@ void World::clear_robots() {
   require(std::none_of(specs_.begin(), specs_.end(), [](const BodySpec& s) { return s.kind == BodyKind::Link; }),
           "clear_robots: link bodies must come last");
   impl_.reset();
+}
+
+int World::id(const std::string& name) const {
+  const int id = find(name);
+  require(id >= 0, "no body named '" + name + "' in the world");
+  return id;
+}
+
+std::vector<std::string> World::body_names() const {
+  std::vector<std::string> out;
+  for (const BodySpec& s : specs_) out.push_back(s.name);
+  return out;
+}
+
+std::vector<std::string> World::names(const std::vector<int>& ids) const {
+  std::vector<std::string> out;
+  for (int id : ids) out.push_back(body(id).name);
+  return out;
+}
+
+std::vector<BodySpec> World::own_bodies() const {
+  std::vector<BodySpec> out;
+  std::copy_if(specs_.begin(), specs_.end(), std::back_inserter(out),
+               [](const BodySpec& s) { return s.kind == BodyKind::Static || s.kind == BodyKind::Free; });
+  return out;
+}
+
+std::string World::describe() const {
+  const auto count = [this](BodyKind k) {
+    return std::to_string(std::count_if(specs_.begin(), specs_.end(), [k](const BodySpec& s) { return s.kind == k; }));
+  };
+  return "<coopsim.World floor=" + std::string(options_.floor ? "True" : "False") + ", " + count(BodyKind::Static) +
+         " static, " + count(BodyKind::Free) + " free bodies>";
 }
 
 const BodySpec& World::body(int id) const {

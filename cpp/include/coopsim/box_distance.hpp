@@ -8,6 +8,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "coopsim/checks.hpp"
+
 namespace coopsim {
 
 // Distance between two boxes (world poses of their centres, half extents), m:
@@ -29,5 +31,20 @@ void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Ei
 void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
                     const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
                     bool b_static, double* d, long* ia, long* ib);
+
+// The same from tables, with the checks of their shapes (throwing std::invalid_argument naming
+// the argument): box_distance of pose_a (4, 4), half_a (3,), pose_b, half_b; box_distances of
+// poses_a (Na, 4, 4), half_a (Na, 3), poses_b (Nb, 4, 4), half_b (Nb, 3): (Na, Nb), or with
+// pairwise (Na == Nb) (Na,) for box i with box i.
+double box_distance(const Array& pose_a, const Array& half_a, const Array& pose_b, const Array& half_b);
+Array box_distances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b,
+                    bool pairwise);
+// box_clearances of poses_a (N, ka, 4, 4), half_a (ka, 3), poses_b (N, kb, 4, 4) or (kb, 4, 4)
+// (boxes that do not move), half_b (kb, 3): N rows each of d, ia, ib.
+struct BoxClearances {
+  std::vector<double> d;
+  std::vector<long> ia, ib;
+};
+BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b);
 
 }  // namespace coopsim

@@ -35,6 +35,8 @@ inline void check_shape(const Array& a, std::initializer_list<std::ptrdiff_t> ex
 void check_finite(const double* p, std::size_t count, const char* name);
 inline void check_finite(double x, const char* name) { check_finite(&x, 1, name); }
 inline void check_finite(const Array& a, const char* name) { check_finite(a.values.data(), a.values.size(), name); }
+// The n finite values of a (n,) table: "wrong shape for NAME: ...", "NAME must be finite ...".
+Eigen::VectorXd vector_of(const Array& a, std::ptrdiff_t n, const char* name);
 // One value per joint: `a` is one number (every joint) or (n,), finite; out gets n values.
 std::vector<double> per_joint(const Array& a, int n, const char* name);
 
@@ -48,5 +50,9 @@ void check_rotation(const Eigen::Matrix3d& R, const std::string& name);
 void check_rigid(const Eigen::Matrix4d& T, const std::string& name);
 // The rigid transform of 16 row-major numbers (checked by check_rigid).
 Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name);
+// The rigid transforms of a (N, 4, 4) table of finite numbers, the k-th named "NAME[k]".
+std::vector<Eigen::Isometry3d> rigid_poses(const Array& a, const char* name);
+// The rigid transform of a (4, 4) table.
+Eigen::Isometry3d rigid_pose(const Array& a, const char* name);
 
 }  // namespace coopsim

@@ -21,15 +21,20 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "coopsim/checks.hpp"
+
 namespace coopsim {
 
 enum class BodyKind { Floor, Static, Free, Link };
 const char* body_kind_name(BodyKind k);
+// The kind named by body_kind_name; throws std::invalid_argument for another name.
+BodyKind body_kind(const std::string& name);
 
 struct BodySpec;
 // The kind of a contact between two bodies: "self" (links of one robot),
@@ -89,6 +94,12 @@ class WorldDivergence : public std::runtime_error {
   int body;  // the body's id
 };
 
+// A body's pose as the API takes it: a (4, 4) pose, or a position (3,) m with a unit quaternion
+// (4,) [w, x, y, z] (none: no rotation). Throws std::invalid_argument naming what is wrong: both
+// forms or neither, a pose that is not rigid, a quaternion whose norm is off 1 by more than 1e-9.
+Eigen::Isometry3d body_pose(const std::optional<Array>& pose, const std::optional<Array>& position,
+                            const std::optional<Array>& quaternion);
+
 struct WorldOptions {
   bool floor = true;
   double floor_friction = 1.0, floor_restitution = 0.0;
@@ -132,6 +143,9 @@ class World {
                  const std::vector<int>& box_links, const std::vector<Eigen::Vector3d>& half_extents,
                  const std::vector<Eigen::Isometry3d>& poses, const std::vector<std::pair<int, int>>& excluded,
                  double friction);
+  // A static or free body as add_static_box or add_free_box adds it (spec's fields; the kind
+  // decides which).
+  int add_body(const BodySpec& spec);
   // Removes the robots' link bodies (the world keeps its own).
   void clear_robots();
   // New sizes, first poses and exclusions of one robot's link bodies, ids first .. first + k - 1 (the
@@ -145,8 +159,19 @@ class World {
   int body_count() const { return static_cast<int>(specs_.size()); }
   const BodySpec& body(int id) const;
   int find(const std::string& name) const;  // -1 if none
+  // The id and the body of that name; throw std::invalid_argument if none: "no body named 'x' in
+  // the world".
+  int id(const std::string& name) const;
+  const BodySpec& body(const std::string& name) const { return specs_[id(name)]; }
+  std::vector<std::string> body_names() const;  // by id
+  // The world's own bodies, static and free, in order added: what add_body needs to build the
+  // world again (with its options; the floor comes with them).
+  std::vector<BodySpec> own_bodies() const;
+  // "<coopsim.World floor=True, 2 static, 3 free bodies>".
+  std::string describe() const;
   BodyState state(int id) const;
   std::vector<int> free_bodies() const;     // ids of the free bodies, in order added
+  std::vector<std::string> names(const std::vector<int>& ids) const;  // the bodies' names
 
   // ---- stepping (by the owning simulation) ----
   // Sets a link body's pose and twist (velocity of the box centre); a base box (link 0) stays
