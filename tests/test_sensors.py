@@ -246,3 +246,22 @@ def test_sensor_options_their_defaults_checks_and_pickling():
         sim.set_sensor(1, noise_force=0.1)
     again = pickle.loads(pickle.dumps(sim))
     assert again.sensor_options(0) == sim.sensor_options(0)
+
+
+def test_an_ideal_sensor_reads_the_same_off_the_log_rows():
+    """An ideal sensor (no noise, no filter) is read only at the log's rows and when asked: asked between
+    rows, and at the rows, it reads what a sensor read at every step does."""
+    w5 = cs.Wrench(5, [0.02, 0.0, 0.01], [-0.5, 1.5, 2.0, 0.05, -0.1, 0.2])
+    out = []
+    for log_every in (1, 7):
+        r = cs.robots.scara1(gravity=(0, 0, -G))
+        sim = cs.Simulation(dt=DT, log_every=log_every)
+        sim.add_robot(r, cs.PID(**PID), Q0)  # it sags under gravity: the TCP moves, the moment about it too
+        sim.set_applied(0, wrenches=[w5])
+        sim.step(10)
+        out.append((sim.sensor(0), sim.log[0].ft_world))
+    (a, log_a), (b, log_b) = out
+    assert np.any(a["ft_world"] != 0)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+    np.testing.assert_array_equal(log_a[::7], log_b)

@@ -377,7 +377,7 @@ torques between controller updates, the log and tracking metrics.)doc")
            "first-order low-pass filter (0: none); seed (>= 0) of the noise generator, which restarts from it.")
       .def("sensor_options", [](const Simulation& s, int i) { return sensor_options_dict(s.sensor_options(i)); },
            py::arg("i"), "Robot i's sensor options: noise_force, noise_moment, time_constant, seed.")
-      .def("sensor", [](const Simulation& s, int i) {
+      .def("sensor", [](Simulation& s, int i) {
              py::dict d;
              d["ft_world"] = to_numpy(s.ft_world(i));
              d["ft_clamp"] = to_numpy(s.ft_clamp(i));

@@ -198,11 +198,12 @@ class Simulation {
   const SensorOptions& sensor_options(int i) const { return slot_(i).sensor.opt; }
   // Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
   // TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
-  // Zero before the first step.
-  const Vec6& ft_clamp(int i) const { return slot_(i).sensor.clamp; }
-  const Vec6& ft_world(int i) const { return slot_(i).sensor.world; }
-  const Vec6& ft_true_clamp(int i) const { return slot_(i).sensor.true_clamp; }
-  const Vec6& ft_true_world(int i) const { return slot_(i).sensor.true_world; }
+  // Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+  // rows and when asked here: its reading depends on the present state alone.)
+  const Vec6& ft_clamp(int i) { return fresh_sensor_(i).clamp; }
+  const Vec6& ft_world(int i) { return fresh_sensor_(i).world; }
+  const Vec6& ft_true_clamp(int i) { return fresh_sensor_(i).true_clamp; }
+  const Vec6& ft_true_world(int i) { return fresh_sensor_(i).true_world; }
   // The sensor frame: the TCP's pose in the world at the present state.
   Eigen::Isometry3d sensor_pose(int i) const;
   // ---- state ----
@@ -312,6 +313,7 @@ class Simulation {
       Vec6 true_clamp = Vec6::Zero(), true_world = Vec6::Zero(), clamp = Vec6::Zero(), world = Vec6::Zero();
       long at = -1;                              // the step of the last reading (-1: none yet)
       bool has_prev = false;                     // prev holds a reading of an earlier step
+      bool stale = false;                        // an ideal sensor not read at step `at` (no log row)
     } sensor;
     struct Record {  // the log stage
       RobotLog log;
@@ -332,8 +334,9 @@ class Simulation {
   void contacts_to_robots_(double h);    // its contacts as joint torques, held; its events
   void hold_external_();                 // every robot's external torque at t_k, held over the step
   void sense_();                         // sense: the force/torque sensors at t_k
-  void sense_(Slot& s);                  // one robot's
+  void sense_(Slot& s, bool now = false);  // one robot's (now: an ideal one too, off the log's rows)
   void reset_sensor_(Slot& s);
+  const Slot::Sensor& fresh_sensor_(int i);  // robot i's sensor, read now if stale
   void log_();                           // log: the row at t_k
   void integrate_();                     // integrate: to t_k+1
   // ---- divergence (divergence.cpp) ----
