@@ -38,8 +38,8 @@ kd (qd_ref - qd) + kp (q_ref - q)) + bias(q, qd) + K qd) with the task's
 gains (kp = omega^2, kd = 2 omega, ``handover.OMEGA``), MuJoCo's own M
 (d.qM) and bias (d.qfrc_bias; K qd is its joint damping, -d.qfrc_passive),
 driving motor actuators, held over each step and clipped at the actuator
-limits, on the references coopsim's run installed (recorded as it runs,
-checked against its log's q_ref and qd_ref). MuJoCo has no computed-torque
+limits, on the references of coopsim's run (its log's q_ref, qd_ref and
+qdd_ref at every step). MuJoCo has no computed-torque
 actuator, so this controller is Python: before each mj_step, MuJoCo's
 kinematics, CRB (M), RNE (bias) and passive forces for the present state,
 then the torque (in mjcb_control instead, at the first of the four RK4
@@ -65,7 +65,6 @@ other. Set OPENBLAS_NUM_THREADS=1 on a shared machine.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import functools
 import os
 import platform
@@ -745,57 +744,6 @@ def through(p):
     return bool((np.asarray(p) - scene.CONTAINER["mouth"]) @ axis > scene.CONTAINER["length"])
 
 
-def _as_reference(reference):
-    return reference if isinstance(reference, cs.Reference) else cs.SetPoint(np.asarray(reference, float))
-
-
-@contextlib.contextmanager
-def recorded_references():
-    """While the block runs, every reference a Simulation is given (add_robot, set_reference) is recorded
-    with the first log row it drives: [(row, robot, reference)]. The row is the number of rows logged when
-    it was installed (a reference set after a step's row was logged drives the next step on, see
-    Simulation.set_reference), so the simulation must log every step (log_every=1)."""
-    from coopsim.simulation import Simulation
-    seen = []
-    add, put = Simulation.add_robot, Simulation.set_reference
-
-    def add_robot(self, robot, controller, reference, **kw):
-        i = add(self, robot, controller, reference, **kw)
-        seen.append((len(self.log.t), i, _as_reference(reference)))
-        return i
-
-    def set_reference(self, robot, reference):
-        put(self, robot, reference)
-        seen.append((len(self.log.t), robot, _as_reference(reference)))
-
-    Simulation.add_robot, Simulation.set_reference = add_robot, set_reference
-    try:
-        yield seen
-    finally:
-        Simulation.add_robot, Simulation.set_reference = add, put
-
-
-def task_references(log, installed):
-    """Each robot's reference at every logged row, [(q_ref, qd_ref, qdd_ref)], each (rows, n), evaluated
-    from the references a run installed (recorded_references): the log holds q_ref and qd_ref, not qdd_ref.
-    Checked against the log's q_ref and qd_ref (the same calls: exactly); a mismatch is an error."""
-    t = np.asarray(log.t)
-    out = []
-    for i, rl in enumerate(log.robots):
-        mine = [(row, ref) for row, r, ref in installed if r == i]
-        Q, QD, QDD = (np.full((len(t), rl.dof), np.nan) for _ in range(3))
-        for j, (row, ref) in enumerate(mine):
-            end = mine[j + 1][0] if j + 1 < len(mine) else len(t)
-            if end > row:
-                Q[row:end], QD[row:end], QDD[row:end] = ref.evaluate(t[row:end])
-        err = max(float(np.abs(Q - rl.q_ref).max()), float(np.abs(QD - rl.qd_ref).max()))
-        if not err <= 1e-12:
-            raise RuntimeError(f"the recorded references of robot {i} do not reproduce its logged q_ref, qd_ref "
-                               f"(max difference {err:.1e})")
-        out.append((Q, QD, QDD))
-    return out
-
-
 class MujocoComputedTorque:
     """coopsim's ComputedTorque (cpp/src/controller.cpp) for both robots of the MuJoCo scene, in Python: MuJoCo
     has no computed-torque actuator. Per robot tau = sat(M(q) v + bias(q, qd) + B qd), v = qdd_ref +
@@ -943,12 +891,11 @@ def scene_part(repeats):
     m_ct = m_pd = None
     for rep in range(repeats):
         t0 = clock()
-        with recorded_references() if m_ct is None else contextlib.nullcontext() as installed:
-            res = H.run(cycles=1, control_every=1, world_every=1, log_every=1, score=False)
+        res = H.run(cycles=1, control_every=1, world_every=1, log_every=1, score=False)
         walls["coopsim"].append(clock() - t0)
         if m_ct is None:  # the MuJoCo side from the first run's log (the run is deterministic)
             log, t_sim = res.log, float(res.report["simulated_time"])
-            refs = task_references(log, installed)
+            refs = [(rl.q_ref, rl.qd_ref, rl.qdd_ref) for rl in log.robots]   # every step's reference
             steps = len(log.t) - 1
             q0 = np.concatenate([rl.q[0] for rl in log.robots])
             Qref = np.hstack([r[0] for r in refs])

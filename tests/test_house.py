@@ -128,7 +128,7 @@ def test_the_package_imports_without_cycles():
 #: standard library's importlib.metadata, ...) or optional (dask's distributed), and ``import coopsim``
 #: loads none of them
 LOCAL_IMPORTS = {"matplotlib", "mpl_toolkits", "pandas", "PIL", "imageio_ffmpeg", "tqdm", "xlsxwriter", "distributed",
-                 "importlib.metadata"}
+                 "importlib.metadata", "viser", "IPython"}
 
 
 def _heavy(name: str) -> bool:
@@ -250,3 +250,39 @@ def test_the_files_the_package_reads_ship_in_its_wheel():
     from coopsim.view import replay
 
     assert replay._template().startswith("<!DOCTYPE html>") and "@COMMANDS@" in replay._template()
+
+
+# ---- the bindings declare, the engine decides ----
+
+def _binding_ratio():
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import binding_ratio
+    finally:
+        sys.path.pop(0)
+    return binding_ratio
+
+
+def test_code_lines_count_code_not_comments():
+    # the counting rule of scripts/binding_ratio.py on a known text: comments and blank lines out, the lines
+    # of a raw string literal (but for blank ones) and a "//" inside a string in
+    text = ('// a comment\n'
+            'int a = 1;  // trailing\n'
+            '\n'
+            '/* a block\n'
+            '   comment */\n'
+            'const char* u = "http://x";\n'
+            'const char* d = R"doc(one\n'
+            '\n'
+            'two // not a comment)doc";\n'
+            'int b; /* c */ int c;\n'
+            '   /* only a comment */   \n')
+    assert _binding_ratio().code_lines(text) == 5
+
+
+def test_the_bindings_are_at_most_a_third_of_the_engine():
+    # the bindings declare (types, argument names, docstrings, GIL release) and convert Python objects;
+    # every check and default lives in the engine, which the bindings call
+    binding, engine = _binding_ratio().measure(ROOT)
+    b, e = sum(binding.values()), sum(engine.values())
+    assert b / e <= 0.33, f"bindings {b} code lines / engine {e} = {b / e:.3f} > 0.33: {binding}"

@@ -97,17 +97,22 @@ def test_the_scene_in_mujoco_welds_where_it_grasps():
 
 @pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="the scene is compared in MuJoCo only")
 def test_the_scene_in_mujoco_runs_the_tasks_controller():
-    """The task's references recorded from one cycle reproduce its log; MuJoCo's computed torque gives coopsim's
-    logged torques in coopsim's states; and 0.1 s of the task in MuJoCo under that controller, from coopsim's
-    state as SCARA #2 starts down to the bar (robots in free space), follows coopsim's joints: the same
-    controller, references, dt and integrator."""
+    """The task's references as its log keeps them (q_ref, qd_ref, qdd_ref at every step); MuJoCo's computed
+    torque gives coopsim's logged torques in coopsim's states; and 0.1 s of the task in MuJoCo under that
+    controller, from coopsim's state as SCARA #2 starts down to the bar (robots in free space), follows
+    coopsim's joints: the same controller, references, dt and integrator."""
     from coopsim.tasks import handover as H
     from coopsim.tasks import scene
-    with bench_peers.recorded_references() as installed:
-        res = H.run(cycles=1, control_every=1, world_every=1, log_every=1, score=False)
+    res = H.run(cycles=1, control_every=1, world_every=1, log_every=1, score=False)
     log = res.log
-    refs = bench_peers.task_references(log, installed)  # raises unless they reproduce q_ref and qd_ref
+    refs = [(rl.q_ref, rl.qd_ref, rl.qdd_ref) for rl in log.robots]     # as scene_part takes them
     assert all(np.isfinite(r).all() for ref in refs for r in ref)
+    t = np.asarray(log.t)
+    for rl, ref in zip(log.robots, res.sim.references):   # the last reference each robot was given, over its rows
+        mine = t > ref.times[0] + 1e-12
+        assert mine.sum() > 100
+        for logged, evaluated in zip((rl.q_ref, rl.qd_ref, rl.qdd_ref), ref.evaluate(t[mine])):
+            np.testing.assert_allclose(logged[mine], evaluated, rtol=0, atol=1e-12)
     robots = scene.scaras()
     m = bench_peers.mujoco_scene(robots)
     assert (m.nu, m.ngravcomp) == (12, 0) and not m.actuator_forcelimited.any()

@@ -536,3 +536,126 @@ def test_a_screenshot_shows_the_scene_and_the_bars_red(page, sim):
             "window.coopsim.seek(1.0)")
     r, g, b = img[..., 0], img[..., 1], img[..., 2]
     assert ((r > 120) & (r > 2.2 * g) & (r > 2.2 * b)).sum() < 5
+
+
+# ---- opening, marks on the timeline, meshcat's controls, the camera ----
+
+GRASPS = {"t": [0.52, 1.22], "robot": [0, 0], "body": ["bar", "bar"], "event": ["grasp", "release"],
+          "reason": ["grasp", "opened"]}
+
+
+def grasping_log(sim):
+    """holding_log with the grasp and the release as the log's events."""
+    log = holding_log(sim)
+    return cs.SimulationLog(log.t, log.robots, bodies=list(log.bodies.values()), grasps=GRASPS)
+
+
+def meta_of(path) -> dict:
+    return json.loads(re.search(r'<script type="application/json" id="cs-meta">(.*?)</script>', read(path),
+                                re.S).group(1).replace("<\\/", "</"))
+
+
+def test_the_timeline_marks_the_grasps_releases_and_given_steps(sim, tmp_path):
+    log = grasping_log(sim)
+    p = view.replay_html(log, str(tmp_path / "m.html"), robots=sim.robots, world=sim.world,
+                         markers=[(1.5, "cycle 0: carry"), (0.1, "cycle 0: pick"), (9.0, "after the end")])
+    m = meta_of(p)["markers"]
+    assert m == [{"t": 0.1, "label": "cycle 0: pick"}, {"t": 0.52, "label": "scara1 grasps bar"},
+                 {"t": 1.22, "label": "scara1 releases bar (opened)"}, {"t": 1.5, "label": "cycle 0: carry"}]
+    assert meta_of(p)["autoplay"] is True                  # the page starts playing
+    q = view.replay_html(log, str(tmp_path / "n.html"), robots=sim.robots, world=sim.world, events=False)
+    assert meta_of(q)["markers"] == []
+    with pytest.raises(ValueError, match="markers must be"):
+        view.replay_html(log, str(tmp_path / "x.html"), robots=sim.robots, world=sim.world, markers=[1.0, 2.0])
+    with pytest.raises(ValueError, match="a marker's t"):
+        view.replay_html(log, str(tmp_path / "x.html"), robots=sim.robots, world=sim.world, markers=[("a", "b")])
+
+
+def test_the_task_steps_become_markers():
+    from coopsim.tasks.handover.report import step_markers
+
+    rep = {"cycles": [{"cycle": 0, "bar": "bar", "success": True, "steps": {"pick": [0.0, 2.5], "carry": [2.5, 6.0]}},
+                      {"cycle": 1, "bar": "bar1", "success": False, "steps": {"pick": [16.0, None]},
+                       "failed_step": "pick", "failed_at": 17.25, "reason": "missed"}]}
+    assert step_markers(rep) == [(0.0, "cycle 0 (bar): pick"), (2.5, "cycle 0 (bar): carry"),
+                                 (16.0, "cycle 1 (bar1): pick"), (17.25, "cycle 1 (bar1) FAILED in pick: missed")]
+
+
+@pytest.mark.slow
+def test_the_page_plays_when_opened_or_opens_at_the_time_in_its_address(browser, sim, tmp_path):
+    path = view.replay_html(sim, str(tmp_path / "a.html"))
+    p = Page(browser, path, width=400, height=300)
+    try:
+        assert p.js("window.coopsim.playing()")
+        p.page.wait_for_function("window.coopsim.time() > 0.05", timeout=10000)
+    finally:
+        p.close()
+    p = Page(browser, path + "#t=1.25", width=400, height=300)
+    try:
+        assert not p.js("window.coopsim.playing()") and p.js("window.coopsim.time()") == pytest.approx(1.25)
+        p.page.wait_for_timeout(200)
+        assert p.js("window.coopsim.time()") == pytest.approx(1.25)          # paused there
+        assert p.js("document.getElementById('cs-time').textContent") == "1.250 s / 2.000 s"
+    finally:
+        p.close()
+    p = Page(browser, path + "#t=0.5&play", width=400, height=300)
+    try:
+        # playing from 0.5 s (on a loaded machine it may have reached the end already)
+        p.page.wait_for_function("window.coopsim.time() > 0.5", timeout=10000)
+        assert p.js("window.coopsim.playing() || window.coopsim.time() === window.coopsim.t1")
+        assert p.errors == [] and p.blocked == []
+    finally:
+        p.close()
+
+
+@pytest.mark.slow
+def test_the_marks_are_on_the_timeline_and_seek_and_meshcats_controls_are_hidden(browser, sim, tmp_path):
+    path = view.replay_html(grasping_log(sim), str(tmp_path / "m.html"), robots=sim.robots, world=sim.world,
+                            markers=[(1.5, "cycle 0: carry")])
+    p = Page(browser, path)
+    try:
+        marks = p.js("Array.from(document.querySelectorAll('#cs-marks .cs-mark')).map(e => "
+                     "[e.title, e.getBoundingClientRect().left, e.getBoundingClientRect().width])")
+        assert [m[0] for m in marks] == ["0.520 s: scara1 grasps bar", "1.220 s: scara1 releases bar (opened)",
+                                         "1.500 s: cycle 0: carry"]
+        assert marks[0][1] < marks[1][1] < marks[2][1] and all(m[2] > 0 for m in marks)   # in time order, drawn
+        track = p.js("(() => { const r = document.getElementById('cs-scrub').getBoundingClientRect(); "
+                     "return [r.left, r.right]; })()")
+        # each mark sits over the scrubber at its fraction of the replay (the thumb's inset: 8 px each side)
+        for (title, left, w), t in zip(marks, (0.52, 1.22, 1.5)):
+            x = track[0] + 8 + (track[1] - track[0] - 16) * t / T_END
+            assert abs(left + w / 2 - x) < 3, (title, left, x)
+        p.page.click("#cs-marks .cs-mark >> nth=1")
+        assert not p.js("window.coopsim.playing()") and p.js("window.coopsim.time()") == pytest.approx(1.22)
+        # meshcat's dat.gui panel ("Open Controls") is there but hidden: the page's bar has the controls
+        assert p.js("document.querySelector('.dg.main .close-button').textContent") == "Open Controls"
+        assert p.js("document.querySelector('.dg.main .close-button').offsetParent") is None   # not rendered
+        assert p.js("getComputedStyle(document.querySelector('.dg.main')).display") == "none"
+        assert p.errors == [] and p.blocked == []
+    finally:
+        p.close()
+
+
+@pytest.mark.slow
+def test_the_camera_frames_the_robots_not_a_body_far_away(browser, tmp_path):
+    far = scene.bar_pose(x=3.5, y=3.0, yaw=0.2)      # a bar far off: it does not pull the camera away
+    sim = cs.Simulation(dt=2e-4, world=scene.world(bars=[scene.bar_pose(), far]), log_every=25)
+    for i, r in enumerate(scene.scaras()):
+        sim.add_robot(r, cs.PID(60.0, 0.0, 6.0), trajectory(r, 0.2, 1.7 * i))
+    sim.run(0.2, progress=False)
+    p = Page(browser, view.replay_html(sim, str(tmp_path / "far.html"), autoplay=False))
+    try:
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+        pts = []
+        for i, r in enumerate(sim.robots):
+            P, H = r.shapes(sim.log[i].q[0])
+            for T, h in zip(P, H):
+                pts += list((T[:3, :3] @ (corners * h).T).T + T[:3, 3])
+        ndc = np.array(p.page.evaluate("""(pts) => { const c = window.coopsim.viewer.camera; c.updateMatrixWorld();
+            return pts.map(q => { const v = new MeshCat.THREE.Vector3(q[0], q[2], -q[1]).project(c);
+                                  return [v.x, v.y]; }); }""", [list(map(float, x)) for x in pts]))
+        assert np.all(np.abs(ndc) <= 1.0), np.abs(ndc).max()                   # every robot box in view
+        span = (ndc.max(axis=0) - ndc.min(axis=0)).max()
+        assert span > 0.9, span      # and filling most of it (1.12; 0.42 when the far bar was framed too)
+    finally:
+        p.close()

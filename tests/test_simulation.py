@@ -216,26 +216,29 @@ def test_log_keeps_the_reference_acceleration():
 
 
 def test_the_defaults_are_the_engines():
-    """simulation_defaults(): the engine's SimulationOptions, what SimulationCore takes when an argument is
-    left out, and what coopsim.Simulation's signature shows."""
+    """Simulation.defaults(): the engine's SimulationOptions (the one source, checked against the compiled
+    module in test_stubs.py), what coopsim.Simulation's signature shows; the grasp options left out are the
+    engine's, and the engine checks the ones given."""
     import inspect
 
-    d = cs._core.simulation_defaults()
+    d = cs.Simulation.defaults()
     assert d["dt"] == 2e-4 and d["integrator"] == "rk4" and d["grasp_options"]["hold_time"] == 2e-3
-    core = cs._core.SimulationCore(world=cs.World())
-    for name, value in d.items():
-        got = core.grasp_options() if name == "grasp_options" else getattr(core, name)
-        assert got == value and type(got) is type(value), name
+    opts = cs.Simulation(world=cs.World()).options
+    assert opts == d
     params = inspect.signature(cs.Simulation.__init__).parameters
-    for name, value in d.items():
+    for name, value in opts.items():
         if name != "grasp_options":
-            assert params[name].default == value, name
+            assert value == params[name].default and type(value) is type(params[name].default), name
+    assert sorted(opts["grasp_options"]) == sorted(
+        ["hold_time", "gap", "penetration", "angle", "speed", "angular_speed", "open_margin", "slip",
+         "weld_omega_dt", "release_time", "weld_moment"])
+    given = cs.Simulation(world=cs.World(), grasp_options={"slip": 0.01}).options["grasp_options"]
+    assert given == dict(opts["grasp_options"], slip=0.01)
     # one check of the grasp options, in the engine: the message names the option, its unit and value
     with pytest.raises(ValueError, match=r"grasp_options: slip must be >= 0 m, got -0\.5"):
-        cs._core.SimulationCore(grasp_options={"slip": -0.5})
+        cs.Simulation(grasp_options={"slip": -0.5})
     with pytest.raises(ValueError, match="grasp_options: unknown option 'grip'"):
-        cs._core.SimulationCore(grasp_options={"grip": 1.0})
-
+        cs.Simulation(grasp_options={"grip": 1.0})
 
 
 # ---- export ----
@@ -926,3 +929,33 @@ def test_build_info():
     assert set(info) == {"optimised", "sanitizers"}
     assert isinstance(info["optimised"], bool) and isinstance(info["sanitizers"], str)
     assert not (info["optimised"] and info["sanitizers"])       # a sanitized build is a Debug one
+
+
+def test_speed_zero_is_a_pause():
+    p = cs.Pacer(speed=1.0)
+    assert not p.paused
+    p.speed = 0.0
+    assert p.paused            # the docs: speed 0 is a pause
+    p.resume()
+    assert p.paused            # still: the speed is 0
+    p.speed = 0.5
+    assert not p.paused
+    p.pause()
+    assert p.paused
+    p.resume()
+    assert not p.paused
+
+
+def test_the_stats_report_the_frame_rate_reached_against_the_one_asked():
+    clock = FakeClock()
+    pacer = cs.Pacer(speed=1.0, frame_rate=50.0, clock=clock, sleep=clock.sleep)
+
+    def slow_frame(s, p):
+        clock.now += 0.05   # drawing a frame takes 50 ms: 20 frames per second at most
+    stats = pacer.run(make_sim(), 0.5, on_frame=slow_frame)
+    assert stats.frame_rate_asked == 50.0
+    assert stats.frame_rate == pytest.approx(20.0, rel=1e-9)
+    assert f"({stats.frame_rate:.1f}/s of 50/s asked)" in str(stats)
+    fast = cs.Pacer(speed=1.0, frame_rate=50.0, clock=clock, sleep=clock.sleep).run(make_sim(), 0.5,
+                                                                                       on_frame=lambda s, p: None)
+    assert fast.frame_rate == pytest.approx(50.0, rel=1e-9)

@@ -9,25 +9,8 @@
 namespace py = pybind11;
 using namespace coopsim;
 
-namespace {
-
-// Loads the library and registers its functions under the name it carries;
-// a name already registered keeps its code. Returns the name.
-std::string load_library(const std::string& path) {
-  std::shared_ptr<const GeneratedDynamics> g;
-  try {
-    g = load_generated_library(path);
-  } catch (const std::invalid_argument& e) {
-    throw py::value_error(std::string("path: ") + e.what());
-  }
-  if (!find_generated(g->name)) register_generated(g);
-  return g->name;
-}
-
-}  // namespace
-
 void bind_codegen(py::module_& m) {
-  m.def("load_generated_library", &load_library, py::arg("path"),
+  m.def("load_generated_library", &register_generated_library, py::arg("path"),
         "Loads a shared library built by coopsim.codegen.compile, registers its generated dynamics under the "
         "name it carries (attach with Robot.with_generated) and returns that name.");
   m.def("generated_cache_dir", &generated_cache_dir,

@@ -41,15 +41,7 @@ class PyController : public Controller {
   }
 };
 
-// A scalar (every joint) or a 1-D array of per-joint gains.
-Eigen::VectorXd gains(const py::handle& obj, const char* name) {
-  Arr a = as_array(obj, name);
-  if (a.ndim() > 1)
-    throw py::value_error(std::string("wrong shape for ") + name + ": expected a scalar or (n,), got " + shape_str(a));
-  Eigen::VectorXd g(a.size());
-  for (py::ssize_t i = 0; i < a.size(); ++i) g[i] = a.data()[i];
-  return g;
-}
+Eigen::VectorXd gains(const py::handle& obj, const char* name) { return coopsim::gains(table(obj, name), name); }
 
 std::shared_ptr<const Robot> model_arg(const py::object& model) {
   if (model.is_none()) return nullptr;
@@ -66,24 +58,8 @@ py::array_t<double> np(const Eigen::VectorXd& v) { return to_numpy(v); }
 
 py::array_t<double> compute_py(Controller& c, double t, const py::object& q, const py::object& qd,
                                const py::object& q_ref, const py::object& qd_ref, const py::object& qdd_ref) {
-  Arr qa = as_array(q, "q");
-  if (qa.ndim() != 1) throw py::value_error("wrong shape for q: expected (n,), got " + shape_str(qa));
-  const int n = static_cast<int>(qa.shape(0));
-  if (n < 1 || n > kMaxDof) throw py::value_error("q must have 1.." + std::to_string(kMaxDof) + " values");
-  const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), qr = vec(q_ref, n, "q_ref"), qdr = vec(qd_ref, n, "qd_ref"),
-             qddr = vec(qdd_ref, n, "qdd_ref");
-  if (!std::isfinite(t)) throw py::value_error("t must be finite");
-  ControlInput in;
-  in.n = n;
-  in.t = t;
-  in.q = qv.data();
-  in.qd = qdv.data();
-  in.q_ref = qr.data();
-  in.qd_ref = qdr.data();
-  in.qdd_ref = qddr.data();
-  py::array_t<double> tau(n);
-  c.compute(in, tau.mutable_data());
-  return tau;
+  return to_numpy(compute(c, t, table(q, "q"), table(qd, "qd"), table(q_ref, "q_ref"), table(qd_ref, "qd_ref"),
+                          table(qdd_ref, "qdd_ref")));
 }
 
 }  // namespace
@@ -116,20 +92,7 @@ actuator limits. Controllers keep state, so give each robot its own.)doc")
             return std::make_pair(std::shared_ptr<Controller>(std::make_shared<PyController>()), d);
           }));
 
-  py::class_<PID, Controller, std::shared_ptr<PID>>(m, "PID", R"doc(
-Per-joint PID controller (the paper's PID), derivative on measurement.
-
-tau = sat(kp e + ki I + kd (qd_ref - v) [+ G(q)]), e = q_ref - q (rad or m),
-I the integral of e (updated as I += e h, h the controller period), v the
-measured position differentiated by backward difference and low-pass
-filtered with time constant derivative_filter (s; 0: unfiltered; v starts at
-the measured velocity). Anti-windup: I stops growing while the output is
-saturated in the direction e pushes, and |ki I| <= integral_limit (default:
-the actuator limits). gravity_compensation adds G(q) of `model` (default:
-the simulated robot). The output is saturated at the actuator limits.
-
-kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
-(n,) arrays, all >= 0 (N/m ... for prismatic joints).)doc")
+  py::class_<PID, Controller, std::shared_ptr<PID>>(m, "PID", PID::kDoc)
       .def(py::init([](const py::object& kp, const py::object& ki, const py::object& kd, bool gravity_compensation,
                        double derivative_filter, const py::object& integral_limit, const py::object& model) {
              Eigen::VectorXd il;
@@ -158,30 +121,16 @@ kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
          return std::string("<coopsim.PID gravity_compensation=") + (c.gravity_compensation() ? "True" : "False") +
                 ">";
        })
-      .def(py::pickle(
-          [](const PID& c) {
-            return py::make_tuple(np(c.kp()), np(c.ki()), np(c.kd()), c.gravity_compensation(),
-                                  c.derivative_filter(),
-                                  c.integral_limit().size() ? py::object(np(c.integral_limit())) : py::none(),
-                                  model_out(c.model()));
-          },
-          [](py::tuple s) {
-            Eigen::VectorXd il;
-            if (!s[5].is_none()) il = gains(s[5], "integral_limit");
-            return std::make_shared<PID>(gains(s[0], "kp"), gains(s[1], "ki"), gains(s[2], "kd"), s[3].cast<bool>(),
-                                         s[4].cast<double>(), il, model_arg(s[6]));
-          }));
+      .def(pickle_by_call<PID>([](const PID& c) {
+        return py::make_tuple(
+            py::make_tuple(np(c.kp()), np(c.ki()), np(c.kd())),
+            py::dict(py::arg("gravity_compensation") = c.gravity_compensation(),
+                     py::arg("derivative_filter") = c.derivative_filter(),
+                     py::arg("integral_limit") = c.integral_limit().size() ? py::object(np(c.integral_limit())) : py::none(),
+                     py::arg("model") = model_out(c.model())));
+      }));
 
-  py::class_<ComputedTorque, Controller, std::shared_ptr<ComputedTorque>>(m, "ComputedTorque", R"doc(
-Computed-torque controller (the paper's nonlinear controller):
-
-    tau = M(q) (qdd_ref + kd (qd_ref - qd) + kp (q_ref - q)) + C(q, qd) + G(q) + K qd
-
-with M, C, G, K from `model` (default: the simulated robot itself; give a
-deliberately wrong copy, e.g. scara1(masses=1.2 * r.masses), to study
-robustness), saturated at the actuator limits. With the exact model each
-joint's error obeys e'' + kd e' + kp e = 0: kp = w^2, kd = 2 w is critically
-damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.)doc")
+  py::class_<ComputedTorque, Controller, std::shared_ptr<ComputedTorque>>(m, "ComputedTorque", ComputedTorque::kDoc)
       .def(py::init([](const py::object& kp, const py::object& kd, const py::object& model) {
              return std::make_shared<ComputedTorque>(gains(kp, "kp"), gains(kd, "kd"), model_arg(model));
            }),
@@ -194,9 +143,7 @@ damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.)do
          return std::string("<coopsim.ComputedTorque model=") + (c.model() ? "'" + c.model()->name() + "'" : "own") +
                 ">";
        })
-      .def(py::pickle(
-          [](const ComputedTorque& c) { return py::make_tuple(np(c.kp()), np(c.kd()), model_out(c.model())); },
-          [](py::tuple s) {
-            return std::make_shared<ComputedTorque>(gains(s[0], "kp"), gains(s[1], "kd"), model_arg(s[2]));
-          }));
+      .def(pickle_by_call<ComputedTorque>([](const ComputedTorque& c) {
+        return py::make_tuple(py::make_tuple(np(c.kp()), np(c.kd())), py::dict(py::arg("model") = model_out(c.model())));
+      }));
 }

@@ -120,33 +120,7 @@ void bind_ik(py::module_& m) {
         py::arg("q_near") = py::none(), py::arg("method") = "auto", py::arg("weights") = py::none(),
         py::arg("locked") = py::none(), py::arg("tol") = py::none(), py::arg("restarts") = 10,
         py::arg("max_iterations") = 100, py::arg("seed") = 0, py::arg("info") = false,
-        R"doc(Inverse kinematics: joint positions q (n,) whose tool centre point pose is `pose`.
-
-pose: (4, 4) target TCP pose in the world (as fk returns).
-method: 'auto' (closed form for the SCARA structures, see ik_kind, else
-    numeric), 'analytic' or 'numeric'. SCARA #2's closed form keeps
-    theta2 = theta3; where that rule alone stands in the way (reach or a
-    joint limit) and no branch is asked for, 'auto' goes on with the
-    numeric solver, whose solution has theta2 != theta3.
-opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
-    determine; default q_near's, else 0. The numeric solver holds it fixed.
-branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for
-    SCARA #2 theta2 = theta3), +-2 = SCARA #2's folded family near the base;
-    None = any (the one nearest q_near when given, else +1 first).
-q_near: (n,) configuration to stay near: picks the branch and shifts angles
-    by 2 pi k (within the limits) to be nearest it; the numeric start point.
-weights: numeric only: (6,) weights of the error [x, y, z, rx, ry, rz]
-    (world frame; 0 leaves a component out), or 'pose' / 'position'.
-locked: numeric only: joint indices held at their start value.
-tol: accepted residual (m and rad): closed form 1e-9, numeric 1e-10.
-restarts, max_iterations, seed: numeric Levenberg-Marquardt from q_near
-    (or mid-limits), then from `restarts` random points within the limits.
-info: also return a dict: method ('scara1' or 'scara2' for the closed
-    forms, 'numeric'), branch (closed forms), position_error (m),
-    orientation_error (rad), iterations and attempts (numeric).
-Every result is checked by forward kinematics and lies within the joint
-limits; otherwise IKError (a ValueError) says why: out of reach, which
-joint limit, an orientation the structure cannot take, a singular target.)doc");
+        kIkDoc);
   R.def("ik_solutions", &py_ik_solutions, py::arg("pose"), py::kw_only(), py::arg("opening") = py::none(),
         py::arg("q_near") = py::none(), py::arg("tol") = py::none(),
         "Every closed-form solution within the limits as a list of (q (n,), branch), nearest q_near first "

@@ -12,19 +12,7 @@ using namespace coopsim::py_convert;
 
 namespace {
 
-JointType joint_type(char c, int k) {
-  if (c == 'R' || c == 'r') return JointType::Revolute;
-  if (c == 'P' || c == 'p') return JointType::Prismatic;
-  if (static_cast<unsigned char>(c) >= 128)
-    throw py::value_error("joint_types must be letters 'R' or 'P' only (a non-ASCII character at byte " +
-                          std::to_string(k) + ")");
-  throw py::value_error("joint_types[" + std::to_string(k) + "] must be 'R' or 'P', got '" + std::string(1, c) +
-                        "'");
-}
-
-DHParams dh_row(const double* r) { return DHParams{r[0], r[1], r[2], r[3]}; }
-
-Tool make_tool(const py::object& tool, int n) {
+Tool make_tool(const py::object& tool) {
   Tool t;
   if (tool.is_none()) return t;
   if (py::isinstance<Tool>(tool)) return tool.cast<Tool>();
@@ -52,129 +40,35 @@ Clamp clamp_arg(const py::object& obj) {
   return obj.cast<Clamp>();
 }
 
-const GeneratedDynamics* generated_by_name(const std::string& name) {
-  const GeneratedDynamics* g = find_generated(name);
-  if (!g) throw py::value_error("no generated dynamics named '" + name + "' in this build or the build cache");
-  return g;
-}
-
-Robot with_generated_name(const Robot& r, const std::string& name) {
-  return r.with_generated(std::shared_ptr<const GeneratedDynamics>(generated_by_name(name),
-                                                                   [](const GeneratedDynamics*) {}));
-}
-
-// per-joint values: None (the default), a number for every joint, or (n,)
-bool per_joint(const py::object& obj, int n, const char* name, std::vector<double>& out) {
-  if (obj.is_none()) return false;
-  Arr a = as_array(obj, name);
-  if (a.ndim() == 0) {
-    check_finite(a.data(), 1, name);
-    out.assign(n, a.data()[0]);
-    return true;
-  }
-  a = array(obj, {n}, name);
-  out.assign(a.data(), a.data() + n);
-  return true;
-}
-
 py::object inertia_warning_category() {
   static py::object cat = py::reinterpret_steal<py::object>(
       PyErr_NewException("coopsim._core.InertiaWarning", PyExc_UserWarning, nullptr));
   return cat;
 }
 
-Robot make_robot(const py::object& dh, const py::object& com, const py::object& masses,
-                 const py::object& inertias, const std::string& joint_types, const py::object& friction,
-                 const py::object& q_limits, const py::object& tau_limits, const py::object& gravity,
-                 const py::object& base_position, double base_yaw, const py::object& tool,
-                 const std::string& name, double end_stop_frequency, double end_stop_damping_ratio,
-                 const py::object& boxes, const py::object& clamp, const py::object& dimensions,
-                 const py::object& armature, const py::object& coulomb, const py::object& coulomb_width,
-                 const py::object& base_orientation, const std::string& inertia_check) {
-  if (inertia_check != "warn" && inertia_check != "error" && inertia_check != "ignore")
-    throw py::value_error("inertia_check must be 'warn', 'error' or 'ignore', got '" + inertia_check + "'");
-  Arr D = array(dh, {-1, 4}, "dh");
-  const int n = static_cast<int>(D.shape(0));
-  if (n < 1 || n > kMaxDof)
-    throw py::value_error("dh must have 1 to " + std::to_string(kMaxDof) + " rows, got " + std::to_string(n));
-  for (size_t k = 0; k < joint_types.size(); ++k) joint_type(joint_types[k], static_cast<int>(k));  // letters first
-  if (static_cast<int>(joint_types.size()) != n)
-    throw py::value_error("joint_types must have one letter per DH row: expected " + std::to_string(n) +
-                          ", got " + std::to_string(joint_types.size()));
-  Arr C = as_array(com, "com");
-  const bool com_vectors = C.ndim() == 2 && C.shape(0) == n && C.shape(1) == 3;
-  if (!com_vectors) C = array(com, {n, 4}, "com");
-  else check_finite(C.data(), static_cast<size_t>(C.size()), "com");
-  Arr Ms = array(masses, {n}, "masses");
-  Arr I = as_array(inertias, "inertias");
-  if (!(I.ndim() == 3 && I.shape(0) == n && I.shape(1) == 3 && I.shape(2) == 3) &&
-      !(I.ndim() == 2 && I.shape(0) == n && I.shape(1) == 6))
-    throw py::value_error("wrong shape for inertias: expected (" + std::to_string(n) + ", 3, 3) or (" +
-                          std::to_string(n) + ", 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got " + shape_str(I));
-  check_finite(I.data(), static_cast<size_t>(I.size()), "inertias");
-  std::vector<Link> links(n);
-  const bool hasK = !friction.is_none(), hasQL = !q_limits.is_none(), hasTL = !tau_limits.is_none();
-  Arr K = hasK ? array(friction, {n}, "friction") : Arr();
-  Arr QL = hasQL ? array(q_limits, {n, 2}, "q_limits", false) : Arr();
-  Arr TL = hasTL ? array(tau_limits, {n}, "tau_limits", false) : Arr();
-  std::vector<double> Ia, Fc, Vc;
-  const bool hasIa = per_joint(armature, n, "armature", Ia), hasFc = per_joint(coulomb, n, "coulomb", Fc),
-             hasVc = per_joint(coulomb_width, n, "coulomb_width", Vc);
-  for (int k = 0; k < n; ++k) {
-    Link& L = links[k];
-    L.type = joint_type(joint_types[k], k);
-    L.dh = dh_row(D.data() + 4 * k);
-    L.mass = Ms.data()[k];
-    if (I.ndim() == 3) {
-      L.inertia = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I.data() + 9 * k);
-    } else {
-      const double* v = I.data() + 6 * k;
-      L.inertia << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
-    }
-    if (com_vectors) {
-      // CoM position in DH frame i, inertia in frame i's axes: to the paper's CoM row; the robot's
-      // size sets what rounding noise is
-      double scale = 0.0;
-      for (int j = 0; j < n; ++j)
-        scale += std::abs(D.data()[4 * j + 1]) + std::abs(D.data()[4 * j + 2]) +
-                 Eigen::Map<const Eigen::Vector3d>(C.data() + 3 * j).norm();
-      const Eigen::Matrix3d Ilink = L.inertia;
-      com_row_from_vector(L.type, L.dh, Eigen::Vector3d(C.data()[3 * k], C.data()[3 * k + 1], C.data()[3 * k + 2]),
-                          Ilink, L.com, L.inertia, scale);
-    } else {
-      L.com = dh_row(C.data() + 4 * k);
-    }
-    if (hasIa) L.armature = Ia[k];
-    if (hasFc) L.coulomb = Fc[k];
-    if (hasVc) L.coulomb_width = Vc[k];
-    if (hasK) L.friction = K.data()[k];
-    if (hasQL) {
-      L.q_min = QL.data()[2 * k];
-      L.q_max = QL.data()[2 * k + 1];
-    }
-    if (hasTL) L.tau_max = TL.data()[k];
-  }
-  const Eigen::Vector3d g = vecx(gravity, 3, "gravity");
-  const Eigen::Vector3d bp = vecx(base_position, 3, "base_position");
-  if (!std::isfinite(base_yaw)) throw py::value_error("base_yaw must be finite");
-  EndStop es{end_stop_frequency, end_stop_damping_ratio};
-  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
-  if (!base_orientation.is_none()) {
-    Arr B = array(base_orientation, {3, 3}, "base_orientation");
-    R0 = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(B.data());
-    if ((R0.transpose() * R0 - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || R0.determinant() <= 0)
-      throw py::value_error("base_orientation must be a rotation matrix (orthonormal, determinant +1)");
-  }
-  Robot r(std::move(links), g, bp, base_yaw, make_tool(tool, n), name, es, R0);
-  if (!r.inertia_warnings().empty() && inertia_check != "ignore") {
-    if (inertia_check == "error") throw py::value_error(r.inertia_warnings().front() + " (inertia_check='error')");
-    for (const std::string& w : r.inertia_warnings())
-      if (PyErr_WarnEx(inertia_warning_category().ptr(), (w + " (allowed; inertia_check='error' refuses it)").c_str(),
-                       1) < 0)
-        throw py::error_already_set();
-  }
-  if (!boxes.is_none() || !clamp.is_none()) r = r.with_geometry(boxes_arg(boxes), clamp_arg(clamp));
-  if (!dimensions.is_none()) r = r.with_dimensions(dimensions.cast<std::map<std::string, double>>());
+// Robot.from_dh: the arguments as the engine's tables; InertiaWarning for what the engine allows with a warning
+Robot from_dh(const py::object& dh, const py::object& com, const py::object& masses, const py::object& inertias,
+              const std::string& joint_types, const py::object& friction, const py::object& q_limits,
+              const py::object& tau_limits, const py::object& gravity, const py::object& base_position,
+              double base_yaw, const py::object& tool, const std::string& name, double end_stop_frequency,
+              double end_stop_damping_ratio, const py::object& boxes, const py::object& clamp,
+              const py::object& dimensions, const py::object& armature, const py::object& coulomb,
+              const py::object& coulomb_width, const py::object& base_orientation, const std::string& inertia_check) {
+  RobotTables t{table(dh, "dh"), table(com, "com"), table(masses, "masses"), table(inertias, "inertias"),
+                joint_types, optional_table(friction, "friction"), optional_table(tau_limits, "tau_limits"),
+                optional_table(q_limits, "q_limits"), optional_table(armature, "armature"),
+                optional_table(coulomb, "coulomb"), optional_table(coulomb_width, "coulomb_width"),
+                table(gravity, "gravity"), table(base_position, "base_position"), base_yaw,
+                optional_table(base_orientation, "base_orientation"), make_tool(tool),
+                name, EndStop{end_stop_frequency, end_stop_damping_ratio}};
+  if (!boxes.is_none()) t.boxes = boxes_arg(boxes);
+  t.clamp = clamp_arg(clamp);
+  if (!dimensions.is_none()) t.dimensions = dimensions.cast<std::map<std::string, double>>();
+  t.inertia_check = inertia_check;
+  std::vector<std::string> warnings;
+  Robot r = Robot::from_tables(t, &warnings);
+  for (const std::string& w : warnings)
+    if (PyErr_WarnEx(inertia_warning_category().ptr(), w.c_str(), 1) < 0) throw py::error_already_set();
   return r;
 }
 
@@ -210,26 +104,17 @@ py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
   return out;
 }
 
-py::tuple robot_state(const Robot& r) {
-  const int n = r.dof();
-  py::array_t<double> dh({n, 4}), com({n, 4}), m(n), I({n, 3, 3}), K(n), ql({n, 2}), tl(n), Ia(n), Fc(n), Vc(n);
-  for (int k = 0; k < n; ++k) {
-    const Link& L = r.links()[k];
-    double* d = dh.mutable_data() + 4 * k;
-    d[0] = L.dh.theta; d[1] = L.dh.d; d[2] = L.dh.a; d[3] = L.dh.alpha;
-    double* c = com.mutable_data() + 4 * k;
-    c[0] = L.com.theta; c[1] = L.com.d; c[2] = L.com.a; c[3] = L.com.alpha;
-    m.mutable_data()[k] = L.mass;
-    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I.mutable_data() + 9 * k) = L.inertia;
-    K.mutable_data()[k] = L.friction;
-    ql.mutable_data()[2 * k] = L.q_min;
-    ql.mutable_data()[2 * k + 1] = L.q_max;
-    tl.mutable_data()[k] = L.tau_max;
-    Ia.mutable_data()[k] = L.armature;
-    Fc.mutable_data()[k] = L.coulomb;
-    Vc.mutable_data()[k] = L.coulomb_width;
+// Robot.poses_of_states for q (N, n): (N, 4, 4), or (N, k, 4, 4) of the k boxes
+py::array_t<double> poses_of_states(const Robot& r, const py::object& q, bool boxes) {
+  Arr Q = array(q, {-1, r.dof()}, "q");
+  std::vector<Eigen::Isometry3d> T;
+  {
+    py::gil_scoped_release nogil;
+    r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), boxes, T);
   }
-  return py::make_tuple(dh, com, m, I, r.joint_types(), K, ql, tl, Ia, Fc, Vc);
+  py::array_t<double> out = poses(T);
+  if (boxes) out.resize({Q.shape(0), static_cast<py::ssize_t>(r.boxes().size()), py::ssize_t(4), py::ssize_t(4)});
+  return out;
 }
 
 }  // namespace
@@ -246,9 +131,7 @@ void bind_robot(py::module_& m) {
       py::arg("theta"), py::arg("d"), py::arg("a"), py::arg("alpha"),
       "Homogeneous transform (4, 4) Rz(theta) Tz(d) Tx(a) Rx(alpha) of one standard DH row.");
 
-  py::class_<Tool>(m, "Tool",
-                   "Tool centre point: orientation of `offset` on `link`; position midway between the point "
-                   "offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).")
+  py::class_<Tool>(m, "Tool", kToolDoc)
       .def(py::init([](int link, const py::object& offset, int second_link, const py::object& second_point) {
              Tool t;
              t.link = link;
@@ -263,23 +146,12 @@ void bind_robot(py::module_& m) {
       .def_property_readonly("offset", [](const Tool& t) { return to_numpy(t.offset); })
       .def_readonly("second_link", &Tool::second_link)
       .def_property_readonly("second_point", [](const Tool& t) { return to_numpy(t.second_point); })
-      .def(py::pickle(
-          [](const Tool& t) {
-            return py::make_tuple(t.link, to_numpy(t.offset), t.second_link, to_numpy(t.second_point));
-          },
-          [](py::tuple s) {
-            Tool t;
-            t.link = s[0].cast<int>();
-            t.offset = pose(s[1], "offset");
-            t.second_link = s[2].cast<int>();
-            t.second_point = vecx(s[3], 3, "second_point");
-            return t;
-          }));
+      .def(pickle_by_call<Tool>([](const Tool& t) {
+        return py::make_tuple(py::make_tuple(t.link, to_numpy(t.offset), t.second_link, to_numpy(t.second_point)),
+                              py::dict());
+      }));
 
-  py::class_<ExternalWrench>(m, "Wrench",
-                             "External wrench on a link: force (N) and moment (N m) in world coordinates, "
-                             "[fx, fy, fz, mx, my, mz], applied at `point` given in the DH frame of `link` "
-                             "(1..n, negative counts from the last).")
+  py::class_<ExternalWrench>(m, "Wrench", kWrenchDoc)
       .def(py::init([](int link, const py::object& point, const py::object& wrench) {
              ExternalWrench w;
              w.link = link;
@@ -307,23 +179,14 @@ void bind_robot(py::module_& m) {
          s << ", wrench=[" << w.wrench.transpose() << "])";
          return s.str();
        })
-      .def(py::pickle([](const ExternalWrench& w) {
-                        return py::make_tuple(w.link, to_numpy(w.point), to_numpy(w.wrench), w.at_tool);
-                      },
-                      [](py::tuple t) {
-                        ExternalWrench w;
-                        w.link = t[0].cast<int>();
-                        w.point = vecx(t[1], 3, "point");
-                        w.wrench = vecx(t[2], 6, "wrench");
-                        w.at_tool = t[3].cast<bool>();
-                        return w;
-                      }));
+      .def(py::pickle(
+          [](const ExternalWrench& w) { return py::make_tuple(w.link, to_numpy(w.point), to_numpy(w.wrench), w.at_tool); },
+          [](const py::tuple& t) {  // made again as it was made, checked
+            const py::object W = py::type::of<ExternalWrench>();
+            return (t[3].cast<bool>() ? W.attr("at_tool")(t[2]) : W(t[0], t[1], t[2])).cast<ExternalWrench>();
+          }));
 
-  py::class_<LinkBox>(m, "LinkBox", R"doc(A box fixed to a link: the shape the world collides and the views draw.
-
-link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
-and axes in the DH frame of `link`. half_extents: (3,) m, > 0, along the
-box's own x, y, z. name: a label (e.g. "link1", "fixed_jaw").)doc")
+  py::class_<LinkBox>(m, "LinkBox", kLinkBoxDoc)
       .def(py::init([](int link, const py::object& half_extents, const py::object& pose_obj, const std::string& name) {
              LinkBox b;
              b.link = link;
@@ -344,25 +207,11 @@ box's own x, y, z. name: a label (e.g. "link1", "fixed_jaw").)doc")
            << "')";
          return s.str();
        })
-      .def(py::pickle([](const LinkBox& b) { return py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name); },
-                      [](py::tuple t) {
-                        LinkBox b;
-                        b.link = t[0].cast<int>();
-                        b.half_extents = vecx(t[1], 3, "half_extents");
-                        b.pose = pose(t[2], "pose");
-                        b.name = t[3].cast<std::string>();
-                        return b;
-                      }));
+      .def(pickle_by_call<LinkBox>([](const LinkBox& b) {
+        return py::make_tuple(py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name), py::dict());
+      }));
 
-  py::class_<Clamp>(m, "Clamp", R"doc(A parallel-jaw clamp.
-
-fixed_link: the link (1..n-1) carrying the fixed jaw. fixed_face: (4, 4) the
-fixed jaw's inner face in that link's DH frame: origin at the face's centre,
-z along the jaw axis towards the moving jaw (the moving joint's axis), x
-along the jaw towards its tip. moving_joint: the prismatic joint
-fixed_link + 1 whose variable is the opening between the inner faces (m);
-the moving face is the fixed one moved by the opening along z, facing back.
-jaw_length (along x) and pad_width (along y): the pads' size, m.)doc")
+  py::class_<Clamp>(m, "Clamp", kClampDoc)
       .def(py::init([](int fixed_link, const py::object& fixed_face, int moving_joint, double jaw_length,
                        double pad_width) {
              Clamp c;
@@ -381,25 +230,16 @@ jaw_length (along x) and pad_width (along y): the pads' size, m.)doc")
       .def_readonly("moving_joint", &Clamp::moving_joint)
       .def_readonly("jaw_length", &Clamp::jaw_length)
       .def_readonly("pad_width", &Clamp::pad_width)
-      .def(py::pickle([](const Clamp& c) {
-                        return py::make_tuple(c.fixed_link, to_numpy(c.fixed_face), c.moving_joint, c.jaw_length,
-                                              c.pad_width);
-                      },
-                      [](py::tuple t) {
-                        Clamp c;
-                        c.fixed_link = t[0].cast<int>();
-                        c.fixed_face = pose(t[1], "fixed_face");
-                        c.moving_joint = t[2].cast<int>();
-                        c.jaw_length = t[3].cast<double>();
-                        c.pad_width = t[4].cast<double>();
-                        return c;
-                      }));
+      .def(pickle_by_call<Clamp>([](const Clamp& c) {
+        return py::make_tuple(
+            py::make_tuple(c.fixed_link, to_numpy(c.fixed_face), c.moving_joint, c.jaw_length, c.pad_width), py::dict());
+      }));
 
   py::class_<Robot> R(m, "Robot",
                       "A serial robot: standard DH table, centre-of-mass table, mass properties, friction, "
                       "limits and link shapes, placed in the world. Immutable: with_base, with_backend, ... "
                       "make changed copies. Build one with Robot.from_dh, Robot.from_urdf or coopsim.robots.");
-  R.def_static("from_dh", &make_robot, py::arg("dh"), py::arg("com"), py::arg("masses"), py::arg("inertias"),
+  R.def_static("from_dh", &from_dh, py::arg("dh"), py::arg("com"), py::arg("masses"), py::arg("inertias"),
                py::arg("joint_types"), py::arg("friction") = py::none(), py::arg("q_limits") = py::none(),
                py::arg("tau_limits") = py::none(),
                py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.81),
@@ -411,45 +251,7 @@ jaw_length (along x) and pad_width (along y): the pads' size, m.)doc")
                py::arg("armature") = py::none(), py::arg("coulomb") = py::none(),
                py::arg("coulomb_width") = py::none(), py::arg("base_orientation") = py::none(),
                py::arg("inertia_check") = "warn",
-               R"doc(Defines a serial robot from tables.
-
-dh: (n, 4) standard DH rows [theta, d, a, alpha] (rad, m, m, rad); q_i is added
-    to theta_i (revolute) or d_i (prismatic), which are offsets.
-com: (n, 4) centre-of-mass rows, same parameters, from frame i-1 to the CoM
-    frame of link i, q_i added in the same slot (the paper's table); or
-    (n, 3) CoM positions (m) in DH frame i, the convention of URDF, the
-    Robotics Toolbox and Corke's data, converted exactly to CoM rows
-    (Robot.com; a CoM on the joint axis included).
-masses: (n,) kg, >= 0 (a link without mass is allowed; M(q) must still be
-    positive definite, which forward dynamics checks, naming q if not).
-inertias: (n, 3, 3) or (n, 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], kg m^2, about
-    the CoM: in the CoM frame for (n, 4) CoM rows, in DH frame i's axes for
-    (n, 3) CoM vectors; symmetric, positive semi-definite. One that breaks
-    the triangle inequality (I1 + I2 >= I3; published data has them) is
-    allowed with a coopsim.InertiaWarning, or refused (ValueError) with
-    inertia_check='error' ('ignore': neither).
-joint_types: string of 'R' / 'P', one per row, e.g. "RRPRRP".
-friction: (n,) viscous K (N m s/rad or N s/m), default 0.
-armature: (n,) or one value: rotor inertia reflected through the gear,
-    J_m G^2 (kg m^2, or kg for a prismatic joint), added to M_ii; default 0.
-coulomb: (n,) or one value: Coulomb friction F_c (N m or N), default 0,
-    acting as F_c tanh(qd / v_c) (smooth, never adding energy);
-    coulomb_width: v_c (rad/s or m/s, > 0), (n,) or one value, default 0.01.
-    Below |qd| ~ v_c it is a damper of F_c / v_c: keep dt F_c / (v_c M_ii)
-    under about 2.5 for RK4.
-q_limits: (n, 2) [q_min, q_max] (rad or m), default unbounded (+-inf).
-tau_limits: (n,) actuator limits |tau_i| <= tau_max (N m or N), default inf.
-gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad;
-    base_orientation: (3, 3) rotation after the yaw (default identity), for a
-    first joint axis that is not vertical: base = T(p) Rz(yaw) R.
-tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
-end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
-    used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
-    + 2 zeta w qd), pushing only; keep w dt below about 2.5.
-boxes: list of LinkBox, the shapes fixed to the links (link 0: the base);
-    None: thin default boxes along the links (see Robot.default_boxes).
-clamp: a Clamp, or None for a robot without one.
-dimensions: {name: metres} the robot was built from, kept for reference.)doc");
+               RobotTables::kDoc);
   R.def_property_readonly("dof", &Robot::dof, "Number of joints n.")
       .def_property_readonly("name", &Robot::name)
       .def_property_readonly("joint_types", &Robot::joint_types, "e.g. 'RRPRRP'.")
@@ -461,18 +263,18 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                              "link of each chain joint, else 'link1'..'linkn'.")
       .def("with_names", &Robot::with_names, py::arg("joint_names"), py::arg("link_names"),
            "A copy with these joint and link names (n each, unique, not empty); all else equal.")
-      .def_property_readonly("dh", [](const Robot& r) { return py::object(robot_state(r)[0]); }, "(n, 4) [theta, d, a, alpha].")
-      .def_property_readonly("com", [](const Robot& r) { return py::object(robot_state(r)[1]); }, "(n, 4) CoM rows.")
-      .def_property_readonly("masses", [](const Robot& r) { return py::object(robot_state(r)[2]); }, "(n,) kg.")
-      .def_property_readonly("inertias", [](const Robot& r) { return py::object(robot_state(r)[3]); },
+      .def_property_readonly("dh", [](const Robot& r) { return to_numpy(r.tables().dh); }, "(n, 4) [theta, d, a, alpha].")
+      .def_property_readonly("com", [](const Robot& r) { return to_numpy(r.tables().com); }, "(n, 4) CoM rows.")
+      .def_property_readonly("masses", [](const Robot& r) { return to_numpy(r.tables().masses); }, "(n,) kg.")
+      .def_property_readonly("inertias", [](const Robot& r) { return to_numpy(r.tables().inertias); },
                              "(n, 3, 3) kg m^2 about each CoM in its CoM frame.")
-      .def_property_readonly("friction_coefficients", [](const Robot& r) { return py::object(robot_state(r)[5]); },
+      .def_property_readonly("friction_coefficients", [](const Robot& r) { return to_numpy(*r.tables().friction); },
                              "(n,) viscous K.")
-      .def_property_readonly("armature", [](const Robot& r) { return py::object(robot_state(r)[8]); },
+      .def_property_readonly("armature", [](const Robot& r) { return to_numpy(*r.tables().armature); },
                              "(n,) reflected rotor inertia J_m G^2 on M's diagonal, kg m^2 or kg.")
-      .def_property_readonly("coulomb", [](const Robot& r) { return py::object(robot_state(r)[9]); },
+      .def_property_readonly("coulomb", [](const Robot& r) { return to_numpy(*r.tables().coulomb); },
                              "(n,) Coulomb friction F_c, N m or N.")
-      .def_property_readonly("coulomb_width", [](const Robot& r) { return py::object(robot_state(r)[10]); },
+      .def_property_readonly("coulomb_width", [](const Robot& r) { return to_numpy(*r.tables().coulomb_width); },
                              "(n,) v_c of F_c tanh(qd / v_c), rad/s or m/s.")
       .def_property_readonly("com_positions", [](const Robot& r) {
              py::array_t<double> out({r.dof(), 3});
@@ -491,20 +293,16 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                              "Links whose inertia tensor breaks the triangle inequality, one message each.")
       .def_property_readonly("base_orientation", [](const Robot& r) { return to_numpy(Eigen::MatrixXd(r.base_orientation())); },
                              "(3, 3) fixed rotation of the base after its yaw.")
-      .def_property_readonly("q_limits", [](const Robot& r) { return py::object(robot_state(r)[6]); },
+      .def_property_readonly("q_limits", [](const Robot& r) { return to_numpy(*r.tables().q_limits); },
                              "(n, 2) [q_min, q_max].")
-      .def_property_readonly("tau_limits", [](const Robot& r) { return py::object(robot_state(r)[7]); }, "(n,) N m or N.")
+      .def_property_readonly("tau_limits", [](const Robot& r) { return to_numpy(*r.tables().tau_limits); }, "(n,) N m or N.")
       .def_property_readonly("gravity_acceleration", [](const Robot& r) { return to_numpy(r.gravity_acceleration()); },
                              "The world's gravitational acceleration (3,) m/s^2 (G(q) is gravity(q)).")
       .def_property_readonly("boxes", &Robot::boxes, "The LinkBox shapes fixed to the links, [LinkBox].")
       .def_property_readonly("clamp", [](const Robot& r) { return r.clamp().present() ? py::cast(r.clamp()) : py::none(); },
                              "The Clamp, or None.")
       .def_property_readonly("dimensions", &Robot::dimensions, "{name: metres} the robot was built from (may be empty).")
-      .def("default_boxes", &Robot::default_boxes,
-           "Thin boxes along the links, used when a robot is given none: for link i the segment between the foot "
-           "of the common normal on joint axis i and frame i's origin (or, for a revolute joint with |d_i| > "
-           "|a_i|, from frame i-1's origin to that foot), square section 0.02 m; a base above the floor stands "
-           "on a column from z = 0 to frame 0.")
+      .def("default_boxes", &Robot::default_boxes, Robot::kDefaultBoxesDoc)
       .def_property_readonly("base_position", [](const Robot& r) { return to_numpy(r.base_position()); })
       .def_property_readonly("base_yaw", &Robot::base_yaw)
       .def_property_readonly("base", [](const Robot& r) { return to_numpy(r.base()); },
@@ -524,7 +322,7 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
       .def_property_readonly("has_generated", &Robot::has_generated)
       .def("with_backend", &Robot::with_backend, py::arg("backend"),
            "A copy using 'generated' (closed-form code, if attached) or 'numeric' (recursive algorithms).")
-      .def("with_generated", &with_generated_name, py::arg("name"),
+      .def("with_generated", py::overload_cast<const std::string&>(&Robot::with_generated, py::const_), py::arg("name"),
            "A copy with the generated dynamics `name` attached (structure checked) and selected: code compiled "
            "into the engine (compiled_generated_names()) or built by coopsim.codegen.compile.")
       .def("with_geometry", [](const Robot& r, const py::object& boxes, const py::object& clamp) {
@@ -532,14 +330,10 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
            }, py::arg("boxes") = py::none(), py::arg("clamp") = py::none(),
            "A copy with other link boxes (None: the default boxes) and clamp (None: none).")
       .def("with_base_orientation", [](const Robot& r, const py::object& R) {
-             Arr B = array(R, {3, 3}, "base_orientation");
-             const Eigen::Matrix3d M = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(B.data());
-             if ((M.transpose() * M - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || M.determinant() <= 0)
-               throw py::value_error("base_orientation must be a rotation matrix (orthonormal, determinant +1)");
-             return r.with_base_orientation(M);
+             return r.with_base_orientation(Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+                 array(R, {3, 3}, "base_orientation").data()));
            }, py::arg("base_orientation"), "A copy with another fixed base rotation (3, 3) after the yaw.")
       .def("with_base", [](const Robot& r, const py::object& position, double yaw) {
-             if (!std::isfinite(yaw)) throw py::value_error("yaw must be finite");
              return r.with_base(vecx(position, 3, "position"), yaw);
            }, py::arg("position"), py::arg("yaw") = 0.0, "A copy placed at `position` (3,) m with `yaw` rad.")
       .def("with_gravity", [](const Robot& r, const py::object& g) { return r.with_gravity(vecx(g, 3, "gravity")); },
@@ -548,18 +342,7 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
   // kinematics
   R.def("fk", [](const Robot& r, const py::object& q) -> py::object {
          if (as_array(q, "q").ndim() != 2) return checked_pose(r.tool_pose(At(r, q).ws), "fk");
-         // N states at once
-         Arr Q = array(q, {-1, r.dof()}, "q");
-         std::vector<Eigen::Isometry3d> T(static_cast<size_t>(Q.shape(0)));
-         Workspace ws;
-         {
-           py::gil_scoped_release nogil;
-           for (size_t i = 0; i < T.size(); ++i) {
-             r.kinematics(Q.data() + i * r.dof(), ws, false);
-             T[i] = r.tool_pose(ws);
-           }
-         }
-         return poses(T);
+         return poses_of_states(r, q, false);  // N states at once
        },
         py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,); for N states q (N, n), "
         "the poses (N, 4, 4).")
@@ -586,30 +369,12 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
       .def("shapes", [](const Robot& r, const py::object& q) -> py::tuple {
          const py::ssize_t k = static_cast<py::ssize_t>(r.boxes().size());
          py::array_t<double> he({k, py::ssize_t(3)});
-         for (py::ssize_t b = 0; b < k; ++b)
-           Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * b) = r.boxes()[b].half_extents.transpose();
+         for (py::ssize_t i = 0; i < k; ++i)
+           Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * i) = r.boxes()[i].half_extents.transpose();
+         if (as_array(q, "q").ndim() == 2) return py::make_tuple(poses_of_states(r, q, true), he);  // (N, k, 4, 4)
          std::vector<Eigen::Isometry3d> T;
-         if (as_array(q, "q").ndim() != 2) {
-           r.box_poses(At(r, q).ws, T);
-           return py::make_tuple(poses(T), he);
-         }
-         // N states at once: (N, k, 4, 4)
-         Arr Q = array(q, {-1, r.dof()}, "q");
-         const py::ssize_t N = Q.shape(0);
-         std::vector<Eigen::Isometry3d> all;
-         all.reserve(static_cast<size_t>(N * k));
-         Workspace ws;
-         {
-           py::gil_scoped_release nogil;
-           for (py::ssize_t i = 0; i < N; ++i) {
-             r.kinematics(Q.data() + i * r.dof(), ws, false);  // the boxes need the frames only
-             r.box_poses(ws, T);
-             all.insert(all.end(), T.begin(), T.end());
-           }
-         }
-         py::array_t<double> out = poses(all);
-         out.resize({N, k, py::ssize_t(4), py::ssize_t(4)});
-         return py::make_tuple(out, he);
+         r.box_poses(At(r, q).ws, T);
+         return py::make_tuple(poses(T), he);
        }, py::arg("q"),
        "World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,); "
        "for N states q (N, n), the poses (N, k, 4, 4).")
@@ -719,35 +484,27 @@ dimensions: {name: metres} the robot was built from, kept for reference.)doc");
                 " dof, backend=" + r.backend() + ">";
        })
       .def(py::pickle(
-          [](const Robot& r) {
-            // geometry as given: an empty list stands for the default boxes
-            py::list boxes;
-            if (!r.has_default_boxes())
-              for (const LinkBox& b : r.boxes()) boxes.append(py::cast(b));
-            return py::make_tuple(robot_state(r), to_numpy(r.gravity_acceleration()), to_numpy(r.base_position()),
-                                  r.base_yaw(), py::cast(r.tool()), r.name(), r.end_stop().frequency,
-                                  r.end_stop().damping_ratio, r.backend(),
-                                  r.has_generated() ? r.generated()->name : std::string(), boxes,
-                                  r.clamp().present() ? py::cast(r.clamp()) : py::none(), r.dimensions(),
-                                  to_numpy(Eigen::MatrixXd(r.base_orientation())), r.joint_names(),
-                                  r.link_names());
+          [](const Robot& r) {  // from_dh's arguments, in its order, the dynamics backend, the names
+            const RobotTables t = r.tables();
+            return py::make_tuple(
+                py::make_tuple(to_numpy(t.dh), to_numpy(t.com), to_numpy(t.masses), to_numpy(t.inertias),
+                               t.joint_types, to_numpy(t.friction), to_numpy(t.q_limits), to_numpy(t.tau_limits),
+                               to_numpy(t.gravity), to_numpy(t.base_position), t.base_yaw, t.tool, t.name,
+                               t.end_stop.frequency, t.end_stop.damping_ratio, t.boxes,
+                               t.clamp.present() ? py::cast(t.clamp) : py::none(), t.dimensions,
+                               to_numpy(t.armature), to_numpy(t.coulomb), to_numpy(t.coulomb_width),
+                               to_numpy(t.base_orientation), t.inertia_check),
+                r.backend(), r.has_generated() ? r.generated()->name : std::string(), r.joint_names(),
+                r.link_names());
           },
-          [](py::tuple t) {
-            py::tuple s = t[0];
-            py::list boxes = t[10];
-            Robot r = make_robot(s[0], s[1], s[2], s[3], s[4].cast<std::string>(), s[5], s[6], s[7], t[1], t[2],
-                                 t[3].cast<double>(), t[4], t[5].cast<std::string>(), t[6].cast<double>(),
-                                 t[7].cast<double>(), py::len(boxes) ? py::object(boxes) : py::object(py::none()),
-                                 t[11], t[12], s[8], s[9], s[10], t[13], "ignore");
-            if (t.size() > 15)
-              r = r.with_names(t[14].cast<std::vector<std::string>>(), t[15].cast<std::vector<std::string>>());
-            const std::string gen = t[9].cast<std::string>();
-            if (!gen.empty()) {
-              if (!find_generated(gen))
-                throw py::value_error("cannot unpickle: generated dynamics '" + gen + "' not in this build");
-              r = with_generated_name(r, gen).with_backend(t[8].cast<std::string>());
-            }
-            return r;
+          [](const py::tuple& t) {
+            Robot r = py::type::of<Robot>().attr("from_dh")(*t[0]).cast<Robot>().with_names(
+                t[3].cast<std::vector<std::string>>(), t[4].cast<std::vector<std::string>>());
+            const std::string gen = t[2].cast<std::string>();
+            if (gen.empty()) return r;
+            if (!find_generated(gen))
+              throw py::value_error("cannot unpickle: generated dynamics '" + gen + "' not in this build");
+            return r.with_generated(gen).with_backend(t[1].cast<std::string>());
           }));
 
   m.attr("InertiaWarning") = inertia_warning_category();

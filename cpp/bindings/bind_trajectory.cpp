@@ -91,62 +91,6 @@ py::tuple evaluate_ref(const Reference& r, const py::object& t) {
   return py::make_tuple(q, qd, qdd);
 }
 
-RowMat matrix_arg(const py::object& obj, py::ssize_t rows, py::ssize_t cols, const char* name) {
-  Arr a = as_array(obj, name);
-  if (a.ndim() == 1 && cols <= 1) {
-    // one joint given as a flat (N,) array
-    if (rows >= 0 && a.shape(0) != rows)
-      throw py::value_error(std::string("wrong length for ") + name + ": expected " + std::to_string(rows) +
-                            " rows (one per time), got " + std::to_string(a.shape(0)));
-    check_finite(a.data(), static_cast<size_t>(a.size()), name);
-    return Eigen::Map<const RowMat>(a.data(), a.shape(0), 1);
-  }
-  if (a.ndim() != 2) throw py::value_error(std::string("wrong shape for ") + name + ": expected (N, n), got " + shape_str(a));
-  if (rows >= 0 && a.shape(0) != rows)
-    throw py::value_error(std::string("wrong length for ") + name + ": expected " + std::to_string(rows) +
-                          " rows (one per time), got " + std::to_string(a.shape(0)));
-  if (cols >= 0 && a.shape(1) != cols)
-    throw py::value_error(std::string("wrong shape for ") + name + ": expected (" + std::to_string(rows) + ", " +
-                          std::to_string(cols) + "), got " + shape_str(a));
-  check_finite(a.data(), static_cast<size_t>(a.size()), name);
-  return Eigen::Map<const RowMat>(a.data(), a.shape(0), a.shape(1));
-}
-
-std::shared_ptr<CubicTrajectory> make_cubic(const py::object& times, const py::object& q_points,
-                                            const py::object& qd_points, bool spline, const py::object& qd_start,
-                                            const py::object& qd_end) {
-  Arr ta = as_array(times, "times");
-  if (ta.ndim() != 1) throw py::value_error("wrong shape for times: expected (N,), got " + shape_str(ta));
-  const py::ssize_t N = ta.shape(0);
-  if (N < 2)
-    throw py::value_error("times must have at least 2 points (one segment), got " + std::to_string(N));
-  check_finite(ta.data(), static_cast<size_t>(N), "times");
-  std::vector<double> t(ta.data(), ta.data() + N);
-  RowMat Q = matrix_arg(q_points, N, -1, "q_points");
-  const py::ssize_t n = Q.cols();
-  RowMat V;
-  KnotVelocities rule = spline ? KnotVelocities::Spline : KnotVelocities::Heuristic;
-  if (!qd_points.is_none()) {
-    if (spline)
-      throw py::value_error("qd_points cannot be given with spline=True (the spline sets the interior "
-                            "velocities); give qd_start and qd_end instead");
-    if (!qd_start.is_none() || !qd_end.is_none())
-      throw py::value_error("qd_start / qd_end cannot be given with qd_points (its first and last rows are "
-                            "the end velocities)");
-    V = matrix_arg(qd_points, N, n, "qd_points");
-    rule = KnotVelocities::Given;
-  } else {
-    V = RowMat::Zero(N, n);
-    if (!qd_start.is_none()) V.row(0) = vecx(qd_start, n, "qd_start").transpose();
-    if (!qd_end.is_none()) V.row(N - 1) = vecx(qd_end, n, "qd_end").transpose();
-  }
-  try {
-    return std::make_shared<CubicTrajectory>(std::move(t), std::move(Q), std::move(V), rule);
-  } catch (const std::invalid_argument& e) {
-    throw py::value_error(e.what());
-  }
-}
-
 // (N, n) even for one joint (to_numpy would flatten a single column)
 py::array_t<double> rows(const RowMat& M) {
   py::array_t<double> out({static_cast<py::ssize_t>(M.rows()), static_cast<py::ssize_t>(M.cols())});
@@ -180,23 +124,14 @@ void bind_trajectory(py::module_& m) {
              "rad, rad/s, rad/s^2 (m, m/s, m/s^2 for prismatic joints).");
   }
 
-  py::class_<CubicTrajectory, Reference, std::shared_ptr<CubicTrajectory>>(m, "CubicTrajectory", R"doc(
-Piecewise cubic joint trajectory through via-points (the paper's eqs. 6-8).
-
-Segment k of joint j is c0 + c1 tau + c2 tau^2 + c3 tau^3 in the local time
-tau = t - times[k], meeting the four Hermite conditions (position and velocity
-at both ends), so q and qd are continuous at every knot. Knot velocities:
-- qd_points (N, n) if given;
-- spline=True: the C2 cubic spline (continuous acceleration) with end
-  velocities qd_start, qd_end (default 0);
-- otherwise: ends qd_start, qd_end (default 0); interior knots the average of
-  the neighbouring segment slopes, or 0 where the slope changes sign or is 0.
-Before times[0] and after times[-1] the first / last point is held at rest.
-
-times: (N,) s, strictly increasing, N >= 2. q_points: (N, n) rad or m
-(a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
-qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.)doc")
-      .def(py::init(&make_cubic), py::arg("times"), py::arg("q_points"), py::arg("qd_points") = py::none(),
+  py::class_<CubicTrajectory, Reference, std::shared_ptr<CubicTrajectory>>(m, "CubicTrajectory", CubicTrajectory::kDoc)
+      .def(py::init([](const py::object& times, const py::object& q_points, const py::object& qd_points, bool spline,
+                       const py::object& qd_start, const py::object& qd_end) {
+             return std::make_shared<CubicTrajectory>(CubicTrajectory::from_tables(
+                 table(times, "times"), table(q_points, "q_points"), optional_table(qd_points, "qd_points"), spline,
+                 optional_table(qd_start, "qd_start"), optional_table(qd_end, "qd_end")));
+           }),
+           py::arg("times"), py::arg("q_points"), py::arg("qd_points") = py::none(),
            py::kw_only(), py::arg("spline") = false, py::arg("qd_start") = py::none(),
            py::arg("qd_end") = py::none())
       .def_property_readonly("times", [](const CubicTrajectory& c) {
@@ -229,35 +164,24 @@ qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.)doc")
                 ", t=[" + std::to_string(c.t_start()) + ", " + std::to_string(c.t_end()) + "] s, velocities='" +
                 rule_name(c.rule()) + "')";
        })
-      .def(py::pickle(
-          [](const CubicTrajectory& c) {
-            // the knot velocities used, with the rule: rebuilding recomputes the same interior rows
-            return py::make_tuple(
-                to_numpy(Eigen::Map<const Eigen::VectorXd>(c.times().data(), c.times().size())),
-                rows(c.points()), rows(c.velocities()), static_cast<int>(c.rule()));
-          },
-          [](py::tuple s) {
-            Arr ta = array(s[0], {-1}, "times");
-            const RowMat Q = matrix_arg(s[1], ta.shape(0), -1, "q_points");
-            const RowMat V = matrix_arg(s[2], ta.shape(0), Q.cols(), "qd_points");
-            return std::make_shared<CubicTrajectory>(std::vector<double>(ta.data(), ta.data() + ta.shape(0)), Q, V,
-                                                     static_cast<KnotVelocities>(s[3].cast<int>()));
-          }));
+      .def(pickle_by_call<CubicTrajectory>([](const CubicTrajectory& c) {
+        // the knot velocities used when given, else the rule and the end velocities
+        const py::object V = rows(c.velocities()), none = py::none();
+        const bool given = c.rule() == KnotVelocities::Given;
+        return py::make_tuple(
+            py::make_tuple(to_numpy(Eigen::Map<const Eigen::VectorXd>(c.times().data(), c.times().size())),
+                           rows(c.points()), given ? V : none),
+            py::dict(py::arg("spline") = c.rule() == KnotVelocities::Spline,
+                     py::arg("qd_start") = given ? none : py::object(V[py::int_(0)]),
+                     py::arg("qd_end") = given ? none : py::object(V[py::int_(-1)])));
+      }));
 
   py::class_<ConstantReference, Reference, std::shared_ptr<ConstantReference>>(
       m, "SetPoint", "A constant reference: q_ref = q (n,) at all times, qd_ref = qdd_ref = 0.")
-      .def(py::init([](const py::object& q) {
-             Arr a = array(q, {-1}, "q");
-             if (a.shape(0) < 1 || a.shape(0) > kMaxDof)
-               throw py::value_error("q must have 1 to " + std::to_string(kMaxDof) + " entries");
-             return std::make_shared<ConstantReference>(vec(q, static_cast<int>(a.shape(0)), "q"));
-           }),
+      .def(py::init([](const py::object& q) { return std::make_shared<ConstantReference>(table(q, "q")); }),
            py::arg("q"))
       .def_property_readonly("q", [](const ConstantReference& r) { return to_numpy(r.point()); }, "(n,) rad or m.")
       .def("__repr__", [](const ConstantReference& r) { return "SetPoint(dof=" + std::to_string(r.dof()) + ")"; })
-      .def(py::pickle([](const ConstantReference& r) { return py::make_tuple(to_numpy(r.point())); },
-                      [](py::tuple s) {
-                        Arr a = array(s[0], {-1}, "q");
-                        return std::make_shared<ConstantReference>(vec(s[0], static_cast<int>(a.shape(0)), "q"));
-                      }));
+      .def(pickle_by_call<ConstantReference>(
+          [](const ConstantReference& r) { return py::make_tuple(py::make_tuple(to_numpy(r.point())), py::dict()); }));
 }

@@ -6,10 +6,11 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
-#include <sstream>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "coopsim/checks.hpp"
 #include "coopsim/robot.hpp"
 
 namespace coopsim::py_convert {
@@ -48,7 +49,7 @@ inline double scalar_arg(const py::handle& obj, const char* name) {
   if (kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b')
     throw py::value_error(std::string(name) + " must be a real number, got " + std::string(py::str(raw.dtype())));
   const double v = Arr::ensure(raw).data()[0];
-  if (!std::isfinite(v)) throw py::value_error(std::string(name) + " must be finite (got NaN or inf)");
+  check_finite(v, name);
   return v;
 }
 
@@ -70,31 +71,21 @@ inline long index_arg(const py::handle& obj, const char* name, long lo, long hi)
   return v;
 }
 
-inline std::string shape_str(const Arr& a) {
-  std::ostringstream s;
-  s << "(";
-  for (py::ssize_t i = 0; i < a.ndim(); ++i) s << (i ? ", " : "") << a.shape(i);
-  if (a.ndim() == 1) s << ",";
-  s << ")";
-  return s.str();
-}
+inline std::string shape_str(const Arr& a) { return shape_string(a.shape(), static_cast<int>(a.ndim())); }
 
-inline void check_finite(const double* p, size_t count, const char* name) {
-  for (size_t i = 0; i < count; ++i)
-    if (!std::isfinite(p[i])) throw py::value_error(std::string(name) + " must be finite (got NaN or inf)");
+// A C-contiguous array of the given shape (-1: any extent) of finite numbers.
+inline Arr array(const py::handle& obj, std::initializer_list<std::ptrdiff_t> shape, const char* name,
+                 bool finite = true) {
+  Arr a = as_array(obj, name);
+  check_shape(a.shape(), static_cast<int>(a.ndim()), shape, name);
+  if (finite) coopsim::check_finite(a.data(), static_cast<size_t>(a.size()), name);
+  return a;
 }
 
 // A 1-D array of exactly n finite numbers, as Eigen vector type V.
 template <class V>
 V vector_arg(const py::handle& obj, py::ssize_t n, const char* name) {
-  Arr a = as_array(obj, name);
-  if (a.ndim() != 1 || a.shape(0) != n) {
-    std::ostringstream s;
-    s << "wrong shape for " << name << ": expected (" << n << ",), got " << shape_str(a);
-    throw py::value_error(s.str());
-  }
-  check_finite(a.data(), static_cast<size_t>(n), name);
-  return Eigen::Map<const V>(a.data(), n);
+  return Eigen::Map<const V>(array(obj, {n}, name).data(), n);
 }
 
 inline VecN vec(const py::handle& obj, int n, const char* name) { return vector_arg<VecN>(obj, n, name); }
@@ -103,42 +94,22 @@ inline Eigen::VectorXd vecx(const py::handle& obj, py::ssize_t n, const char* na
   return vector_arg<Eigen::VectorXd>(obj, n, name);
 }
 
-// A C-contiguous array of the given shape (-1: any extent) of finite numbers.
-inline Arr array(const py::handle& obj, std::vector<py::ssize_t> shape, const char* name,
-                 bool finite = true) {
+// The numbers of obj, copied as the engine takes a table (its checks are the engine's).
+inline Array table(const py::handle& obj, const char* name) {
   Arr a = as_array(obj, name);
-  bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
-  for (size_t i = 0; ok && i < shape.size(); ++i) ok = shape[i] < 0 || a.shape(i) == shape[i];
-  if (!ok) {
-    std::ostringstream s;
-    s << "wrong shape for " << name << ": expected (";
-    for (size_t i = 0; i < shape.size(); ++i) {
-      s << (i ? ", " : "");
-      if (shape[i] < 0) s << "N"; else s << shape[i];
-    }
-    s << (shape.size() == 1 ? ",)" : ")") << ", got " << shape_str(a);
-    throw py::value_error(s.str());
-  }
-  if (finite) check_finite(a.data(), static_cast<size_t>(a.size()), name);
-  return a;
+  return Array{{a.data(), a.data() + a.size()}, {a.shape(), a.shape() + a.ndim()}};
 }
 
-// A rigid transform from 16 finite numbers, row-major (`name` names it in errors).
-inline Eigen::Isometry3d pose_from(const double* data, const std::string& name) {
-  Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(data);
-  if ((M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-12)
-    throw py::value_error(name + " must be a homogeneous transform (last row 0 0 0 1)");
-  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
-  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-9 || R.determinant() <= 0)
-    throw py::value_error(name + " must be a rigid transform (orthonormal rotation)");
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.matrix() = M;
-  return T;
+inline std::optional<Array> optional_table(const py::handle& obj, const char* name) {
+  if (obj.is_none()) return std::nullopt;
+  return table(obj, name);
 }
+
+// A rigid transform from 16 numbers, row-major (`name` names it in errors).
+inline Eigen::Isometry3d pose_from(const double* data, const std::string& name) { return rigid_pose(data, name); }
 
 inline Eigen::Isometry3d pose(const py::handle& obj, const char* name) {
-  Arr a = array(obj, {4, 4}, name);
-  return pose_from(a.data(), name);
+  return rigid_pose(array(obj, {4, 4}, name, false).data(), name);
 }
 
 // Wrenches on a robot (`name`: the argument): a Wrench, a list or tuple of
@@ -165,6 +136,18 @@ inline std::vector<ExternalWrench> wrenches_arg(const py::object& obj, const cha
 inline void warn_if(const std::string& message) {
   if (message.empty()) return;
   if (PyErr_WarnEx(PyExc_RuntimeWarning, message.c_str(), 1) != 0) throw py::error_already_set();
+}
+
+// Pickling by a call: `get` gives (arguments, keywords) of T's constructor (or
+// of its static method `factory`), which unpickling calls again, so that a
+// pickled object is checked as when it was made.
+template <class T, class Get>
+auto pickle_by_call(Get get, const char* factory = nullptr) {
+  return py::pickle(get, [factory](const py::tuple& s) {
+    py::object f = py::type::of<T>();
+    if (factory) f = f.attr(factory);
+    return f(*s[0], **s[1]).template cast<T>();
+  });
 }
 
 inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T);
@@ -194,6 +177,14 @@ py::array_t<double> checked(const Eigen::MatrixBase<Derived>& m, const char* wha
     throw py::value_error(std::string(what) + ": result is not finite for this input (values out of range?)");
   return to_numpy(m);
 }
+
+inline py::array_t<double> to_numpy(const Array& a) {
+  py::array_t<double> out(std::vector<py::ssize_t>(a.shape.begin(), a.shape.end()));
+  std::copy(a.values.begin(), a.values.end(), out.mutable_data());
+  return out;
+}
+
+inline py::object to_numpy(const std::optional<Array>& a) { return a ? py::object(to_numpy(*a)) : py::none(); }
 
 inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T) {
   py::array_t<double> out({4, 4});

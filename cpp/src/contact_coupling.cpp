@@ -84,7 +84,7 @@ double Simulation::inverse_mass_along(Slot& s, const VecN& u) {
 void Simulation::contact_wrenches_(double h) {
   for (Slot& s : slots_) s.contact.wrenches.clear();
   if (opt_.contact_forces) link_contacts_(h);
-  // a held body pulls on its holder's clamp link: the weld's wrench, opposite, at the body's centre
+  // a held body pulls on its holder's clamp link: the weld's wrench, opposite, at the weld's point
   for (Slot& s : slots_) {
     if (s.grasp.held < 0) continue;
     ExternalWrench wr;

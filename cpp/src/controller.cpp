@@ -46,6 +46,33 @@ VecN expand(const Eigen::VectorXd& g, int n) {
 
 }  // namespace
 
+VecN compute(Controller& controller, double t, const Array& q, const Array& qd, const Array& q_ref,
+             const Array& qd_ref, const Array& qdd_ref) {
+  if (q.ndim() != 1)
+    throw std::invalid_argument("wrong shape for q: expected (n,), got " + shape_string(q.shape.data(), q.ndim()));
+  const int n = static_cast<int>(q.shape[0]);
+  if (n < 1 || n > kMaxDof) throw std::invalid_argument("q must have 1.." + std::to_string(kMaxDof) + " values");
+  const Array* in[5] = {&q, &qd, &q_ref, &qd_ref, &qdd_ref};
+  const char* names[5] = {"q", "qd", "q_ref", "qd_ref", "qdd_ref"};
+  for (int i = 0; i < 5; ++i) {
+    check_shape(*in[i], {n}, names[i]);
+    check_finite(*in[i], names[i]);
+  }
+  check_finite(t, "t");
+  VecN tau(n);
+  controller.compute(ControlInput{n, t, q.values.data(), qd.values.data(), q_ref.values.data(),
+                                  qd_ref.values.data(), qdd_ref.values.data()},
+                     tau.data());
+  return tau;
+}
+
+Eigen::VectorXd gains(const Array& a, const char* name) {
+  if (a.ndim() > 1)
+    throw std::invalid_argument(std::string("wrong shape for ") + name + ": expected a scalar or (n,), got " +
+                                shape_string(a.shape.data(), a.ndim()));
+  return Eigen::Map<const Eigen::VectorXd>(a.values.data(), static_cast<Eigen::Index>(a.values.size()));
+}
+
 // ---- PID ----
 
 PID::PID(Eigen::VectorXd kp, Eigen::VectorXd ki, Eigen::VectorXd kd, bool gravity_compensation,

@@ -90,6 +90,17 @@ std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::strin
   return g;
 }
 
+std::string register_generated_library(const std::string& path) {
+  std::shared_ptr<const GeneratedDynamics> g;
+  try {
+    g = load_generated_library(path);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("path: ") + e.what());
+  }
+  if (!find_generated(g->name)) register_generated(g);
+  return g->name;
+}
+
 std::shared_ptr<const GeneratedDynamics> find_cached_generated(const std::string& name) {
   // names of run-time builds are gen_<key>, their libraries coopsim_gen_<key>.so
   if (name.rfind("gen_", 0) != 0 || name.find('/') != std::string::npos) return nullptr;

@@ -13,11 +13,7 @@ namespace {
 
 using detail::require;
 
-bool rigid(const Eigen::Isometry3d& T) {
-  if (!T.matrix().allFinite()) return false;
-  const Eigen::Matrix3d R = T.linear();
-  return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 && R.determinant() > 0;
-}
+bool rigid(const Eigen::Isometry3d& T) { return T.matrix().allFinite() && is_rotation(T.linear()); }
 
 // A box of square section t around the segment from a to b (frame
 // coordinates), at least t long.

@@ -85,6 +85,139 @@ void com_row_from_vector(JointType type, const DHParams& dh, const Eigen::Vector
   I_com = 0.5 * (I_com + I_com.transpose());
 }
 
+namespace {
+
+JointType joint_type(char c, size_t k) {
+  if (c == 'R' || c == 'r') return JointType::Revolute;
+  if (c == 'P' || c == 'p') return JointType::Prismatic;
+  if (static_cast<unsigned char>(c) >= 128)
+    throw std::invalid_argument("joint_types must be letters 'R' or 'P' only (a non-ASCII character at byte " +
+                                std::to_string(k) + ")");
+  throw std::invalid_argument("joint_types[" + std::to_string(k) + "] must be 'R' or 'P', got '" +
+                              std::string(1, c) + "'");
+}
+
+DHParams dh_row(const double* r) { return DHParams{r[0], r[1], r[2], r[3]}; }
+
+// a table of one row per joint, checked
+const Array& rows(const Array& a, std::initializer_list<std::ptrdiff_t> shape, const char* name, bool finite = true) {
+  check_shape(a, shape, name);
+  if (finite) check_finite(a, name);
+  return a;
+}
+
+}  // namespace
+
+Robot Robot::from_tables(const RobotTables& t, std::vector<std::string>* warnings) {
+  const std::string& policy = t.inertia_check;
+  require(policy == "warn" || policy == "error" || policy == "ignore",
+          "inertia_check must be 'warn', 'error' or 'ignore', got '" + policy + "'");
+  const std::vector<double>& D = rows(t.dh, {-1, 4}, "dh").values;
+  const int n = static_cast<int>(t.dh.shape[0]);
+  require(n >= 1 && n <= kMaxDof, "dh must have 1 to " + std::to_string(kMaxDof) + " rows, got " + std::to_string(n));
+  for (size_t k = 0; k < t.joint_types.size(); ++k) joint_type(t.joint_types[k], k);  // the letters first
+  require(static_cast<int>(t.joint_types.size()) == n, "joint_types must have one letter per DH row: expected " +
+                                                           std::to_string(n) + ", got " +
+                                                           std::to_string(t.joint_types.size()));
+  const bool com_vectors = t.com.ndim() == 2 && t.com.shape[0] == n && t.com.shape[1] == 3;
+  const std::vector<double>& C = rows(t.com, {n, com_vectors ? 3 : 4}, "com").values;
+  const std::vector<double>& M = rows(t.masses, {n}, "masses").values;
+  const Array& I = t.inertias;
+  const bool six = I.ndim() == 2 && I.shape[0] == n && I.shape[1] == 6;
+  if (!six && !(I.ndim() == 3 && I.shape[0] == n && I.shape[1] == 3 && I.shape[2] == 3))
+    throw std::invalid_argument("wrong shape for inertias: expected (" + std::to_string(n) + ", 3, 3) or (" +
+                                std::to_string(n) + ", 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got " +
+                                shape_string(I.shape.data(), I.ndim()));
+  check_finite(I, "inertias");
+  std::vector<Link> links(n);
+  if (t.friction) rows(*t.friction, {n}, "friction");
+  if (t.q_limits) rows(*t.q_limits, {n, 2}, "q_limits", false);
+  if (t.tau_limits) rows(*t.tau_limits, {n}, "tau_limits", false);
+  const std::vector<double> Ia = t.armature ? per_joint(*t.armature, n, "armature") : std::vector<double>(),
+                            Fc = t.coulomb ? per_joint(*t.coulomb, n, "coulomb") : std::vector<double>(),
+                            Vc = t.coulomb_width ? per_joint(*t.coulomb_width, n, "coulomb_width") : std::vector<double>();
+  // CoM vectors: the robot's size sets what rounding noise is
+  double scale = 0.0;
+  for (int j = 0; com_vectors && j < n; ++j)
+    scale += std::abs(D[4 * j + 1]) + std::abs(D[4 * j + 2]) + Eigen::Map<const Eigen::Vector3d>(&C[3 * j]).norm();
+  for (int k = 0; k < n; ++k) {
+    Link& L = links[k];
+    L.type = joint_type(t.joint_types[k], k);
+    L.dh = dh_row(&D[4 * k]);
+    L.mass = M[k];
+    const double* v = &I.values[(six ? 6 : 9) * k];
+    if (six) L.inertia << v[0], v[3], v[4], v[3], v[1], v[5], v[4], v[5], v[2];
+    else L.inertia = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(v);
+    if (com_vectors) {
+      const Eigen::Matrix3d I_link = L.inertia;  // in DH frame i's axes: to the CoM row and CoM frame
+      com_row_from_vector(L.type, L.dh, Eigen::Map<const Eigen::Vector3d>(&C[3 * k]), I_link, L.com, L.inertia,
+                          scale);
+    } else {
+      L.com = dh_row(&C[4 * k]);
+    }
+    if (t.armature) L.armature = Ia[k];
+    if (t.coulomb) L.coulomb = Fc[k];
+    if (t.coulomb_width) L.coulomb_width = Vc[k];
+    if (t.friction) L.friction = t.friction->values[k];
+    if (t.q_limits) L.q_min = t.q_limits->values[2 * k], L.q_max = t.q_limits->values[2 * k + 1];
+    if (t.tau_limits) L.tau_max = t.tau_limits->values[k];
+  }
+  const Eigen::Vector3d g = Eigen::Map<const Eigen::Vector3d>(rows(t.gravity, {3}, "gravity").values.data());
+  const Eigen::Vector3d p =
+      Eigen::Map<const Eigen::Vector3d>(rows(t.base_position, {3}, "base_position").values.data());
+  check_finite(t.base_yaw, "base_yaw");
+  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
+  if (t.base_orientation)
+    R0 = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+        rows(*t.base_orientation, {3, 3}, "base_orientation").values.data());
+  Robot r(std::move(links), g, p, t.base_yaw, t.tool, t.name, t.end_stop, R0);
+  if (!r.inertia_warnings().empty() && policy == "error")
+    throw std::invalid_argument(r.inertia_warnings().front() + " (inertia_check='error')");
+  if (warnings && policy == "warn")
+    for (const std::string& w : r.inertia_warnings())
+      warnings->push_back(w + " (allowed; inertia_check='error' refuses it)");
+  if (t.boxes || t.clamp.present()) r = r.with_geometry(t.boxes.value_or(std::vector<LinkBox>()), t.clamp);
+  if (!t.dimensions.empty()) r = r.with_dimensions(t.dimensions);
+  return r;
+}
+
+RobotTables Robot::tables() const {
+  RobotTables t;
+  const std::ptrdiff_t n = n_;
+  auto table = [&](std::vector<std::ptrdiff_t> shape, auto&& row) {
+    Array a{{}, std::move(shape)};
+    for (const Link& L : links_) row(L, a.values);
+    return a;
+  };
+  auto dh = [](const DHParams& p, std::vector<double>& v) { v.insert(v.end(), {p.theta, p.d, p.a, p.alpha}); };
+  t.dh = table({n, 4}, [&](const Link& L, auto& v) { dh(L.dh, v); });
+  t.com = table({n, 4}, [&](const Link& L, auto& v) { dh(L.com, v); });
+  t.masses = table({n}, [](const Link& L, auto& v) { v.push_back(L.mass); });
+  t.inertias = table({n, 3, 3}, [](const Link& L, auto& v) {
+    for (int i = 0; i < 3; ++i) v.insert(v.end(), {L.inertia(i, 0), L.inertia(i, 1), L.inertia(i, 2)});
+  });
+  t.joint_types = joint_types();
+  t.friction = table({n}, [](const Link& L, auto& v) { v.push_back(L.friction); });
+  t.q_limits = table({n, 2}, [](const Link& L, auto& v) { v.insert(v.end(), {L.q_min, L.q_max}); });
+  t.tau_limits = table({n}, [](const Link& L, auto& v) { v.push_back(L.tau_max); });
+  t.armature = table({n}, [](const Link& L, auto& v) { v.push_back(L.armature); });
+  t.coulomb = table({n}, [](const Link& L, auto& v) { v.push_back(L.coulomb); });
+  t.coulomb_width = table({n}, [](const Link& L, auto& v) { v.push_back(L.coulomb_width); });
+  t.gravity.values.assign(gravity_.data(), gravity_.data() + 3);
+  t.base_position.values.assign(base_p_.data(), base_p_.data() + 3);
+  t.base_yaw = base_yaw_;
+  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> R0 = base_R_;
+  t.base_orientation = Array{{R0.data(), R0.data() + 9}, {3, 3}};
+  t.tool = tool_;
+  t.name = name_;
+  t.end_stop = end_stop_;
+  if (!default_boxes_) t.boxes = boxes_;  // the default boxes are re-made from the tables
+  t.clamp = clamp_;
+  t.dimensions = dimensions_;
+  t.inertia_check = "ignore";  // the robot exists: it was allowed
+  return t;
+}
+
 Robot::Robot(std::vector<Link> links, Eigen::Vector3d gravity, Eigen::Vector3d base_position,
              double base_yaw, Tool tool, std::string name, EndStop end_stop, Eigen::Matrix3d base_orientation)
     : links_(std::move(links)),
@@ -139,22 +272,15 @@ void Robot::build_() {
   }
   require(gravity_.allFinite(), "gravity must be finite");
   require(base_p_.allFinite() && std::isfinite(base_yaw_), "base position and yaw must be finite");
-  require(base_R_.allFinite() && (base_R_.transpose() * base_R_ - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
-              base_R_.determinant() > 0,
-          "base orientation must be a rotation matrix (orthonormal, determinant +1)");
+  check_rotation(base_R_, "base_orientation");
   require(std::isfinite(end_stop_.frequency) && end_stop_.frequency >= 0 &&
               std::isfinite(end_stop_.damping_ratio) && end_stop_.damping_ratio >= 0,
           "end stop frequency and damping ratio must be finite and >= 0");
   tool_.link = link_index_(tool_.link, "tool link");
   tool_.second_link = link_index_(tool_.second_link, "tool second_link");
   require(tool_.link >= 1 && tool_.second_link >= 1, "tool links must be 1..n (not the base)");
-  require(tool_.offset.matrix().allFinite() && tool_.second_point.allFinite(), "tool offset must be finite");
-  {
-    const Eigen::Matrix3d Rt = tool_.offset.linear();
-    require((Rt.transpose() * Rt - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-9 &&
-                Rt.determinant() > 0,
-            "tool offset must be a rigid transform (rotation part orthonormal)");
-  }
+  require(tool_.second_point.allFinite(), "tool second_point must be finite");
+  check_rigid(tool_.offset.matrix(), "tool offset");
 
   base_ = Eigen::Isometry3d::Identity();
   base_.linear() = Eigen::AngleAxisd(base_yaw_, Eigen::Vector3d::UnitZ()).toRotationMatrix() * base_R_;
@@ -242,6 +368,7 @@ void Robot::friction_torques(const double* qd, VecN& tau) const {
 }
 
 Robot Robot::with_base(const Eigen::Vector3d& position, double yaw) const {
+  check_finite(yaw, "yaw");
   Robot r = *this;
   r.base_p_ = position;
   r.base_yaw_ = yaw;
@@ -305,6 +432,12 @@ Robot Robot::with_generated(std::shared_ptr<const GeneratedDynamics> gen) const 
   Robot r = *this;
   r.attach_generated_(std::move(gen));
   return r;
+}
+
+Robot Robot::with_generated(const std::string& name) const {
+  const GeneratedDynamics* g = find_generated(name);
+  require(g, "no generated dynamics named '" + name + "' in this build or the build cache");
+  return with_generated(std::shared_ptr<const GeneratedDynamics>(g, [](const GeneratedDynamics*) {}));  // kept for good
 }
 
 Robot Robot::with_backend(const std::string& backend) const {
@@ -373,19 +506,6 @@ Robot Robot::with_names(std::vector<std::string> joint_names, std::vector<std::s
   return r;
 }
 
-void Robot::check_vector(const Eigen::Ref<const Eigen::VectorXd>& v, const char* name) const {
-  if (v.size() != n_) {
-    std::ostringstream s;
-    s << "wrong size for " << name << ": expected " << n_ << ", got " << v.size();
-    throw std::invalid_argument(s.str());
-  }
-  if (!v.allFinite()) {
-    std::ostringstream s;
-    s << name << " must be finite (got NaN or inf)";
-    throw std::invalid_argument(s.str());
-  }
-}
-
 // ---------------------------------------------------------------- kinematics
 
 void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
@@ -411,6 +531,22 @@ void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
     ws.c[k].noalias() = ws.o[k + 1] + ws.R[k + 1] * P.p_com;
     const Eigen::Matrix3d RI = ws.R[k + 1] * P.I_local;
     ws.Iw[k].noalias() = RI * ws.R[k + 1].transpose();
+  }
+}
+
+void Robot::poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const {
+  Workspace ws;
+  std::vector<Eigen::Isometry3d> T;
+  out.clear();
+  out.reserve(static_cast<size_t>(N) * (boxes ? boxes_.size() : 1));
+  for (long i = 0; i < N; ++i) {
+    kinematics(Q + i * n_, ws, false);  // the frames only
+    if (!boxes) {
+      out.push_back(tool_pose(ws));
+      continue;
+    }
+    box_poses(ws, T);
+    out.insert(out.end(), T.begin(), T.end());
   }
 }
 

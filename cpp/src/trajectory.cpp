@@ -11,7 +11,53 @@ namespace {
 
 [[noreturn]] void fail(const std::string& msg) { throw std::invalid_argument(msg); }
 
+using RowMat = CubicTrajectory::RowMat;
+
+// a table of one row per time (N rows; n columns, -1: any; a flat (N,) array is one joint)
+RowMat per_time(const Array& a, std::ptrdiff_t N, std::ptrdiff_t n, const char* name) {
+  const bool flat = a.ndim() == 1 && n <= 1;
+  if (!flat && a.ndim() != 2)
+    fail(std::string("wrong shape for ") + name + ": expected (N, n), got " + shape_string(a.shape.data(), a.ndim()));
+  if (a.shape[0] != N)
+    fail(std::string("wrong length for ") + name + ": expected " + std::to_string(N) + " rows (one per time), got " +
+         std::to_string(a.shape[0]));
+  if (!flat) check_shape(a, {N, n}, name);
+  check_finite(a, name);
+  return Eigen::Map<const RowMat>(a.values.data(), N, flat ? 1 : a.shape[1]);
+}
+
 }  // namespace
+
+CubicTrajectory CubicTrajectory::from_tables(const Array& times, const Array& q_points,
+                                             const std::optional<Array>& qd_points, bool spline,
+                                             const std::optional<Array>& qd_start,
+                                             const std::optional<Array>& qd_end) {
+  check_shape(times, {-1}, "times");
+  const std::ptrdiff_t N = times.shape[0];
+  if (N < 2) fail("times must have at least 2 points (one segment), got " + std::to_string(N));
+  check_finite(times, "times");
+  RowMat Q = per_time(q_points, N, -1, "q_points");
+  const std::ptrdiff_t n = Q.cols();
+  if (qd_points) {
+    if (spline)
+      fail("qd_points cannot be given with spline=True (the spline sets the interior velocities); give qd_start "
+           "and qd_end instead");
+    if (qd_start || qd_end)
+      fail("qd_start / qd_end cannot be given with qd_points (its first and last rows are the end velocities)");
+    return CubicTrajectory(times.values, std::move(Q), per_time(*qd_points, N, n, "qd_points"), KnotVelocities::Given);
+  }
+  RowMat V = RowMat::Zero(N, n);
+  const std::optional<Array>* ends[2] = {&qd_start, &qd_end};
+  const char* names[2] = {"qd_start", "qd_end"};
+  for (int e = 0; e < 2; ++e)
+    if (*ends[e]) {
+      check_shape(**ends[e], {n}, names[e]);
+      check_finite(**ends[e], names[e]);
+      V.row(e ? N - 1 : 0) = Eigen::Map<const Eigen::RowVectorXd>((*ends[e])->values.data(), n);
+    }
+  return CubicTrajectory(times.values, std::move(Q), std::move(V),
+                         spline ? KnotVelocities::Spline : KnotVelocities::Heuristic);
+}
 
 CubicTrajectory::CubicTrajectory(std::vector<double> times, RowMat points, RowMat velocities,
                                  KnotVelocities rule)

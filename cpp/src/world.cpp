@@ -399,9 +399,7 @@ int World::add_free_box(const std::string& name, const Eigen::Vector3d& half_ext
 void World::check_pose(const Eigen::Isometry3d& T, const std::string& who) {
   require(T.matrix().allFinite(), who + ": pose must be finite");
   require(T.translation().norm() <= kMaxDistance, who + ": pose must lie within 1e6 m of the origin");
-  const Eigen::Matrix3d R = T.linear();
-  require((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 && R.determinant() > 0,
-          who + ": pose must be a rigid transform (orthonormal rotation)");
+  require(is_rotation(T.linear()), who + ": pose must be a rigid transform (orthonormal rotation)");
 }
 
 void World::add_robot(int robot, const std::string& label, const std::vector<std::string>& box_names,

@@ -10,9 +10,15 @@ import typing
 __all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults']
 class Tool:
     """
-    Tool centre point: orientation of `offset` on `link`; position midway between the point offset[:3, 3] on `link` and `second_point` on `second_link` (DH frames of the links).
+    The tool centre point (TCP).
+    
+    Its orientation is that of `offset` (4, 4) on `link`; its position is the
+    midpoint between the point offset[:3, 3] on `link` and `second_point` (3,)
+    on `second_link`, both in their link's DH frame (links 1..n, -1 the last). A
+    fixed tool uses the same link and point twice; a clamp with one fixed and
+    one moving jaw uses a point on each jaw, so the TCP stays between the jaws.
     """
-    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], int, numpy.typing.NDArray[numpy.float64]]:
+    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], int, numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, link: typing.SupportsInt | typing.SupportsIndex = -1, offset: typing.Any = ..., second_link: typing.SupportsInt | typing.SupportsIndex = -1, second_point: typing.Any = (0.0, 0.0, 0.0)) -> None:
         ...
@@ -32,7 +38,12 @@ class Tool:
         ...
 class Wrench:
     """
-    External wrench on a link: force (N) and moment (N m) in world coordinates, [fx, fy, fz, mx, my, mz], applied at `point` given in the DH frame of `link` (1..n, negative counts from the last).
+    An external wrench on a link.
+    
+    Force (N) and moment (N m), both in world coordinates, [fx, fy, fz, mx, my,
+    mz], acting at `point` (3,) m given in the DH frame of `link` (1..n, negative
+    counts from the last); or, made by Wrench.at_tool, at the tool centre point,
+    mapped by the tool Jacobian as a (6,) f_ext is.
     """
     @staticmethod
     def at_tool(wrench: typing.Any) -> Wrench:
@@ -66,10 +77,11 @@ class LinkBox:
     A box fixed to a link: the shape the world collides and the views draw.
     
     link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
-    and axes in the DH frame of `link`. half_extents: (3,) m, > 0, along the
-    box's own x, y, z. name: a label (e.g. "link1", "fixed_jaw").
+    and axes in the DH frame of `link` (frame i for link i; frame 0, the base
+    frame, for link 0). half_extents: (3,) m, > 0: the box spans +-half_extents
+    along its own x, y, z. name: a label (e.g. "link1", "base", "fixed_jaw").
     """
-    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str]:
+    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str], dict]:
         ...
     def __init__(self, link: typing.SupportsInt | typing.SupportsIndex, half_extents: typing.Any, pose: typing.Any = ..., name: str = '') -> None:
         ...
@@ -96,12 +108,13 @@ class Clamp:
     fixed_link: the link (1..n-1) carrying the fixed jaw. fixed_face: (4, 4) the
     fixed jaw's inner face in that link's DH frame: origin at the face's centre,
     z along the jaw axis towards the moving jaw (the moving joint's axis), x
-    along the jaw towards its tip. moving_joint: the prismatic joint
-    fixed_link + 1 whose variable is the opening between the inner faces (m);
-    the moving face is the fixed one moved by the opening along z, facing back.
-    jaw_length (along x) and pad_width (along y): the pads' size, m.
+    along the jaw towards its tip, y across the jaw. moving_joint: the prismatic
+    joint fixed_link + 1 whose variable is the opening between the inner faces
+    (m); the moving face is the fixed one moved by the opening along z, turned
+    to face back (Rx(pi)). jaw_length (along x) and pad_width (along y): the
+    pads' size, m. The tool centre point is the robot's Tool.
     """
-    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], int, float, float]:
+    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], int, float, float], dict]:
         ...
     def __init__(self, fixed_link: typing.SupportsInt | typing.SupportsIndex, fixed_face: typing.Any, moving_joint: typing.SupportsInt | typing.SupportsIndex, jaw_length: typing.SupportsFloat | typing.SupportsIndex, pad_width: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
@@ -234,7 +247,7 @@ class Robot:
             carry an explicit zero ``<inertial>``. See the module's docstring.
             
         """
-    def __getstate__(self) -> tuple[tuple, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, typing.Any, str, float, float, str, str, list, typing.Any, dict[str, float], numpy.typing.NDArray[numpy.float64], list[str], list[str]]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str, typing.Any, typing.Any, typing.Any, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, Tool, str, float, float, list[LinkBox] | None, typing.Any, dict[str, float], typing.Any, typing.Any, typing.Any, typing.Any, str], str, str, list[str], list[str]]:
         ...
     def __repr__(self) -> str:
         ...
@@ -258,7 +271,15 @@ class Robot:
         """
     def default_boxes(self) -> list[LinkBox]:
         """
-        Thin boxes along the links, used when a robot is given none: for link i the segment between the foot of the common normal on joint axis i and frame i's origin (or, for a revolute joint with |d_i| > |a_i|, from frame i-1's origin to that foot), square section 0.02 m; a base above the floor stands on a column from z = 0 to frame 0.
+        Thin boxes along the links, for a robot given no shapes.
+        
+        For link i the segment between the two points its DH row fixes in it: the
+        foot of the common normal on joint axis i, (-a_i, 0, 0) in frame i, and the
+        origin of frame i (along x_i, length |a_i|); for a revolute joint with
+        |d_i| > |a_i|, the segment from frame i-1's origin to that foot along
+        z_{i-1} instead. Square section 0.02 m, at least that long. A base placed
+        above the floor stands on a column of that section from the floor (z = 0)
+        to the base frame's origin.
         """
     def end_stop_torques(self, q: typing.Any, qd: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -303,7 +324,8 @@ class Robot:
             joint limit) and no branch is asked for, 'auto' goes on with the
             numeric solver, whose solution has theta2 != theta3.
         opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
-            determine; default q_near's, else 0. The numeric solver holds it fixed.
+            determine; default q_near's, else 0 clamped into the jaw's limits. The
+            numeric solver holds it fixed.
         branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for
             SCARA #2 theta2 = theta3), +-2 = SCARA #2's folded family near the base;
             None = any (the one nearest q_near when given, else +1 first).
@@ -314,7 +336,8 @@ class Robot:
         locked: numeric only: joint indices held at their start value.
         tol: accepted residual (m and rad): closed form 1e-9, numeric 1e-10.
         restarts, max_iterations, seed: numeric Levenberg-Marquardt from q_near
-            (or mid-limits), then from `restarts` random points within the limits.
+            (or mid-limits; 0, clamped into the limits, where a limit is infinite),
+            then from `restarts` random points within the limits.
         info: also return a dict: method ('scara1' or 'scara2' for the closed
             forms, 'numeric'), branch (closed forms), position_error (m),
             orientation_error (rad), iterations and attempts (numeric).
@@ -383,7 +406,7 @@ class Robot:
         A copy with these joint and link names (n each, unique, not empty); all else equal.
         """
     @property
-    def armature(self) -> typing.Any:
+    def armature(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n,) reflected rotor inertia J_m G^2 on M's diagonal, kg m^2 or kg.
         """
@@ -419,7 +442,7 @@ class Robot:
         The Clamp, or None.
         """
     @property
-    def com(self) -> typing.Any:
+    def com(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n, 4) CoM rows.
         """
@@ -429,17 +452,17 @@ class Robot:
         (n, 3) CoM of each link in its DH frame i, m (the Robotics Toolbox's and URDF's convention).
         """
     @property
-    def coulomb(self) -> typing.Any:
+    def coulomb(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n,) Coulomb friction F_c, N m or N.
         """
     @property
-    def coulomb_width(self) -> typing.Any:
+    def coulomb_width(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n,) v_c of F_c tanh(qd / v_c), rad/s or m/s.
         """
     @property
-    def dh(self) -> typing.Any:
+    def dh(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n, 4) [theta, d, a, alpha].
         """
@@ -460,7 +483,7 @@ class Robot:
     def end_stop_frequency(self) -> float:
         ...
     @property
-    def friction_coefficients(self) -> typing.Any:
+    def friction_coefficients(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n,) viscous K.
         """
@@ -483,7 +506,7 @@ class Robot:
         Links whose inertia tensor breaks the triangle inequality, one message each.
         """
     @property
-    def inertias(self) -> typing.Any:
+    def inertias(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n, 3, 3) kg m^2 about each CoM in its CoM frame.
         """
@@ -508,7 +531,7 @@ class Robot:
         Names of the moving links (n,), link i moved by joint i: from a URDF the child link of each chain joint, else 'link1'..'linkn'.
         """
     @property
-    def masses(self) -> typing.Any:
+    def masses(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n,) kg.
         """
@@ -521,12 +544,12 @@ class Robot:
         (19 n + 3,) parameters read by generated code: per link [theta d a alpha, com theta d a alpha, m, Ixx Iyy Izz Ixy Ixz Iyz, K, armature, F_c, v_c], then gravity in frame 0.
         """
     @property
-    def q_limits(self) -> typing.Any:
+    def q_limits(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n, 2) [q_min, q_max].
         """
     @property
-    def tau_limits(self) -> typing.Any:
+    def tau_limits(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (n,) N m or N.
         """
@@ -578,7 +601,7 @@ class CubicTrajectory(Reference):
     (a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
     qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], int]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], typing.Any], dict]:
         ...
     def __init__(self, times: typing.Any, q_points: typing.Any, qd_points: typing.Any = None, *, spline: bool = False, qd_start: typing.Any = None, qd_end: typing.Any = None) -> None:
         ...
@@ -629,7 +652,7 @@ class SetPoint(Reference):
     """
     A constant reference: q_ref = q (n,) at all times, qd_ref = qdd_ref = 0.
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64]]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, q: typing.Any) -> None:
         ...
@@ -679,15 +702,16 @@ class PID(Controller):
     I the integral of e (updated as I += e h, h the controller period), v the
     measured position differentiated by backward difference and low-pass
     filtered with time constant derivative_filter (s; 0: unfiltered; v starts at
-    the measured velocity). Anti-windup: I stops growing while the output is
-    saturated in the direction e pushes, and |ki I| <= integral_limit (default:
-    the actuator limits). gravity_compensation adds G(q) of `model` (default:
+    the measured velocity); the reference velocity is the trajectory's own
+    derivative, so a reference step gives no derivative kick. Anti-windup: I
+    stops growing while the output is saturated in the direction e pushes, and
+    |ki I| <= integral_limit (default: the actuator limits). gravity_compensation adds G(q) of `model` (default:
     the simulated robot). The output is saturated at the actuator limits.
     
     kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
     (n,) arrays, all >= 0 (N/m ... for prismatic joints).
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], bool, float, typing.Any, typing.Any]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, kp: typing.Any, ki: typing.Any, kd: typing.Any, *, gravity_compensation: bool = True, derivative_filter: typing.SupportsFloat | typing.SupportsIndex = 0.0, integral_limit: typing.Any = None, model: typing.Any = None) -> None:
         ...
@@ -744,13 +768,13 @@ class ComputedTorque(Controller):
     
         tau = M(q) (qdd_ref + kd (qd_ref - qd) + kp (q_ref - q)) + C(q, qd) + G(q) + K qd
     
-    with M, C, G, K from `model` (default: the simulated robot itself; give a
+    evaluated by one recursive Newton-Euler pass, with M, C, G, K from `model` (default: the simulated robot itself; give a
     deliberately wrong copy, e.g. scara1(masses=1.2 * r.masses), to study
     robustness), saturated at the actuator limits. With the exact model each
     joint's error obeys e'' + kd e' + kp e = 0: kp = w^2, kd = 2 w is critically
     damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.
     """
-    def __getstate__(self) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], typing.Any]:
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
         ...
     def __init__(self, kp: typing.Any, kd: typing.Any, *, model: typing.Any = None) -> None:
         ...

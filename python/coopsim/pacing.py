@@ -29,7 +29,10 @@ class RunStats:
     steps_per_second: steps / busy_time (the engine's speed);
     real_time_factor: sim_elapsed / wall_time (1 = real time; for a paced
     run, about the speed setting); frames and frame_rate (Hz): frames drawn
-    by a paced run (0 for headless runs).
+    by a paced run and the rate reached (0 for headless runs); frame_rate_asked
+    (Hz): the pacer's frame rate, which frame_rate falls below when a frame
+    (stepping and drawing) takes longer than 1 / frame_rate_asked (0 for
+    headless runs).
     """
 
     sim_time: float
@@ -42,9 +45,10 @@ class RunStats:
     real_time_factor: float
     frames: int = 0
     frame_rate: float = 0.0
+    frame_rate_asked: float = 0.0
 
     @staticmethod
-    def _make(sim_time, sim_elapsed, wall, busy, dt, steps, frames=0):
+    def _make(sim_time, sim_elapsed, wall, busy, dt, steps, frames=0, frame_rate_asked=0.0):
         return RunStats(
             sim_time=float(sim_time),
             sim_elapsed=float(sim_elapsed),
@@ -56,13 +60,16 @@ class RunStats:
             real_time_factor=sim_elapsed / wall if wall > 0 else math.inf if sim_elapsed else 0.0,
             frames=int(frames),
             frame_rate=frames / wall if wall > 0 else 0.0,
+            frame_rate_asked=float(frame_rate_asked),
         )
 
     def __str__(self) -> str:
         return (f"sim time {self.sim_time:.4f} s (+{self.sim_elapsed:.4f} s), wall {self.wall_time:.4f} s, "
                 f"step {self.step_size * 1e3:.4g} ms, {self.steps} steps, {self.steps_per_second:,.0f} steps/s, "
                 f"real-time factor {self.real_time_factor:.3g}"
-                + (f", {self.frames} frames ({self.frame_rate:.1f}/s)" if self.frames else ""))
+                + (f", {self.frames} frames ({self.frame_rate:.1f}/s"
+                   + (f" of {self.frame_rate_asked:g}/s asked" if self.frame_rate_asked else "") + ")"
+                   if self.frames else ""))
 
 
 
@@ -95,6 +102,7 @@ class Pacer:
         self._paused = False
         self._stop = False
         self._live = None
+        self._carry = None       # (sim, last frame's clock, simulated time due) of the last run, for keep_clock
 
     @property
     def speed(self) -> float:
@@ -132,7 +140,8 @@ class Pacer:
 
     @property
     def paused(self) -> bool:
-        return self._paused
+        """True while simulated time stands still: after pause() (until resume()) or at speed 0, a pause."""
+        return self._paused or self._speed == 0.0
 
     def pause(self) -> None:
         """Holds simulated time still; frames continue."""
@@ -151,12 +160,19 @@ class Pacer:
         if self._live is None:
             return None
         sim, t0, s0, w0, busy, frames = self._live
-        return RunStats._make(sim.time, sim.time - t0, self._clock() - w0, busy, sim.dt, sim.steps - s0, frames)
+        return RunStats._make(sim.time, sim.time - t0, self._clock() - w0, busy, sim.dt, sim.steps - s0, frames,
+                              self._frame_rate)
 
     def run(self, sim, t_end: float, *, on_frame: Optional[Callable] = None,
-            max_wall_time: Optional[float] = None) -> RunStats:
+            max_wall_time: Optional[float] = None, keep_clock: bool = False) -> RunStats:
         """Runs `sim` (a coopsim.Simulation, see the module's docstring) up to t_end (s) paced to the wall
-        clock; returns the statistics, also left in ``sim.stats``."""
+        clock; returns the statistics, also left in ``sim.stats``.
+
+        keep_clock: continue the pacing of this pacer's previous run of the same simulation, for a run
+        sequenced in short pieces (a task's phases): the wall time since that run's last frame (at most
+        max_catch_up) and the simulated time it was due beyond its t_end count in this one, and the run
+        returns as soon as it reaches t_end, without waiting for a next frame. Without it, each run
+        starts its clock afresh."""
         if not all(hasattr(sim, a) for a in _DRIVEN):
             raise ValueError(f"sim must be a coopsim.Simulation (or have {', '.join(_DRIVEN)}), "
                              f"got {type(sim).__name__}")
@@ -173,8 +189,10 @@ class Pacer:
         self._stop = False
         clock = self._clock
         w0 = clock()
-        last = w0
-        target = sim.time
+        carry = self._carry if keep_clock and self._carry is not None and self._carry[0] is sim else None
+        last = w0 if carry is None else carry[1]
+        # the simulated time the wall clock asks for (beyond t_end at the end of a run: kept for keep_clock)
+        due = sim.time if carry is None else min(max(carry[2], sim.time), sim.time + self.max_catch_up * self._speed)
         t0, s0, busy, frames = sim.time, sim.steps, 0.0, 0
         self._live = [sim, t0, s0, w0, busy, frames]
         try:
@@ -183,7 +201,8 @@ class Pacer:
                 elapsed = min(start - last, self.max_catch_up)
                 last = start
                 if not self._paused:
-                    target = min(float(t_end), max(target, sim.time) + elapsed * self._speed)
+                    due = max(due, sim.time) + elapsed * self._speed
+                target = min(float(t_end), due)
                 n = sim.steps_until(max(target, sim.time))
                 if n:
                     b = clock()
@@ -195,10 +214,13 @@ class Pacer:
                     break
                 if max_wall_time is not None and clock() - w0 >= max_wall_time:
                     break
+                if keep_clock and sim.steps_until(float(t_end)) == 0:
+                    break
                 delay = start + 1.0 / self._frame_rate - clock()
                 if delay > 0:
                     self._sleep(delay)
         finally:
             self._live[4:] = [busy, frames]
+            self._carry = (sim, last, due)
             sim.stats = self.stats
         return sim.stats

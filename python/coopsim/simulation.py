@@ -22,6 +22,10 @@ from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, Worl
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 
+#: the engine's defaults of the options (its SimulationOptions, the one place they are written), which the
+#: signature below shows; grasp_options=None takes the engine's defaults of the grasp options
+_DEFAULTS = _core.simulation_defaults()
+
 __all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation"]
 
 # by default a headless run of at least this many steps shows a progress bar
@@ -78,10 +82,13 @@ class Simulation:
     unpickled simulation starts at t = 0.
     """
 
-    def __init__(self, dt: float = 2e-4, *, world: Optional[World] = None, integrator: str = "rk4",
-                 control_every: int = 1, log_every: int = 1, end_stops: bool = True, max_speed: float = 1e4,
-                 max_position: float = 1e6, world_every: int = 1, contact_forces: bool = True,
-                 log_contacts: bool = False, grasp: bool = True, grasp_options: Optional[dict] = None):
+    def __init__(self, dt: float = _DEFAULTS["dt"], *, world: Optional[World] = None,
+                 integrator: str = _DEFAULTS["integrator"], control_every: int = _DEFAULTS["control_every"],
+                 log_every: int = _DEFAULTS["log_every"], end_stops: bool = _DEFAULTS["end_stops"],
+                 max_speed: float = _DEFAULTS["max_speed"], max_position: float = _DEFAULTS["max_position"],
+                 world_every: int = _DEFAULTS["world_every"], contact_forces: bool = _DEFAULTS["contact_forces"],
+                 log_contacts: bool = _DEFAULTS["log_contacts"], grasp: bool = _DEFAULTS["grasp"],
+                 grasp_options: Optional[dict] = None):
         if world is not None and not isinstance(world, World):
             raise ValueError(f"world must be a coopsim.World or None, got {type(world).__name__}")
         grasp_options = _grasp_options(grasp_options)
@@ -132,6 +139,11 @@ class Simulation:
     @property
     def log_every(self) -> int:
         return self._core.log_every
+
+    @staticmethod
+    def defaults() -> dict:
+        """The options' defaults, the engine's: {name: value}, grasp_options a dict of its own."""
+        return _core.simulation_defaults()
 
     @property
     def options(self) -> dict:

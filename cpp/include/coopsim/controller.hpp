@@ -12,6 +12,7 @@
 #include <memory>
 #include <string>
 
+#include "coopsim/checks.hpp"
 #include "coopsim/robot.hpp"
 
 namespace coopsim {
@@ -40,6 +41,16 @@ class Controller {
   virtual void compute(const ControlInput& in, double* tau) = 0;
 };
 
+// Controller::compute for numbers given as tables: q, qd, q_ref, qd_ref,
+// qdd_ref (n,) each, finite, 1 <= n <= kMaxDof; t (s) finite. Each checked,
+// naming it (std::invalid_argument); returns tau (n,).
+VecN compute(Controller& controller, double t, const Array& q, const Array& qd, const Array& q_ref,
+             const Array& qd_ref, const Array& qdd_ref);
+
+// Gains as a table: one number (every joint) or (n,); the shape is checked
+// here, the values by the controllers.
+Eigen::VectorXd gains(const Array& a, const char* name);
+
 // Clamps each tau_i to [-tau_max_i, tau_max_i].
 inline void saturate(int n, const double* tau_max, double* tau) {
   for (int i = 0; i < n; ++i) {
@@ -48,23 +59,24 @@ inline void saturate(int n, const double* tau_max, double* tau) {
   }
 }
 
-// Per-joint PID with
-// - derivative on measurement: D = kd (qd_ref - v), where v is the measured
-//   position differentiated by backward difference and passed through a
-//   first-order low-pass of time constant derivative_filter (s; 0: none);
-//   v starts at the measured velocity. The reference velocity is the
-//   trajectory's own derivative, so a reference step gives no derivative kick;
-// - integral anti-windup: the integral stops growing while the output is
-//   saturated in the direction the error pushes, and |ki I| is clamped to
-//   integral_limit (default: the actuator limits);
-// - optional gravity compensation G(q) from `model` (default: the simulated
-//   robot itself);
-// - output saturated at the actuator limits.
-//   tau = sat(kp e + ki I + kd (qd_ref - v) [+ G(q)]),  e = q_ref - q,
-//   I_k = I_{k-1} + e_k h (h: controller period).
-// Gains are (n,) vectors, or (1,) applied to every joint; all >= 0.
 class PID : public Controller {
  public:
+  // documentation (Python's too)
+  static constexpr char kDoc[] = R"doc(
+Per-joint PID controller (the paper's PID), derivative on measurement.
+
+tau = sat(kp e + ki I + kd (qd_ref - v) [+ G(q)]), e = q_ref - q (rad or m),
+I the integral of e (updated as I += e h, h the controller period), v the
+measured position differentiated by backward difference and low-pass
+filtered with time constant derivative_filter (s; 0: unfiltered; v starts at
+the measured velocity); the reference velocity is the trajectory's own
+derivative, so a reference step gives no derivative kick. Anti-windup: I
+stops growing while the output is saturated in the direction e pushes, and
+|ki I| <= integral_limit (default: the actuator limits). gravity_compensation adds G(q) of `model` (default:
+the simulated robot). The output is saturated at the actuator limits.
+
+kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
+(n,) arrays, all >= 0 (N/m ... for prismatic joints).)doc";
   PID(Eigen::VectorXd kp, Eigen::VectorXd ki, Eigen::VectorXd kd, bool gravity_compensation = true,
       double derivative_filter = 0.0, Eigen::VectorXd integral_limit = Eigen::VectorXd(),
       std::shared_ptr<const Robot> model = nullptr);
@@ -99,13 +111,19 @@ class PID : public Controller {
   bool first_ = true;
 };
 
-// Computed torque (the paper's nonlinear controller):
-//   tau = M(q) (qdd_ref + kd (qd_ref - qd) + kp (q_ref - q)) + C(q, qd) + G(q) + K qd
-// evaluated by one recursive Newton-Euler pass of `model` (default: the
-// simulated robot; give a deliberately wrong copy, e.g. masses x 1.2, for
-// robustness studies), saturated at the actuator limits.
 class ComputedTorque : public Controller {
  public:
+  // documentation (Python's too)
+  static constexpr char kDoc[] = R"doc(
+Computed-torque controller (the paper's nonlinear controller):
+
+    tau = M(q) (qdd_ref + kd (qd_ref - qd) + kp (q_ref - q)) + C(q, qd) + G(q) + K qd
+
+evaluated by one recursive Newton-Euler pass, with M, C, G, K from `model` (default: the simulated robot itself; give a
+deliberately wrong copy, e.g. scara1(masses=1.2 * r.masses), to study
+robustness), saturated at the actuator limits. With the exact model each
+joint's error obeys e'' + kd e' + kp e = 0: kp = w^2, kd = 2 w is critically
+damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.)doc";
   ComputedTorque(Eigen::VectorXd kp, Eigen::VectorXd kd, std::shared_ptr<const Robot> model = nullptr);
 
   void check(const Robot& robot) const override;

@@ -74,6 +74,10 @@ std::vector<const GeneratedDynamics*> compiled_generated();
 // ~/.cache/coopsim) by name, so pickled robots find their code again.
 std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::string& path);
 std::shared_ptr<const GeneratedDynamics> find_cached_generated(const std::string& name);
+// Loads the library at `path` and registers its code under the name it
+// carries, unless that name is registered already (its code then stays);
+// returns the name. std::invalid_argument naming `path` when it cannot load.
+std::string register_generated_library(const std::string& path);
 std::string generated_cache_dir();
 
 }  // namespace coopsim

@@ -37,7 +37,7 @@ struct GraspOptions {
   double slip = 5e-3;             // m
   double weld_omega_dt = 0.2;
   double release_time = 0.1;      // s
-  bool weld_moment = true;        // false: point welds, forces only (a pin at the body's centre)
+  bool weld_moment = true;        // false: point welds, forces only (a pin at the weld's point)
 };
 
 // The numeric options by name, in the order above (each must be >= 0).

@@ -128,35 +128,20 @@ IKMethod ik_method(const std::string& name);
 // [x, y, z, rx, ry, rz] (world frame; each >= 0, not all 0).
 using IKWeights = std::variant<std::string, std::array<double, 6>>;
 
-// Options of ik(); an option left empty takes its default. Given where they
-// do not apply, opening, branch, weights and locked are refused
-// (std::invalid_argument); restarts, max_iterations and seed are then unused.
+// Options of ik(), its arguments in Python (kIkDoc); an option left empty
+// takes its default. Given where they do not apply, opening, branch, weights
+// and locked are refused (std::invalid_argument); restarts, max_iterations
+// and seed are then unused.
 struct IKOptions {
   IKMethod method = IKMethod::Auto;
-  // jaw opening d6 (m) of the SCARA clamps (robots with a closed form only),
-  // which the pose does not determine; default q_near[5], else 0 clamped into
-  // the jaw's limits. The numeric solver holds it fixed.
-  std::optional<double> opening;
-  // closed form only: +1 / -1 = sign of the elbow angle, +-2 = SCARA #2's
-  // folded family (see IKSolution); empty = any (the solution nearest q_near
-  // when given, else +1 first)
+  std::optional<double> opening;             // m
   std::optional<int> branch;
-  // (n,) configuration to stay near: picks the closed form's branch and
-  // shifts angles by 2 pi k (within the limits) to be nearest it; the numeric
-  // solver's start point (default: mid-limits; 0, clamped into the limits,
-  // where a limit is infinite)
-  std::optional<VecN> q_near;
-  // numeric only: weights of the pose error (default all 1)
+  std::optional<VecN> q_near;                // (n,)
   std::optional<IKWeights> weights;
-  // numeric only: joint indices (0-based) held at their start value
-  std::optional<std::vector<int>> locked;
-  // m and rad: largest accepted residual, > 0; default 1e-9 for the closed
-  // form, 1e-10 for the numeric solver
-  std::optional<double> tol;
-  // numeric solver: random restarts (>= 0) after the first attempt, iterations
-  // per attempt (>= 1), seed of the restarts
-  int restarts = 10;
-  int max_iterations = 100;
+  std::optional<std::vector<int>> locked;    // joint indices, 0-based
+  std::optional<double> tol;                 // m and rad, > 0
+  int restarts = 10;                         // >= 0
+  int max_iterations = 100;                  // >= 1
   unsigned long seed = 0;
 };
 
@@ -171,13 +156,39 @@ struct IKResult {
   int attempts = 0;                // numeric
 };
 
-// Inverse kinematics of the TCP pose `target` (world frame) by the method of
-// the options: analytic_ik for the SCARA structures, numeric_ik for any robot.
-// With IKMethod::Auto, where SCARA #2's theta2 = theta3 rule alone stands in
-// the way (IKError::redundancy) and no branch is asked for, the numeric
-// solver goes on to find a solution with theta2 != theta3. Throws IKError
-// when no configuration within the limits reaches the target, and
-// std::invalid_argument for options that are invalid or do not apply.
+// Inverse kinematics of the TCP pose `target` (world frame), as documented
+// here (Python's docstring too); IKError (a ValueError in Python) when no
+// configuration within the limits reaches the target, std::invalid_argument
+// for options that are invalid or do not apply.
+inline constexpr char kIkDoc[] = R"doc(Inverse kinematics: joint positions q (n,) whose tool centre point pose is `pose`.
+
+pose: (4, 4) target TCP pose in the world (as fk returns).
+method: 'auto' (closed form for the SCARA structures, see ik_kind, else
+    numeric), 'analytic' or 'numeric'. SCARA #2's closed form keeps
+    theta2 = theta3; where that rule alone stands in the way (reach or a
+    joint limit) and no branch is asked for, 'auto' goes on with the
+    numeric solver, whose solution has theta2 != theta3.
+opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
+    determine; default q_near's, else 0 clamped into the jaw's limits. The
+    numeric solver holds it fixed.
+branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for
+    SCARA #2 theta2 = theta3), +-2 = SCARA #2's folded family near the base;
+    None = any (the one nearest q_near when given, else +1 first).
+q_near: (n,) configuration to stay near: picks the branch and shifts angles
+    by 2 pi k (within the limits) to be nearest it; the numeric start point.
+weights: numeric only: (6,) weights of the error [x, y, z, rx, ry, rz]
+    (world frame; 0 leaves a component out), or 'pose' / 'position'.
+locked: numeric only: joint indices held at their start value.
+tol: accepted residual (m and rad): closed form 1e-9, numeric 1e-10.
+restarts, max_iterations, seed: numeric Levenberg-Marquardt from q_near
+    (or mid-limits; 0, clamped into the limits, where a limit is infinite),
+    then from `restarts` random points within the limits.
+info: also return a dict: method ('scara1' or 'scara2' for the closed
+    forms, 'numeric'), branch (closed forms), position_error (m),
+    orientation_error (rad), iterations and attempts (numeric).
+Every result is checked by forward kinematics and lies within the joint
+limits; otherwise IKError (a ValueError) says why: out of reach, which
+joint limit, an orientation the structure cannot take, a singular target.)doc";
 IKResult ik(const Robot& robot, const Eigen::Isometry3d& target, const IKOptions& options);
 
 // Every closed-form solution within the limits (analytic_ik_all), with the

@@ -3,6 +3,10 @@
 // may be evaluated from several threads at once.
 #pragma once
 
+#include <stdexcept>
+#include <string>
+
+#include "coopsim/checks.hpp"
 #include "coopsim/robot.hpp"
 
 namespace coopsim {
@@ -22,6 +26,14 @@ class Reference {
 class ConstantReference : public Reference {
  public:
   explicit ConstantReference(VecN q) : q_(std::move(q)) {}
+  // q: (n,) finite, 1 <= n <= kMaxDof; std::invalid_argument naming q otherwise.
+  explicit ConstantReference(const Array& q) {
+    check_shape(q, {-1}, "q");
+    if (q.shape[0] < 1 || q.shape[0] > kMaxDof)
+      throw std::invalid_argument("q must have 1 to " + std::to_string(kMaxDof) + " entries");
+    check_finite(q, "q");
+    q_ = Eigen::Map<const Eigen::VectorXd>(q.values.data(), q.shape[0]);
+  }
   int dof() const override { return static_cast<int>(q_.size()); }
   double t_start() const override { return 0.0; }
   double t_end() const override { return 0.0; }

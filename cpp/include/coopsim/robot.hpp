@@ -22,8 +22,11 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "coopsim/checks.hpp"
 
 namespace coopsim {
 
@@ -71,11 +74,14 @@ struct Link {
   double tau_max = kInf;       // actuator limit |tau_i| <= tau_max: N m or N, > 0
 };
 
-// The tool centre point (TCP). Its orientation is that of `offset` on `link`;
-// its position is the midpoint between the point `offset.translation()` on
-// `link` and `second_point` on `second_link` (both in their link's DH frame).
-// A fixed tool uses the same link and point twice; a clamp with one fixed and
-// one moving jaw uses a point on each jaw, so the TCP stays between the jaws.
+// The tool centre point; documentation (Python's too):
+inline constexpr char kToolDoc[] = R"doc(The tool centre point (TCP).
+
+Its orientation is that of `offset` (4, 4) on `link`; its position is the
+midpoint between the point offset[:3, 3] on `link` and `second_point` (3,)
+on `second_link`, both in their link's DH frame (links 1..n, -1 the last). A
+fixed tool uses the same link and point twice; a clamp with one fixed and
+one moving jaw uses a point on each jaw, so the TCP stays between the jaws.)doc";
 struct Tool {
   int link = -1;                                     // 1..n, or -1 for the last link
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
@@ -83,10 +89,13 @@ struct Tool {
   Eigen::Vector3d second_point = Eigen::Vector3d::Zero();
 };
 
-// A wrench applied to a link: force (N) and moment (N m), both in world
-// coordinates, acting at `point` given in the DH frame of `link` (1..n); or,
-// with at_tool, at the tool centre point (link and point unused), mapped by
-// the tool Jacobian as a (6,) f_ext is.
+// A wrench on a link; documentation (Python's too):
+inline constexpr char kWrenchDoc[] = R"doc(An external wrench on a link.
+
+Force (N) and moment (N m), both in world coordinates, [fx, fy, fz, mx, my,
+mz], acting at `point` (3,) m given in the DH frame of `link` (1..n, negative
+counts from the last); or, made by Wrench.at_tool, at the tool centre point,
+mapped by the tool Jacobian as a (6,) f_ext is.)doc";
 struct ExternalWrench {
   int link = -1;
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
@@ -110,10 +119,13 @@ struct EndStop {
 
 struct GeneratedDynamics;  // see generated.hpp
 
-// A box fixed to a link: the shape the world collides and the views draw.
-// `pose` places the box's centre and axes in the DH frame of `link` (frame i
-// for link i = 1..n; frame 0, the base frame, for link 0, the base); the box
-// spans +-half_extents along its own x, y, z axes.
+// A box fixed to a link; documentation (Python's too):
+inline constexpr char kLinkBoxDoc[] = R"doc(A box fixed to a link: the shape the world collides and the views draw.
+
+link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
+and axes in the DH frame of `link` (frame i for link i; frame 0, the base
+frame, for link 0). half_extents: (3,) m, > 0: the box spans +-half_extents
+along its own x, y, z. name: a label (e.g. "link1", "base", "fixed_jaw").)doc";
 struct LinkBox {
   int link = 0;                                               // 0..n
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();     // in the DH frame of `link`
@@ -121,15 +133,17 @@ struct LinkBox {
   std::string name;                                           // e.g. "link1", "base", "fixed_jaw"
 };
 
-// A parallel-jaw clamp: a fixed jaw on `fixed_link` and a moving jaw carried
-// by the prismatic joint `moving_joint` = fixed_link + 1, whose variable is
-// the opening between the jaws' inner faces (m). The fixed jaw's inner face
-// is the frame `fixed_face` in the DH frame of fixed_link: origin at the
-// face's centre, z along the jaw axis towards the moving jaw (the moving
-// joint's axis), x along the jaw towards its tip, y across the jaw. The
-// moving jaw's inner face is that frame moved by the opening along z, turned
-// to face back (Rx(pi)). Each pad is jaw_length (along x) by pad_width
-// (along y). The tool centre point is the robot's Tool.
+// A parallel-jaw clamp; documentation (Python's too):
+inline constexpr char kClampDoc[] = R"doc(A parallel-jaw clamp.
+
+fixed_link: the link (1..n-1) carrying the fixed jaw. fixed_face: (4, 4) the
+fixed jaw's inner face in that link's DH frame: origin at the face's centre,
+z along the jaw axis towards the moving jaw (the moving joint's axis), x
+along the jaw towards its tip, y across the jaw. moving_joint: the prismatic
+joint fixed_link + 1 whose variable is the opening between the inner faces
+(m); the moving face is the fixed one moved by the opening along z, turned
+to face back (Rx(pi)). jaw_length (along x) and pad_width (along y): the
+pads' size, m. The tool centre point is the robot's Tool.)doc";
 struct Clamp {
   int fixed_link = 0;                                         // 1..n; 0: the robot has no clamp
   Eigen::Isometry3d fixed_face = Eigen::Isometry3d::Identity();
@@ -158,6 +172,8 @@ struct Workspace {
   std::array<Eigen::Matrix3d, kMaxDof> cm_I;    // composite inertia about composite CoM
 };
 
+struct RobotTables;
+
 class Robot {
  public:
   // Validates every field; throws std::invalid_argument naming what is wrong.
@@ -165,6 +181,15 @@ class Robot {
         Eigen::Vector3d base_position = Eigen::Vector3d::Zero(), double base_yaw = 0.0,
         Tool tool = Tool(), std::string name = "robot", EndStop end_stop = EndStop(),
         Eigen::Matrix3d base_orientation = Eigen::Matrix3d::Identity());
+
+  // A robot from tables (Robot.from_dh): each table's shape and values
+  // checked, naming it; CoM vectors converted to CoM rows; the inertia policy
+  // applied (tables.inertia_check). With "warn", the warnings to issue are
+  // appended to *warnings (if given).
+  static Robot from_tables(const RobotTables& tables, std::vector<std::string>* warnings = nullptr);
+  // The tables this robot is (from_tables(tables()) is this robot, bar
+  // attached generated code): CoM rows (n, 4), inertias (n, 3, 3).
+  RobotTables tables() const;
 
   int dof() const { return n_; }
   const std::string& name() const { return name_; }
@@ -211,6 +236,8 @@ class Robot {
   // empty); default "joint1".."jointn" and "link1".."linkn".
   Robot with_names(std::vector<std::string> joint_names, std::vector<std::string> link_names) const;
   Robot with_generated(std::shared_ptr<const GeneratedDynamics> gen) const;
+  // the generated code named `name` (find_generated); std::invalid_argument when there is none
+  Robot with_generated(const std::string& name) const;
   Robot with_backend(const std::string& backend) const;
 
   // Dynamics backend: the numeric recursive algorithms (always available) or
@@ -229,14 +256,16 @@ class Robot {
   // Named dimensions (m) the robot was built from, for reference (the
   // built-in SCARAs record theirs); empty for a robot defined by tables.
   const std::map<std::string, double>& dimensions() const { return dimensions_; }
-  // Thin boxes along the links, for a robot given no shapes: for link i the
-  // segment between the two points its DH row fixes in it, the foot of the
-  // common normal on joint axis i, (-a_i, 0, 0) in frame i, and the origin of
-  // frame i (along x_i, length |a_i|); for a revolute joint with |d_i| >
-  // |a_i|, the segment from frame i-1's origin to that foot along z_{i-1}
-  // instead. Square section kDefaultLinkThickness, at least that long. A
-  // base placed above the floor stands on a column of that section from
-  // the floor (z = 0) to the base frame's origin.
+  // documentation (Python's too):
+  static constexpr char kDefaultBoxesDoc[] = R"doc(Thin boxes along the links, for a robot given no shapes.
+
+For link i the segment between the two points its DH row fixes in it: the
+foot of the common normal on joint axis i, (-a_i, 0, 0) in frame i, and the
+origin of frame i (along x_i, length |a_i|); for a revolute joint with
+|d_i| > |a_i|, the segment from frame i-1's origin to that foot along
+z_{i-1} instead. Square section 0.02 m, at least that long. A base placed
+above the floor stands on a column of that section from the floor (z = 0)
+to the base frame's origin.)doc";
   std::vector<LinkBox> default_boxes() const;
   // Angular velocity w[i] (rad/s) and velocity v[i] (m/s) of the origin of
   // DH frames i = 0..n in the world, for the kinematics in ws and qd.
@@ -244,6 +273,10 @@ class Robot {
   // World poses of every box, in the order of boxes(), for the kinematics
   // in ws (see kinematics()).
   void box_poses(const Workspace& ws, std::vector<Eigen::Isometry3d>& out) const;
+  // For N states Q (row-major N x n): the tool pose of each (N poses), or
+  // with boxes the poses of every box of each (N x boxes().size(), state by
+  // state).
+  void poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const;
   // World poses of the clamp's fixed and moving inner faces (see Clamp)
   // for the kinematics of q in ws; throws when the robot has no clamp.
   void clamp_faces(const Workspace& ws, const double* q, Eigen::Isometry3d& fixed,
@@ -297,8 +330,6 @@ class Robot {
   double kinetic_energy(const double* q, const double* qd, Workspace& ws) const;
   double potential_energy(const double* q, Workspace& ws) const;
 
-  // Checks q / vectors (size and finiteness); throws std::invalid_argument.
-  void check_vector(const Eigen::Ref<const Eigen::VectorXd>& v, const char* name) const;
 
  private:
   void build_();
@@ -342,6 +373,64 @@ class Robot {
     Eigen::Matrix3d I_local;             // inertia about CoM in frame i
   };
   std::vector<Pre> pre_;
+};
+
+// A robot as tables: the arguments of Robot.from_dh, documented here
+// (Python's docstring too); an optional table left empty takes the default.
+struct RobotTables {
+  static constexpr char kDoc[] = R"doc(Defines a serial robot from tables.
+
+dh: (n, 4) standard DH rows [theta, d, a, alpha] (rad, m, m, rad); q_i is added
+    to theta_i (revolute) or d_i (prismatic), which are offsets.
+com: (n, 4) centre-of-mass rows, same parameters, from frame i-1 to the CoM
+    frame of link i, q_i added in the same slot (the paper's table); or
+    (n, 3) CoM positions (m) in DH frame i, the convention of URDF, the
+    Robotics Toolbox and Corke's data, converted exactly to CoM rows
+    (Robot.com; a CoM on the joint axis included).
+masses: (n,) kg, >= 0 (a link without mass is allowed; M(q) must still be
+    positive definite, which forward dynamics checks, naming q if not).
+inertias: (n, 3, 3) or (n, 6) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], kg m^2, about
+    the CoM: in the CoM frame for (n, 4) CoM rows, in DH frame i's axes for
+    (n, 3) CoM vectors; symmetric, positive semi-definite. One that breaks
+    the triangle inequality (I1 + I2 >= I3; published data has them) is
+    allowed with a coopsim.InertiaWarning, or refused (ValueError) with
+    inertia_check='error' ('ignore': neither).
+joint_types: string of 'R' / 'P', one per row, e.g. "RRPRRP".
+friction: (n,) viscous K (N m s/rad or N s/m), default 0.
+armature: (n,) or one value: rotor inertia reflected through the gear,
+    J_m G^2 (kg m^2, or kg for a prismatic joint), added to M_ii; default 0.
+coulomb: (n,) or one value: Coulomb friction F_c (N m or N), default 0,
+    acting as F_c tanh(qd / v_c) (smooth, never adding energy);
+    coulomb_width: v_c (rad/s or m/s, > 0), (n,) or one value, default 0.01.
+    Below |qd| ~ v_c it is a damper of F_c / v_c: keep dt F_c / (v_c M_ii)
+    under about 2.5 for RK4.
+q_limits: (n, 2) [q_min, q_max] (rad or m), default unbounded (+-inf).
+tau_limits: (n,) actuator limits |tau_i| <= tau_max (N m or N), default inf.
+gravity: (3,) m/s^2 in the world. base_position: (3,) m; base_yaw: rad;
+    base_orientation: (3, 3) rotation after the yaw (default identity), for a
+    first joint axis that is not vertical: base = T(p) Rz(yaw) R.
+tool: (4, 4) tool transform in the last link's DH frame, or a Tool.
+end_stop_frequency (rad/s) and end_stop_damping_ratio: the soft end stops
+    used by the integrators beyond q_limits, tau = -M_ii (w^2 (q - q_lim)
+    + 2 zeta w qd), pushing only; keep w dt below about 2.5.
+boxes: list of LinkBox, the shapes fixed to the links (link 0: the base);
+    None: thin default boxes along the links (see Robot.default_boxes).
+clamp: a Clamp, or None for a robot without one.
+dimensions: {name: metres} the robot was built from, kept for reference.)doc";
+  Array dh, com, masses, inertias;
+  std::string joint_types;
+  std::optional<Array> friction, tau_limits, q_limits, armature, coulomb, coulomb_width;
+  Array gravity{{0.0, 0.0, -9.81}, {3}};
+  Array base_position{{0.0, 0.0, 0.0}, {3}};
+  double base_yaw = 0.0;
+  std::optional<Array> base_orientation;
+  Tool tool;
+  std::string name = "robot";
+  EndStop end_stop;
+  std::optional<std::vector<LinkBox>> boxes;  // none: the default boxes
+  Clamp clamp;
+  std::map<std::string, double> dimensions;
+  std::string inertia_check = "warn";
 };
 
 // Separating-axis test of two boxes (world poses of their centres, half

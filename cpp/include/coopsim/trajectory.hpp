@@ -26,8 +26,10 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include <vector>
 
+#include "coopsim/checks.hpp"
 #include "coopsim/reference.hpp"
 
 namespace coopsim {
@@ -46,6 +48,30 @@ class CubicTrajectory : public Reference {
   // Throws std::invalid_argument naming the argument on bad input.
   CubicTrajectory(std::vector<double> times, RowMat points, RowMat velocities = RowMat(),
                   KnotVelocities rule = KnotVelocities::Heuristic);
+
+  // documentation (Python's too)
+  static constexpr char kDoc[] = R"doc(
+Piecewise cubic joint trajectory through via-points (the paper's eqs. 6-8).
+
+Segment k of joint j is c0 + c1 tau + c2 tau^2 + c3 tau^3 in the local time
+tau = t - times[k], meeting the four Hermite conditions (position and velocity
+at both ends), so q and qd are continuous at every knot. Knot velocities:
+- qd_points (N, n) if given;
+- spline=True: the C2 cubic spline (continuous acceleration) with end
+  velocities qd_start, qd_end (default 0);
+- otherwise: ends qd_start, qd_end (default 0); interior knots the average of
+  the neighbouring segment slopes, or 0 where the slope changes sign or is 0.
+Before times[0] and after times[-1] the first / last point is held at rest.
+
+times: (N,) s, strictly increasing, N >= 2. q_points: (N, n) rad or m
+(a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
+qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.)doc";
+  // From tables as the Python API takes them (kDoc): the knot velocities
+  // qd_points (rule Given), or the spline or the heuristic with the end
+  // velocities qd_start, qd_end. Throws std::invalid_argument naming the argument.
+  static CubicTrajectory from_tables(const Array& times, const Array& q_points, const std::optional<Array>& qd_points,
+                                     bool spline, const std::optional<Array>& qd_start,
+                                     const std::optional<Array>& qd_end);
 
   int dof() const override { return n_; }
   double t_start() const override { return times_.front(); }

@@ -18,6 +18,7 @@ and the contact points red lines, all from the simulation:
 """
 from .animation import Animation, animate, ffmpeg_path
 from .geometry import box_corners, box_faces
+from .live import LiveView, live
 from .replay import replay_html
 from .scene import COLORS, Body, Scene, draw
 from .world import colliding_from_log, contacts_from_log, world_bodies
@@ -27,3 +28,4 @@ __all__ = ["COLORS", "Animation", "Body", "Scene", "animate", "box_corners", "bo
 __all__ += ["colliding_from_log", "contacts_from_log", "world_bodies"]
 __all__ += ["replay_html"]
 __all__ += ["holding_from_log", "holding_now"]
+__all__ += ["LiveView", "live"]

@@ -10,7 +10,10 @@ scenery, its free bodies (the bar, in the paper's red) and the floor, with
 the colours of :data:`coopsim.view.COLORS`. It has an orbit camera (drag to
 turn, right-drag or shift-drag to pan, wheel to zoom), a play/pause button
 (or the space bar), a time scrubber (arrow keys step a frame) and a speed
-control from 0 to 400 %, as in the paper's viewer. It needs no server and
+control from 0 to 400 %, as in the paper's viewer, and marks on the
+timeline (the log's grasps and releases, any markers given, e.g. a task's
+steps). It starts playing, or opens at a time given in its address
+(``run.html#t=12.5``). meshcat's own controls are hidden. It needs no server and
 no network: the viewer's JavaScript and the data are inside the file.
 
 How it is made. The viewer is meshcat's (MIT licence, kept in the page):
@@ -40,7 +43,7 @@ the page (all times in the log's seconds, poses in the z-up world):
 - ``color(name)``: the box's colour now, "#rrggbb" (or null).
 - ``names()``: all such names. ``time()``, ``play()``, ``pause()``,
   ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``; ``t0``, ``t1``,
-  ``frames`` (the frame times), ``fps``, ``ready`` (true once loaded),
+  ``frames`` (the frame times), ``markers`` ([{t, label}] on the timeline), ``fps``, ``ready`` (true once loaded),
   ``viewer`` (meshcat's ``Viewer``: its ``camera``, ``controls``, ``scene``).
 """
 from __future__ import annotations
@@ -355,11 +358,32 @@ def _world_bodies(world) -> list:
 
 # ---- the page ----
 
+def _markers(markers, log, t0: float, t1: float) -> list:
+    """The timeline's marks, [{t, label}] sorted by time within t0 .. t1: `markers` ((t, label) pairs) and, with
+    a log, its grasps and releases ('scara2 grasps bar', 'scara2 releases bar (opened)')."""
+    out = []
+    if markers is not None:
+        try:
+            pairs = [(m[0], m[1]) for m in markers]
+        except (TypeError, IndexError, KeyError):
+            raise ValueError("markers must be (t, label) pairs") from None
+        for t, label in pairs:
+            out.append({"t": _number(t, "a marker's t", -math.inf), "label": str(label)})
+    g = log.grasps if log is not None and hasattr(log, "grasps") else None
+    if g is not None and len(g):
+        names = [rl.name for rl in log.robots]
+        for t, i, body, ev, why in zip(g["t"], g["robot"], g["body"], g["event"], g["reason"]):
+            who = names[int(i)] if 0 <= int(i) < len(names) else f"robot {int(i)}"
+            verb = "grasps" if ev == "grasp" else "releases"
+            out.append({"t": float(t), "label": f"{who} {verb} {body}" + ("" if ev == "grasp" else f" ({why})")})
+    return sorted((m for m in out if t0 - 1e-9 <= m["t"] <= t1 + 1e-9), key=lambda m: m["t"])
+
+
 def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed: float = 1.0,
                 t_start: Optional[float] = None, t_end: Optional[float] = None, reference: bool = True,
-                floor: bool = True, title: Optional[str] = None, autoplay: bool = False,
+                floor: bool = True, title: Optional[str] = None, autoplay: bool = True,
                 holding=None, colors=None, ghost_margin: float = 0.002, elev: float = 30.0,
-                azim: float = -45.0, zoom: float = 1.0) -> str:
+                azim: float = -45.0, zoom: float = 1.0, markers=None, events: bool = True) -> str:
     """Write a replay of a simulation log as one self-contained HTML file; returns its path.
 
     log: a :class:`~coopsim.log.SimulationLog`, or a finished
@@ -383,12 +407,19 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     :func:`~coopsim.view.holding_from_log`), 'any' while it holds anything,
     False never, or per robot a (rows,) bool array (or None). title: the
     page's title.
-    autoplay: start playing when opened. colors: one colour per robot for
+    autoplay: start playing when opened (default); the page's address can
+    open it at a time instead, paused: ``run.html#t=12.5`` (``#t=12.5&play``
+    plays from there). markers: (t, label) pairs (s, text) marked on the
+    timeline, e.g. a task's steps; events: also mark the log's grasps and
+    releases (default). A mark shows its label on hover and seeks there when
+    clicked. colors: one colour per robot for
     its links (matplotlib colours; default :data:`COLORS`). ghost_margin:
     the ghost's boxes are this much smaller (m), so that a robot on its
     reference hides its ghost. elev, azim: the camera's elevation and
     azimuth (degrees, as matplotlib's view_init) looking at the middle of
-    the scene; zoom: > 1 brings it closer.
+    the robots (their boxes over the replay, and the scenery: free bodies
+    that wander off do not pull the camera away); zoom: > 1 brings it
+    closer.
 
     The file (about 0.9 MB plus 36 bytes per moving box and frame) needs
     no network or server; see the module's docstring for the page's
@@ -431,7 +462,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     cmds: List[dict] = []
     names: List[str] = []
     animations: List[dict] = []
-    bounds: List[np.ndarray] = []          # points that should be in view
+    bounds: List[np.ndarray] = []          # points the camera frames: the robots and the scenery
+    others: List[np.ndarray] = []          # points framed only when there are none of those (free bodies)
 
     def add_box(name, half, color, opacity, poses, colors_per_frame=None):
         """poses: (4, 4) fixed, or (frames, 4, 4) moving; colors_per_frame: None, or (frames,) 0xRRGGBB."""
@@ -514,12 +546,12 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
             add_box(f"bodies/{_safe(name)}", b["half_extents"], _hex(c["body"] if bar else c["free_body"]), 1.0,
                     poses)
             pp = poses.reshape(-1, 4, 4)[:, :3, 3]
-            bounds.append(pp)
+            others.append(pp)
     if free_logged:
         raise ValueError(f"the log has free bodies ({', '.join(sorted(free_logged))}) that the world does not: "
                          "pass world=sim.world (their sizes), or the Simulation itself")
 
-    allpts = np.concatenate(bounds) if bounds else np.zeros((1, 3))
+    allpts = np.concatenate(bounds) if bounds else np.concatenate(others) if others else np.zeros((1, 3))
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
     # the camera looks at the middle of what moves and the scenery, from elev / azim, just far enough to
     # have all of it in meshcat's 75 deg vertical view (and in the horizontal one of a 4:3 or wider window)
@@ -564,6 +596,7 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     if title is None:
         title = f"coopsim replay: {robot_names}"
     meta = {"t0": t0, "t1": t1, "fps": fps, "speed": speed, "autoplay": bool(autoplay), "names": names,
+            "markers": _markers(markers, log if events else None, t0, t1),
             "frames": [float(x) for x in times], "group": _GROUP,
             "camera": {"position": [float(x) for x in centre + d], "target": [float(x) for x in centre]}}
     values = {"TITLE": html.escape(str(title)), "NOTICES": html.escape(notices).replace("--", "- -"),

@@ -7,31 +7,109 @@ its report, data, plots, video and browser replay, and prints the summary.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 
-import numpy as np
-
 from ... import view
-from .report import plot_report, summary, write_report
+from ...view.animation import MAX_SPEED
+from .constants import MAX_CYCLES
+from .report import plot_report, step_markers, summary, write_report
 from .runs import sweep
 from .sequence import run
 
 
+def parser() -> argparse.ArgumentParser:
+    """The command line's parser (its checks of the values are in :func:`parse_args`)."""
+    ap = argparse.ArgumentParser(prog="python -m coopsim.tasks.handover", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="out", help="folder for the outputs (default out/; made if missing)")
+    ap.add_argument("--cycles", type=int, default=None,
+                    help=f"bars moved, one per cycle, 1 .. {MAX_CYCLES} (default {MAX_CYCLES}; the container takes "
+                         f"{MAX_CYCLES})")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="one bar drawn from the stated region with this seed (>= 0): one cycle")
+    ap.add_argument("--sweep", type=int, default=0, metavar="N",
+                    help="also run seeds 0 .. N-1 and print a row per seed and the rate")
+    ap.add_argument("--threads", type=int, default=2, help="threads for the sweep (>= 1, default 2)")
+    ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
+    ap.add_argument("--speed", type=float, default=2.0,
+                    help=f"simulated seconds per video second, > 0 and <= {MAX_SPEED:g} (default 2)")
+    ap.add_argument("--live", action="store_true",
+                    help="run in a live page in the browser (coopsim.view.live, 127.0.0.1) at 100 %% speed; the page "
+                         "stays after the run until Ctrl-C (--hold s)")
+    ap.add_argument("--port", type=int, default=0, help="--live: the page's port (default any free one)")
+    ap.add_argument("--hold", type=float, default=None,
+                    help="--live: seconds the page stays after the run (default: until Ctrl-C in a terminal, else 0)")
+    return ap
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    """The arguments, every one checked before anything runs: a bad one is argparse's one-line error (exit 2).
+    `cycles` comes back as the number of cycles the run makes (1 with a seed)."""
+    ap = parser()
+    args = ap.parse_args(argv)
+    if args.seed is not None:
+        if args.seed < 0:
+            ap.error(f"argument --seed: must be >= 0, got {args.seed}")
+        if args.cycles not in (None, 1):
+            ap.error(f"argument --cycles: --seed draws one bar, so one cycle; got --cycles {args.cycles} "
+                     f"(leave out --seed for {args.cycles} lined-up bars)")
+        args.cycles = 1
+    elif args.cycles is None:
+        args.cycles = MAX_CYCLES
+    if not 1 <= args.cycles <= MAX_CYCLES:
+        ap.error(f"argument --cycles: must be 1 .. {MAX_CYCLES} (the container takes {MAX_CYCLES} bars: the ones "
+                 f"that slid out pile up at its lower mouth and the next stays in the tube), got {args.cycles}")
+    if args.sweep < 0:
+        ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
+    if args.threads < 1:
+        ap.error(f"argument --threads: must be >= 1, got {args.threads}")
+    if not (0.0 < args.speed <= MAX_SPEED):   # also NaN
+        ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g} (400 %), got {args.speed:g}")
+    if os.path.exists(args.out) and not os.path.isdir(args.out):
+        ap.error(f"argument --out: {args.out!r} exists and is not a folder")
+    try:
+        os.makedirs(args.out, exist_ok=True)
+    except OSError as e:
+        ap.error(f"argument --out: cannot make the folder {args.out!r}: {e.strerror}")
+    if not 0 <= args.port <= 65535:
+        ap.error(f"argument --port: must be 0 (any free port) .. 65535, got {args.port}")
+    if args.hold is not None and not (args.hold >= 0 and math.isfinite(args.hold)):
+        ap.error(f"argument --hold: must be a finite number of seconds >= 0, got {args.hold:g}")
+    if not os.access(args.out, os.W_OK | os.X_OK):
+        ap.error(f"argument --out: the folder {args.out!r} is not writable")
+    return args
+
+
+def sweep_table(sw: dict) -> str:
+    """The sweep's rows, one per seed: the bar's start, the outcome, the simulated time and a failure's step
+    and reason."""
+    lines = [f"{'seed':>5} {'x (m)':>7} {'y (m)':>7} {'yaw (deg)':>9}  {'result':<7} {'t (s)':>6}  failure"]
+    for r in sw["runs"]:
+        x, y, yaw = r["bar"]
+        why = "" if r["success"] else f"{r['step']}: {r['reason']}"
+        lines.append(f"{r['seed']:>5} {x:>7.3f} {y:>7.3f} {math.degrees(yaw):>9.1f}  "
+                     f"{'success' if r['success'] else 'FAILED':<7} {r['simulated_time']:>6.2f}  {why}")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     """``python -m coopsim.tasks.handover``: runs the task, writes its outputs, prints the summary."""
-    ap = argparse.ArgumentParser(prog="python -m coopsim.tasks.handover", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="out", help="folder for the outputs (default out/)")
-    ap.add_argument("--cycles", type=int, default=3, help="bars moved, one per cycle (default 3)")
-    ap.add_argument("--seed", type=int, default=None, help="one bar drawn from the stated region with this seed")
-    ap.add_argument("--sweep", type=int, default=0, metavar="N", help="also run seeds 0 .. N-1 and report the rate")
-    ap.add_argument("--threads", type=int, default=2, help="threads for the sweep (default 2)")
-    ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
-    ap.add_argument("--speed", type=float, default=2.0, help="simulated seconds per video second (default 2)")
-    args = ap.parse_args(argv)
-    os.makedirs(args.out, exist_ok=True)
-    res = run(seed=args.seed) if args.seed is not None else run(cycles=args.cycles)
+    args = parse_args(argv)
+    live = dict(port=args.port) if args.live else None
+    res = run(seed=args.seed, live=live) if args.seed is not None else run(cycles=args.cycles, live=live)
+    try:
+        return _outputs(args, res)
+    finally:
+        if res.live is not None:
+            res.live.hold(args.hold)
+
+
+def _outputs(args, res) -> int:
     rep, wall = res.report, res.timing["run"]
+    # what was asked for: the run's own inputs are in the report already (seed, cycles_planned, ...)
+    rep["command_line"] = dict(cycles=args.cycles, seed=args.seed, sweep=args.sweep, threads=args.threads,
+                               video=not args.no_video, speed=args.speed, out=args.out)
     print(summary(rep))
     print(f"simulated {rep['simulated_time']:.2f} s in {wall:.2f} s of wall time: {rep['simulated_time'] / wall:.1f}x "
           f"real time (scoring {res.timing['scoring']:.2f} s more)")
@@ -41,17 +119,16 @@ def main(argv=None) -> int:
     paths += plot_report(res, args.out)
     if not args.no_video:
         paths.append(view.replay_html(res.sim, os.path.join(args.out, "task_replay.html"),
-                                      title="coopsim: the cooperative bar handover"))
+                                      title="coopsim: the cooperative bar handover", markers=step_markers(rep)))
         anim = view.animate(res.sim, speed=args.speed, fps=20, path=os.path.join(args.out, "task.mp4"))
         paths.append(anim.path)
     if args.sweep:
         t1 = time.perf_counter()
         sw = sweep(range(args.sweep), threads=args.threads)
-        print(f"sweep of {args.sweep} seeds in {time.perf_counter() - t1:.1f} s: success rate "
-              f"{sw['success_rate'] * 100:.0f} %")
-        for f in sw["failures"]:
-            print(f"  seed {f['seed']} (bar at {np.round(f['bar'], 3).tolist()}): {f['step']}: {f['reason']}")
+        print(f"sweep of {args.sweep} seeds in {time.perf_counter() - t1:.1f} s:")
+        print(sweep_table(sw))
+        print(f"success rate {sw['success_rate'] * 100:.0f} % ({len(sw['runs']) - len(sw['failures'])} of "
+              f"{len(sw['runs'])})")
         paths.append(write_report(sw, os.path.join(args.out, "sweep.json")))
     print("wrote " + ", ".join(paths))
     return 0 if rep["success"] else 1
-

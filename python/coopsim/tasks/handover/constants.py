@@ -32,6 +32,10 @@ SLIDE_MIN = 0.05         # a released bar must slide at least this far down the 
 RELEASE_FADE = 0.1       # s: the weld fades out over this after the jaw opens (the simulation's release_time)
 SLIDE_BACK = 0.02        # ... and never move back up it faster than this (m/s)
 LINE_SPACING = 0.07      # bars lined up for repeated cycles, centre to centre
+#: the most cycles the scene takes: the first two bars slide out of the tube's lower mouth and come to rest on
+#: the floor just below it, the second lying across the exit, so the third stops inside the tube (its centre
+#: 0.25 m down the 0.40 m tube) and a fourth bar, pushed in, hits it (a forbidden contact in its insertion)
+MAX_CYCLES = 3
 
 # durations of the motions (s)
 TIMES = dict(approach=1.5, descend=0.6, close=0.2, lift=0.6, carry=2.4, enter=0.8, open=0.2, retreat=0.5,

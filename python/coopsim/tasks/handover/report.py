@@ -34,7 +34,8 @@ def write_report(report: dict, path) -> str:
 
 
 def summary(report: dict) -> str:
-    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure."""
+    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure; then how many
+    cycles succeeded, and which were not run after a failure."""
     lines = []
     for c in report["cycles"]:
         head = f"cycle {c['cycle']} ({c['bar']}): "
@@ -54,8 +55,25 @@ def summary(report: dict) -> str:
                          f"#2 {c['peak_weld_force'][1]:.2f} N; peak internal force {c['peak_internal_force']:.2f} N; "
                          f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
     ok = sum(c["success"] for c in report["cycles"])
-    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded")
+    not_run = report["cycles_planned"] - len(report["cycles"])
+    tail = (f" (cycle {len(report['cycles'])} not run: the run stops at the first failure)" if not_run == 1 else
+            f" (cycles {len(report['cycles'])} .. {report['cycles_planned'] - 1} not run: the run stops at the first "
+            f"failure)" if not_run > 1 else "")
+    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded" + tail)
     return "\n".join(lines)
+
+
+def step_markers(report: dict) -> List[tuple]:
+    """The task's steps as (t, label) pairs (s, text), for a replay's timeline
+    (:func:`coopsim.view.replay_html`'s markers): each step's start per cycle, and a failure where it happened."""
+    out = []
+    for c in report["cycles"]:
+        for step, (t_begin, _) in (c.get("steps") or {}).items():
+            out.append((float(t_begin), f"cycle {c['cycle']} ({c['bar']}): {step}"))
+        if not c["success"]:
+            out.append((float(c["failed_at"]), f"cycle {c['cycle']} ({c['bar']}) FAILED in {c['failed_step']}: "
+                                                 f"{c['reason']}"))
+    return sorted(out, key=lambda m: m[0])
 
 
 def report_figures(result: TaskResult) -> dict:

@@ -13,9 +13,10 @@ import numpy as np
 from ..._core import ComputedTorque, CubicTrajectory, DivergenceError, IKError
 from ...planning import plan_cartesian, rotz
 from ...simulation import Simulation
+from ... import view
 from .. import scene
 from .constants import (BACK_OFF, BEFORE_MOUTH, BESIDE, BRANCH, CLEAR_ABOVE, CLOSE_SPEED, DEG, GRASP_TIMEOUT, GRIP1,
-                        INSERT_BRANCH, INSERT_DEPTH, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
+                        INSERT_BRANCH, INSERT_DEPTH, MAX_CYCLES, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
                         SQUEEZE, TIMES)
 from .planning import Planner, _grip_down, _pose, _yaw_pitch, default_bars, random_bar
 from .scoring import score_cycles
@@ -40,6 +41,7 @@ class TaskResult:
     #                                 weld_force (rows, 2) N, internal_force (rows,) N
     timing: Optional[dict] = None  # wall seconds of the run (planning and simulation) and of the scoring; kept out of
     #                                the report, which is the same bit for bit for the same input
+    live: Optional[object] = None  # the coopsim.view.LiveView of a run with live=..., or None
 
     @property
     def success(self) -> bool:
@@ -66,6 +68,7 @@ class _Runner(Planner):
         self.sim = Simulation(dt=dt, world=w, log_every=log_every, world_every=world_every,
                               control_every=control_every)
         self.t_limit = t_limit
+        self.live = None     # a coopsim.view.LiveView that runs the phases paced, or None (headless)
         # start: #1 waiting above its handover grip, #2 above its first pick
         self.q1_wait = self._ik(0, self._wait1_pose(), OPEN)
         for k, T in enumerate(self.bars):   # every bar pickable where it lies: checked before the run
@@ -136,7 +139,10 @@ class _Runner(Planner):
             raise TaskError(self.step, self.sim.time, f"the task would run past its time limit of {self.t_limit} s")
         # advance, not run: phases end hundreds of times per cycle, and a log of the whole run built at
         # each end would cost more than the steps
-        self.sim.advance(t_end)
+        if self.live is not None:
+            self.live.run_to(t_end)        # paced, with the page live (coopsim.view.live)
+        else:
+            self.sim.advance(t_end)
         self.check_contacts()
 
     def wait_for(self, predicate, timeout, what):
@@ -328,7 +334,7 @@ class _Runner(Planner):
 def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, dt: float = 2e-4,
         log_every: int = 25, world_every: int = 5, control_every: int = 5, mouth=None, slope=None,
         handover_yaw=None, t_limit: float = 120.0, score: bool = True, container_shift=None,
-        grip1_turn: float = 0.0) -> TaskResult:
+        grip1_turn: float = 0.0, live=None) -> TaskResult:
     """Runs the task and scores it.
 
     bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars` of
@@ -345,17 +351,40 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     much while the plan still aims at the container where it should be; grip1_turn (rad) turns SCARA
     #1's clamp about its approach when it comes down on the bar at the handover.
 
-    Returns a :class:`TaskResult`. Raises coopsim.IKError, naming the bar and what is out of reach,
+    live: run in a live page (:func:`coopsim.view.live`, paced, 100 % by default): True, or a dict of
+    its options (speed, port, host, ...); the view is ``result.live`` (close it when done).
+
+    The report records every input that changes the run: the seed (None when the bars were given or
+    defaulted), the bars' poses and the keywords above.
+
+    Returns a :class:`TaskResult`. Raises ValueError for cycles outside 1 .. MAX_CYCLES (3: the container
+    takes three bars, see :data:`~coopsim.tasks.handover.constants.MAX_CYCLES`), a seed with bars or with
+    more than one cycle; coopsim.IKError, naming the bar and what is out of reach,
     when a bar cannot be picked where it lies (checked before the run starts).
     """
+    if seed is not None and bars is not None:
+        raise ValueError("give bars or seed, not both: seed draws the one bar")
+    if seed is not None and cycles not in (None, 1):
+        raise ValueError(f"seed draws one bar, so one cycle: cycles must be 1 (or None) with a seed, got {cycles}")
+    if cycles is not None and bars is None and not 0 < int(cycles) <= MAX_CYCLES:
+        raise ValueError(f"cycles must be 1 .. {MAX_CYCLES} (the container takes {MAX_CYCLES} bars: the ones that "
+                         f"slid out pile up at its lower mouth, the next stays in the tube), got {cycles}")
     if bars is None:
         bars = [random_bar(seed)] if seed is not None else default_bars(3 if cycles is None else cycles)
     cycles = len(bars) if cycles is None else int(cycles)
     if not 0 < cycles <= len(bars):
         raise ValueError(f"cycles must be 1 .. {len(bars)} (one per bar), got {cycles}")
+    if cycles > MAX_CYCLES:
+        raise ValueError(f"cycles must be 1 .. {MAX_CYCLES} (the container takes {MAX_CYCLES} bars: the ones that "
+                         f"slid out pile up at its lower mouth, the next stays in the tube), got {cycles}")
     runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                      mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit,
                      container_shift=container_shift, grip1_turn=grip1_turn)
+    if live:
+        options = dict(speed=1.0, title="coopsim: the cooperative bar handover")
+        options.update(live if isinstance(live, dict) else {})
+        # sequenced from Python phase by phase: the page cannot send the run back to its start
+        runner.live = view.live(runner.sim, start=False, resettable=False, **options)
     results = []
     t_wall = time.perf_counter()
     for k in range(cycles):
@@ -378,5 +407,9 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     timing = dict(run=t_run, scoring=time.perf_counter() - t_wall - t_run)
     report = dict(success=len(results) == cycles and all(c["success"] for c in results), cycles_planned=cycles,
                   cycles=results, bars=[np.round(b, 12).tolist() for b in runner.bars[:cycles]],
-                  simulated_time=runner.sim.time, dt=dt, world_every=world_every, control_every=control_every)
-    return TaskResult(report, runner.sim, runner.sim.log, series, timing)
+                  simulated_time=runner.sim.time, seed=seed, dt=dt, log_every=log_every, world_every=world_every,
+                  control_every=control_every, t_limit=t_limit, mouth=runner.mouth.tolist(), slope=runner.slope,
+                  handover_yaw=runner.handover_yaw,
+                  container_shift=None if container_shift is None else np.asarray(container_shift, float).tolist(),
+                  grip1_turn=float(grip1_turn))
+    return TaskResult(report, runner.sim, runner.sim.log, series, timing, runner.live)

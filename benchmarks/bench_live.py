@@ -1,0 +1,139 @@
+"""Speed of the live view (coopsim.view.live) on the cooperative task's scene.
+
+The scene: both SCARAs (coopsim.tasks.scene.scaras) in the task's world (floor, the container's four
+walls, three bars), each robot following a cubic through its joint ranges under computed torque,
+dt = 0.2 ms, the world every step. Rows:
+
+- ms per frame of the view: the snapshot (state, references, ``Robot.shapes`` of q and q_ref in one
+  call per robot, holding, contacts, bodies) and the send (the scene's batched meshes, the
+  supervision panel, plots), with no page and with a headless Chromium page connected;
+- frames per second: sent by the view during a paced run, and drawn by the page in headless
+  Chromium (software WebGL, swiftshader: a lower bound for a desktop browser), counted with
+  requestAnimationFrame;
+- the real-time factor reached at 400 % pacing with the view attached (40 frames per second aimed at
+  to a connected page) and without it (the pacer alone), and the headless run's own speed.
+
+Each figure is the median over repeats.
+
+    python benchmarks/bench_live.py [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+import statistics
+import time
+
+import numpy as np
+
+import coopsim as cs
+from coopsim import view
+from coopsim.tasks import scene as task_scene
+
+from bench_view import trajectory   # the same cubics through the joint ranges
+
+
+def task_sim(t_end=60.0):
+    bars = [task_scene.bar_pose(0.95, 0.30 + 0.07 * k) for k in range(3)]
+    sim = cs.Simulation(dt=2e-4, world=task_scene.world(bars), log_every=25)
+    for i, r in enumerate(task_scene.scaras()):
+        sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), trajectory(r, t_end, phase=1.7 * i))
+    return sim
+
+
+def per_frame(v, repeats):
+    snap, send = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        f = v._snapshot()
+        t1 = time.perf_counter()
+        v._changes += 1          # a new frame for the view (the state stands still here): everything is sent
+        v._draw(f)
+        t2 = time.perf_counter()
+        snap.append(t1 - t0)
+        send.append(t2 - t1)
+    return 1e3 * statistics.median(snap), 1e3 * statistics.median(send)
+
+
+def browser_page(url):
+    from playwright.sync_api import sync_playwright
+
+    pw = sync_playwright().start()
+    b = pw.chromium.launch(executable_path=shutil.which("chromium"),
+                           args=["--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+    page = b.new_page(viewport={"width": 1000, "height": 620})
+    page.goto(url)
+    page.get_by_role("tab", name="Run").wait_for(timeout=120_000)
+    return pw, b, page
+
+
+def page_fps(page, seconds):
+    return page.evaluate("""(ms) => new Promise(done => {
+        let n = 0; const t0 = performance.now();
+        function tick(t) { n++; if (t - t0 < ms) requestAnimationFrame(tick); else done(1000 * n / (t - t0)); }
+        requestAnimationFrame(tick); })""", 1000 * seconds)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repeats, shorter runs")
+    args = ap.parse_args()
+    repeats, sim_seconds = (50, 2.0) if args.quick else (200, 6.0)
+
+    sim = task_sim()
+    sim.run(0.5, progress=False)
+    v = view.live(sim, start=False, quiet=True, collision_boxes=False, contact_lines=True)
+    boxes = sum(len(r.boxes) for r in sim.robots)
+    print(f"scene: {sim.robot_count} robots, {boxes} link boxes, world bodies {sim.world.body_names}")
+    s0, d0 = per_frame(v, repeats)
+    print(f"frame without a page:      snapshot {s0:.3f} ms + send {d0:.3f} ms = {s0 + d0:.3f} ms")
+    have_browser = shutil.which("chromium") is not None
+    pw = b = page = None
+    if have_browser:
+        pw, b, page = browser_page(v.url)
+        s1, d1 = per_frame(v, repeats)
+        print(f"frame with a page:         snapshot {s1:.3f} ms + send {d1:.3f} ms = {s1 + d1:.3f} ms")
+    v.close()
+    if page is not None:
+        b.close()
+        pw.stop()
+
+    # the real-time factor at 400 % with and without the view
+    sim = task_sim()
+    t0 = sim.time
+    stats = sim.run_paced(t0 + sim_seconds, speed=4.0, frame_rate=40.0)
+    rtf_alone = stats.real_time_factor
+    print(f"paced 400 %, no view:      real-time factor {rtf_alone:.3f} ({stats.frames} frames, "
+          f"{stats.steps_per_second:,.0f} steps/s while stepping)")
+    sim = task_sim()
+    v = view.live(sim, start=False, quiet=True, speed=4.0, resettable=False)
+    if have_browser:
+        pw, b, page = browser_page(v.url)
+    # the run in this thread, the page only drawing meanwhile (Playwright's calls from a second thread would
+    # compete with the run for the interpreter)
+    w0 = time.perf_counter()
+    v.run_to(sim_seconds)
+    wall = time.perf_counter() - w0
+    rtf_view = sim_seconds / wall
+    print(f"paced 400 %, view + page:  real-time factor {rtf_view:.3f} "
+          f"({v.frames} frames sent, {v.frames / wall:.1f} per second)")
+    print(f"ratio view / no view:      {rtf_view / rtf_alone:.3f}")
+    if page is not None:
+        # the page's own drawing rate while the view runs on in its thread
+        v.start(sim.time + sim_seconds)
+        time.sleep(0.5)
+        print(f"page in headless Chromium: {page_fps(page, 2.0):.1f} frames per second drawn (software WebGL), "
+              f"the view sending {v.stats.get('fps', 0.0):.1f} per second")
+    v.close()
+    if page is not None:
+        b.close()
+        pw.stop()
+    sim = task_sim()
+    w0 = time.perf_counter()
+    sim.run(sim_seconds, progress=False)
+    w = time.perf_counter() - w0
+    print(f"headless, unpaced:         {sim_seconds / w:.1f}x real time")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,73 @@
+#include "coopsim/checks.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace coopsim {
+
+std::string shape_string(const std::ptrdiff_t* shape, int ndim) {
+  std::ostringstream s;
+  s << "(";
+  for (int i = 0; i < ndim; ++i) s << (i ? ", " : "") << shape[i];
+  s << (ndim == 1 ? ",)" : ")");
+  return s.str();
+}
+
+void check_shape(const std::ptrdiff_t* shape, int ndim, std::initializer_list<std::ptrdiff_t> expected,
+                 const char* name) {
+  bool ok = ndim == static_cast<int>(expected.size());
+  int i = 0;
+  for (auto it = expected.begin(); ok && it != expected.end(); ++it, ++i) ok = *it < 0 || shape[i] == *it;
+  if (ok) return;
+  std::ostringstream s;
+  s << "wrong shape for " << name << ": expected (";
+  i = 0;
+  for (std::ptrdiff_t e : expected) {
+    s << (i++ ? ", " : "");
+    if (e < 0) s << "N"; else s << e;
+  }
+  s << (expected.size() == 1 ? ",)" : ")") << ", got " << shape_string(shape, ndim);
+  throw std::invalid_argument(s.str());
+}
+
+void check_finite(const double* p, std::size_t count, const char* name) {
+  for (std::size_t i = 0; i < count; ++i)
+    if (!std::isfinite(p[i])) throw std::invalid_argument(std::string(name) + " must be finite (got NaN or inf)");
+}
+
+std::vector<double> per_joint(const Array& a, int n, const char* name) {
+  if (a.ndim() == 0 && a.values.size() == 1) {
+    check_finite(a, name);
+    return std::vector<double>(n, a.values[0]);
+  }
+  check_shape(a, {n}, name);
+  check_finite(a, name);
+  return a.values;
+}
+
+bool is_rotation(const Eigen::Matrix3d& R) {
+  return R.allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-9 &&
+         R.determinant() > 0;
+}
+
+void check_rotation(const Eigen::Matrix3d& R, const std::string& name) {
+  if (!is_rotation(R)) throw std::invalid_argument(name + " must be a rotation matrix (orthonormal, determinant +1)");
+}
+
+void check_rigid(const Eigen::Matrix4d& T, const std::string& name) {
+  if (!T.allFinite()) throw std::invalid_argument(name + " must be finite (got NaN or inf)");
+  if ((T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-12)
+    throw std::invalid_argument(name + " must be a homogeneous transform (last row 0 0 0 1)");
+  if (!is_rotation(T.topLeftCorner<3, 3>()))
+    throw std::invalid_argument(name + " must be a rigid transform (orthonormal rotation)");
+}
+
+Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name) {
+  Eigen::Isometry3d T;
+  T.matrix() = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(row_major);
+  check_rigid(T.matrix(), name);
+  return T;
+}
+
+}  // namespace coopsim

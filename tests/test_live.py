@@ -1,0 +1,617 @@
+"""The live view (coopsim.view.live): a page served by viser on 127.0.0.1 while the simulation runs.
+
+Without a browser: what the view draws is the engine's (box poses from Robot.shapes, quaternions checked
+against their matrices), the requests reach the simulation through the simulation's thread, bad values are
+refused and the run goes on, an exception of the run reaches Python, close() frees the port. In Debian's
+chromium (headless, through Playwright, as tests/test_replay.py): the scene's colours where the camera puts
+the robots and the bar, a holding robot green, colliding boxes red, the page's controls (slider, buttons,
+text fields) reaching the pacer and the simulation, the downloads, several pages at once.
+"""
+from __future__ import annotations
+
+import io
+import math
+import socket
+import time
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+from coopsim import view
+
+viser = pytest.importorskip("viser", reason="the live view needs viser (the live extra; scripts/setup.sh)")
+
+from test_grasp import BOX, closing, scene  # noqa: E402  (a SCARA #1 closing its clamp on a box)
+from test_replay import browser  # noqa: E402,F401  (Debian's chromium through Playwright)
+
+WAIT = 120.0    # s: generous bound for anything the page or the run must reach (never a timing assertion)
+
+
+def until(cond, what, timeout=WAIT):
+    """Polls cond() until it is true; fails naming `what` after `timeout` s."""
+    end = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > end:
+            pytest.fail(f"not reached in {timeout} s: {what}")
+        time.sleep(0.02)
+
+
+def two_scaras(world=None, **kw):
+    r1 = cs.robots.scara1()
+    r2 = cs.robots.scara2(base_position=(0.75, 0.0, 0.0), base_yaw=np.pi)
+    sim = cs.Simulation(world=world, **kw)
+    for r, q0 in ((r1, [0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03]), (r2, [0.4, -0.5, -0.5, 0.0, 0.0, 0.02])):
+        sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), np.array(q0, dtype=float))
+    return sim
+
+
+@pytest.fixture
+def views():
+    """Live views made by a test, closed after it."""
+    made = []
+    yield made
+    for v in made:
+        v.close()
+
+
+def make(views, sim, **kw):
+    kw.setdefault("quiet", True)
+    v = view.live(sim, **kw)
+    views.append(v)
+    return v
+
+
+# ---- without a browser ----
+
+def test_quaternions_match_their_rotation_matrices():
+    from coopsim.view.live import _rotation, quaternions
+
+    rng = np.random.default_rng(3)
+    Q = rng.normal(size=(200, 4))
+    Q /= np.linalg.norm(Q, axis=1, keepdims=True)
+    # near 180-degree turns about each axis, where the trace is about -1
+    Q[:6] = [[1e-9, 1, 0, 0], [1e-9, 0, 1, 0], [1e-9, 0, 0, 1], [0, 1, 1, 0], [0, 0, 1, 1], [0, 1, 0, 1]]
+    Q[:6] /= np.linalg.norm(Q[:6], axis=1, keepdims=True)
+    R = np.array([_rotation(q) for q in Q])
+    assert np.allclose(np.einsum("kij,kil->kjl", R, R), np.eye(3), atol=1e-12)
+    back = quaternions(R)
+    assert np.all(back[:, 0] >= 0)
+    assert np.allclose(np.array([_rotation(q) for q in back]), R, atol=1e-12)
+    assert np.allclose(np.abs(np.einsum("ki,ki->k", back, Q)), 1.0, atol=1e-12)   # q and -q: one rotation
+
+
+def test_bad_arguments_name_what_is_wrong(views):
+    sim = two_scaras()
+    with pytest.raises(ValueError, match="sim must be a coopsim.Simulation"):
+        view.live("sim")
+    for kw, match in ((dict(port=-1), "port"), (dict(port=True), "port"), (dict(history=0), "history"),
+                      (dict(holding="both"), "holding|mode"), (dict(speed=5), "speed"),
+                      (dict(frame_rate=0), "frame_rate"), (dict(t_end="x"), "t_end"), (dict(move_time=0), "move time")):
+        with pytest.raises(ValueError, match=match):
+            view.live(sim, quiet=True, start=False, **kw)
+
+
+def test_a_frame_is_the_engines_boxes_at_q_and_at_the_reference(views):
+    sim = two_scaras(world=cs.World())
+    sim.run(0.05, progress=False)
+    v = make(views, sim, start=False)
+    f = v.frame
+    assert f.t == sim.time and f.steps == sim.steps
+    for i, r in enumerate(sim.robots):
+        q, qd = sim.state(i)
+        P, H = r.shapes(q)
+        G, _ = r.shapes(sim.references[i].evaluate(sim.time)[0])
+        assert np.array_equal(f.q[i], q) and np.array_equal(f.poses[i], P) and np.array_equal(f.half[i], H)
+        assert np.array_equal(f.ghost[i], G)
+    # what was sent: the robot mesh's positions and orientations are those boxes (float32 on the wire)
+    P = np.concatenate(f.poses)
+    from coopsim.view.live import _rotation
+
+    mesh = v._robot_mesh
+    assert np.allclose(mesh.batched_positions, P[:, :3, 3], atol=1e-6)
+    assert np.allclose(np.array([_rotation(q) for q in mesh.batched_wxyzs]), P[:, :3, :3], atol=1e-6)
+    # the ghosts leave out the bases (they never move)
+    assert len(v._ghost_mesh.batched_positions) == sum(int(np.sum([b.link != 0 for b in r.boxes])) for r in sim.robots)
+
+
+def test_requests_run_on_the_simulations_thread_and_bad_values_are_refused(views):
+    sim = two_scaras(control_every=5)
+    v = make(views, sim, speed=1.0)
+    until(lambda: sim.time > 0.05, "the run started")
+    seen = []
+    v.submit(lambda: seen.append(__import__("threading").current_thread().name))
+    until(lambda: seen, "a request applied")
+    assert seen == ["coopsim-live"]                     # the view's run thread, never the caller's
+    v.set_speed_percent(250)
+    until(lambda: v.pacer.speed == 2.5, "speed 250 %")
+    for bad in ("fast", float("nan"), 401, -1):
+        v.set_speed_percent(bad)
+        until(lambda: "Refused" in v.message and "speed" in v.message, f"speed {bad!r} refused")
+        v._say("")
+    assert v.pacer.speed == 2.5
+    # pause: the time stands still across two reads; resume: it moves
+    v.pause()
+    until(lambda: v.pacer.paused, "paused")
+    time.sleep(0.1)
+    t1 = sim.time
+    time.sleep(0.2)
+    assert sim.time == t1
+    # one step: exactly one control period
+    s0 = sim.steps
+    v.one_step()
+    until(lambda: sim.steps != s0, "one step")
+    assert sim.steps - s0 == 5 and math.isclose(sim.time - t1, 5 * sim.dt, rel_tol=1e-12)
+    v.resume()
+    until(lambda: sim.time > t1 + 0.05, "running again")
+    # bad joint targets: text, NaN, a wrong count, beyond a limit; the run goes on
+    r = sim.robots[0]
+    for bad, match in (("a, b", "6 numbers"), ("nan, 0, 0, 0, 0, 0", "finite"), ("1, 2, 3", "6 numbers"),
+                       ("0, 0, 0.3, 0, 0, 0", "q3 = 0.3 is beyond")):
+        v.teach_joints(0, bad)
+        assert "Refused" in v.message and match in v.message, v.message
+    for bad in ("x", "nan", "0", "-1", "100"):
+        v._refusing(lambda: v.set_move_time(bad))
+        assert "Refused" in v.message and "move time" in v.message, v.message
+    t2 = sim.time
+    until(lambda: sim.time > t2 + 0.05, "the run goes on after refusals")
+    assert v.error is None and r is not None
+
+
+def test_a_teach_target_becomes_a_cubic_from_where_the_robot_is(views):
+    sim = two_scaras()
+    v = make(views, sim, speed=1.0, move_time=0.5)
+    until(lambda: sim.time > 0.02, "the run started")
+    target = np.array([0.1, -0.4, 0.05, 0.3, 1.0, 0.02])
+    v.teach_joints(1, ", ".join(str(float(x)) for x in target))
+    until(lambda: isinstance(v.call(lambda: sim.references[1]), cs.CubicTrajectory), "the new reference")
+    ref, log = v.call(lambda: (sim.references[1], sim.log))
+    t0 = ref.t_start
+    assert math.isclose(ref.t_end - t0, 0.5)
+    assert np.array_equal(ref.q_points[-1], target) and np.array_equal(ref.qd_points[-1], np.zeros(6))
+    # from where the robot was when the request was applied: the log's row at t0 (log_every=1)
+    k = int(np.flatnonzero(log.t == t0)[0])
+    assert np.array_equal(ref.q_points[0], log[1].q[k]) and np.array_equal(ref.qd_points[0], log[1].qd[k])
+    # the clamp gizmo's handler: the closed-form IK of the pose, nearest the robot's q, as the new target
+    r = sim.robots[0]
+    T = r.fk(np.array([0.2, 0.9, 0.12, 0.4, np.pi / 2, 0.03]))
+    v.teach_pose(0, T)
+    until(lambda: isinstance(v.call(lambda: sim.references[0]), cs.CubicTrajectory), "the IK reference")
+    ref, log = v.call(lambda: (sim.references[0], sim.log))
+    k = int(np.flatnonzero(log.t == ref.t_start)[0])
+    q_end = ref.q_points[-1]
+    assert np.array_equal(q_end, r.ik(T, q_near=log[0].q[k]))
+    assert np.allclose(r.fk(q_end), T, atol=1e-9)
+    # out of reach: the IK's message, the reference kept
+    far = T.copy()
+    far[:3, 3] = [3.0, 0.0, 0.3]
+    v.teach_pose(0, far)
+    until(lambda: "Refused" in v.message, "an unreachable pose refused")
+    assert np.array_equal(v.call(lambda: sim.references[0]).q_points[-1], q_end)
+    v.teach_pose(0, np.full((4, 4), np.nan))
+    assert "Refused" in v.message and "finite" in v.message
+
+
+def test_reset_goes_back_to_the_start_with_the_first_references(views):
+    sim = two_scaras()
+    ref0 = [r.q for r in sim.references]
+    v = make(views, sim)
+    until(lambda: sim.time > 0.05, "the run started")
+    v.teach_joints(0, [0.1, 0.2, 0.1, 0.0, 1.0, 0.02])
+    until(lambda: isinstance(v.call(lambda: sim.references[0]), cs.CubicTrajectory), "the teach move")
+    v.pause()
+    until(lambda: v.pacer.paused, "paused")
+    v.reset()
+    until(lambda: sim.time == 0.0, "back at t = 0")
+    assert [np.array_equal(r.q, q) for r, q in zip(v.call(lambda: sim.references), ref0)] == [True, True]
+    v.resume()
+    until(lambda: sim.time > 0.02, "running from the start")
+
+
+def test_an_exception_in_the_run_reaches_python_and_the_panel(views):
+    class Failing(cs.Controller):
+        def __init__(self):
+            super().__init__()
+
+        def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+            if t > 0.05:
+                raise RuntimeError("controller failed on purpose")
+            return np.zeros(len(q))
+
+    sim = cs.Simulation()
+    sim.add_robot(cs.robots.scara1(), Failing(), np.array([0.3, 0.6, 0.1, 0.0, 1.0, 0.03]))
+    v = make(views, sim, t_end=1.0, speed=4.0)
+    with pytest.raises(RuntimeError, match="controller failed on purpose"):
+        v.wait(timeout=WAIT)
+    assert "Run stopped" in v.message and "controller failed on purpose" in v.message
+    assert "controller failed on purpose" in v._msg.content
+
+
+def test_keep_clock_paces_a_run_in_short_pieces_as_one_run():
+    """A run sequenced in 10 ms pieces (a task waiting for a grasp) keeps real time with keep_clock; without
+    it each piece waits for a frame of its own. A fake clock: exact, whatever the machine's load."""
+    def paced(keep_clock):
+        now = [0.0]
+        pacer = cs.Pacer(speed=1.0, frame_rate=50.0, clock=lambda: now[0],
+                         sleep=lambda d: now.__setitem__(0, now[0] + d))
+        sim = two_scaras()
+        for k in range(1, 21):
+            pacer.run(sim, 0.01 * k, keep_clock=keep_clock)
+        assert math.isclose(sim.time, 0.2, abs_tol=sim.dt / 2)
+        return now[0]
+
+    assert paced(True) <= 0.2 + 0.02 + 1e-9          # real time, but for the first frame (20 ms)
+    assert paced(False) >= 2 * 0.2                   # a frame or more per piece
+
+
+def test_run_to_drives_from_the_callers_thread_and_close_frees_the_port(views):
+    sim = two_scaras()
+    v = make(views, sim, start=False, speed=4.0, resettable=False)
+    v.run_to(0.2)
+    assert math.isclose(sim.time, 0.2, abs_tol=sim.dt / 2) and v.frames > 1
+    v.reset()
+    assert "Refused" in v.message and sim.time > 0.19
+    port = v.port
+    v.close()
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", port))          # free again
+    v2 = make(views, sim, start=False, port=port)
+    assert v2.port == port and v2.url == f"http://127.0.0.1:{port}"
+
+
+def test_the_server_binds_localhost_by_default(views):
+    v = make(views, two_scaras(), start=False)
+    assert v.host == "127.0.0.1" and v.server.get_host() == "127.0.0.1"
+    assert v.url.startswith("http://127.0.0.1:")
+    assert v.server._share_tunnel is None
+
+
+# ---- in a browser ----
+
+class LivePage:
+    """A browser page of a live view; waits for the page's elements, never for a fixed time."""
+
+    def __init__(self, browser, v, width=900, height=560, keep=None):   # noqa: F811
+        self.v, self.keep = v, keep
+        self.page = browser.new_page(viewport={"width": width, "height": height}, accept_downloads=True)
+        self.page.goto(v.url)
+        self.page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
+        until(lambda: len(v.server.get_clients()) > 0, "the page connected")
+
+    def tab(self, name):
+        self.page.get_by_role("tab", name=name).click()
+
+    def click(self, name):
+        self.page.get_by_role("button", name=name, exact=True).click()
+
+    def slider(self, label):
+        """The thumb of the (first visible) slider with this label (its label names the slider's root)."""
+        lab = self.page.locator("label:visible", has_text=label).first
+        return self.page.locator(f'[id="{lab.get_attribute("for")}"] [role="slider"]')
+
+    def field(self, label):
+        """The (first visible) text input labelled so (the label sits beside it in its row)."""
+        return self.page.locator(f'xpath=//label[normalize-space()="{label}"]/ancestor::div'
+                                 f'[contains(@class, "mantine-Flex-root")][1]//input').first
+
+    def camera(self):
+        client = list(self.v.server.get_clients().values())[-1]
+        return client.camera
+
+    def canvas_pixels(self):
+        """The canvas as drawn now, (rows, columns, 3) ints (a page shot clipped to the canvas: no waiting
+        for the element to be still, which a live page never is)."""
+        from PIL import Image
+
+        box = self.page.locator("canvas").first.bounding_box()
+        png = self.page.screenshot(clip=box)
+        return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+
+    def shows(self, point, test, what, radius=4):
+        """Waits until the canvas shows a pixel passing `test` within `radius` px of where the page's camera
+        puts the world point (3,) (projected anew each time: the camera settles after the page loads);
+        returns the shot."""
+        shot = []
+
+        def look():
+            shot[:] = [self.canvas_pixels()]
+            return colour_near(shot[0], self.project(point)[0], test, radius)
+        try:
+            until(look, what)
+        finally:
+            if shot and self.keep is not None:       # what the page showed last, to look at
+                from PIL import Image
+
+                Image.fromarray(shot[0].astype(np.uint8)).save(self.keep / "last_shot.png")
+        return shot[0]
+
+    def project(self, points):
+        """Pixel (column, row) of world points (m, 3) in the canvas, from the page's camera."""
+        cam = self.camera()
+        p, look = np.asarray(cam.position), np.asarray(cam.look_at)
+        f = (look - p) / np.linalg.norm(look - p)
+        right = np.cross(f, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, f)
+        d = np.asarray(points, dtype=float).reshape(-1, 3) - p
+        W, H = cam.image_width, cam.image_height
+        k = (H / 2) / math.tan(cam.fov / 2)
+        z = d @ f
+        return np.column_stack([W / 2 + k * (d @ right) / z, H / 2 - k * (d @ up) / z])
+
+    def close(self):
+        self.page.close()
+
+
+def colour_near(img, uv, test, radius=6):
+    """Whether a pixel within `radius` px of uv passes test(r, g, b) (arrays)."""
+    u, v = int(round(uv[0])), int(round(uv[1]))
+    patch = img[max(0, v - radius):v + radius + 1, max(0, u - radius):u + radius + 1]
+    return bool(np.any(test(patch[..., 0], patch[..., 1], patch[..., 2])))
+
+
+def hue_sat(r, g, b):
+    """Hue (degrees, 0 .. 360) and saturation (0 .. 1) of RGB arrays: shading changes neither much."""
+    r, g, b = (np.asarray(x, dtype=float) for x in (r, g, b))
+    hi, lo = np.maximum(np.maximum(r, g), b), np.minimum(np.minimum(r, g), b)
+    c = np.where(hi > lo, hi - lo, 1.0)
+    h = np.where(hi == r, ((g - b) / c) % 6, np.where(hi == g, (b - r) / c + 2, (r - g) / c + 4)) * 60.0
+    return np.where(hi > lo, h, 0.0), np.where(hi > 0, (hi - lo) / np.maximum(hi, 1), 0.0)
+
+
+def hue_test(centre, width=15.0, saturation=0.35):
+    """A pixel test: hue within `width` degrees of `centre` (the colour's own hue), saturated."""
+    def test(r, g, b):
+        h, s = hue_sat(r, g, b)
+        return (np.abs((h - centre + 180.0) % 360.0 - 180.0) <= width) & (s >= saturation)
+    return test
+
+
+def hue_of(colour):
+    from matplotlib.colors import to_rgb
+
+    return float(hue_sat(*np.array(to_rgb(colour)) * 255)[0])
+
+
+is_red = hue_test(hue_of(view.COLORS["body"]))                 # the bar; colliding boxes (the same hue)
+is_green = hue_test(hue_of(view.COLORS["holding"]), width=25)  # holding; free collision boxes
+is_orange = hue_test(hue_of(view.COLORS["robots"][0]))          # SCARA #1's links
+
+
+@pytest.mark.slow
+def test_the_page_shows_the_robots_and_the_bar_where_the_scene_puts_them(browser, views, tmp_path):  # noqa: F811
+    from coopsim.tasks import scene as task_scene
+
+    world = task_scene.world([task_scene.bar_pose()])
+    r1, r2 = task_scene.scaras()
+    sim = cs.Simulation(world=world)
+    for r, q0 in ((r1, [0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03]), (r2, [0.2, -0.6, -0.6, 0.0, 0.0, 0.02])):
+        sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), np.array(q0))
+    v = make(views, sim, t_end=0.05, contact_lines=False)
+    v.wait(timeout=WAIT)
+    lp = LivePage(browser, v, keep=tmp_path)
+    try:
+        from PIL import Image
+
+        bar = np.asarray(sim.body_state("bar")["position"])
+        img = lp.shows(bar, is_red, "the bar red where it lies")
+        Image.fromarray(img.astype(np.uint8)).save(tmp_path / "scene.png")
+        P, _ = r1.shapes(sim.state(0)[0])
+        links = [k for k, b in enumerate(r1.boxes) if b.name in ("link1", "link2")]
+        assert any(colour_near(img, uv, is_orange) for uv in lp.project(P[links, :3, 3])), \
+            "SCARA #1's arm in its colour where it is"
+    finally:
+        lp.close()
+
+
+@pytest.mark.slow
+def test_a_holding_robot_turns_green(browser, views, tmp_path):  # noqa: F811
+    r, w = scene(BOX)
+    sim = closing(r, w)
+    v = make(views, sim, t_end=0.3, holding="any", contact_lines=False)
+    v.wait(timeout=WAIT)
+    assert sim.holding(0) == "box"
+    lp = LivePage(browser, v, keep=tmp_path)
+    try:
+        from PIL import Image
+
+        P, _ = r.shapes(sim.state(0)[0])
+        arm = [k for k, b in enumerate(r.boxes) if b.name in ("link1", "link2")]
+        img = lp.shows(P[arm[0], :3, 3], is_green, "link1 green")
+        uv = lp.project(P[arm, :3, 3])
+        Image.fromarray(img.astype(np.uint8)).save(tmp_path / "holding.png")
+        assert colour_near(img, uv[1], is_green), "link2 green too"
+        assert not any(colour_near(img, uv, is_orange, radius=2) for uv in lp.project(P[arm, :3, 3]))
+    finally:
+        lp.close()
+
+
+@pytest.mark.slow
+def test_collision_boxes_turn_red_where_a_link_meets_scenery(browser, views, tmp_path):  # noqa: F811
+    from PIL import Image
+
+    r = cs.robots.scara1()
+    q0 = np.array([0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03])
+    P, H = r.shapes(q0)
+    k2 = [b.name for b in r.boxes].index("link2")
+    a = int(np.argmax(H[k2]))                  # along the link
+    post = np.eye(4)
+    post[:3, 3] = P[k2, :3, 3] + P[k2, :3, a] * H[k2, a]
+    post[2, 3] = 0.25
+    w = cs.World()
+    w.add_static_box("post", [0.015, 0.015, 0.25], post)
+    sim = cs.Simulation(world=w, contact_forces=False)       # contacts reported, the robot not pushed
+    sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), q0)
+    v = make(views, sim, t_end=0.02, collision_boxes=True, contact_lines=True)
+    v.wait(timeout=WAIT)
+    hit = v.frame.colliding[0]
+    assert hit[k2] and not hit[[b.name for b in r.boxes].index("link1")]
+    assert len(v.frame.lines) > 0 and v._lines.visible
+    lp = LivePage(browser, v, keep=tmp_path)
+    try:
+        P, _ = r.shapes(sim.state(0)[0])
+        img = lp.shows(P[k2, :3, 3], is_red, "the link meeting the post red", radius=3)
+        uv = lp.project(P[:, :3, 3])
+        Image.fromarray(img.astype(np.uint8)).save(tmp_path / "collision.png")
+        free = np.flatnonzero(~hit)                    # the base column, link1, ...: touching nothing
+        assert any(colour_near(img, uv[k], is_green, radius=3) for k in free), "boxes touching nothing are green"
+        # off: the robot's own colours again
+        lp.tab("Display")
+        lp.page.get_by_label("Collision boxes").uncheck()
+        until(lambda: not v._show["collision_boxes"], "collision boxes off")
+        lp.shows(P[k2, :3, 3], is_orange, "link2 orange again", radius=3)
+    finally:
+        lp.close()
+
+
+@pytest.mark.slow
+def test_the_pages_controls_reach_the_simulation(browser, views):  # noqa: F811
+    sim = two_scaras(control_every=5)
+    v = make(views, sim, speed=1.0)
+    lp = LivePage(browser, v)
+    try:
+        page = lp.page
+        lp.tab("Run")
+        thumb = lp.slider("Speed (%)")
+        thumb.focus()
+        page.keyboard.press("End")
+        until(lambda: v.pacer.speed == 4.0, "the slider at 400 %")
+        page.keyboard.press("Home")
+        until(lambda: v.pacer.speed == 0.0, "the slider at 0 %")
+        t1 = sim.time
+        page.keyboard.press("ArrowRight")
+        until(lambda: v.pacer.speed == 0.01, "the slider at 1 %")
+        until(lambda: sim.time > t1, "1 % moves the time")
+        page.keyboard.press("End")
+        until(lambda: v.pacer.speed == 4.0, "400 % again")
+        lp.click("Pause")
+        until(lambda: v.pacer.paused, "paused from the page")
+        time.sleep(0.1)
+        t1 = sim.time
+        time.sleep(0.3)
+        assert sim.time == t1
+        s0 = sim.steps
+        lp.click("One step")
+        until(lambda: sim.steps != s0, "one step from the page")
+        assert sim.steps - s0 == sim.control_every == 5
+        lp.click("Resume")
+        until(lambda: sim.time > t1 + 0.05, "resumed from the page")
+        # a joint target typed in and sent: the robot's new reference; a bad one: a visible message
+        lp.tab("Robots")
+        field = lp.field("Joint target")
+        field.fill("0.1, 0.2, 0.05, 0.3, 1.2, 0.02")
+        page.get_by_role("button", name="Move to joint target").first.click()
+        until(lambda: isinstance(v.call(lambda: sim.references[0]), cs.CubicTrajectory), "the typed target")
+        assert np.array_equal(v.call(lambda: sim.references[0]).q_points[-1], [0.1, 0.2, 0.05, 0.3, 1.2, 0.02])
+        for bad in ("zero, 1, 2", "nan, 0, 0, 0, 0, 0", "0, 0, 9, 0, 0, 0"):
+            field.fill(bad)
+            page.get_by_role("button", name="Move to joint target").first.click()
+            page.get_by_text("Refused:").first.wait_for(timeout=WAIT * 1000)
+            v._say("")
+            page.get_by_text("Refused:").first.wait_for(state="detached", timeout=WAIT * 1000)
+        # a joint slider moved in the page: a move to the slider's value
+        slider = lp.slider("q1 (rad)")
+        slider.focus()
+        page.keyboard.press("Home")
+        low = sim.robots[0].q_limits[0, 0]
+        until(lambda: v.call(lambda: sim.references[0]).q_points[-1][0] == low, "q1 to its lower limit")
+        assert v.error is None
+    finally:
+        lp.close()
+
+
+@pytest.mark.slow
+def test_the_downloads_hold_the_logs_rows_and_columns(browser, views, tmp_path):  # noqa: F811
+    from coopsim.log import SimulationLog
+
+    sim = two_scaras(world=cs.World(), log_every=20)
+    v = make(views, sim, t_end=0.3, speed=4.0)
+    v.wait(timeout=WAIT)
+    log = sim.log
+    lp = LivePage(browser, v, keep=tmp_path)
+    try:
+        lp.tab("Data")
+        lp.page.get_by_text("last 8 of").wait_for(timeout=WAIT * 1000)
+        for button, ext in (("Download CSV", "csv"), ("Download Excel", "xlsx")):
+            with lp.page.expect_download(timeout=WAIT * 1000) as d:
+                lp.click(button)
+            path = tmp_path / f"log.{ext}"
+            d.value.save_as(path)
+            got = SimulationLog.read_csv(path) if ext == "csv" else SimulationLog.read_excel(path)
+            assert got.columns() == log.columns() and len(got.t) == len(log.t) == 76     # t = 0, 4 ms, ..., 0.3 s
+            A, B = got.to_array(), log.to_array()
+            if ext == "csv":
+                np.testing.assert_array_equal(A, B)                  # every value, exactly (full precision)
+            else:
+                # an xlsx number can be one unit in the last place off; the errors e = q_ref - q (recomputed
+                # from the read q_ref and q) then differ by a few units of q's last place
+                cols = log.columns()
+                e = np.array([".e" in c for c in cols])
+                q = np.array([c.split(".")[-1].rstrip("0123456789") in ("q", "q_ref") for c in cols])
+                np.testing.assert_allclose(A[:, ~e], B[:, ~e], rtol=1e-15, atol=0)
+                np.testing.assert_allclose(A[:, e], B[:, e], rtol=0, atol=4e-16 * np.abs(B[:, q]).max())
+    finally:
+        lp.close()
+
+
+@pytest.mark.slow
+def test_two_pages_a_closed_page_and_a_reload_leave_the_run_intact(browser, views):  # noqa: F811
+    sim = two_scaras()
+    v = make(views, sim, speed=1.0)
+    a, b = LivePage(browser, v), LivePage(browser, v)
+    try:
+        until(lambda: len(v.server.get_clients()) == 2, "two pages")
+        a.close()
+        t1, f1 = sim.time, v.frames
+        until(lambda: sim.time > t1 + 0.1 and v.frames > f1 + 3, "the run goes on after a page closed")
+        b.page.reload()
+        b.page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
+        t2 = sim.time
+        until(lambda: sim.time > t2 + 0.1, "the run goes on after a reload")
+        assert v.error is None and v._thread.is_alive()
+    finally:
+        b.close()
+
+
+@pytest.mark.slow
+def test_the_task_runs_in_the_live_page_with_the_headless_result(views):
+    """The cooperative task sequenced phase by phase through a live view (paced, here at 400 %): the same
+    report, bit for bit, as the headless run (pacing changes when the steps run, not what they compute)."""
+    from coopsim.tasks import handover
+
+    headless = handover.run(cycles=1, score=False)
+    res = handover.run(cycles=1, score=False, live=dict(speed=4.0, quiet=True))
+    views.append(res.live)
+    assert res.success and res.report == headless.report
+    assert res.live.frames > 10 and res.live.error is None and not res.live.resettable
+    res.live.reset()
+    assert "Refused" in res.live.message          # a run sequenced from Python does not go back to its start
+
+
+def test_show_puts_the_live_page_in_a_notebook_cell(views, monkeypatch):
+    import IPython.display
+
+    import coopsim.view.live  # noqa: F401  (the module, for its notebook check)
+    live_module = __import__("sys").modules["coopsim.view.live"]
+    shown = []
+    monkeypatch.setattr(live_module, "_in_notebook", lambda: True)
+    monkeypatch.setattr(IPython.display, "display", shown.append)
+    v = make(views, two_scaras(), start=False)
+    frame = v.show(height=480)
+    assert shown == [frame] and isinstance(frame, IPython.display.IFrame)
+    assert frame.src == v.url and frame.height == 480
+    assert f'src="{v.url}"' in v._repr_html_()
+
+
+@pytest.mark.slow
+def test_the_tasks_command_line_runs_it_live(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--cycles", "1", "--no-video",
+                          "--hold", "0", "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "coopsim live view: http://127.0.0.1:" in res.stdout
+    with open(tmp_path / "report.json", encoding="utf-8") as f:
+        assert json.load(f)["success"] is True
