@@ -74,6 +74,13 @@ void Simulation::sense_(Slot& s, bool now) {
   {
     Slot::Sensor& z = s.sensor;
     const SensorOptions& o = z.opt;
+    // an ideal sensor's reading depends on the present state alone: read at the log's rows, or when asked
+    const bool ideal = o.noise_force == 0 && o.noise_moment == 0 && o.time_constant == 0;
+    if (ideal && !now && !(opt_.log_every > 0 && k_ % opt_.log_every == 0)) {
+      z.stale = true;
+      return;
+    }
+    z.stale = false;
     if (z.at != k_) {
       z.has_prev = z.at >= 0;
       z.prev = z.clamp;
@@ -84,13 +91,6 @@ void Simulation::sense_(Slot& s, bool now) {
         z.noise.setZero();
       }
     }
-    // an ideal sensor's reading depends on the present state alone: read at the log's rows, or when asked
-    const bool ideal = o.noise_force == 0 && o.noise_moment == 0 && o.time_constant == 0;
-    if (ideal && !now && !(opt_.log_every > 0 && k_ % opt_.log_every == 0)) {
-      z.stale = true;
-      return;
-    }
-    z.stale = false;
     const Robot& r = s.robot;
     const bool acting = !s.contact.wrenches.empty() || !s.external.wrenches.empty();
     if (!acting && z.noise.isZero(0) && (!z.has_prev || z.prev.isZero(0))) {
