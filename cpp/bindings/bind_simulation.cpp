@@ -130,6 +130,16 @@ py::list names(const World& w, const std::vector<T>& rows, F field) {
 
 // The options a default-constructed SimulationOptions holds: the one source of the defaults.
 const SimulationOptions kDefaults{};
+const SensorOptions kSensorDefaults{};
+
+py::dict sensor_options_dict(const SensorOptions& o) {
+  py::dict d;
+  d["noise_force"] = o.noise_force;
+  d["noise_moment"] = o.noise_moment;
+  d["time_constant"] = o.time_constant;
+  d["seed"] = o.seed;
+  return d;
+}
 
 // Sets grasp option `name` (engine's table; weld_moment a flag) from a Python value.
 void set_grasp_option(GraspOptions& g, const std::string& name, const py::handle& value) {
@@ -350,6 +360,40 @@ torques between controller updates, the log and tracking metrics.)doc")
              return d;
            }, "Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force "
               "(N), max_depth (m), steps.")
+      .def("set_sensor", [](Simulation& s, int i, double noise_force, double noise_moment, double time_constant,
+                            std::int64_t seed) {
+             SensorOptions o;
+             o.noise_force = noise_force;
+             o.noise_moment = noise_moment;
+             o.time_constant = time_constant;
+             o.seed = seed;
+             s.set_sensor(i, o);  // checks every option
+           },
+           py::arg("i"), py::arg("noise_force") = kSensorDefaults.noise_force,
+           py::arg("noise_moment") = kSensorDefaults.noise_moment,
+           py::arg("time_constant") = kSensorDefaults.time_constant, py::arg("seed") = kSensorDefaults.seed,
+           "Configures robot i's force/torque sensor: noise_force (N) and noise_moment (N m), the standard "
+           "deviations of the Gaussian noise per component in the sensor frame; time_constant (s) of the "
+           "first-order low-pass filter (0: none); seed (>= 0) of the noise generator, which restarts from it.")
+      .def("sensor_options", [](const Simulation& s, int i) { return sensor_options_dict(s.sensor_options(i)); },
+           py::arg("i"), "Robot i's sensor options: noise_force, noise_moment, time_constant, seed.")
+      .def("sensor", [](Simulation& s, int i) {
+             py::dict d;
+             d["ft_world"] = to_numpy(s.ft_world(i));
+             d["ft_clamp"] = to_numpy(s.ft_clamp(i));
+             d["ft_true_world"] = to_numpy(s.ft_true_world(i));
+             d["ft_true_clamp"] = to_numpy(s.ft_true_clamp(i));
+             d["pose"] = to_numpy(s.sensor_pose(i));
+             d["tau"] = to_numpy(s.tau(i));
+             d["tau_ext"] = to_numpy(s.tau_ext(i));
+             return d;
+           }, py::arg("i"),
+           "Robot i's sensors now: ft_world, ft_clamp (6,) the force/torque reading [N; N m about the tool "
+           "centre point] in world axes and in the sensor frame, ft_true_world, ft_true_clamp (6,) the same "
+           "without noise or filter, pose (4, 4) the sensor frame (the TCP) in the world, tau (n,) the motors' "
+           "held torque, tau_ext (n,) the environment's joint torque held over the step.")
+      .def("sensor_log", [](const Simulation& s, int i) { return view(s.log(i).ft, s.log_rows(), true); },
+           py::arg("i"), "Robot i's force/torque reading per log row, (rows, 12): world axes (6), sensor frame (6).")
       .def("grasp_log", &grasp_log, py::arg("i"),
            "Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force "
            "(3) N and moment (3) N m on it.")
@@ -434,6 +478,10 @@ torques between controller updates, the log and tracking metrics.)doc")
      "world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, "
      "penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, "
      "release_time s, weld_moment).");
+
+  m.def("sensor_defaults", []() { return sensor_options_dict(kSensorDefaults); },
+        "The engine's defaults of a robot's force/torque sensor (SimulationCore.set_sensor), the only place they "
+        "are written: noise_force (N), noise_moment (N m), time_constant (s), seed.");
 
   m.def("log_schema", []() {
     py::list out;

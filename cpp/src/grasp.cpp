@@ -231,6 +231,7 @@ void Simulation::release(int i) {
     external_(o);
     o.state.k1_valid = false;
     o.external.held = o.external.applied || o.contact.any;
+    if (o.sensor.at == k_) sense_(o);
   }
   if (logged_at_ == k_) logged_at_ = -1;
 }

@@ -114,6 +114,7 @@ void Simulation::reserve(long steps) {
   for (Slot& s : slots_) {
     for (LogColumn& c : s.record.log.columns) c.reserve(rows);
     s.record.log.grasp.reserve(rows);
+    s.record.log.ft.reserve(rows);
   }
   for (LogColumn& c : body_log_) c.reserve(rows);
 }
@@ -146,6 +147,10 @@ void Simulation::log_() {
     const Vec6& weld = s.grasp.weld;
     double g[7] = {static_cast<double>(s.grasp.held), weld[0], weld[1], weld[2], weld[3], weld[4], weld[5]};
     s.record.log.grasp.push(g);
+    double ft[12];
+    Eigen::Map<Vec6>(ft + 0) = s.sensor.world;
+    Eigen::Map<Vec6>(ft + 6) = s.sensor.clamp;
+    s.record.log.ft.push(ft);
   }
   for (size_t b = 0; b < body_log_.size(); ++b) {
     const BodyState& st = body_now_[b];

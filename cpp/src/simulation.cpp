@@ -105,6 +105,7 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   s.record.metrics.sum_sq_error = s.record.metrics.max_abs_error = s.record.metrics.max_abs_tau = VecN::Zero(n);
   for (LogColumn& c : s.record.log.columns) c = LogColumn(n);
   s.record.log.grasp = LogColumn(7);
+  s.record.log.ft = LogColumn(12);
   slots_.push_back(std::move(s));
   return robot_count() - 1;
 }
@@ -142,6 +143,8 @@ void Simulation::reset() {
     s.control.updated_at = -1;
     for (LogColumn& c : s.record.log.columns) c.clear();
     s.record.log.grasp.clear();
+    s.record.log.ft.clear();
+    reset_sensor_(s);
     s.record.metrics.steps = 0;
     s.record.metrics.sum_sq_error.setZero(n);
     s.record.metrics.max_abs_error.setZero(n);
@@ -241,6 +244,7 @@ void Simulation::applied_changed_(Slot& s) {
   // the new inputs hold from now on, over the next step
   external_(s);
   s.state.k1_valid = false;
+  if (s.sensor.at == k_) sense_(s);  // the reading at this time sees them too
   // a row already logged at this time shows the inputs before the change:
   // the next advance logs a second row at this time with the new ones
   if (logged_at_ == k_) logged_at_ = -1;
@@ -299,6 +303,7 @@ void Simulation::stages_() {
     if (profiling_) ++profile_.world_steps;
   }
   if (fresh) hold_external_();  // applied inputs and contacts: the external torque over the step
+  sense_();                     // sense: the force/torque sensors at t_k
   log_();                       // log: the row at t_k
 }
 

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'simulation_defaults']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults']
 class Tool:
     """
     The tool centre point (TCP).
@@ -965,6 +965,18 @@ class SimulationCore:
         """
         Advances to time t_end (s) in chunks of `chunk` steps with the GIL released, calling callback(done, total) after each chunk. Returns the number of steps.
         """
+    def sensor(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
+        """
+        Robot i's sensors now: ft_world, ft_clamp (6,) the force/torque reading [N; N m about the tool centre point] in world axes and in the sensor frame, ft_true_world, ft_true_clamp (6,) the same without noise or filter, pose (4, 4) the sensor frame (the TCP) in the world, tau (n,) the motors' held torque, tau_ext (n,) the environment's joint torque held over the step.
+        """
+    def sensor_log(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Robot i's force/torque reading per log row, (rows, 12): world axes (6), sensor frame (6).
+        """
+    def sensor_options(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
+        """
+        Robot i's sensor options: noise_force, noise_moment, time_constant, seed.
+        """
     def set_applied(self, i: typing.SupportsInt | typing.SupportsIndex, forces: typing.Any = None, wrenches: typing.Any = None) -> None:
         """
         Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench at the tool centre point); None keeps that input as it is.
@@ -982,6 +994,10 @@ class SimulationCore:
     def set_robot(self, i: typing.SupportsInt | typing.SupportsIndex, robot: Robot) -> None:
         """
         Replaces robot i by a robot of the same joints and boxes (copied); q and qd stay, the controller is reset, with a world the robot's link bodies and exclusions follow.
+        """
+    def set_sensor(self, i: typing.SupportsInt | typing.SupportsIndex, noise_force: typing.SupportsFloat | typing.SupportsIndex = 0.0, noise_moment: typing.SupportsFloat | typing.SupportsIndex = 0.0, time_constant: typing.SupportsFloat | typing.SupportsIndex = 0.0, seed: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
+        """
+        Configures robot i's force/torque sensor: noise_force (N) and noise_moment (N m), the standard deviations of the Gaussian noise per component in the sensor frame; time_constant (s) of the first-order low-pass filter (0: none); seed (>= 0) of the noise generator, which restarts from it.
         """
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
@@ -1140,6 +1156,10 @@ def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: t
 def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[list, list]:
     """
     Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time (s) its run took.
+    """
+def sensor_defaults() -> dict:
+    """
+    The engine's defaults of a robot's force/torque sensor (SimulationCore.set_sensor), the only place they are written: noise_force (N), noise_moment (N m), time_constant (s), seed.
     """
 def simulation_defaults() -> dict:
     """

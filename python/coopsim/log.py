@@ -67,13 +67,15 @@ class RobotLog:
     applied from that row's time to the next step (held, saturated), and
     tau_ext, the joint torque of the applied forces and wrenches over that
     step (N m or N); q_ref, qd_ref, qdd_ref, the reference at that time; error =
-    q_ref - q. Arrays taken from a simulation are read-only views of its log
+    q_ref - q. Beside them (not in the tables): holding and weld (the grasp), and
+    ft_world, ft_clamp (rows, 6), the force/torque sensor's reading at the tool
+    centre point (N, N m; Simulation.set_sensor). Arrays taken from a simulation are read-only views of its log
     (later steps or a reset do not change them); copy one to modify it.
     """
 
-    __slots__ = ("name", "t", "holding", "weld", "joint_types") + STORED
+    __slots__ = ("name", "t", "holding", "weld", "ft_world", "ft_clamp", "joint_types") + STORED
 
-    def __init__(self, name, t, holding=None, weld=None, joint_types=None, **arrays):
+    def __init__(self, name, t, holding=None, weld=None, joint_types=None, ft_world=None, ft_clamp=None, **arrays):
         missing = [k for k in STORED if k not in arrays]
         unknown = [k for k in arrays if k not in STORED]
         if missing or unknown:
@@ -84,6 +86,11 @@ class RobotLog:
         #: the weld's point, midway between the clamp's pads (rows, 6; N, N m, world frame)
         self.holding = np.full(len(t), "", dtype=object) if holding is None else holding
         self.weld = np.zeros((len(t), 6)) if weld is None else weld
+        #: per row, the force/torque sensor's reading (rows, 6): force (N) and moment (N m) about the tool
+        #: centre point that the robot's end applies to its environment (Simulation.set_sensor), in world
+        #: axes (ft_world) and in the sensor frame, the tool frame (ft_clamp); zeros when unknown
+        self.ft_world = np.zeros((len(t), 6)) if ft_world is None else ft_world
+        self.ft_clamp = np.zeros((len(t), 6)) if ft_clamp is None else ft_clamp
         #: the robot's joint types, e.g. 'RRPRRP' (which joints are in rad, which in m), or None if unknown
         self.joint_types = joint_types
         for k in STORED:
@@ -94,6 +101,8 @@ class RobotLog:
 
     def __setstate__(self, state):
         self.joint_types = None  # a log pickled before it had them
+        rows = len(state["t"])
+        self.ft_world = self.ft_clamp = np.zeros((rows, 6))  # nor these
         for k, v in state.items():
             setattr(self, k, v)
 
@@ -203,7 +212,7 @@ class SimulationLog:
     def check(self, *, poses: bool = False) -> "SimulationLog":
         """Returns the log if it is consistent, else raises ValueError naming what is not: log.t
         (rows,) finite real numbers in time order; per robot every quantity (rows, n) real numbers
-        with one n, holding (rows,) and weld (rows, 6); per free body (rows, 13) real numbers, and
+        with one n, holding (rows,), weld, ft_world and ft_clamp (rows, 6); per free body (rows, 13) real numbers, and
         with poses=True (the views) finite, positions within 1e6 m and unit quaternions. A
         simulation's log always is; the views and tables check one built or changed by hand."""
         t = _real(self.t, "log.t")
@@ -227,8 +236,9 @@ class SimulationLog:
                 n = a.shape[1]
             if np.shape(r.holding) != (rows,):
                 raise ValueError(f"wrong shape for log[{i}].holding: expected ({rows},), got {np.shape(r.holding)}")
-            if _real(r.weld, f"log[{i}].weld").shape != (rows, 6):
-                raise ValueError(f"wrong shape for log[{i}].weld: expected ({rows}, 6), got {np.shape(r.weld)}")
+            for k in ("weld", "ft_world", "ft_clamp"):
+                if _real(getattr(r, k), f"log[{i}].{k}").shape != (rows, 6):
+                    raise ValueError(f"wrong shape for log[{i}].{k}: expected ({rows}, 6), got {np.shape(getattr(r, k))}")
         for name, b in self.bodies.items():
             d = _real(b.data, f"log.bodies[{name!r}]")
             if d.shape != (rows, 13):

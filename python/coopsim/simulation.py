@@ -181,12 +181,15 @@ class Simulation:
         c = self._core
         entries = [(c.robot(i), c.controller(i), c.reference(i), *c.initial_state(i)) for i in range(self.robot_count)]
         # the world as built (a fresh copy of its bodies, at their initial states)
-        return {"options": self.options, "world": c.world, "entries": entries}
+        sensors = [c.sensor_options(i) for i in range(self.robot_count)]
+        return {"options": self.options, "world": c.world, "entries": entries, "sensors": sensors}
 
     def __setstate__(self, state):
         self.__init__(world=state.get("world"), **state["options"])
         for robot, controller, reference, q0, qd0 in state["entries"]:
             self.add_robot(robot, controller, reference, q0=q0, qd0=qd0)
+        for i, options in enumerate(state.get("sensors", [])):
+            self.set_sensor(i, **options)
 
     def __repr__(self) -> str:
         names = ", ".join(f"{r.name}/{type(c).__name__}" for r, c in zip(self.robots, self.controllers))
@@ -348,6 +351,52 @@ class Simulation:
         """The weld's force (N) and moment (N m) on the body a robot holds, (6,), world frame."""
         return self._core.weld_wrench(_index(robot, self.robot_count))
 
+    # ---- sensors ----
+
+    def set_sensor(self, robot: int = 0, *, noise_force: Optional[float] = None,
+                   noise_moment: Optional[float] = None, time_constant: Optional[float] = None,
+                   seed: Optional[int] = None) -> None:
+        """Configures a robot's force/torque sensor (every robot has one; by default ideal: no noise,
+        no filter). An argument left None keeps its present value.
+
+        The sensor sits at the tool centre point (TCP; for a clamp, between the jaws) and reads the
+        wrench the robot's end (the clamp's links, or the tool's link and beyond) applies to its
+        environment: the weld's wrench on a held body, minus every contact force and moment on the
+        end's boxes, minus the applied link wrenches on it (applied joint forces are not sensed);
+        not the end's own weight or inertia. [force N; moment N m about the TCP]. A held body at
+        rest reads its weight carried: force m g upwards, moment (c - p_tcp) x force.
+
+        noise_force (N), noise_moment (N m): standard deviations of the Gaussian noise added to each
+        force and moment component in the sensor frame (>= 0). time_constant (s, >= 0; 0: none): a
+        first-order low-pass filter after the noise, y_k = y_(k-1) + a (x_k - y_(k-1)) with
+        a = 1 - exp(-dt / time_constant) at every step (its step response at time T after the step
+        is 1 - exp(-(T + dt) / time_constant)). seed (int >= 0): the noise generator restarts from
+        it now and at :meth:`reset`, so a seed repeats its noise. ValueError names a negative or
+        non-finite option. The new options act from the next step.
+        """
+        i = _index(robot, self.robot_count)
+        o = self._core.sensor_options(i)
+        given = dict(noise_force=noise_force, noise_moment=noise_moment, time_constant=time_constant, seed=seed)
+        o.update({k: v for k, v in given.items() if v is not None})
+        self._core.set_sensor(i, **o)
+
+    def sensor_options(self, robot: int = 0) -> dict:
+        """A robot's sensor options: noise_force (N), noise_moment (N m), time_constant (s), seed."""
+        return self._core.sensor_options(_index(robot, self.robot_count))
+
+    def sensor(self, robot: int = 0) -> dict:
+        """A robot's sensors at the present time (the log's row at this time), numpy arrays:
+
+        ft_world (6,): the force/torque reading [fx, fy, fz, mx, my, mz] (N, N m; moment about the
+        TCP) in world axes; ft_clamp (6,): the same in the sensor frame (the tool frame, ``pose``);
+        ft_true_world, ft_true_clamp (6,): the true wrench, without noise or filter; pose (4, 4):
+        the sensor frame in the world; tau (n,): the motors' torque held over the step (N m or N);
+        tau_ext (n,): the joint torque the environment puts on the joints over the step: contacts,
+        welds (J^T of their wrenches), the jaw's stop on a held body, applied forces and wrenches.
+        See :meth:`set_sensor` for what the wrench is. All zero before the first step.
+        """
+        return self._core.sensor(_index(robot, self.robot_count))
+
     def excluded_pairs(self, robot: int = 0) -> List[tuple]:
         """Names of the box pairs of a robot that never collide in the world: boxes of one
         link or of adjacent links (the base column is link 0), and pairs touching at every
@@ -463,8 +512,9 @@ class Simulation:
         for i in range(self.robot_count):
             g = c.grasp_log(i)
             held = names[g[:, 0].astype(int)]  # -1 (none) picks the trailing ""
-            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:],
-                                   joint_types=c.robot(i).joint_types, **c.log(i)))
+            ft = c.sensor_log(i)
+            robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:], ft_world=ft[:, :6],
+                                   ft_clamp=ft[:, 6:], joint_types=c.robot(i).joint_types, **c.log(i)))
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,

@@ -72,6 +72,10 @@ struct RobotLog {
   // per row: the world id of the body held (-1: none), then the weld's force
   // (N) and moment (N m) on it over the world step, world frame (7 values)
   LogColumn grasp{7};
+  // per row: the force/torque sensor's reading (SensorOptions, simulation.hpp), force (N) and moment
+  // (N m) about the tool centre point that the robot's end applies to its environment: world axes (6),
+  // then the sensor frame (6)
+  LogColumn ft{12};
   const LogColumn& operator[](int quantity) const { return columns[quantity]; }
 };
 

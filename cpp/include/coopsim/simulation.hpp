@@ -43,6 +43,7 @@
 //   grasp        the clamp rule, the welds' wrenches                      grasp.cpp
 //   world step   Bullet's step; its contacts as joint torques, held       contact_coupling.cpp
 //   external     applied inputs and contacts: tau_ext over the step       simulation.cpp
+//   sense        the force/torque sensors at the tool centre points        sensor.cpp
 //   log          the row at t_k, when due                                 log.cpp
 //   integrate    RK4 or Euler to t_k+1 under the held torques             simulation.cpp
 // Divergence checks and their messages are in divergence.cpp, the self-collision exclusions in
@@ -57,7 +58,9 @@
 #include <vector>
 
 #include <array>
+#include <cstdint>
 #include <functional>
+#include <random>
 
 #include <Eigen/Cholesky>
 
@@ -87,6 +90,32 @@ struct SimulationOptions {
   double max_speed = 1e4;     // rad/s or m/s: faster counts as divergence
   double max_position = 1e6;  // rad or m: farther counts as divergence
 };
+
+// A robot's force/torque sensor (set_sensor). It sits at the tool centre point (TCP; for a clamp,
+// between the jaws) and measures the wrench the robot's end, links >= L, applies to its
+// environment: L is the clamp's fixed link (the tool's link for a robot without a clamp). That wrench
+// is minus the sum of what acts on those links from outside: the weld's reaction (so a held body
+// reads the weld's wrench on it), every contact on their boxes (with free bodies, scenery, other
+// links) and the applied link wrenches (set_applied_wrenches; applied joint forces are not
+// wrenches and are not sensed). The links' own weight and inertia are not in it (an ideal,
+// gravity-compensated sensor). The true wrench, [force N; moment N m about the TCP], is taken in
+// the sensor frame (the tool frame: the TCP's orientation); Gaussian noise of standard deviation
+// noise_force (each force component) and noise_moment (each moment component) is added in that
+// frame, then a first-order low-pass filter of time constant `time_constant` runs at every step:
+//   y_k = y_{k-1} + a (x_k - y_{k-1}),  a = 1 - exp(-dt / time_constant)  (a = 1 when 0),
+// the exact discretisation of tau dy/dt = x - y for an input held over each step, with the
+// sample of step k included (no delay); it starts at the first sample. The world reading is the
+// sensor-frame reading turned into world axes (the same point). The contact wrenches are those
+// held over the world step, at the links' present pose. The noise is drawn from a generator seeded
+// with `seed` (std::mt19937_64) at set_sensor() and at reset(): a seed gives the same noise.
+struct SensorOptions {
+  double noise_force = 0.0;    // N, standard deviation per force component, >= 0
+  double noise_moment = 0.0;   // N m, standard deviation per moment component, >= 0
+  double time_constant = 0.0;  // s, >= 0 (0: no filter)
+  std::int64_t seed = 0;       // >= 0
+};
+// Throws std::invalid_argument naming the first option that is negative or not finite.
+void check_sensor_options(const SensorOptions& o);
 
 // A contact point of one world step, with the time the step began.
 struct LoggedContact {
@@ -180,6 +209,21 @@ class Simulation {
   // The rule's conditions for robot i and free body `body` in the present state.
   GraspCheck grasp_check(int i, int body);
   void set_profiling(bool on) { profiling_ = on; }
+  // ---- sensors (see SensorOptions) ----
+  // Configures robot i's force/torque sensor; the noise generator restarts from the seed, the
+  // filter keeps its state. Throws std::invalid_argument naming a bad option.
+  void set_sensor(int i, const SensorOptions& options);
+  const SensorOptions& sensor_options(int i) const { return slot_(i).sensor.opt; }
+  // Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+  // TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+  // Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+  // rows and when asked here: its reading depends on the present state alone.)
+  const Vec6& ft_clamp(int i) { return fresh_sensor_(i).clamp; }
+  const Vec6& ft_world(int i) { return fresh_sensor_(i).world; }
+  const Vec6& ft_true_clamp(int i) { return fresh_sensor_(i).true_clamp; }
+  const Vec6& ft_true_world(int i) { return fresh_sensor_(i).true_world; }
+  // The sensor frame: the TCP's pose in the world at the present state.
+  Eigen::Isometry3d sensor_pose(int i) const;
   // ---- state ----
   long step_count() const { return k_; }
   double time() const { return k_ * opt_.dt; }
@@ -278,6 +322,17 @@ class Simulation {
       bool releasing = false;
       Vec6 weld = Vec6::Zero();       // force, moment on the body
     } grasp;
+    struct Sensor {  // the sense stage: the force/torque sensor at the TCP
+      SensorOptions opt;
+      std::mt19937_64 rng;
+      std::normal_distribution<double> normal;
+      Vec6 noise = Vec6::Zero();                 // drawn for step `at`
+      Vec6 prev = Vec6::Zero();                  // the filter's output before step `at`
+      Vec6 true_clamp = Vec6::Zero(), true_world = Vec6::Zero(), clamp = Vec6::Zero(), world = Vec6::Zero();
+      long at = -1;                              // the step of the last reading (-1: none yet)
+      bool has_prev = false;                     // prev holds a reading of an earlier step
+      bool stale = false;                        // an ideal sensor not read at step `at` (no log row)
+    } sensor;
     struct Record {  // the log stage
       RobotLog log;
       TrackingMetrics metrics;
@@ -296,6 +351,10 @@ class Simulation {
   void world_advance_(double h);         // the world's step
   void contacts_to_robots_(double h);    // its contacts as joint torques, held; its events
   void hold_external_();                 // every robot's external torque at t_k, held over the step
+  void sense_();                         // sense: the force/torque sensors at t_k
+  void sense_(Slot& s, bool now = false);  // one robot's (now: an ideal one too, off the log's rows)
+  void reset_sensor_(Slot& s);
+  const Slot::Sensor& fresh_sensor_(int i);  // robot i's sensor, read now if stale
   void log_();                           // log: the row at t_k
   void integrate_();                     // integrate: to t_k+1
   // ---- divergence (divergence.cpp) ----
