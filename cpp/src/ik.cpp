@@ -101,6 +101,23 @@ void planar_error(double r, double reach_lo, double reach_hi, const char* point,
         " m from the axis of joint 1, the arm reaches " + num(reach_lo) + " .. " + num(reach_hi) + " m";
 }
 
+// phi1, the angle of link 1 about joint 1 (rad): the wrist point's azimuth less the arm's own angle in the
+// plane, or, with the wrist point on joint 1's axis (singular), q_near's; false (with why) without q_near.
+bool joint1_angle(const Link& L0, bool on_axis, double azimuth_less_arm, const VecN* q_near, double& phi1,
+                  std::string& why) {
+  if (!on_axis) {
+    phi1 = azimuth_less_arm;
+    return true;
+  }
+  if (!q_near) {
+    why = "singular target: the wrist point is on the axis of joint 1, so theta1 is undetermined "
+          "(give q_near to choose it)";
+    return false;
+  }
+  phi1 = (*q_near)[0] + L0.dh.theta;
+  return true;
+}
+
 // SCARA #1, decoupled: wrist point -> theta1, theta2, d3; orientation -> theta4, theta5.
 std::vector<Candidate> scara1_candidates(const Robot& r, const Eigen::Isometry3d& T5, const VecN* q_near,
                                          std::string& why) {
@@ -127,16 +144,9 @@ std::vector<Candidate> scara1_candidates(const Robot& r, const Eigen::Isometry3d
     const double s = branch * s_abs;
     const double phi2 = std::atan2(s, c);
     double phi1;
-    if (rr < 1e-12 * (a1 + a2)) {
-      if (!q_near) {
-        why = "singular target: the wrist point is on the axis of joint 1, so theta1 is undetermined "
-              "(give q_near to choose it)";
-        return {};
-      }
-      phi1 = (*q_near)[0] + L[0].dh.theta;
-    } else {
-      phi1 = std::atan2(y, x) - std::atan2(a2 * s, a1 + a2 * c);
-    }
+    if (!joint1_angle(L[0], rr < 1e-12 * (a1 + a2), std::atan2(y, x) - std::atan2(a2 * s, a1 + a2 * c), q_near,
+                      phi1, why))
+      return {};
     VecN q = VecN::Zero(6);
     q[0] = phi1 - L[0].dh.theta;
     q[1] = phi2 - L[1].dh.theta;
@@ -211,16 +221,9 @@ std::vector<Candidate> scara2_candidates(const Robot& r, const Eigen::Isometry3d
       const double beta = sign * b_abs;
       const std::complex<double> P = a1 + a2 * std::polar(1.0, beta) + a3 * std::polar(1.0, 2.0 * beta);
       double phi1;
-      if (rr < 1e-12 * reach_hi || std::abs(P) < 1e-12 * reach_hi) {
-        if (!q_near) {
-          why = "singular target: the wrist point is on the axis of joint 1, so theta1 is undetermined "
-                "(give q_near to choose it)";
-          return {};
-        }
-        phi1 = (*q_near)[0] + L[0].dh.theta;
-      } else {
-        phi1 = std::atan2(y, x) - std::arg(P);
-      }
+      if (!joint1_angle(L[0], rr < 1e-12 * reach_hi || std::abs(P) < 1e-12 * reach_hi,
+                        std::atan2(y, x) - std::arg(P), q_near, phi1, why))
+        return {};
       VecN q = VecN::Zero(6);
       q[0] = phi1 - L[0].dh.theta;
       q[1] = beta;
