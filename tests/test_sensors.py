@@ -224,7 +224,7 @@ def test_filtered_noise_has_the_standard_deviation_of_the_filter():
 
 def test_sensor_options_their_defaults_checks_and_pickling():
     _, sim = still_robot()
-    assert sim.sensor_options(0) == cs._core.sensor_defaults() == dict(noise_force=0.0, noise_moment=0.0,
+    assert sim.sensor_options(0) == cs.Simulation.sensor_defaults() == dict(noise_force=0.0, noise_moment=0.0,
                                                                           time_constant=0.0, seed=0)
     s = sim.sensor(0)
     assert set(s) == {"ft_world", "ft_clamp", "ft_true_world", "ft_true_clamp", "pose", "tau", "tau_ext"}

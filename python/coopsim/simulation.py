@@ -145,6 +145,12 @@ class Simulation:
         """The options' defaults, the engine's: {name: value}, grasp_options a dict of its own."""
         return _core.simulation_defaults()
 
+    @staticmethod
+    def sensor_defaults() -> dict:
+        """The engine's defaults of a robot's force/torque sensor (see :meth:`set_sensor`): noise_force (N),
+        noise_moment (N m), time_constant (s), seed."""
+        return _core.sensor_defaults()
+
     @property
     def options(self) -> dict:
         """The constructor's keyword arguments but the world."""
