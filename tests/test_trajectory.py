@@ -89,6 +89,29 @@ def test_holds_end_points_outside_the_time_range():
     assert tr.duration == pytest.approx(times[-1] - times[0])
 
 
+def test_extrapolate_error_refuses_times_outside_the_range_hold_is_the_default():
+    tr = cs.CubicTrajectory([0.5, 1.0, 2.5], [[0.0, 1.0], [0.4, 0.2], [1.0, -1.0]])
+    # default and explicit "hold": the end points at rest, as the docstring says
+    for mode in ({}, {"extrapolate": "hold"}):
+        q, qd, qdd = tr.evaluate(3.0, **mode)
+        np.testing.assert_array_equal(q, [1.0, -1.0])
+        np.testing.assert_array_equal(qd, [0.0, 0.0])
+        np.testing.assert_array_equal(qdd, [0.0, 0.0])
+    assert "held at rest" in cs.CubicTrajectory.__doc__
+    assert "extrapolate" in cs.CubicTrajectory.evaluate.__doc__
+    # "error": ValueError naming t and the range, scalar or array, on either side
+    for t in (3.0, 0.4999, [0.6, 2.6]):
+        with pytest.raises(ValueError, match=r"t = (3|0\.4999|2\.6) s is outside the trajectory's time range \[0\.5, 2\.5\]"):
+            tr.evaluate(t, extrapolate="error")
+    # inside the range (both ends included) "error" equals "hold"
+    t = np.array([0.5, 0.7, 1.0, 2.0, 2.5])
+    for a, b in zip(tr.evaluate(t, extrapolate="error"), tr.evaluate(t)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(tr.evaluate(2.5, extrapolate="error")[0], [1.0, -1.0], rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="extrapolate must be 'hold' or 'error', got 'clamp'"):
+        tr.evaluate(1.0, extrapolate="clamp")
+
+
 def test_coefficients_equal_direct_4x4_solve(trajectory):
     c, t = trajectory.coefficients, trajectory.times
     Q, V = trajectory.q_points, trajectory.qd_points

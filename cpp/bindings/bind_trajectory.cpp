@@ -4,6 +4,7 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <string>
 #include <stdexcept>
 
 #include "convert.hpp"
@@ -70,21 +71,20 @@ Arr times_arg(const py::object& t, const char* name) {
 }
 
 // (q, qd, qdd) of a Reference at a scalar time -> (n,) each, or at (N,) times -> (N, n) each.
-py::tuple evaluate_ref(const Reference& r, const py::object& t) {
+// A CubicTrajectory asked with Extrapolate::Error refuses times outside its range (the engine checks).
+py::tuple evaluate_ref(const Reference& r, const py::object& t, Extrapolate extrapolate = Extrapolate::Hold) {
   Arr ta = times_arg(t, "t");
   const py::ssize_t n = r.dof();
-  if (ta.ndim() == 0) {
-    py::array_t<double> q(n), qd(n), qdd(n);
-    r.evaluate(ta.data()[0], q.mutable_data(), qd.mutable_data(), qdd.mutable_data());
-    return py::make_tuple(q, qd, qdd);
-  }
-  const py::ssize_t m = ta.shape(0);
-  py::array_t<double> q({m, n}), qd({m, n}), qdd({m, n});
+  const bool scalar = ta.ndim() == 0;
+  const py::ssize_t m = scalar ? 1 : ta.shape(0);
+  py::array_t<double> q = scalar ? py::array_t<double>(n) : py::array_t<double>({m, n});
+  py::array_t<double> qd = scalar ? py::array_t<double>(n) : py::array_t<double>({m, n});
+  py::array_t<double> qdd = scalar ? py::array_t<double>(n) : py::array_t<double>({m, n});
   double *pq = q.mutable_data(), *pqd = qd.mutable_data(), *pqdd = qdd.mutable_data();
   const double* pt = ta.data();
   if (auto* c = dynamic_cast<const CubicTrajectory*>(&r)) {
     py::gil_scoped_release nogil;
-    c->evaluate_many(pt, static_cast<long>(m), pq, pqd, pqdd);
+    c->evaluate_many(pt, static_cast<long>(m), pq, pqd, pqdd, extrapolate);
   } else {
     for (py::ssize_t i = 0; i < m; ++i) r.evaluate(pt[i], pq + i * n, pqd + i * n, pqdd + i * n);
   }
@@ -119,12 +119,15 @@ void bind_trajectory(py::module_& m) {
         .def_property_readonly("dof", &Reference::dof, "Number of joints n.")
         .def_property_readonly("t_start", &Reference::t_start, "First time (s).")
         .def_property_readonly("t_end", &Reference::t_end, "Last time (s); the end point is held after it.")
-        .def("evaluate", &evaluate_ref, py::arg("t"),
+        .def("evaluate", [](const Reference& r, const py::object& t) { return evaluate_ref(r, t); }, py::arg("t"),
              "(q, qd, qdd) at time t (s): each (n,) for a scalar t, (N, n) for an array of N times; "
              "rad, rad/s, rad/s^2 (m, m/s, m/s^2 for prismatic joints).");
   }
 
   py::class_<CubicTrajectory, Reference, std::shared_ptr<CubicTrajectory>>(m, "CubicTrajectory", CubicTrajectory::kDoc)
+      .def("evaluate", [](const CubicTrajectory& c, const py::object& t, const std::string& extrapolate) {
+             return evaluate_ref(c, t, extrapolate_from_name(extrapolate));
+           }, py::arg("t"), py::kw_only(), py::arg("extrapolate") = "hold", CubicTrajectory::kEvaluateDoc)
       .def(py::init([](const py::object& times, const py::object& q_points, const py::object& qd_points, bool spline,
                        const py::object& qd_start, const py::object& qd_end) {
              return std::make_shared<CubicTrajectory>(CubicTrajectory::from_tables(

@@ -1,5 +1,7 @@
 #include "coopsim/trajectory.hpp"
 
+#include "internal.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -200,7 +202,22 @@ void CubicTrajectory::evaluate(double t, double* q, double* qd, double* qdd) con
   }
 }
 
-void CubicTrajectory::evaluate_many(const double* t, long m, double* q, double* qd, double* qdd) const {
+Extrapolate extrapolate_from_name(const std::string& name) {
+  if (name == "hold") return Extrapolate::Hold;
+  if (name == "error") return Extrapolate::Error;
+  fail("extrapolate must be 'hold' or 'error', got '" + name + "'");
+}
+
+void CubicTrajectory::check_in_range(double t) const {
+  if (t >= times_.front() && t <= times_.back()) return;
+  fail("t = " + detail::num(t) + " s is outside the trajectory's time range [" + detail::num(times_.front()) + ", " +
+       detail::num(times_.back()) + "] s (extrapolate='error'; extrapolate='hold' holds the end point)");
+}
+
+void CubicTrajectory::evaluate_many(const double* t, long m, double* q, double* qd, double* qdd,
+                                    Extrapolate extrapolate) const {
+  if (extrapolate == Extrapolate::Error)
+    for (long i = 0; i < m; ++i) check_in_range(t[i]);
   for (long i = 0; i < m; ++i)
     evaluate(t[i], q ? q + i * n_ : nullptr, qd ? qd + i * n_ : nullptr, qdd ? qdd + i * n_ : nullptr);
 }

@@ -595,7 +595,8 @@ class CubicTrajectory(Reference):
       velocities qd_start, qd_end (default 0);
     - otherwise: ends qd_start, qd_end (default 0); interior knots the average of
       the neighbouring segment slopes, or 0 where the slope changes sign or is 0.
-    Before times[0] and after times[-1] the first / last point is held at rest.
+    Before times[0] and after times[-1] the first / last point is held at rest
+    (silently, by default: see evaluate's extrapolate).
     
     times: (N,) s, strictly increasing, N >= 2. q_points: (N, n) rad or m
     (a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
@@ -609,6 +610,16 @@ class CubicTrajectory(Reference):
         ...
     def __setstate__(self, arg0: tuple) -> None:
         ...
+    def evaluate(self, t: typing.Any, *, extrapolate: str = 'hold') -> tuple:
+        """
+        (q, qd, qdd) at time t (s): each (n,) for a scalar t, (N, n) for an array of
+        N times; rad, rad/s, rad/s^2 (m, m/s, m/s^2 for prismatic joints).
+        
+        Outside [t_start, t_end] the trajectory does not extrapolate its cubics:
+        extrapolate="hold" (default) silently returns the first / last point with
+        zero velocity and acceleration (what a controller tracking it is given);
+        extrapolate="error" raises ValueError naming t and the time range instead.
+        """
     def segment(self, t: typing.SupportsFloat | typing.SupportsIndex) -> int:
         """
         Index of the segment containing time t (clamped to 0 .. segments - 1).

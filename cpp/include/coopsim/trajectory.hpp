@@ -20,13 +20,16 @@
 //   the joint stops there instead of overshooting it).
 //
 // Outside [t_0, t_{N-1}] the trajectory holds its first / last point with
-// zero velocity and acceleration. Immutable after construction, hence safe to
+// zero velocity and acceleration (Extrapolate::Hold, what a controller
+// tracking it sees), or, asked with Extrapolate::Error, throws
+// std::invalid_argument naming t and the range. Immutable after construction, hence safe to
 // evaluate from several threads.
 #pragma once
 
 #include <Eigen/Core>
 
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "coopsim/checks.hpp"
@@ -35,6 +38,12 @@
 namespace coopsim {
 
 enum class KnotVelocities { Given, Heuristic, Spline };
+
+// What evaluating a trajectory outside its time range does: hold the nearest
+// end point at rest, or throw std::invalid_argument.
+enum class Extrapolate { Hold, Error };
+// "hold" or "error"; anything else throws std::invalid_argument naming extrapolate.
+Extrapolate extrapolate_from_name(const std::string& name);
 
 class CubicTrajectory : public Reference {
  public:
@@ -61,7 +70,8 @@ at both ends), so q and qd are continuous at every knot. Knot velocities:
   velocities qd_start, qd_end (default 0);
 - otherwise: ends qd_start, qd_end (default 0); interior knots the average of
   the neighbouring segment slopes, or 0 where the slope changes sign or is 0.
-Before times[0] and after times[-1] the first / last point is held at rest.
+Before times[0] and after times[-1] the first / last point is held at rest
+(silently, by default: see evaluate's extrapolate).
 
 times: (N,) s, strictly increasing, N >= 2. q_points: (N, n) rad or m
 (a flat (N,) array is one joint). qd_points: (N, n) rad/s or m/s.
@@ -78,7 +88,22 @@ qd_start, qd_end: (n,). Bad input raises ValueError naming the argument.)doc";
   double t_end() const override { return times_.back(); }
   void evaluate(double t, double* q, double* qd, double* qdd) const override;
   // Vectorised: m times; q, qd, qdd (each may be null) are row-major (m, n).
-  void evaluate_many(const double* t, long m, double* q, double* qd, double* qdd) const;
+  // With Extrapolate::Error a time outside [t_start, t_end] throws
+  // std::invalid_argument (naming t and the range) before anything is written.
+  void evaluate_many(const double* t, long m, double* q, double* qd, double* qdd,
+                     Extrapolate extrapolate = Extrapolate::Hold) const;
+  // Throws std::invalid_argument naming t and the range if t is outside [t_start, t_end].
+  void check_in_range(double t) const;
+
+  // documentation of evaluate (Python's too)
+  static constexpr char kEvaluateDoc[] = R"doc(
+(q, qd, qdd) at time t (s): each (n,) for a scalar t, (N, n) for an array of
+N times; rad, rad/s, rad/s^2 (m, m/s, m/s^2 for prismatic joints).
+
+Outside [t_start, t_end] the trajectory does not extrapolate its cubics:
+extrapolate="hold" (default) silently returns the first / last point with
+zero velocity and acceleration (what a controller tracking it is given);
+extrapolate="error" raises ValueError naming t and the time range instead.)doc";
 
   int segments() const { return static_cast<int>(times_.size()) - 1; }
   const std::vector<double>& times() const { return times_; }
