@@ -20,6 +20,7 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -138,3 +139,32 @@ def test_relative_links_lead_to_files():
                 continue
             path = os.path.normpath(os.path.join(ROOT, os.path.dirname(f), target.split("#")[0]))
             assert os.path.exists(path), f"{f}: link to {target}"
+
+
+def knot_acceleration_jumps(traj):
+    """Largest |qdd(t_k+) - qdd(t_k-)| over the interior knots, rad/s^2, from the segments' coefficients
+    (exact: qdd of segment k is 2 c2 + 6 c3 tau)."""
+    c, h = traj.coefficients, np.diff(traj.times)
+    left = 2 * c[:-1, :, 2] + 6 * c[:-1, :, 3] * h[:-1, None]   # end of segment k-1
+    right = 2 * c[1:, :, 2]                                        # start of segment k
+    return np.abs(right - left).max()
+
+
+def test_the_smooth_tool_speed_example_has_continuous_joint_acceleration():
+    # the planning page's example, as written there, up to its "smooth tool speed" line
+    code = python_blocks(os.path.join("docs", "planning-and-control.md"))[0]["code"]
+    lines = code.split("\n")
+    at = next(i for i, line in enumerate(lines) if "# smooth tool speed" in line)
+    assert "spline=True" in lines[at], lines[at]
+    namespace = {}
+    exec("\n".join(lines[:at + 1]), namespace)
+    traj = namespace["traj"]
+    assert traj.segments == 13 and traj.velocity_rule == "spline"
+    # acceleration continuous at the knots (so the computed-torque torque has no jumps)
+    assert knot_acceleration_jumps(traj) < 1e-6
+    # the same plan without the spline steps by about 2 rad/s^2: what the test would catch
+    heuristic = eval(lines[at].split("=", 1)[1].split("#")[0].replace(", spline=True", ""), namespace)
+    assert heuristic.velocity_rule == "heuristic"
+    assert knot_acceleration_jumps(heuristic) > 1.0
+    # both pass through the same poses (only the knot velocities differ)
+    np.testing.assert_allclose(traj.q_points, heuristic.q_points, atol=1e-12)
