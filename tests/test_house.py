@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+import coopsim
+
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "python" / "coopsim"
 
@@ -153,7 +155,9 @@ def test_function_level_imports_are_only_of_heavy_or_optional_dependencies():
     # and the reason they may wait: importing coopsim loads none of them
     code = ("import sys, coopsim, coopsim.tasks.handover, coopsim.view; "
             f"print(sorted(m for m in {sorted(LOCAL_IMPORTS)!r} if m in sys.modules))")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(PACKAGE.parent)] + sys.path))
+    # the coopsim this test imports (installed, or a staged tree with its compiled module), not the bare
+    # source tree, which has no compiled module in a fresh checkout
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(coopsim.__file__).resolve().parent.parent)] + sys.path))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]", out.stdout
