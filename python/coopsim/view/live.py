@@ -5,11 +5,13 @@
     v.wait()                              # until t_end (re-raises an exception of the run)
     v.close()                             # stops the server, frees the port
 
-The page (served by ``viser``, the ``live`` extra: ``pip install coopsim[live]``) shows every link box of
-every robot (``Robot.shapes(q)``, one call per robot and frame), the desired pose as a transparent blue
-ghost, the robots green while they hold a body together, the world's scenery (grey), its free bodies (the
-bar red) and the floor, with the colours of :data:`coopsim.view.COLORS`; with "Collision boxes" on, the
-link boxes green (free) or red (in contact), and the contact points as red lines.
+The page (served by ``viser``, the ``live`` extra: ``pip install coopsim[live]``) shows every robot as its
+parts (:mod:`coopsim.view.parts`: the SCARAs as the paper draws them, a URDF arm with its visual meshes,
+another robot as its boxes), placed on the link frames (``Robot.frames(q)``, one call per robot and frame),
+the desired pose as a transparent blue ghost of the moving links' parts, the robots green while they hold a
+body together, the world's scenery (grey), its free bodies (the bar red) and the floor, with the colours of
+:data:`coopsim.view.COLORS`; with "Collision boxes" on, the link boxes (``Robot.shapes(q)``) instead of the
+parts, green (free) or red (in contact), and the contact points as red lines.
 
 Panels (tabs): **Run**: speed 0-400 %, pause, resume, one step (one control period), reset to the start,
 and the time supervision (simulated and wall time, set and achieved speed, step time mean and max,
@@ -57,7 +59,7 @@ from ..pacing import Pacer
 from ..robots import scara1, scara2
 from ..simulation import Simulation
 from .geometry import box_corners, view_direction
-from .parts import UNIT_CUBE, UNIT_CYLINDER, _box_role, mesh_triangles, part_poses, robot_parts
+from .parts import UNIT_CUBE, UNIT_CYLINDER, _box_role, mesh_triangles, part_corners, part_poses, robot_parts
 from .scene import COLORS, DEFAULT_ELEV, Scene
 from .world import colliding_from_contacts, contact_lines, holding_now, is_bar, robot_labels
 
@@ -292,6 +294,8 @@ class LiveView:
         world = self._world
         # everything in view: boxes of robots and world at the start, the floor under them
         pts = [self._corners(*r.shapes(self.sim.state(i)[0])) for i, r in enumerate(self.robots)]
+        pts += [part_corners(p, part_poses(r, p, self.sim.state(i)[0])) for i, (r, p) in
+                enumerate(zip(self.robots, self._parts)) if p]
         scenery = []
         if world is not None:
             for name in world.body_names:

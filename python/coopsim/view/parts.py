@@ -36,7 +36,8 @@ import numpy as np
 
 from .._core import dh_transform
 
-__all__ = ["Part", "robot_parts", "look_kind", "part_poses", "mesh_triangles", "UNIT_CUBE", "UNIT_CYLINDER"]
+__all__ = ["Part", "robot_parts", "look_kind", "part_poses", "part_corners", "mesh_triangles", "UNIT_CUBE",
+           "UNIT_CYLINDER"]
 
 _SHAPES = ("box", "cylinder", "mesh")
 _COLORS = ("robot", "base", "jaw")
@@ -178,6 +179,23 @@ def part_poses(robot, parts, q) -> np.ndarray:
         return np.einsum("kij,kjl->kil", F[links], local)
     F = np.array([robot.frames(x) for x in q])
     return np.einsum("fkij,kjl->fkil", F[:, links], local)
+
+
+def part_corners(parts, poses) -> np.ndarray:
+    """World points (m * 8, 3) that frame the parts at their world poses (m, 4, 4) (or (N, m, 4, 4):
+    (N * m * 8, 3)): the corners of each part's box in its own axes (a mesh's: its vertices' bounds)."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    local = []
+    for p in parts:
+        if p.shape == "mesh":
+            v = mesh_triangles(p.mesh)[0] * p.scale
+            lo, hi = v.min(axis=0), v.max(axis=0)
+            local.append((lo + hi) / 2 + signs * (hi - lo) / 2)
+        else:
+            local.append(signs * p.scale / 2)
+    local = np.array(local).reshape(len(parts), 8, 3)
+    W = np.asarray(poses, dtype=float).reshape(-1, len(parts), 4, 4)
+    return (np.einsum("fkij,kcj->fkci", W[..., :3, :3], local) + W[:, :, None, :3, 3]).reshape(-1, 3)
 
 
 # ---- the looks ----

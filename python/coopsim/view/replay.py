@@ -3,8 +3,13 @@
     view.replay_html(sim, "out/run.html")            # a finished Simulation: its log, robots and world
     view.replay_html(log, "out/run.html", robots=sim.robots, world=sim.world, fps=30, speed=0.5)
 
-The page shows every box of every robot (``robot.shapes(q)``), the desired
-pose (the log's ``q_ref``) as a transparent blue ghost, the robots green
+The page shows every robot as its parts (:mod:`coopsim.view.parts`, the
+same as the live page's: the SCARAs as the paper draws them, a URDF arm with
+its visual meshes, another robot as its boxes) on its link frames
+(``robot.frames(q)``), its collision boxes (``robot.shapes(q)``) instead
+when the bar's "boxes" box is ticked (``collision_boxes=True``: at first),
+the desired pose (the log's ``q_ref``) as a transparent blue ghost of the
+moving links' parts, the robots green
 while both hold a body (``log[i].holding``; 'any': while they hold something), the world's static
 scenery, its free bodies (the bar, in the paper's red) and the floor, with
 the colours of :data:`coopsim.view.COLORS`. It has an orbit camera (drag to
@@ -38,11 +43,16 @@ the page (all times in the log's seconds, poses in the z-up world):
 
 - ``seek(t)``: shows time t (clamped to the replay) and renders; returns t.
 - ``pose(name)``: the (4, 4) pose of a box as nested rows, or null:
-  ``robot<i>/<box name>`` (e.g. ``robot0/link2``), ``ghost<i>/<box name>``,
-  ``bodies/<name>`` (e.g. ``bodies/bar``), ``scenery/<name>``, ``floor``.
+  ``robot<i>/<box name>`` (e.g. ``robot0/link2``), ``robot<i>/parts/link<k>``
+  (DH frame k) and ``robot<i>/parts/link<k>/<part name>`` (e.g.
+  ``robot0/parts/link1/segment1``, the part's pose, without its scale),
+  ``ghost<i>/parts/link<k>[/<part name>]``, ``bodies/<name>`` (e.g.
+  ``bodies/bar``), ``scenery/<name>``, ``floor``.
 - ``color(name)``: the box's colour now, "#rrggbb" (or null).
 - ``names()``: all such names. ``time()``, ``play()``, ``pause()``,
-  ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``; ``t0``, ``t1``,
+  ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``, ``boxes(on)`` (the
+  collision boxes instead of the parts, or back; returns whether they show; no
+  argument: only that); ``t0``, ``t1``,
   ``frames`` (the frame times), ``markers`` ([{t, label}] on the timeline), ``fps``, ``ready`` (true once loaded),
   ``viewer`` (meshcat's ``Viewer``: its ``camera``, ``controls``, ``scene``).
 """
@@ -66,7 +76,7 @@ import umsgpack  # the msgpack meshcat's Python client uses (a dependency of mes
 from .._core import Robot
 from ..log import SimulationLog, _atomic_write, rows_at
 from .bodies import COLORS
-from .parts import _box_role, mesh_triangles, robot_parts
+from .parts import _box_role, mesh_triangles, part_corners, robot_parts
 from .world import holding_from_log
 
 __all__ = ["replay_html"]
@@ -433,10 +443,12 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     :func:`~coopsim.view.animate`, so a log coarser than 1/fps keeps all its
     rows). speed: the speed the page starts at, 0 to 4 (400 %). t_start,
     t_end: the part of the log to replay (s; default all). reference: draw
-    the desired pose (``q_ref``) as a transparent blue ghost (robots whose
-    reference is not finite, or beyond 1e6 m, get none). floor: draw the floor (z = 0) when
+    the desired pose (``q_ref``) as a transparent blue ghost of the moving
+    links' parts (robots whose reference is not finite, or beyond 1e6 m, get
+    none). collision_boxes: show the collision boxes instead of the parts
+    when the page opens (its "boxes" box swaps them). floor: draw the floor (z = 0) when
     the world has one (or there is no world). holding: a robot's moving
-    boxes are green while it holds: None (default) or 'shared' from the log
+    boxes and parts are green while it holds: None (default) or 'shared' from the log
     while another robot holds the same body too (the paper's dual hold,
     :func:`~coopsim.view.holding_from_log`), 'any' while it holds anything,
     False never, or per robot a (rows,) bool array (or None). title: the
@@ -448,15 +460,16 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     releases (default). A mark shows its label on hover and seeks there when
     clicked. colors: one colour per robot for
     its links (matplotlib colours; default :data:`COLORS`). ghost_margin:
-    the ghost's boxes are this much smaller (m), so that a robot on its
-    reference hides its ghost. elev, azim: the camera's elevation and
+    the ghost's boxes and cylinders are this much smaller on each side (m),
+    so that a robot on its reference hides its ghost. elev, azim: the camera's elevation and
     azimuth (degrees, as matplotlib's view_init) looking at the middle of
-    the robots (their boxes over the replay, and the scenery: free bodies
+    the robots (their boxes and parts over the replay, and the scenery: free bodies
     that wander off do not pull the camera away); zoom: > 1 brings it
     closer.
 
-    The file (about 0.9 MB plus 36 bytes per moving box and frame) needs
-    no network or server; see the module's docstring for the page's
+    The file (about 0.9 MB plus 36 bytes per moving box or link frame and
+    frame; a robot's mesh files add 24 bytes per triangle, 6 MB for the
+    UR5 of example-robot-data) needs no network or server; see the module's docstring for the page's
     controls and its ``window.coopsim`` hook.
     """
     log, robots, world = _unpack_sources(log, robots, world)
@@ -525,6 +538,10 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
         F = np.stack([np.asarray(robot.frames(x)) for x in q])              # (frames, n + 1, 4, 4)
         if not np.all(np.abs(F[..., :3, 3]) <= _MAX_DISTANCE):
             return False
+        if prefix.startswith("robot") and parts:                           # the camera frames the parts too
+            links = np.array([p.link for p in parts])
+            W = np.einsum("fkij,kjl->fkil", F[:, links], np.array([p.pose for p in parts]))
+            bounds.append(part_corners(parts, W))
         for k in sorted({p.link for p in parts if p.link != 0 or not moving_only}):
             add_box(f"{prefix}/parts/link{k}", None, 0, 1.0, F[0, k] if k == 0 else F[:, k], obj=False)
             for p, col in zip(parts, colors):
