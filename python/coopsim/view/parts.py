@@ -35,6 +35,8 @@ from typing import Optional
 import numpy as np
 
 from .._core import dh_transform
+from ..robots import _SCARA1, _SCARA2
+from ..urdf import visuals
 
 __all__ = ["Part", "robot_parts", "look_kind", "part_poses", "part_corners", "mesh_triangles", "UNIT_CUBE",
            "UNIT_CYLINDER"]
@@ -144,17 +146,13 @@ def mesh_triangles(path: str):
 
 def look_kind(robot) -> str:
     """'scara1', 'scara2', 'urdf' or 'boxes': how the views draw `robot` (see the module's docstring)."""
-    from ..robots import _SCARA1, _SCARA2   # the makers' own tables
-
     dims = robot.dimensions
-    for spec in (_SCARA1, _SCARA2):
+    for spec in (_SCARA1, _SCARA2):          # the makers' own tables
         if robot.joint_types != spec["types"] or set(dims) != set(spec["defaults"]) or robot.clamp is None:
             continue
         dh = np.asarray(spec["geometry"](dims)[0], dtype=float)
         if np.asarray(robot.dh).shape == dh.shape and np.allclose(robot.dh, dh, rtol=0.0, atol=1e-12):
             return spec["name"]
-    from ..urdf import visuals
-
     return "urdf" if visuals(robot) else "boxes"
 
 
@@ -212,8 +210,6 @@ def _box_parts(robot, boxes) -> list:
 
 
 def _urdf_parts(robot) -> list:
-    from ..urdf import visuals
-
     vis = visuals(robot)
     out, drawn = [], set()
     for k, v in enumerate(vis):
