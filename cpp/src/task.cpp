@@ -212,7 +212,9 @@ void TaskController::reset(const Robot& robot, double period) {
 
 Vec6 TaskController::per_axis(const Eigen::VectorXd& v, const char* name) const { return spread(v, order_, name); }
 
-void TaskController::compute(const ControlInput& in, double* tau) {
+void TaskController::compute(const ControlInput& in, double* tau) { compute_task(observe(in), tau); }
+
+const TaskState& TaskController::observe(const ControlInput& in, const TaskReference* ref) {
   if (n_ == 0 || in.n != n_) throw std::logic_error("TaskController.compute called before reset() for this robot");
   const int n = n_;
   TaskState& s = s_;
@@ -226,10 +228,19 @@ void TaskController::compute(const ControlInput& in, double* tau) {
   const Robot& r = *robot_;
   Mat6N Jg, Jr;
   Vec6 bg, br;
-  r.kinematics(in.q_ref, wsr_, false);
-  s.pose_ref = r.tool_pose(wsr_);
-  r.tool_jacobian(wsr_, Jr);
-  r.tool_bias(wsr_, in.qd_ref, br);
+  Vec6 twist_ref, accel_ref;
+  if (ref) {
+    s.pose_ref = ref->pose;
+    twist_ref = ref->twist;
+    accel_ref = ref->accel;
+  } else {
+    r.kinematics(in.q_ref, wsr_, false);
+    s.pose_ref = r.tool_pose(wsr_);
+    r.tool_jacobian(wsr_, Jr);
+    r.tool_bias(wsr_, in.qd_ref, br);
+    twist_ref = Jr * s.qd_ref;
+    accel_ref = Jr * s.qdd_ref + br;
+  }
   r.kinematics(in.q, ws_, false);
   s.pose = r.tool_pose(ws_);
   s.axes = task_axes(s.pose);
@@ -248,8 +259,8 @@ void TaskController::compute(const ControlInput& in, double* tau) {
   s.bias = to_task(bg);
   const Vec6 twist = Jg * s.qd;
   s.velocity = to_task(twist);
-  s.velocity_ref = to_task(Jr * s.qd_ref);
-  s.accel_ref = to_task(Jr * s.qdd_ref + br);
+  s.velocity_ref = to_task(twist_ref);
+  s.accel_ref = to_task(accel_ref);
   s.error.head<3>() = s.pose_ref.translation() - s.pose.translation();
   s.error.tail<3>() = Bt * rotation_vector(s.pose_ref.linear() * s.pose.linear().transpose());
   s.error_rate = s.velocity_ref - s.velocity;
@@ -274,7 +285,7 @@ void TaskController::compute(const ControlInput& in, double* tau) {
     s.wrench.setZero();
     s.external.setZero();
   }
-  compute_task(s, tau);
+  return s;
 }
 
 void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& wrench, double* tau) {

@@ -114,6 +114,15 @@ class TaskController : public Controller {
 
   // The law: writes n torques from the state (usually via torques()).
   virtual void compute_task(const TaskState& s, double* tau) = 0;
+  // A reference given in the task instead of the joint reference's image (world: the TCP's pose,
+  // twist [v; w] and acceleration [a; alpha]), e.g. a follower's from its leader.
+  struct TaskReference {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    Vec6 twist = Vec6::Zero(), accel = Vec6::Zero();
+  };
+  // Builds the state at one update (compute() = observe() then compute_task()); `ref` replaces the
+  // reference's image when given. The state stays valid until the next call.
+  const TaskState& observe(const ControlInput& in, const TaskReference* ref = nullptr);
   // The common part (header comment): a* (6, task axes; the commanded entries are used) and the
   // wrench to apply (6, task axes) to joint torques.
   void torques(const TaskState& s, const Vec6& accel, const Vec6& wrench, double* tau);
