@@ -11,6 +11,7 @@ void bind_ik(py::module_& m);
 void bind_control(py::module_& m);
 void bind_world(py::module_& m);
 void bind_simulation(py::module_& m);
+void short_type_errors(py::module_& m);
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)";
@@ -33,4 +34,6 @@ PYBIND11_MODULE(_core, m) {
   bind_control(m);
   bind_world(m);
   bind_simulation(m);
+  // last, once every function is bound: a wrong argument type is one short TypeError (short_errors.cpp)
+  short_type_errors(m);
 }
