@@ -8,6 +8,7 @@ from typing import List
 import numpy as np
 
 from ...log import _atomic_write
+from ... import view
 from ...plotting import plot_log
 from .sequence import TaskResult
 
@@ -138,8 +139,6 @@ def insertion_figure(result: TaskResult):
     """The scene in 3D halfway through the first cycle's insertion (``insertion.png``): the container seen
     from its side, its slope written over it, and an inset zoomed on the bar in SCARA #1's clamp. None for a
     run that never reached an insertion."""
-    from ... import view
-
     steps = [c.get("steps") or {} for c in result.report["cycles"]]
     span = next((s["insert"] for s in steps if s.get("insert") and s["insert"][1] is not None), None)
     if span is None:
