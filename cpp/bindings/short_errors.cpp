@@ -8,6 +8,7 @@
 // pays one direct C call and a null test.
 #include <pybind11/pybind11.h>
 
+#include <cstdlib>
 #include <string>
 
 namespace py = pybind11;
@@ -17,7 +18,9 @@ namespace {
 struct Dispatch : py::cpp_function {  // pybind11's dispatcher is a protected member
   using py::cpp_function::dispatcher;
 };
-const auto pybind11_dispatcher = &Dispatch::dispatcher;
+// called through a volatile pointer: pybind11's own dispatcher runs, not a copy inlined here (which the
+// optimiser would lay out differently, making calls a little faster or slower than without this file)
+PyObject* (*volatile pybind11_dispatcher)(PyObject*, PyObject* const*, size_t, PyObject*) = &Dispatch::dispatcher;
 std::string package;  // "coopsim": its _arguments module writes the message
 
 // Called with pybind11's error set: replaces it by the short message, when there is one.
@@ -88,6 +91,10 @@ void redirect_all(PyObject* dict) {
 }  // namespace
 
 void short_type_errors(py::module_& m) {
+  // COOPSIM_PYBIND11_ERRORS=1 keeps pybind11's own messages (every signature, the call repeated) and its
+  // dispatcher: for debugging the bindings, and to measure what this one costs (benchmarks/bench_dynamics.py)
+  const char* keep = std::getenv("COOPSIM_PYBIND11_ERRORS");
+  if (keep && *keep && std::string(keep) != "0") return;
   const std::string name = py::str(m.attr("__name__"));
   package = name.substr(0, name.rfind('.'));
   redirect_all(PyModule_GetDict(m.ptr()));
