@@ -5,7 +5,8 @@ walls, three bars), each robot following a cubic through its joint ranges under 
 dt = 0.2 ms, the world every step. Rows:
 
 - ms per frame of the view: the snapshot (state, references, ``Robot.shapes`` of q and q_ref in one
-  call per robot, holding, contacts, bodies) and the send (the scene's batched meshes, the
+  call per robot, the parts' poses at q and q_ref from ``Robot.frames``, holding, contacts, bodies) and
+  the send (the scene's batched meshes: the robots' parts and their ghosts, one per shape; the
   supervision panel, plots), with no page and with a headless Chromium page connected;
 - frames per second: sent by the view during a paced run, and drawn by the page in headless
   Chromium (software WebGL, swiftshader: a lower bound for a desktop browser), counted with
@@ -84,7 +85,9 @@ def main():
     sim.run(0.5, progress=False)
     v = view.live(sim, start=False, quiet=True, collision_boxes=False, contact_lines=True)
     boxes = sum(len(r.boxes) for r in sim.robots)
-    print(f"scene: {sim.robot_count} robots, {boxes} link boxes, world bodies {sim.world.body_names}")
+    parts = sum(len(p) for p in getattr(v, "_parts", []))
+    print(f"scene: {sim.robot_count} robots, {boxes} link boxes, {parts} parts drawn, world bodies "
+          f"{sim.world.body_names}")
     s0, d0 = per_frame(v, repeats)
     print(f"frame without a page:      snapshot {s0:.3f} ms + send {d0:.3f} ms = {s0 + d0:.3f} ms")
     have_browser = shutil.which("chromium") is not None

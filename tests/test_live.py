@@ -111,8 +111,25 @@ def test_a_frame_is_the_engines_boxes_at_q_and_at_the_reference(views):
     mesh = v._robot_mesh
     assert np.allclose(mesh.batched_positions, P[:, :3, 3], atol=1e-6)
     assert np.allclose(np.array([_rotation(q) for q in mesh.batched_wxyzs]), P[:, :3, :3], atol=1e-6)
-    # the ghosts leave out the bases (they never move)
-    assert len(v._ghost_mesh.batched_positions) == sum(int(np.sum([b.link != 0 for b in r.boxes])) for r in sim.robots)
+    # the parts drawn: each batched mesh's instances at the parts' poses (Frame.parts, from coopsim.view.parts)
+    from coopsim.view.parts import part_poses, robot_parts
+
+    every = np.concatenate(f.parts)
+    assert sum(len(m[1]) for m in v._part_meshes) == len(every) == sum(len(robot_parts(r)) for r in sim.robots)
+    for handle, index, robot, *_ in v._part_meshes:
+        assert np.allclose(handle.batched_positions, every[index, :3, 3], atol=1e-6)
+        assert np.allclose(np.array([_rotation(q) for q in handle.batched_wxyzs]), every[index, :3, :3], atol=1e-6)
+    for i, r in enumerate(sim.robots):
+        assert np.array_equal(f.parts[i], part_poses(r, robot_parts(r), f.q[i]))
+        assert np.array_equal(f.ghost_parts[i], part_poses(r, robot_parts(r), f.q_ref[i]))
+    # the ghosts: the parts of the moving links (the bases never move)
+    assert sum(len(m[1]) for m in v._ghost_meshes) == sum(sum(p.link != 0 for p in robot_parts(r)) for r in sim.robots)
+    # the collision boxes hidden, the parts shown (collision_boxes=False); the Display toggle swaps them
+    assert not mesh.visible and all(m[0].visible for m in v._part_meshes)
+    v.set_display("collision_boxes", True)
+    assert mesh.visible and not any(m[0].visible for m in v._part_meshes)
+    v.set_display("collision_boxes", False)
+    assert not mesh.visible and all(m[0].visible for m in v._part_meshes)
 
 
 def test_requests_run_on_the_simulations_thread_and_bad_values_are_refused(views):
@@ -612,6 +629,17 @@ def test_dimensions_set_from_the_view_rebuild_the_robot_and_the_run_goes_on(view
     # the page draws the new boxes: their sizes on the mesh (float32 on the wire)
     half = v.call(lambda: np.concatenate([r.shapes(sim.state(i)[0])[1] for i, r in enumerate(sim.robots)]))
     np.testing.assert_allclose(v._robot_mesh.batched_scales, 2 * half, rtol=1e-6)
+    # and the new parts: segment 1 stretched to the new L1, the housings as they were
+    from coopsim.view.parts import robot_parts
+
+    scales = {}
+    for handle, index, *_ in v._part_meshes:
+        for k, s in zip(index, handle.batched_scales):
+            scales[k] = s
+    names = [p.name for p in robot_parts(got)]
+    np.testing.assert_allclose(scales[names.index("segment1")][0], 0.35, rtol=1e-6)
+    np.testing.assert_allclose(scales[names.index("housing1")], robot_parts(r0)[names.index("housing1")].scale,
+                               rtol=1e-6)
     assert "0.35" in v._dimensions_md[0].content
     for dims, what in ((dict(L1="long"), "L1 of .* must be a number"), (dict(L2="-0.1"), "L2 must be finite and > 0"),
                        (dict(L9="1"), "dimension must be one of")):

@@ -98,6 +98,18 @@ def f32(ext):
     return np.frombuffer(ext.data, dtype="<f4")
 
 
+def parts_of(robot):
+    from coopsim.view.parts import robot_parts
+
+    return robot_parts(robot)
+
+
+def part_poses(robot, parts, q):
+    from coopsim.view.parts import part_poses as poses
+
+    return poses(robot, parts, q)
+
+
 def box_index(robot, name):
     return [b.name for b in robot.boxes].index(name)
 
@@ -129,10 +141,11 @@ def test_frames_are_log_rows_at_the_chosen_rate(sim, tmp_path):
     assert np.allclose(m["frames"], np.arange(21) / 10, atol=1e-12)
     assert set(m["frames"]) <= set(np.asarray(log.t).tolist())
     names = m["names"]
-    for n in ("robot0/link1", "robot1/fixed_jaw", "ghost0/link2", "ghost1/link6", "bodies/bar", "bodies/bar1",
-              "scenery/container_bottom", "floor"):
+    for n in ("robot0/link1", "robot1/fixed_jaw", "robot0/parts/link1", "robot0/parts/link1/segment1",
+              "robot1/parts/link0/column", "ghost0/parts/link2/segment2", "ghost1/parts/link6/moving_jaw", "bodies/bar",
+              "bodies/bar1", "scenery/container_bottom", "floor"):
         assert n in names
-    assert "ghost0/base" not in names       # the base never moves: no ghost of it
+    assert not any(n.startswith("ghost0/parts/link0") for n in names)      # the base never moves: no ghost of it
     # a log coarser than the frame rate keeps all its rows; a part of the log
     m = meta(view.replay_html(log, str(tmp_path / "b.html"), robots=sim.robots, world=sim.world, fps=1000,
                               t_start=0.5, t_end=1.0))
@@ -163,19 +176,24 @@ def test_packed_keyframes_are_the_logs_poses(sim, page_path):
 
     for i, r, box in ((0, r1, "link3"), (1, r2, "fixed_jaw")):
         pos, quat = keyed(f"/coopsim/robot{i}/{box}")
-        gpos, _ = keyed(f"/coopsim/ghost{i}/{box}")
         j = box_index(r, box)
+        link = r.boxes[j].link
+        fpos, fquat = keyed(f"/coopsim/robot{i}/parts/link{link}")       # the parts' link frame
+        gpos, gquat = keyed(f"/coopsim/ghost{i}/parts/link{link}")
         for k in (0, len(rows) // 3, len(rows) - 1):
             T = r.shapes(log[i].q[rows[k]])[0][j]
             assert np.abs(pos[k] - T[:3, 3]).max() < TOL
             assert np.abs(rot(quat[k]) - T[:3, :3]).max() < 1e-6
-            assert np.abs(gpos[k] - r.shapes(log[i].q_ref[rows[k]])[0][j][:3, 3]).max() < TOL
+            F, G = r.frames(log[i].q[rows[k]])[link], r.frames(log[i].q_ref[rows[k]])[link]
+            assert np.abs(fpos[k] - F[:3, 3]).max() < TOL and np.abs(rot(fquat[k]) - F[:3, :3]).max() < 1e-6
+            assert np.abs(gpos[k] - G[:3, 3]).max() < TOL and np.abs(rot(gquat[k]) - G[:3, :3]).max() < 1e-6
     bar = log.bodies["bar1"].poses()
     pos, _ = keyed("/coopsim/bodies/bar1")
     assert np.abs(pos - bar[rows][:, :3, 3]).max() < TOL
     assert pos[0, 2] > 0.39 and pos[-1, 2] < 0.011        # it fell
     # what never moves has one fixed pose, no keyframes
-    assert not any(p.startswith(("/coopsim/scenery", "/coopsim/floor")) or p.endswith("/base") for p in tracks)
+    assert not any(p.startswith(("/coopsim/scenery", "/coopsim/floor")) or p.endswith(("/base", "/link0")) or
+                   "/link0/" in p for p in tracks)
 
 
 def test_colours_the_bar_red_scenery_other_bodies_and_a_holding_robot_green(sim, tmp_path):
@@ -192,7 +210,16 @@ def test_colours_the_bar_red_scenery_other_bodies_and_a_holding_robot_green(sim,
     assert color["/coopsim/scenery/container_top"] == view.COLORS["scenery"]
     assert color["/coopsim/robot0/link2"] == view.COLORS["robots"][0]
     assert color["/coopsim/robot1/link2"] == view.COLORS["robots"][1]
-    assert color["/coopsim/robot0/base"] == view.COLORS["base"] and color["/coopsim/ghost0/link2"] == view.COLORS["ghost"]
+    assert color["/coopsim/robot0/base"] == view.COLORS["base"]
+    assert color["/coopsim/ghost0/parts/link2/segment2"] == view.COLORS["ghost"]
+    # the parts: the robot's colour, the base's, the jaws'
+    assert color["/coopsim/robot0/parts/link2/segment2"] == color["/coopsim/robot0/parts/link1/housing1"] == \
+        view.COLORS["robots"][0]
+    assert color["/coopsim/robot1/parts/link2/segment2"] == view.COLORS["robots"][1]
+    assert color["/coopsim/robot0/parts/link0/column"] == color["/coopsim/robot1/parts/link0/base_plate"] == \
+        view.COLORS["base"]
+    assert color["/coopsim/robot0/parts/link6/moving_jaw"] == color["/coopsim/robot0/parts/link5/fixed_jaw"] == \
+        view.COLORS["jaw"]
     tracks = {a["path"]: a["clip"]["tracks"] for a in next(c for c in cmds if c["type"] == "set_animation")["animations"]}
     green = [t for t in tracks["/coopsim/robot0/link2"] if t["name"] == "box.material.color"]
     assert len(green) == 1 and green[0]["interpolation"] == 2300
@@ -201,7 +228,13 @@ def test_colours_the_bar_red_scenery_other_bodies_and_a_holding_robot_green(sim,
     assert np.allclose(times, [0.0, frames[frames >= 0.52][0], frames[frames >= 1.22][0], T_END], atol=1e-6)
     assert [hexcolor(c) for c in rgb] == [view.COLORS["robots"][0], view.COLORS["holding"], view.COLORS["robots"][0],
                                           view.COLORS["robots"][0]]
-    for p in ("/coopsim/robot0/base", "/coopsim/robot1/link2", "/coopsim/ghost0/link2"):
+    # the parts turn green where the boxes do: the same keys on every part of a moving link
+    for part in ("link2/segment2", "link1/housing1", "link6/moving_jaw", "link3/quill"):
+        track = [t for t in tracks[f"/coopsim/robot0/parts/{part}"] if t["name"] == "box.material.color"]
+        assert len(track) == 1 and np.array_equal(f32(track[0]["times"]), times), part
+        assert hexcolor(f32(track[0]["values"]).reshape(-1, 3)[1]) == view.COLORS["holding"], part
+    for p in ("/coopsim/robot0/base", "/coopsim/robot1/link2", "/coopsim/ghost0/parts/link2/segment2",
+              "/coopsim/robot0/parts/link0/column", "/coopsim/robot1/parts/link2/segment2"):
         assert all(t["name"] != "box.material.color" for t in tracks.get(p, []))
     # holding=False: no colour changes; given per robot
     cmds = commands(view.replay_html(holding_log(sim), str(tmp_path / "off.html"), robots=sim.robots,
@@ -417,11 +450,14 @@ def test_a_seek_shows_the_logs_poses(page, sim):
         assert page.js("window.coopsim.time()") == pytest.approx(t)
         for i, r in enumerate(robots):
             P, _ = r.shapes(log[i].q[row])
-            G, _ = r.shapes(log[i].q_ref[row])
+            F, G = r.frames(log[i].q[row]), r.frames(log[i].q_ref[row])
             for j, b in enumerate(r.boxes):
                 assert np.abs(page.pose(f"robot{i}/{b.name}") - P[j]).max() < TOL, (t, i, b.name)
-                if b.link != 0:
-                    assert np.abs(page.pose(f"ghost{i}/{b.name}") - G[j]).max() < TOL, (t, i, b.name)
+            for p, W in zip(parts_of(r), part_poses(r, parts_of(r), log[i].q[row])):
+                assert np.abs(page.pose(f"robot{i}/parts/link{p.link}/{p.name}") - W).max() < TOL, (t, i, p.name)
+            for k in range(1, r.dof + 1):
+                assert np.abs(page.pose(f"robot{i}/parts/link{k}") - F[k]).max() < TOL, (t, i, k)
+                assert np.abs(page.pose(f"ghost{i}/parts/link{k}") - G[k]).max() < TOL, (t, i, k)
         for name in ("bar", "bar1"):
             assert np.abs(page.pose(f"bodies/{name}") - log.bodies[name].poses()[row]).max() < TOL
     # between frames, three.js interpolates: the falling bar is between its neighbouring frames' heights

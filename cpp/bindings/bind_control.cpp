@@ -57,9 +57,12 @@ py::object model_out(const std::shared_ptr<const Robot>& m) {
 py::array_t<double> np(const Eigen::VectorXd& v) { return to_numpy(v); }
 
 py::array_t<double> compute_py(Controller& c, double t, const py::object& q, const py::object& qd,
-                               const py::object& q_ref, const py::object& qd_ref, const py::object& qdd_ref) {
+                               const py::object& q_ref, const py::object& qd_ref, const py::object& qdd_ref,
+                               const py::object& wrench) {
+  Array w;
+  if (!wrench.is_none()) w = table(wrench, "wrench");
   return to_numpy(compute(c, t, table(q, "q"), table(qd, "qd"), table(q_ref, "q_ref"), table(qd_ref, "qd_ref"),
-                          table(qdd_ref, "qdd_ref")));
+                          table(qdd_ref, "qdd_ref"), wrench.is_none() ? nullptr : &w));
 }
 
 }  // namespace
@@ -78,9 +81,11 @@ actuator limits. Controllers keep state, so give each robot its own.)doc")
       .def("reset", &Controller::reset, py::arg("robot"), py::arg("period"),
            "Prepares for a run on `robot` with updates every `period` s; clears the state.")
       .def("compute", &compute_py, py::arg("t"), py::arg("q"), py::arg("qd"), py::arg("q_ref"), py::arg("qd_ref"),
-           py::arg("qdd_ref"),
+           py::arg("qdd_ref"), py::arg("wrench") = py::none(),
            "Torques (n,) in N m or N at time t (s) from the measured q, qd and the reference q_ref, qd_ref, "
-           "qdd_ref, all (n,). Built-ins need reset() first.")
+           "qdd_ref, all (n,); wrench (6,) the force/torque sensor's reading for a task-space controller "
+           "(world axes, [N; N m about the TCP], what the clamp applies to its environment), else None. "
+           "Built-ins need reset() first.")
       .def(py::pickle(
           // Python subclasses: their attributes are their state
           [](py::object self) {

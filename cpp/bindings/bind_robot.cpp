@@ -390,7 +390,17 @@ void bind_robot(py::module_& m) {
          Mat6N J;
          r.tool_jacobian(At(r, q).ws, J);
          return checked(J, "tool_jacobian");
-       }, py::arg("q"), "Jacobian (6, n) of the tool centre point, linear rows first.");
+       }, py::arg("q"), "Jacobian (6, n) of the tool centre point, linear rows first.")
+      .def("tool_bias", [](const Robot& r, const py::object& q, const py::object& qd) {
+         At at(r, q);
+         const VecN v = vec(qd, r.dof(), "qd");
+         Vec6 b;
+         r.tool_bias(at.ws, v.data(), b);
+         return checked(b, "tool_bias");
+       }, py::arg("q"), py::arg("qd"),
+           "Jd qd (6,): the tool centre point's linear (m/s^2) and its link's angular (rad/s^2) acceleration "
+           "at joint velocities qd (n,) with zero joint accelerations; the TCP's acceleration is "
+           "tool_jacobian(q) @ qdd + tool_bias(q, qd).");
 
   // dynamics
   R.def("mass_matrix", [](const Robot& r, const py::object& q) {

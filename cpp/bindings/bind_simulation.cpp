@@ -286,6 +286,12 @@ torques between controller updates, the log and tracking metrics.)doc")
              return out;
            }, "Contact points of the last world step: dicts with a, b (names), kind, point_a, point_b (3,) m, "
               "normal (3,) from b to a, depth m (>= 0 touching), force (3,) N on a (b feels -force).")
+      .def("set_body_wrench", [](Simulation& s, const std::string& name, const py::object& w) {
+             s.set_body_wrench(body_id(s, name), vector_arg<Vec6>(w, 6, "wrench"));
+           }, py::arg("name"), py::arg("wrench"))
+      .def("body_wrench", [](const Simulation& s, const std::string& name) {
+             return to_numpy(s.body_wrench(body_id(s, name)));
+           }, py::arg("name"))
       .def("body_state", [](const Simulation& s, const std::string& name) {
              return body_state_dict(s.body_state(body_id(s, name)));
            }, py::arg("name"), "A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) "

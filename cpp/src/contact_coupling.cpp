@@ -36,7 +36,28 @@ void Simulation::links_to_world_() {
   for (size_t b = 0; b < free_ids_.size(); ++b) body_now_[b] = w.state(free_ids_[b]);
 }
 
+void Simulation::set_body_wrench(int id, const Vec6& wrench) {
+  if (!world_) throw std::invalid_argument("the simulation has no world");
+  const BodySpec& b = world_->body(id);
+  if (b.kind != BodyKind::Free)
+    throw std::invalid_argument("body '" + b.name + "' is not a free body: only free bodies take a wrench");
+  if (!wrench.allFinite()) throw std::invalid_argument("wrench on body '" + b.name + "' must be finite");
+  for (auto it = body_wrenches_.begin(); it != body_wrenches_.end(); ++it)
+    if (it->first == id) {
+      body_wrenches_.erase(it);
+      break;
+    }
+  if (!wrench.isZero(0)) body_wrenches_.emplace_back(id, wrench);
+}
+
+Vec6 Simulation::body_wrench(int id) const {
+  for (const auto& w : body_wrenches_)
+    if (w.first == id) return w.second;
+  return Vec6::Zero();
+}
+
 void Simulation::world_advance_(double h) {
+  for (const auto& w : body_wrenches_) world_->apply_wrench(w.first, w.second.head<3>(), w.second.tail<3>());
   try {
     world_->step(h, time());
   } catch (const WorldDivergence& e) {

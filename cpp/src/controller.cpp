@@ -47,7 +47,7 @@ VecN expand(const Eigen::VectorXd& g, int n) {
 }  // namespace
 
 VecN compute(Controller& controller, double t, const Array& q, const Array& qd, const Array& q_ref,
-             const Array& qd_ref, const Array& qdd_ref) {
+             const Array& qd_ref, const Array& qdd_ref, const Array* wrench) {
   if (q.ndim() != 1)
     throw std::invalid_argument("wrong shape for q: expected (n,), got " + shape_string(q.shape.data(), q.ndim()));
   const int n = static_cast<int>(q.shape[0]);
@@ -59,9 +59,14 @@ VecN compute(Controller& controller, double t, const Array& q, const Array& qd, 
     check_finite(*in[i], names[i]);
   }
   check_finite(t, "t");
+  if (wrench) {
+    check_shape(*wrench, {6}, "wrench");
+    check_finite(*wrench, "wrench");
+  }
   VecN tau(n);
   controller.compute(ControlInput{n, t, q.values.data(), qd.values.data(), q_ref.values.data(),
-                                  qd_ref.values.data(), qdd_ref.values.data()},
+                                  qd_ref.values.data(), qdd_ref.values.data(),
+                                  wrench ? wrench->values.data() : nullptr},
                      tau.data());
   return tau;
 }

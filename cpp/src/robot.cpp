@@ -597,6 +597,47 @@ void Robot::tool_jacobian(const Workspace& ws, Mat6N& J) const {
   J.topRows<3>() = 0.5 * (J.topRows<3>() + Jb.topRows<3>());
 }
 
+// d/dt of a point's Jacobian columns times qd. Frame j's angular velocity w_j and origin velocity
+// v_j by the forward recursion (joint j+1 turns or slides along z_j through o_j); for column j,
+// with zd_j = w_j x z_j: revolute  [zd_j x (p - o_j) + z_j x (pd - v_j); zd_j],  prismatic
+// [zd_j; 0].
+static void point_bias(const Workspace& ws, const std::vector<Link>& links, int l, const Eigen::Vector3d& p,
+                       const double* qd, Eigen::Vector3d& lin, Eigen::Vector3d& ang) {
+  std::array<Eigen::Vector3d, kMaxDof + 1> w, v;
+  w[0].setZero();
+  v[0].setZero();
+  Eigen::Vector3d pd = Eigen::Vector3d::Zero();
+  for (int j = 0; j < l; ++j) {
+    const Eigen::Vector3d z = ws.R[j].col(2);
+    const bool revolute = links[j].type == JointType::Revolute;
+    w[j + 1] = revolute ? Eigen::Vector3d(w[j] + qd[j] * z) : w[j];
+    v[j + 1] = v[j] + w[j + 1].cross(ws.o[j + 1] - ws.o[j]);
+    if (!revolute) v[j + 1] += qd[j] * z;
+  }
+  pd = v[l] + w[l].cross(p - ws.o[l]);
+  lin.setZero();
+  ang.setZero();
+  for (int j = 0; j < l; ++j) {
+    const Eigen::Vector3d z = ws.R[j].col(2);
+    const Eigen::Vector3d zd = w[j].cross(z);
+    if (links[j].type == JointType::Revolute) {
+      lin += qd[j] * (zd.cross(p - ws.o[j]) + z.cross(pd - v[j]));
+      ang += qd[j] * zd;
+    } else {
+      lin += qd[j] * zd;
+    }
+  }
+}
+
+void Robot::tool_bias(const Workspace& ws, const double* qd, Vec6& out) const {
+  const int la = link_index_(tool_.link, "tool link"), lb = link_index_(tool_.second_link, "tool second link");
+  Eigen::Vector3d lin_a, ang_a, lin_b, ang_b;
+  point_bias(ws, links_, la, ws.o[la] + ws.R[la] * tool_.offset.translation(), qd, lin_a, ang_a);
+  point_bias(ws, links_, lb, ws.o[lb] + ws.R[lb] * tool_.second_point, qd, lin_b, ang_b);
+  out.head<3>() = 0.5 * (lin_a + lin_b);
+  out.tail<3>() = ang_a;
+}
+
 // ------------------------------------------------------------------ dynamics
 
 void Robot::mass_matrix(const double* q, Workspace& ws, MatN& M) const {

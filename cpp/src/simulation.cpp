@@ -115,6 +115,7 @@ void Simulation::reset() {
   for (LogColumn& c : body_log_) c.clear();
   contact_log_.clear();
   grasp_events_.clear();
+  body_wrenches_.clear();
   world_at_ = -1;
   profile_ = StepProfile();
   k_ = 0;
@@ -344,6 +345,11 @@ bool Simulation::control_() {
       in.q_ref = c.q_ref.data();
       in.qd_ref = c.qd_ref.data();
       in.qdd_ref = c.qdd_ref.data();
+      in.wrench = nullptr;
+      if (c.controller->senses()) {  // the sensor at t_k: the contact and weld wrenches of the last world step
+        sense_(s, true);
+        in.wrench = s.sensor.world.data();
+      }
       VecN u(n);
       c.controller->compute(in, u.data());
       if (!u.allFinite()) torque_diverged_(s, u);

@@ -31,6 +31,16 @@ from . import grasp, robots
 from .urdf import from_urdf, to_urdf
 from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
+from ._core import (
+    TASK_AXES,
+    HybridForce,
+    Impedance,
+    Payload,
+    TaskController,
+    TaskState,
+    commandable_directions,
+    task_axes,
+)
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 from .batch import run_batch, simulate
@@ -81,6 +91,7 @@ __all__ = [
     "from_urdf",
     "to_urdf",
     "view",
+    "TASK_AXES", "HybridForce", "Impedance", "Payload", "TaskController", "TaskState", "commandable_directions", "task_axes",  # noqa: E501
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
     "sweep", "sweeps", "TaskRun",
 ]

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'IKError', 'InertiaWarning', 'LinkBox', 'PID', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LinkBox', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -373,6 +373,10 @@ class Robot:
         """
         World poses (k, 4, 4) and half extents (k, 3) m of the robot's k boxes (Robot.boxes order) at q (n,); for N states q (N, n), the poses (N, k, 4, 4).
         """
+    def tool_bias(self, q: typing.Any, qd: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Jd qd (6,): the tool centre point's linear (m/s^2) and its link's angular (rad/s^2) acceleration at joint velocities qd (n,) with zero joint accelerations; the TCP's acceleration is tool_jacobian(q) @ qdd + tool_bias(q, qd).
+        """
     def tool_jacobian(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
         Jacobian (6, n) of the tool centre point, linear rows first.
@@ -697,9 +701,9 @@ class Controller:
         ...
     def __setstate__(self, arg0: dict) -> None:
         ...
-    def compute(self, t: typing.SupportsFloat | typing.SupportsIndex, q: typing.Any, qd: typing.Any, q_ref: typing.Any, qd_ref: typing.Any, qdd_ref: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+    def compute(self, t: typing.SupportsFloat | typing.SupportsIndex, q: typing.Any, qd: typing.Any, q_ref: typing.Any, qd_ref: typing.Any, qdd_ref: typing.Any, wrench: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Torques (n,) in N m or N at time t (s) from the measured q, qd and the reference q_ref, qd_ref, qdd_ref, all (n,). Built-ins need reset() first.
+        Torques (n,) in N m or N at time t (s) from the measured q, qd and the reference q_ref, qd_ref, qdd_ref, all (n,); wrench (6,) the force/torque sensor's reading for a task-space controller (world axes, [N; N m about the TCP], what the clamp applies to its environment), else None. Built-ins need reset() first.
         """
     def reset(self, robot: Robot, period: typing.SupportsFloat | typing.SupportsIndex) -> None:
         """
@@ -808,6 +812,313 @@ class ComputedTorque(Controller):
         """
         The controller's model (a copy), or None for the simulated robot.
         """
+class Payload:
+    """
+    A rigid load the task-space controller knows (e.g. the held body).
+    
+    mass kg >= 0; com (3,) m, its centre of mass in the tool frame; inertia (3, 3) kg m^2 about the
+    centre of mass in the tool frame (symmetric). Its weight and inertia are taken out of the sensed
+    wrench (with the acceleration commanded at the previous update).
+    """
+    def __getstate__(self) -> tuple[tuple[float, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
+        ...
+    def __init__(self, mass: typing.SupportsFloat | typing.SupportsIndex, com: typing.Any = (0.0, 0.0, 0.0), inertia: typing.Any = ...) -> None:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def com(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (3,) m, tool frame.
+        """
+    @property
+    def inertia(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (3, 3) kg m^2 about the com, tool frame.
+        """
+    @property
+    def mass(self) -> float:
+        """
+        kg.
+        """
+class TaskState:
+    """
+    What a task-space law sees at one update (a copy).
+    
+    Task axes (see TaskController): vectors of 6 are [x, y, z, roll, pitch, yaw] (m or rad; N or N m
+    for wrenches). error and error_rate are reference minus measured.
+    """
+    @property
+    def accel_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) m/s^2, rad/s^2.
+        """
+    @property
+    def axes(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (3, 3) roll, pitch, yaw axes (columns, world).
+        """
+    @property
+    def bias(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) Jd qd.
+        """
+    @property
+    def commanded(self) -> tuple:
+        """
+        The commanded directions' names.
+        """
+    @property
+    def error(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) m, rad.
+        """
+    @property
+    def error_rate(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) m/s, rad/s.
+        """
+    @property
+    def external(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) the environment's wrench on the clamp: -wrench less the payload's.
+        """
+    @property
+    def jacobian(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6, n) task Jacobian.
+        """
+    @property
+    def jaw(self) -> typing.Any:
+        """
+        The jaw's joint index (0-based), or None.
+        """
+    @property
+    def pose(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (4, 4) the TCP, world.
+        """
+    @property
+    def pose_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (4, 4) the TCP at the joint reference.
+        """
+    @property
+    def q(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,) measured joints.
+        """
+    @property
+    def q_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,) joint reference.
+        """
+    @property
+    def qd(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def qd_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def qdd_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def sensed(self) -> bool:
+        """
+        A sensor reading was given.
+        """
+    @property
+    def t(self) -> float:
+        """
+        Time, s.
+        """
+    @property
+    def velocity(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,).
+        """
+    @property
+    def velocity_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,).
+        """
+    @property
+    def wrench(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) the sensor: what the clamp applies to its environment, N and N m.
+        """
+class TaskController(Controller):
+    """
+    Abstract task-space controller: a law on the tool centre point (TCP) that sees the force/torque
+    sensor.
+    
+    Subclass it in Python: call super().__init__(directions, ...), define compute_task(state) -> tau
+    (n,) from a TaskState, usually as self.torques(state, accel, wrench): the task acceleration
+    accel (6,) for the commanded directions and a wrench (6,) to apply. Optionally reset(robot,
+    period), called after the engine's own set-up.
+    
+    Task axes: x, y, z the TCP's position (world); yaw about the world's vertical, pitch about the
+    tool's y axis laid horizontal (the SCARA clamp's pitch joint), roll across both. directions:
+    names to command (default: every direction the arm can command; SCARA #1: x, y, z, pitch, yaw;
+    SCARA #2: x, y, z, yaw). The others are reported in the state, never commanded.
+    
+    torques(): jaw position-controlled (jaw_kp, jaw_kd, 1/s^2, 1/s); the arm's accelerations solve
+    J_c qdd = accel - Jd qd exactly, or, for a redundant arm (SCARA #2), with the pseudo-inverse
+    plus qdd_ref + null_kd (qd_ref - qd) + null_kp (q_ref - q) in J_c's null space (the redundancy
+    follows the joint reference: at rest the deviation from it has no null-space part); then tau = M qdd + C + G + K qd of `model`
+    (default: the robot) + J^T wrench. The reference is the joint reference mapped by the robot's
+    kinematics (plan_cartesian gives one). The sensor is read at the start of each step (the contact
+    and weld wrenches of the last world step). payload: a Payload whose weight and inertia are taken
+    out of the sensed wrench, or None.
+    """
+    def __init__(self, directions: typing.Any = None, *, jaw_kp: typing.SupportsFloat | typing.SupportsIndex = 2500.0, jaw_kd: typing.SupportsFloat | typing.SupportsIndex = 100.0, null_kp: typing.SupportsFloat | typing.SupportsIndex = 400.0, null_kd: typing.SupportsFloat | typing.SupportsIndex = 40.0, payload: typing.Any = None, model: typing.Any = None) -> None:
+        ...
+    def torques(self, state: TaskState, accel: typing.Any, wrench: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Joint torques (n,) for the task acceleration accel (6,; m/s^2, rad/s^2; commanded entries used) and the wrench (6,; N, N m; task axes; default zero) the clamp is to apply, at `state`.
+        """
+    @property
+    def commanded(self) -> tuple:
+        """
+        The directions this run commands (after reset).
+        """
+    @property
+    def directions(self) -> typing.Any:
+        """
+        The directions given (None: every commandable one).
+        """
+    @property
+    def jaw_kd(self) -> float:
+        ...
+    @property
+    def jaw_kp(self) -> float:
+        ...
+    @property
+    def model(self) -> typing.Any:
+        ...
+    @property
+    def null_kd(self) -> float:
+        ...
+    @property
+    def null_kp(self) -> float:
+        ...
+    @property
+    def payload(self) -> typing.Any:
+        ...
+    @property
+    def state(self) -> TaskState:
+        """
+        The TaskState of the last update (a copy).
+        """
+    @property
+    def uncommanded(self) -> tuple:
+        """
+        The directions this run reports but does not command (after reset).
+        """
+class Impedance(TaskController):
+    """
+    Operational-space impedance control of the tool centre point (TCP).
+    
+    In each commanded task direction the TCP behaves as the chosen mass-spring-damper
+    around the reference (errors e = reference - measured, see TaskController):
+    
+        mass (xdd - xdd_ref) + damping (xd - xd_ref) + stiffness (x - x_ref) = h_ext
+    
+    h_ext the wrench the environment applies to the clamp, from the force/torque sensor (minus the
+    known payload's weight and inertia); the law commands a* = xdd_ref + (h_ext + damping e_rate +
+    stiffness e) / mass and turns it into torques with the robot's model (TaskController.torques),
+    cancelling the sensed wrench (force_feedback=True). Without the sensor's feedback the arm's own
+    inertia is felt instead of `mass`. stiffness N/m and N m/rad, damping N s/m and N m s/rad, mass kg
+    and kg m^2: scalars or one per direction (in the order of `directions`), stiffness and damping
+    >= 0, mass > 0. Natural frequency sqrt(stiffness / mass), damping ratio
+    damping / (2 sqrt(stiffness mass)).
+    """
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
+        ...
+    def __init__(self, stiffness: typing.Any, damping: typing.Any, mass: typing.Any, directions: typing.Any = None, *, force_feedback: bool = True, jaw_kp: typing.SupportsFloat | typing.SupportsIndex = 2500.0, jaw_kd: typing.SupportsFloat | typing.SupportsIndex = 100.0, null_kp: typing.SupportsFloat | typing.SupportsIndex = 400.0, null_kd: typing.SupportsFloat | typing.SupportsIndex = 40.0, payload: typing.Any = None, model: typing.Any = None) -> None:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def damping(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def force_feedback(self) -> bool:
+        ...
+    @property
+    def mass(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def stiffness(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+class HybridForce(TaskController):
+    """
+    Hybrid position/force control of the tool centre point (TCP).
+    
+    force_directions (names) are force-controlled: the clamp applies force (N, or N m for a rotation)
+    along each, what it pushes on its environment (pressing down onto a surface is a negative z),
+    with a PI on the sensed wrench w_s:
+    
+        w_cmd = force + kp_force (force - w_s) + ki_force * integral(force - w_s) dt,  a* = -kv xd
+    
+    (kp_force dimensionless, ki_force 1/s, kv 1/s: damping of the motion along the force direction).
+    The other commanded directions are position-controlled like computed torque in task space:
+    a* = xdd_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s), with the sensed wrench along them cancelled
+    (force_feedback=True): a friction force does not drag the TCP off its path. Gains: scalars or one
+    per direction (force ones in the order of force_directions, position ones in the order of the
+    remaining commanded directions), >= 0; integral windup limited to |ki_force I| <= integral_limit N.
+    A force direction the robot cannot command is refused, naming it.
+    """
+    def __getstate__(self) -> tuple[tuple[typing.Any, numpy.typing.NDArray[numpy.float64]], dict]:
+        ...
+    def __init__(self, force_directions: typing.Any, force: typing.Any, *, kp_force: typing.Any = 0.5, ki_force: typing.Any = 20.0, kv: typing.Any = 20.0, kp: typing.Any = 900.0, kd: typing.Any = 60.0, directions: typing.Any = None, force_feedback: bool = True, integral_limit: typing.SupportsFloat | typing.SupportsIndex = 100.0, jaw_kp: typing.SupportsFloat | typing.SupportsIndex = 2500.0, jaw_kd: typing.SupportsFloat | typing.SupportsIndex = 100.0, null_kp: typing.SupportsFloat | typing.SupportsIndex = 400.0, null_kd: typing.SupportsFloat | typing.SupportsIndex = 40.0, payload: typing.Any = None, model: typing.Any = None) -> None:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def force(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def force_directions(self) -> list[str]:
+        ...
+    @property
+    def force_feedback(self) -> bool:
+        ...
+    @property
+    def integral(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) the force error's integral, N s (task axes).
+        """
+    @property
+    def integral_limit(self) -> float:
+        ...
+    @property
+    def kd(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def ki_force(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def kp(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def kp_force(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def kv(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
 class World:
     """
     A Bullet dynamics world: an optional floor (the plane z = 0), static boxes
@@ -900,6 +1211,8 @@ class SimulationCore:
         """
         A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s.
         """
+    def body_wrench(self, name: str) -> numpy.typing.NDArray[numpy.float64]:
+        ...
     def contact_events(self) -> dict:
         """
         Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force (N), max_depth (m), steps.
@@ -992,6 +1305,8 @@ class SimulationCore:
         """
         Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench at the tool centre point); None keeps that input as it is.
         """
+    def set_body_wrench(self, name: str, wrench: typing.Any) -> None:
+        ...
     def set_controller(self, i: typing.SupportsInt | typing.SupportsIndex, controller: Controller) -> None:
         """
         Replaces robot i's controller (checked as add_robot's); the state stays, the new controller is reset now and acts from the next controller update.
@@ -1112,6 +1427,10 @@ def box_inertia(mass: typing.SupportsFloat | typing.SupportsIndex, lx: typing.Su
     """
     Inertia tensor (3, 3) in kg m^2 of a solid box of `mass` kg and edges lx, ly, lz (m) along x, y, z, about its centre.
     """
+def commandable_directions(robot: Robot, q0: typing.Any = None) -> tuple:
+    """
+    The task directions (names, in the order x, y, z, roll, pitch, yaw) `robot`'s arm joints (the jaw excluded) can move its tool centre point along: a Jacobian row nonzero at q0 or at one of 32 seeded random configurations within the joint limits.
+    """
 def compiled_generated_names() -> list[str]:
     """
     Names of the robots whose generated dynamics are compiled into this build.
@@ -1176,5 +1495,10 @@ def simulation_defaults() -> dict:
     """
     The engine's defaults of SimulationCore's options, the only place they are written: a dict with dt (s), control_every, log_every, end_stops, max_speed (rad/s or m/s), max_position (rad or m), integrator, world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, release_time s, weld_moment).
     """
+def task_axes(tool: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+    """
+    The task axes' basis (3, 3), columns roll, pitch, yaw axes in the world, for a tool pose (4, 4): yaw about the world's z, pitch about the tool's y axis laid into the horizontal plane, roll across both. ValueError-like domain error when the tool's y axis is vertical.
+    """
+TASK_AXES: tuple = ('x', 'y', 'z', 'roll', 'pitch', 'yaw')
 build_optimised: bool
 build_sanitizers: str

@@ -338,6 +338,16 @@ class Simulation:
         [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s."""
         return self._core.body_state(name)
 
+    def set_body_wrench(self, name: str, wrench) -> None:
+        """Pushes free body `name` with wrench (6,) [force N at its centre of mass; moment N m], world
+        axes, at every world step from the next one on, until changed (zeros: removed) or reset().
+        ValueError for a body that is not free, a wrong shape or a non-finite value."""
+        self._core.set_body_wrench(name, wrench)
+
+    def body_wrench(self, name: str) -> np.ndarray:
+        """The wrench (6,) set on free body `name` by set_body_wrench (zeros if none)."""
+        return self._core.body_wrench(name)
+
     def holding(self, robot: int = 0) -> Optional[str]:
         """The name of the free body a robot holds now, or None."""
         return self._core.holding(_index(robot, self.robot_count))

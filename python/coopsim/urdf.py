@@ -29,14 +29,17 @@ import math
 import os
 import re
 import xml.etree.ElementTree as ET
+from collections import OrderedDict
 from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Optional
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from ._core import LinkBox, Robot
 
-__all__ = ["to_urdf", "from_urdf", "rpy_from_matrix"]
+__all__ = ["to_urdf", "from_urdf", "rpy_from_matrix", "Visual", "visuals"]
 
 # characters XML 1.0 does not allow (control characters, surrogates, U+FFFE/F)
 _XML_ILLEGAL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
@@ -198,6 +201,98 @@ def to_urdf(robot, name: str | None = None) -> str:
     return "\n".join(out)
 
 
+# ------------------------------------------------------------------ visuals
+
+@dataclass(frozen=True, eq=False)
+class Visual:
+    """A ``<visual>`` of a URDF link, kept for the views (:mod:`coopsim.view.parts`).
+
+    link: the Robot link that carries it (0 the base .. n: the chain joint's child, with the links fixed
+    to it). pose (4, 4): the visual's origin in that link's DH frame. shape: 'mesh', 'box' or 'cylinder'.
+    scale (3,): a mesh's scale factors, a box's size (m), a cylinder's (2 radius, 2 radius, length) (m,
+    its axis along the pose's z). path: the mesh file, resolved (shape 'mesh'). name: the URDF link's.
+    """
+
+    link: int
+    pose: np.ndarray
+    shape: str
+    scale: np.ndarray
+    path: Optional[str]
+    name: str
+
+
+# the visuals of the robots from_urdf read, by what identifies a robot's geometry (its copies, e.g.
+# Simulation.robots, are other objects with the same data); the last 256 robots read
+_VISUALS: "OrderedDict[tuple, tuple]" = OrderedDict()
+_VISUALS_KEPT = 256
+
+
+def _visual_key(robot) -> tuple:
+    return (robot.name, robot.joint_types, tuple(robot.joint_names), tuple(robot.link_names),
+            np.ascontiguousarray(robot.dh, dtype=float).tobytes())
+
+
+def visuals(robot) -> list:
+    """The ``<visual>`` geometry (meshes whose file was found, boxes, cylinders) of a robot that
+    :func:`from_urdf` read, as a list of :class:`Visual`; [] for any other robot (or a URDF without
+    visuals). Known by the robot's name, joint types, joint and link names and DH table, so a copy
+    (``Simulation.robots``, ``with_base``) has them too; kept for the last 256 robots read."""
+    return list(_VISUALS.get(_visual_key(robot), ()))
+
+
+def _mesh_path(filename: str, base_dir: Optional[str]) -> Optional[str]:
+    """The file a URDF mesh filename names, or None when it is not found: ``package://pkg/rest`` in a
+    directory of ROS_PACKAGE_PATH or a parent of the URDF's directory named pkg (or holding pkg),
+    ``file://`` and plain paths as they are or relative to the URDF's directory."""
+    cands = []
+    if filename.startswith("package://"):
+        pkg, _, rest = filename[len("package://"):].partition("/")
+        roots = [r for r in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if r]
+        if base_dir is not None:
+            d = os.path.abspath(base_dir)
+            while True:
+                roots.append(d)
+                up = os.path.dirname(d)
+                if up == d:
+                    break
+                d = up
+        for r in roots:
+            cands += [os.path.join(r, rest)] if os.path.basename(os.path.normpath(r)) == pkg else []
+            cands.append(os.path.join(r, pkg, rest))
+    else:
+        path = filename[len("file://"):] if filename.startswith("file://") else filename
+        cands.append(path if os.path.isabs(path) or base_dir is None else os.path.join(base_dir, path))
+    return next((os.path.abspath(c) for c in cands if os.path.isfile(c)), None)
+
+
+def _visual(sh, ln, body, X, base_dir, snap):
+    """A Visual of one <visual> element of link ln (X: the link frame in the body's DH frame), or None for
+    geometry the views do not draw (spheres, a mesh file not found)."""
+    what = f"link {ln!r} visual"
+    g = sh.find("geometry")
+    if g is None:
+        return None
+    T = X @ _pose(sh, what, snap)
+    mesh, box, cyl = g.find("mesh"), g.find("box"), g.find("cylinder")
+    if mesh is not None:
+        fn = mesh.get("filename")
+        path = _mesh_path(fn, base_dir) if fn else None
+        if path is None:
+            return None
+        scale = _floats(mesh.get("scale", "1 1 1"), 3, f"{what} mesh scale")
+        if any(s == 0 for s in scale):
+            raise ValueError(f"{what}: mesh scale must not be 0, got {scale}")
+        return Visual(body, T, "mesh", np.array(scale), path, ln)
+    if box is not None:
+        size = _floats(box.get("size"), 3, f"{what} box size")
+        return Visual(body, T, "box", np.array(size), None, ln) if min(size) > 0 else None
+    if cyl is not None:
+        r, length = _attr(cyl, "radius", what), _attr(cyl, "length", what)
+        return Visual(body, T, "cylinder", np.array([2 * r, 2 * r, length]), None, ln) if r > 0 and length > 0 \
+            else None
+    return None
+
+
 # ------------------------------------------------------------------ import
 
 # numbers read from a URDF (lengths, angles, masses, inertias, damping ...) are at most this large in
@@ -343,8 +438,11 @@ def _dh_from_axes(points, axes):
 
 
 def _read(source):
+    """(root element, the file's directory or None for text)."""
+    base_dir = None
     if isinstance(source, os.PathLike) or (isinstance(source, str) and not source.lstrip().startswith("<")):
         path = os.fspath(source)
+        base_dir = os.path.dirname(os.path.abspath(path))
         if not os.path.isfile(path):
             raise ValueError(f"source must be URDF text or the path of a URDF file; no file {path!r}")
         try:
@@ -363,7 +461,7 @@ def _read(source):
         raise ValueError(f"source is not well-formed XML: {e}") from None
     if root.tag != "robot":
         raise ValueError(f"source is not URDF: its root element is <{root.tag}>, expected <robot>")
-    return root
+    return root, base_dir
 
 
 _MOVABLE = {"revolute": "R", "continuous": "R", "prismatic": "P"}
@@ -396,6 +494,10 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     ``drake:gear_ratio`` squared as the armature. ``<collision>`` boxes (or
     ``<visual>`` ones when a link has no collision) become the robot's
     boxes; meshes are left out (a robot without boxes gets the default ones).
+    The ``<visual>`` meshes (files found: ``package://`` through
+    ROS_PACKAGE_PATH or the URDF file's parent directories), boxes and
+    cylinders are kept in Python for the views (:func:`visuals`; the live
+    page and the replay draw them, :mod:`coopsim.view.parts`).
 
     tip: the last link of the chain (default: the end of the only chain of
         movable joints, followed down single fixed joints). Movable joints
@@ -429,7 +531,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         raise ValueError(f"tip must be the name of a link (str) or None, got {type(tip).__name__}")
     if locked is not None and not isinstance(locked, Mapping):
         raise ValueError(f"locked must be a dict {{joint name: position}}, got {type(locked).__name__}")
-    root = _read(source)
+    root, base_dir = _read(source)
     links = {}
     for el in root.findall("link"):
         ln = el.get("name")
@@ -573,7 +675,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     for i in range(n):
         F.append(F[-1] @ _dh(*dh[i]))  # DH frames at q = 0, rebuilt from the rows
     parts = [[] for _ in range(n + 1)]
-    box_list = []
+    box_list, visual_list = [], []
     for ln in order:
         b = body_of[ln]
         X = np.linalg.inv(F[b]) @ pose[ln]  # link frame in the body's DH frame (frame 0 for the base)
@@ -590,6 +692,10 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
                 raise ValueError(f"link {ln!r}: box sizes must be > 0, got {size}")
             box_list.append(LinkBox(b, 0.5 * np.array(size), X @ _pose(sh, f"link {ln!r} {sh.tag}", snap),
                                     sh.get("name") or f"{ln}_{k}"))
+        for sh in links[ln].findall("visual"):
+            v = _visual(sh, ln, b, X, base_dir, snap)
+            if v is not None:
+                visual_list.append(v)
     bodies = [_combine(p) for p in parts[1:]]
     masses = np.array([b[0] for b in bodies])
     com = np.array([b[1] for b in bodies])
@@ -633,4 +739,11 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
                           name=name or root.get("name") or "robot", boxes=box_list or None, armature=Ia,
                           coulomb=Fc, coulomb_width=coulomb_width, base_orientation=Rb,
                           inertia_check=inertia_check)
-    return robot.with_names(chain, [joints[jn].find("child").get("link") for jn in chain])
+    robot = robot.with_names(chain, [joints[jn].find("child").get("link") for jn in chain])
+    key = _visual_key(robot)
+    _VISUALS.pop(key, None)
+    if visual_list:
+        _VISUALS[key] = tuple(visual_list)
+        while len(_VISUALS) > _VISUALS_KEPT:
+            _VISUALS.popitem(last=False)
+    return robot

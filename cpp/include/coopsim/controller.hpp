@@ -26,6 +26,11 @@ struct ControlInput {
   const double* q_ref = nullptr;  // reference position
   const double* qd_ref = nullptr;
   const double* qdd_ref = nullptr;
+  // The force/torque sensor's reading for a controller that senses() (else null): 6 values, world
+  // axes, [force N; moment N m about the TCP], the wrench the robot's end applies to its
+  // environment (see SensorOptions). In a simulation it is read at the start of the step, from
+  // the contact and weld wrenches of the last world step.
+  const double* wrench = nullptr;
 };
 
 class Controller {
@@ -39,13 +44,17 @@ class Controller {
   virtual void reset(const Robot& robot, double period) {}
   // Writes n commanded torques (N m or N) to tau.
   virtual void compute(const ControlInput& in, double* tau) = 0;
+  // True for a controller that reads the force/torque sensor (ControlInput::wrench).
+  virtual bool senses() const { return false; }
 };
 
 // Controller::compute for numbers given as tables: q, qd, q_ref, qd_ref,
 // qdd_ref (n,) each, finite, 1 <= n <= kMaxDof; t (s) finite. Each checked,
 // naming it (std::invalid_argument); returns tau (n,).
+// wrench: null, or (6,) finite, the sensor's reading (ControlInput::wrench) for a controller that
+// senses() (without one such a controller sees no reading).
 VecN compute(Controller& controller, double t, const Array& q, const Array& qd, const Array& q_ref,
-             const Array& qd_ref, const Array& qdd_ref);
+             const Array& qd_ref, const Array& qdd_ref, const Array* wrench = nullptr);
 
 // Gains as a table: one number (every joint) or (n,); the shape is checked
 // here, the values by the controllers.

@@ -298,6 +298,9 @@ to the base frame's origin.)doc";
   // (1..n; 0 gives zeros) given in that link's DH frame.
   void jacobian(const Workspace& ws, int link, const Eigen::Vector3d& point, Mat6N& J) const;
   void tool_jacobian(const Workspace& ws, Mat6N& J) const;
+  // The tool Jacobian's time derivative times qd, Jd qd (6, world): the TCP's linear and its link's
+  // angular acceleration when qdd = 0, for the frames in ws (kinematics of q) and velocities qd.
+  void tool_bias(const Workspace& ws, const double* qd, Vec6& out) const;
 
   // ---- dynamics: tau + J^T F = M qdd + C(q, qd) + G(q) + K qd + F_c tanh(qd / v_c) ----
   // M includes the armature on its diagonal. A link may have no mass; M

@@ -241,6 +241,11 @@ class Simulation {
   // out of range.
   void set_applied_forces(int i, const VecN& forces);
   void set_applied_wrenches(int i, std::vector<ExternalWrench> wrenches);
+  // A wrench on free body `id` (world axes: force N at its centre of mass, moment N m), applied at
+  // every world step from the next one on, kept until changed (zero: removed); cleared by reset().
+  // Throws std::invalid_argument without a world, for a body that is not free, or a non-finite value.
+  void set_body_wrench(int id, const Vec6& wrench);
+  Vec6 body_wrench(int id) const;
   const VecN& applied_forces(int i) const { return slot_(i).external.forces; }
   const std::vector<ExternalWrench>& applied_wrenches(int i) const { return slot_(i).external.wrenches; }
   const VecN& initial_q(int i) const { return slot_(i).state.q0; }
@@ -389,6 +394,7 @@ class Simulation {
   std::vector<BodyState> body_now_;
   std::vector<Eigen::Isometry3d> box_poses_;  // scratch of world_step_
   std::vector<LoggedContact> contact_log_;
+  std::vector<std::pair<int, Vec6>> body_wrenches_;  // set_body_wrench: (world id, wrench), nonzero
   long world_at_ = -1;
   bool profiling_ = false;
   StepProfile profile_;

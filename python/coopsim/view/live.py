@@ -5,11 +5,13 @@
     v.wait()                              # until t_end (re-raises an exception of the run)
     v.close()                             # stops the server, frees the port
 
-The page (served by ``viser``, the ``live`` extra: ``pip install coopsim[live]``) shows every link box of
-every robot (``Robot.shapes(q)``, one call per robot and frame), the desired pose as a transparent blue
-ghost, the robots green while they hold a body together, the world's scenery (grey), its free bodies (the
-bar red) and the floor, with the colours of :data:`coopsim.view.COLORS`; with "Collision boxes" on, the
-link boxes green (free) or red (in contact), and the contact points as red lines.
+The page (served by ``viser``, the ``live`` extra: ``pip install coopsim[live]``) shows every robot as its
+parts (:mod:`coopsim.view.parts`: the SCARAs as the paper draws them, a URDF arm with its visual meshes,
+another robot as its boxes), placed on the link frames (``Robot.frames(q)``, one call per robot and frame),
+the desired pose as a transparent blue ghost of the moving links' parts, the robots green while they hold a
+body together, the world's scenery (grey), its free bodies (the bar red) and the floor, with the colours of
+:data:`coopsim.view.COLORS`; with "Collision boxes" on, the link boxes (``Robot.shapes(q)``) instead of the
+parts, green (free) or red (in contact), and the contact points as red lines.
 
 Panels (tabs): **Run**: speed 0-400 %, pause, resume, one step (one control period), reset to the start,
 and the time supervision (simulated and wall time, set and achieved speed, step time mean and max,
@@ -57,6 +59,7 @@ from ..pacing import Pacer
 from ..robots import scara1, scara2
 from ..simulation import Simulation
 from .geometry import box_corners, view_direction
+from .parts import UNIT_CUBE, UNIT_CYLINDER, _box_role, mesh_triangles, part_corners, part_poses, robot_parts
 from .scene import COLORS, DEFAULT_ELEV, Scene
 from .world import colliding_from_contacts, contact_lines, holding_now, is_bar, robot_labels
 
@@ -64,7 +67,7 @@ __all__ = ["LiveView", "live"]
 
 _HOST = "127.0.0.1"
 _CONTACT_LENGTH = 0.04        # m, drawn length of a contact line
-_GHOST_MARGIN = 0.002         # m, ghost boxes this much smaller (a robot on its reference hides its ghost)
+_GHOST_MARGIN = 0.002         # m, ghost parts this much smaller on each side (a robot on its reference hides its ghost)
 _PLOT_EVERY = 0.1             # s of wall time between plot updates
 _TABLE_EVERY = 0.5            # s of wall time between updates of the data table
 _DIMENSION_FIELDS = (("L1", "L1 (m)"), ("L2", "L2 (m)"), ("L_base", "Base height (m)"))   # the built-in SCARAs'
@@ -122,13 +125,17 @@ def _rotation(wxyz) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
+def _role_colors(roles, i: int) -> np.ndarray:
+    """(k, 3) uint8: robot i's colours of parts or boxes by their colour name ('robot', 'base', 'jaw')."""
+    c = {"robot": _rgb8(COLORS["robots"][i % len(COLORS["robots"])]), "base": _rgb8(COLORS["base"]),
+         "jaw": _rgb8(COLORS["jaw"])}
+    return np.array([c[x] for x in roles], dtype=np.uint8).reshape(-1, 3)
+
+
 def _robot_colors(robot, i: int) -> np.ndarray:
     """(k, 3) uint8: the normal colour of each of robot i's boxes (as coopsim.view.Scene: base columns,
     jaws, links in the robot's colour)."""
-    link, base, jaw = _rgb8(COLORS["robots"][i % len(COLORS["robots"])]), _rgb8(COLORS["base"]), _rgb8(COLORS["jaw"])
-    moving = robot.clamp.moving_joint if robot.clamp is not None else -1
-    return np.array([base if b.link == 0 else jaw if ("jaw" in b.name or b.link == moving) else link
-                     for b in robot.boxes], dtype=np.uint8).reshape(-1, 3)
+    return _role_colors([_box_role(robot, b) for b in robot.boxes], i)
 
 
 def _number(text, what: str) -> float:
@@ -160,11 +167,13 @@ class Frame:
     """One consistent snapshot of the simulation (taken on its thread between chunks).
 
     t (s), steps; per robot q, qd, q_ref (n,), poses (k, 4, 4) and half (k, 3) of its boxes at q,
-    ghost poses at q_ref, holding (bool), colliding (k,) bool; bodies: {name: pose (4, 4)} of the free
-    bodies; lines (m, 2, 3) contact points and directions."""
+    parts (m, 4, 4) the world poses of its parts at q (coopsim.view.parts), ghost the poses of its boxes
+    and ghost_parts those of its parts at q_ref,
+    holding (bool), colliding (k,) bool; bodies: {name: pose (4, 4)} of the free bodies; lines (m, 2, 3)
+    contact points and directions."""
 
-    __slots__ = ("t", "steps", "q", "qd", "q_ref", "poses", "half", "ghost", "holding", "colliding", "bodies",
-                 "lines")
+    __slots__ = ("t", "steps", "q", "qd", "q_ref", "poses", "half", "parts", "ghost", "ghost_parts", "holding",
+                 "colliding", "bodies", "lines")
 
 
 class LiveView:
@@ -234,6 +243,9 @@ class LiveView:
         self._plot_robot = 0
         self._table_robot = 0
         self._colors = [_robot_colors(r, i) for i, r in enumerate(self.robots)]
+        self._parts = [robot_parts(r) for r in self.robots]      # the look (the boxes: on request)
+        self._part_meshes: list = []
+        self._ghost_meshes: list = []
         self._moving = [np.array([b.link != 0 for b in r.boxes], dtype=bool) for r in self.robots]
         self._world = sim.world
         self._free_names = [n for n in (self._world.body_names if self._world is not None else [])
@@ -282,6 +294,8 @@ class LiveView:
         world = self._world
         # everything in view: boxes of robots and world at the start, the floor under them
         pts = [self._corners(*r.shapes(self.sim.state(i)[0])) for i, r in enumerate(self.robots)]
+        pts += [part_corners(p, part_poses(r, p, self.sim.state(i)[0])) for i, (r, p) in
+                enumerate(zip(self.robots, self._parts)) if p]
         scenery = []
         if world is not None:
             for name in world.body_names:
@@ -318,14 +332,8 @@ class LiveView:
             self._robot_mesh = sc.add_batched_meshes_simple(
                 "/robots", _CUBE_V, _CUBE_F, np.tile([1.0, 0, 0, 0], (k, 1)), np.zeros((k, 3)),
                 batched_scales=2 * half, batched_colors=np.concatenate(self._colors), lod="off", flat_shading=True)
-            gh = np.concatenate([h[m] - np.minimum(_GHOST_MARGIN, 0.25 * h[m]) for h, m in
-                                 zip(self._split(half), self._moving)])
-            self._ghost_mesh = sc.add_batched_meshes_simple(
-                "/ghosts", _CUBE_V, _CUBE_F, np.tile([1.0, 0, 0, 0], (len(gh), 1)), np.zeros((len(gh), 3)),
-                batched_scales=2 * gh, batched_colors=np.tile(_rgb8(COLORS["ghost"]), (len(gh), 1)),
-                opacity=float(COLORS["ghost_alpha"]),
-                lod="off", flat_shading=True, cast_shadow=False, receive_shadow=False,
-                visible=self._show["ghosts"])
+            self._robot_mesh.visible = self._show["collision_boxes"]
+            self._build_parts()
         self._body_mesh = None
         if self._free_names:
             H = np.array([world.body(n)["half_extents"] for n in self._free_names])
@@ -345,6 +353,48 @@ class LiveView:
             self._label_nodes.append(sc.add_label(f"/labels/{n}", n, position=self.sim.body_state(n)["position"],
                                                   visible=self._show["labels"]))
         self._set_camera("perspective", initial=True)
+
+    def _build_parts(self) -> None:
+        """The robots' parts as batched meshes, one per shape (unit cube, unit cylinder, each mesh file), each
+        instance a part scaled and placed every frame; shown unless the collision boxes are."""
+        for m in self._part_meshes + self._ghost_meshes:
+            m[0].remove()
+        self._part_meshes = self._batched_parts("/parts", False)
+        self._ghost_meshes = self._batched_parts("/ghosts", True)
+
+    def _batched_parts(self, root: str, ghost: bool) -> list:
+        """[(handle, part indices in the frame's concatenated parts, robot of each, colours, on a moving link)]
+        of the parts grouped by shape; ghost: the moving links' parts only, _GHOST_MARGIN smaller, in the
+        ghost's colour and transparency (a robot on its reference hides its ghost)."""
+        groups: dict = {}
+        flat = 0
+        for i, parts in enumerate(self._parts):
+            for p in parts:
+                if not ghost or p.link != 0:
+                    groups.setdefault((p.shape, p.mesh), []).append((i, flat, p))
+                flat += 1
+        out = []
+        for (shape, mesh), members in groups.items():
+            v, fc = UNIT_CUBE if shape == "box" else UNIT_CYLINDER if shape == "cylinder" else mesh_triangles(mesh)
+            parts = [p for _, _, p in members]
+            k = len(members)
+            scales = np.array([p.scale for p in parts])
+            if ghost:
+                cols = np.tile(_rgb8(COLORS["ghost"]), (k, 1))
+                if shape != "mesh":
+                    scales = np.maximum(scales - 2 * _GHOST_MARGIN, 0.5 * scales)
+                style = dict(opacity=float(COLORS["ghost_alpha"]), cast_shadow=False, receive_shadow=False,
+                             visible=self._show["ghosts"])
+            else:
+                cols = np.concatenate([_role_colors([p.color], i) for i, _, p in members])
+                style = dict(visible=not self._show["collision_boxes"])
+            handle = self.server.scene.add_batched_meshes_simple(
+                f"{root}/{len(out)}", v, fc, np.tile([1.0, 0, 0, 0], (k, 1)), np.zeros((k, 3)),
+                batched_scales=scales, batched_colors=cols, lod="off", flat_shading=shape == "box",
+                side="double" if shape == "mesh" else "front", **style)
+            moving = np.array([p.link != 0 for p in parts])
+            out.append((handle, np.array([x[1] for x in members]), np.array([x[0] for x in members]), cols, moving))
+        return out
 
     def _choose_azimuth(self, scenery) -> float:
         """The default camera's azimuth (degrees), chosen as coopsim.view.Scene chooses it: robots, scenery and
@@ -587,12 +637,12 @@ class LiveView:
         self.submit(go)
 
     def _rescale(self) -> None:
-        """The robots' drawn boxes at their sizes now (after a robot was replaced)."""
+        """The robots' drawn boxes and parts at their sizes now (after a robot was replaced)."""
         self._half = np.concatenate([r.shapes(self.sim.state(i)[0])[1] for i, r in enumerate(self.robots)])
         if self._robot_mesh is not None:
             self._robot_mesh.batched_scales = 2 * self._half
-            self._ghost_mesh.batched_scales = 2 * np.concatenate(
-                [h[m] - np.minimum(_GHOST_MARGIN, 0.25 * h[m]) for h, m in zip(self._split(self._half), self._moving)])
+            self._parts = [robot_parts(r) for r in self.robots]
+            self._build_parts()
 
     def _make_plots(self, i: int):
         import viser.uplot as up  # the optional live extra
@@ -701,7 +751,12 @@ class LiveView:
             raise ValueError(f"what must be one of {sorted(self._show)}, got {what!r}")
         self._show[what] = bool(on)
         if what == "ghosts" and self._robot_mesh is not None:
-            self._ghost_mesh.visible = bool(on)
+            for m in self._ghost_meshes:
+                m[0].visible = bool(on)
+        if what == "collision_boxes" and self._robot_mesh is not None:
+            self._robot_mesh.visible = bool(on)
+            for m in self._part_meshes:
+                m[0].visible = not on
         if what == "labels":
             for node in self._label_nodes:
                 node.visible = bool(on)
@@ -925,7 +980,7 @@ class LiveView:
         sim = self.sim
         f = Frame()
         f.t, f.steps = sim.time, sim.steps
-        f.q, f.qd, f.q_ref, f.poses, f.half, f.ghost = [], [], [], [], [], []
+        f.q, f.qd, f.q_ref, f.poses, f.half, f.ghost, f.parts, f.ghost_parts = [], [], [], [], [], [], [], []
         refs = sim.references
         for i, r in enumerate(self.robots):
             q, qd = sim.state(i)
@@ -937,6 +992,8 @@ class LiveView:
             f.poses.append(P[0])
             f.ghost.append(P[1])
             f.half.append(H)
+            f.parts.append(part_poses(r, self._parts[i], q))
+            f.ghost_parts.append(part_poses(r, self._parts[i], q_ref))
         f.holding = holding_now(sim, mode=self._holding_mode) if self.robots else []
         f.bodies = {n: np.asarray(sim.body_state(n)["pose"]) for n in self._free_names}
         need = self._world is not None and (self._show["collision_boxes"] or self._show["contact_lines"])
@@ -976,17 +1033,33 @@ class LiveView:
         self.frames += 1
 
     def _draw_scene(self, f: Frame) -> None:
-        if self._robot_mesh is not None:
+        # the collision boxes while they are shown (and in the first frame), else the parts
+        if self._robot_mesh is not None and (self._show["collision_boxes"] or self.frame is None):
             P = np.concatenate(f.poses)
             self._robot_mesh.batched_positions = P[:, :3, 3]
             self._robot_mesh.batched_wxyzs = quaternions(P[:, :3, :3])
             cols = self._robot_colours(f)
             if self.frame is None or not np.array_equal(cols, self._robot_mesh.batched_colors):
                 self._robot_mesh.batched_colors = cols
+        if self._robot_mesh is not None and (not self._show["collision_boxes"] or self.frame is None):
+            hold = _rgb8(COLORS["holding"])
+            every = np.concatenate(f.parts)
+            holding = np.array(f.holding, dtype=bool)
+            for handle, index, robot, cols, moving in self._part_meshes:
+                P = every[index]
+                handle.batched_positions = P[:, :3, 3]
+                handle.batched_wxyzs = quaternions(P[:, :3, :3])
+                c = cols.copy()
+                c[holding[robot] & moving] = hold
+                if self.frame is None or not np.array_equal(c, handle.batched_colors):
+                    handle.batched_colors = c
+        if self._robot_mesh is not None:
             if self._show["ghosts"]:
-                G = np.concatenate([g[m] for g, m in zip(f.ghost, self._moving)])
-                self._ghost_mesh.batched_positions = G[:, :3, 3]
-                self._ghost_mesh.batched_wxyzs = quaternions(G[:, :3, :3])
+                every = np.concatenate(f.ghost_parts)
+                for handle, index, *_ in self._ghost_meshes:
+                    G = every[index]
+                    handle.batched_positions = G[:, :3, 3]
+                    handle.batched_wxyzs = quaternions(G[:, :3, :3])
         if self._body_mesh is not None:
             B = np.array([f.bodies[n] for n in self._free_names])
             self._body_mesh.batched_positions = B[:, :3, 3]

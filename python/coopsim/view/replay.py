@@ -3,8 +3,13 @@
     view.replay_html(sim, "out/run.html")            # a finished Simulation: its log, robots and world
     view.replay_html(log, "out/run.html", robots=sim.robots, world=sim.world, fps=30, speed=0.5)
 
-The page shows every box of every robot (``robot.shapes(q)``), the desired
-pose (the log's ``q_ref``) as a transparent blue ghost, the robots green
+The page shows every robot as its parts (:mod:`coopsim.view.parts`, the
+same as the live page's: the SCARAs as the paper draws them, a URDF arm with
+its visual meshes, another robot as its boxes) on its link frames
+(``robot.frames(q)``), its collision boxes (``robot.shapes(q)``) instead
+when the bar's "boxes" box is ticked (``collision_boxes=True``: at first),
+the desired pose (the log's ``q_ref``) as a transparent blue ghost of the
+moving links' parts, the robots green
 while both hold a body (``log[i].holding``; 'any': while they hold something), the world's static
 scenery, its free bodies (the bar, in the paper's red) and the floor, with
 the colours of :data:`coopsim.view.COLORS`. It has an orbit camera (drag to
@@ -38,11 +43,16 @@ the page (all times in the log's seconds, poses in the z-up world):
 
 - ``seek(t)``: shows time t (clamped to the replay) and renders; returns t.
 - ``pose(name)``: the (4, 4) pose of a box as nested rows, or null:
-  ``robot<i>/<box name>`` (e.g. ``robot0/link2``), ``ghost<i>/<box name>``,
-  ``bodies/<name>`` (e.g. ``bodies/bar``), ``scenery/<name>``, ``floor``.
+  ``robot<i>/<box name>`` (e.g. ``robot0/link2``), ``robot<i>/parts/link<k>``
+  (DH frame k) and ``robot<i>/parts/link<k>/<part name>`` (e.g.
+  ``robot0/parts/link1/segment1``, the part's pose, without its scale),
+  ``ghost<i>/parts/link<k>[/<part name>]``, ``bodies/<name>`` (e.g.
+  ``bodies/bar``), ``scenery/<name>``, ``floor``.
 - ``color(name)``: the box's colour now, "#rrggbb" (or null).
 - ``names()``: all such names. ``time()``, ``play()``, ``pause()``,
-  ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``; ``t0``, ``t1``,
+  ``playing()``, ``setSpeed(s)`` (0 to 4), ``speed()``, ``boxes(on)`` (the
+  collision boxes instead of the parts, or back; returns whether they show; no
+  argument: only that); ``t0``, ``t1``,
   ``frames`` (the frame times), ``markers`` ([{t, label}] on the timeline), ``fps``, ``ready`` (true once loaded),
   ``viewer`` (meshcat's ``Viewer``: its ``camera``, ``controls``, ``scene``).
 """
@@ -66,6 +76,7 @@ import umsgpack  # the msgpack meshcat's Python client uses (a dependency of mes
 from .._core import Robot
 from ..log import SimulationLog, _atomic_write, rows_at
 from .bodies import COLORS
+from .parts import _box_role, mesh_triangles, part_corners, robot_parts
 from .world import holding_from_log
 
 __all__ = ["replay_html"]
@@ -165,6 +176,39 @@ def _box_object(half, color: int, opacity: float = 1.0) -> dict:
     w, h, d = (float(2 * x) for x in half)
     return _object_json("Mesh", {"type": "BoxGeometry", "width": w, "height": h, "depth": d},
                         _material("MeshLambertMaterial", color, opacity))
+
+
+_CYLINDER_SIDES = 32
+# three.js's cylinder stands along its y: turned so that it stands along the part's z
+_Y_TO_Z = np.array([[1.0, 0, 0, 0], [0, 0, -1.0, 0], [0, 1.0, 0, 0], [0, 0, 0, 1.0]])
+
+
+def _part_object(part, color: int, opacity: float = 1.0, shrink: float = 0.0) -> dict:
+    """A part (coopsim.view.parts.Part) in its node's frame (the part's pose): a box, a cylinder or a mesh's
+    triangles, Lambert-shaded; the shape's scale in the mesh's own matrix, so that the node's pose stays
+    rigid. shrink (m): a box or cylinder that much smaller on each side (ghosts)."""
+    scale = np.asarray(part.scale, float)
+    if part.shape != "mesh":
+        scale = np.maximum(scale - 2 * shrink, 0.5 * scale)
+    M = np.eye(4)
+    if part.shape == "box":
+        geometry = {"type": "BoxGeometry", "width": float(scale[0]), "height": float(scale[1]),
+                    "depth": float(scale[2])}
+    elif part.shape == "cylinder":
+        geometry = {"type": "CylinderGeometry", "radiusTop": 0.5, "radiusBottom": 0.5, "height": 1.0,
+                    "radialSegments": _CYLINDER_SIDES}
+        M = _Y_TO_Z @ np.diag([scale[0], scale[2], scale[1], 1.0])
+    else:
+        v, f = mesh_triangles(part.mesh)
+        geometry = {"type": "BufferGeometry",
+                    "data": {"attributes": {"position": {"itemSize": 3, "type": "Float32Array", "array": _f32(v.reshape(-1)),
+                                                         "normalized": False}},
+                             "index": {"itemSize": 1, "type": "Uint32Array", "normalized": False,
+                                       "array": umsgpack.Ext(0x16, np.ascontiguousarray(f, "<u4").tobytes())}}}
+        M = np.diag([*scale, 1.0])
+    obj = _object_json("Mesh", geometry, _material("MeshLambertMaterial", color, opacity))
+    obj["object"]["matrix"] = [float(x) for x in M.T.reshape(-1)]
+    return obj
 
 
 def _lines_object(segments: np.ndarray, color: int, opacity: float) -> dict:
@@ -381,7 +425,7 @@ def _markers(markers, log, t0: float, t1: float) -> list:
 
 def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed: float = 1.0,
                 t_start: Optional[float] = None, t_end: Optional[float] = None, reference: bool = True,
-                floor: bool = True, title: Optional[str] = None, autoplay: bool = True,
+                floor: bool = True, title: Optional[str] = None, autoplay: bool = True, collision_boxes: bool = False,
                 holding=None, colors=None, ghost_margin: float = 0.002, elev: float = 30.0,
                 azim: float = -45.0, zoom: float = 1.0, markers=None, events: bool = True) -> str:
     """Write a replay of a simulation log as one self-contained HTML file; returns its path.
@@ -399,10 +443,12 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     :func:`~coopsim.view.animate`, so a log coarser than 1/fps keeps all its
     rows). speed: the speed the page starts at, 0 to 4 (400 %). t_start,
     t_end: the part of the log to replay (s; default all). reference: draw
-    the desired pose (``q_ref``) as a transparent blue ghost (robots whose
-    reference is not finite, or beyond 1e6 m, get none). floor: draw the floor (z = 0) when
+    the desired pose (``q_ref``) as a transparent blue ghost of the moving
+    links' parts (robots whose reference is not finite, or beyond 1e6 m, get
+    none). collision_boxes: show the collision boxes instead of the parts
+    when the page opens (its "boxes" box swaps them). floor: draw the floor (z = 0) when
     the world has one (or there is no world). holding: a robot's moving
-    boxes are green while it holds: None (default) or 'shared' from the log
+    boxes and parts are green while it holds: None (default) or 'shared' from the log
     while another robot holds the same body too (the paper's dual hold,
     :func:`~coopsim.view.holding_from_log`), 'any' while it holds anything,
     False never, or per robot a (rows,) bool array (or None). title: the
@@ -414,15 +460,16 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     releases (default). A mark shows its label on hover and seeks there when
     clicked. colors: one colour per robot for
     its links (matplotlib colours; default :data:`COLORS`). ghost_margin:
-    the ghost's boxes are this much smaller (m), so that a robot on its
-    reference hides its ghost. elev, azim: the camera's elevation and
+    the ghost's boxes and cylinders are this much smaller on each side (m),
+    so that a robot on its reference hides its ghost. elev, azim: the camera's elevation and
     azimuth (degrees, as matplotlib's view_init) looking at the middle of
-    the robots (their boxes over the replay, and the scenery: free bodies
+    the robots (their boxes and parts over the replay, and the scenery: free bodies
     that wander off do not pull the camera away); zoom: > 1 brings it
     closer.
 
-    The file (about 0.9 MB plus 36 bytes per moving box and frame) needs
-    no network or server; see the module's docstring for the page's
+    The file (about 0.9 MB plus 36 bytes per moving box or link frame and
+    frame; a robot's mesh files add 24 bytes per triangle, 6 MB for the
+    UR5 of example-robot-data) needs no network or server; see the module's docstring for the page's
     controls and its ``window.coopsim`` hook.
     """
     log, robots, world = _unpack_sources(log, robots, world)
@@ -465,10 +512,12 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     bounds: List[np.ndarray] = []          # points the camera frames: the robots and the scenery
     others: List[np.ndarray] = []          # points framed only when there are none of those (free bodies)
 
-    def add_box(name, half, color, opacity, poses, colors_per_frame=None):
-        """poses: (4, 4) fixed, or (frames, 4, 4) moving; colors_per_frame: None, or (frames,) 0xRRGGBB."""
+    def add_box(name, half, color, opacity, poses, colors_per_frame=None, obj=None):
+        """poses: (4, 4) fixed, or (frames, 4, 4) moving; colors_per_frame: None, or (frames,) 0xRRGGBB; obj:
+        the object (default None: a box of the half extents), False to place a node without one (a link frame)."""
         p = f"/{_GROUP}/{name}"
-        cmds.append(_set_object(p, _box_object(half, color, opacity)))
+        if obj is not False:
+            cmds.append(_set_object(p, _box_object(half, color, opacity) if obj is None else obj))
         poses = np.asarray(poses, float)
         first = poses if poses.ndim == 2 else poses[0]
         cmds.append(_set_transform(p, first))
@@ -482,10 +531,32 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
             animations.append({"path": p, "clip": {"fps": 1, "name": "default", "tracks": tracks}})
         names.append(name)
 
+    def add_parts(prefix, robot, parts, q, colors, held=None, opacity=1.0, shrink=0.0, moving_only=False):
+        """The parts fixed to their link frames: a node per link frame (prefix/parts/link<k>, at the robot's
+        DH frame k over the frames), each part a node under it at its fixed pose; held: None or (frames,)
+        bool, the parts of moving links green then."""
+        F = np.stack([np.asarray(robot.frames(x)) for x in q])              # (frames, n + 1, 4, 4)
+        if not np.all(np.abs(F[..., :3, 3]) <= _MAX_DISTANCE):
+            return False
+        if prefix.startswith("robot") and parts:                           # the camera frames the parts too
+            links = np.array([p.link for p in parts])
+            W = np.einsum("fkij,kjl->fkil", F[:, links], np.array([p.pose for p in parts]))
+            bounds.append(part_corners(parts, W))
+        for k in sorted({p.link for p in parts if p.link != 0 or not moving_only}):
+            add_box(f"{prefix}/parts/link{k}", None, 0, 1.0, F[0, k] if k == 0 else F[:, k], obj=False)
+            for p, col in zip(parts, colors):
+                if p.link == k:
+                    per_frame = None if held is None or k == 0 else np.where(held, green, col)
+                    add_box(f"{prefix}/parts/link{k}/{_safe(p.name)}", None, col, opacity, p.pose, per_frame,
+                            obj=_part_object(p, col, opacity, shrink))
+        return True
+
     # robots (green while they hold something) and ghosts
     c = COLORS
     held_rows = _holding(holding, log, len(t_log))
     green = _hex(c["holding"])
+    boxes_shown = bool(collision_boxes)
+    box_names, part_roots = [], []
     for i, (r, rl) in enumerate(zip(robots, log.robots)):
         q = np.asarray(rl.q, float)[rows]
         k = len(r.boxes)
@@ -494,34 +565,40 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
         if not np.all(np.abs(P[..., :3, 3]) <= _MAX_DISTANCE):
             raise ValueError(f"log[{i}].q puts robot {i}'s boxes more than {_MAX_DISTANCE:g} m from the origin")
         H = shapes[0][1]
-        link = _hex(c["robots"][i % len(c["robots"])] if colors[i] is None else colors[i])
-        base, jaw = _hex(c["base"]), _hex(c["jaw"])
-        moving_jaw = r.clamp.moving_joint if r.clamp is not None else -1
+        role = {"robot": _hex(c["robots"][i % len(c["robots"])] if colors[i] is None else colors[i]),
+                "base": _hex(c["base"]), "jaw": _hex(c["jaw"])}
         used = set()
-        box_names = []
+        names_i = []
         for j, b in enumerate(r.boxes):
             nm = _safe(b.name or f"box{j}")
             if nm in used:
                 nm = f"{nm}_{j}"
             used.add(nm)
-            box_names.append(nm)
-            col = base if b.link == 0 else jaw if ("jaw" in b.name or b.link == moving_jaw) else link
+            names_i.append(nm)
+            col = role[_box_role(r, b)]
             held = None if held_rows[i] is None or b.link == 0 else np.where(held_rows[i][rows], green, col)
             add_box(f"robot{i}/{nm}", H[j], col, 1.0, P[0, j] if b.link == 0 else P[:, j], held)
+            box_names.append(f"robot{i}/{nm}")
+            if not boxes_shown:
+                cmds.append(_set_property(f"/{_GROUP}/robot{i}/{nm}", "visible", False))
+        # the robot's look: its parts on its link frames (coopsim.view.parts), hidden while the boxes show
+        parts = robot_parts(r)
+        add_parts(f"robot{i}", r, parts, q, [role[p.color] for p in parts],
+                  None if held_rows[i] is None else held_rows[i][rows])
+        part_roots.append(f"robot{i}/parts")
+        if boxes_shown:
+            cmds.append(_set_property(f"/{_GROUP}/robot{i}/parts", "visible", False))
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
         pts = np.einsum("fkab,kcb->fkca", P[:, :, :3, :3], corners[None] * H[:, None, :]) + P[:, :, None, :3, 3]
         bounds.append(pts.reshape(-1, 3))
         if reference:
+            # the desired pose: the parts of the moving links, ghost_margin smaller (a robot on its reference hides
+            # its ghost); none for a reference that is not finite or lies beyond _MAX_DISTANCE
             qr = np.asarray(rl.q_ref, float)[rows]
-            G = np.stack([r.shapes(qq)[0] for qq in qr]) if qr.shape == q.shape and np.all(np.isfinite(qr)) else None
-            if G is not None and np.all(np.abs(G[..., :3, 3]) <= _MAX_DISTANCE):   # else no ghost
-                ghost = _hex(c["ghost"])
-                alpha = float(c.get("ghost_alpha", 0.3))
-                for j, b in enumerate(r.boxes):
-                    if b.link == 0:
-                        continue
-                    half = H[j] - np.minimum(ghost_margin, 0.25 * H[j])
-                    add_box(f"ghost{i}/{box_names[j]}", half, ghost, alpha, G[:, j])
+            if qr.shape == q.shape and np.all(np.isfinite(qr)):
+                moving = [p for p in parts if p.link != 0]
+                add_parts(f"ghost{i}", r, moving, qr, [_hex(c["ghost"])] * len(moving), opacity=float(c.get(
+                    "ghost_alpha", 0.3)), shrink=ghost_margin, moving_only=True)
 
     # the world: scenery, free bodies
     bodies = _world_bodies(world)
@@ -596,6 +673,7 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     if title is None:
         title = f"coopsim replay: {robot_names}"
     meta = {"t0": t0, "t1": t1, "fps": fps, "speed": speed, "autoplay": bool(autoplay), "names": names,
+            "boxes": box_names, "parts": part_roots, "collision_boxes": boxes_shown,
             "markers": _markers(markers, log if events else None, t0, t1),
             "frames": [float(x) for x in times], "group": _GROUP,
             "camera": {"position": [float(x) for x in centre + d], "target": [float(x) for x in centre]}}
