@@ -1,10 +1,12 @@
 """Short TypeErrors for calls into the compiled module with arguments of the wrong type.
 
 When no overload of a compiled function accepts its arguments, pybind11 raises a TypeError that lists
-every signature and repeats the call. The compiled module's dispatcher (cpp/bindings/short_errors.cpp)
-calls :func:`short_type_error` then, and only then, with the function's signature as pybind11 built it;
-the answer, when there is one, replaces the error: one line naming the argument and the type expected,
-e.g. ``Simulation.step(): n must be an int, got str '3'``.
+every signature and repeats the call. :func:`install` points every function of the compiled module at a
+dispatcher of its own (cpp/bindings/short_errors.cpp), which calls pybind11's and, only when that fails
+with a TypeError, calls :func:`short_type_error`: its answer, when there is one, replaces the error with
+one line naming the argument and the type expected, e.g. ``Simulation.step(): n must be an int, got str
+'3'``, read from the signature pybind11 wrote. ``COOPSIM_PYBIND11_ERRORS=1`` keeps pybind11's messages
+and dispatcher (to debug the bindings, or to measure what this costs a call).
 """
 from __future__ import annotations
 
@@ -138,16 +140,46 @@ def _caller(argument: str) -> Optional[str]:
     return None
 
 
-def short_type_error(error: str, name: str, signature: str, scope: Optional[str], constructor: bool, setter: bool,
-                     convert: list, args: tuple, kwargs: dict) -> Optional[str]:
-    """One line for pybind11's TypeError `error` from a call of the compiled function `name` (of the class
-    `scope`, or None) with `args` (a method's self first) and `kwargs`, or None when no argument can be blamed
-    (the long message stands). signature: pybind11's '(self: T, a: U = 1) -> R'; convert: per parameter whether
-    pybind11 converts it."""
-    if not error.startswith(f"{name}(): incompatible "):
-        return None     # a TypeError from inside the function
-    params, var_args, var_kwargs = _parameters(signature)
-    label = scope if constructor and scope else f"{scope}.{name}" if scope else name
+#: per compiled function, by the id of its pybind11 record: (the name it is called by, the function, a setter)
+_FUNCTIONS: dict = {}
+
+
+def install(module) -> int:
+    """Points every compiled function of `module` (functions, methods, static methods, constructors, property
+    accessors) at the dispatcher of short TypeErrors; returns how many (0 with COOPSIM_PYBIND11_ERRORS set)."""
+    if os.environ.get("COOPSIM_PYBIND11_ERRORS", "0") not in ("", "0"):
+        return 0
+
+    def add(label, f, setter=False):
+        if f is not None and module._short_type_errors(short_type_error, f):
+            _FUNCTIONS[id(f.__self__)] = (label, f, setter)
+
+    for name, value in vars(module).items():
+        if isinstance(value, type) and type(value).__name__ == "pybind11_type":
+            for attr, v in vars(value).items():
+                label = value.__name__ if attr == "__init__" else f"{value.__name__}.{attr}"
+                if isinstance(v, property):
+                    add(label, v.fget)
+                    add(label, v.fset, setter=True)
+                else:
+                    add(label, getattr(v, "__func__", v))
+        else:
+            add(name, value)
+    return len(_FUNCTIONS)
+
+
+def short_type_error(error, record, given: tuple, nargs: int, kwnames) -> Optional[str]:
+    """One line for pybind11's TypeError `error` from a call of the compiled function whose record is `record`
+    with the arguments `given` (`nargs` positional ones, a method's self first, then the values of `kwnames`),
+    or None when no argument can be blamed (pybind11's message stands)."""
+    label, function, setter = _FUNCTIONS.get(id(record), (None, None, False))
+    if function is None:
+        return None
+    name, doc = function.__name__, function.__doc__ or ""
+    if not doc.startswith(f"{name}(") or not str(error).startswith(f"{name}(): incompatible "):
+        return None     # overloads (no one argument to blame), or a TypeError from inside the function
+    args, kwargs = given[:nargs], dict(zip(kwnames or (), given[nargs:]))
+    params, var_args, var_kwargs = _parameters(doc.split("\n", 1)[0][len(name):])
     where = f"{label}(): "
     skip = 1 if params and params[0][0] == "self" else 0
     positional = [p for p in params if not p[3]]
@@ -170,7 +202,7 @@ def short_type_error(error: str, name: str, signature: str, scope: Optional[str]
     for k, (pname, annotation, _, _) in enumerate(params):
         if k < skip or pname not in given:
             continue
-        what = _misfit(annotation, given[pname], convert[k] if k < len(convert) else True)
+        what = _misfit(annotation, given[pname], True)   # (pybind11 converts every argument here: no noconvert)
         if what is not None:
             if setter:
                 return f"{label} {what}"
