@@ -559,3 +559,159 @@ def test_urdf_names_must_be_xml_text():
             r.to_urdf(name=bad)
     with pytest.raises(ValueError, match="name must be"):
         cs.Robot.from_dh(**good_tables(), name="\x00").to_urdf()
+
+
+# ---- a wrong argument type: one short line naming the argument and the type expected ----
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: R1.jacobian(Q, link="a"), "Robot.jacobian(): link must be an int, got str 'a'"),
+    (lambda: R1.jacobian(Q, "a"), "Robot.jacobian(): link must be an int, got str 'a'"),
+    (lambda: R1.with_base([0.0, 0.0, 0.0], yaw="x"), "Robot.with_base(): yaw must be a float, got str 'x'"),
+    (lambda: R1.with_backend(3), "Robot.with_backend(): backend must be a str, got int 3"),
+    (lambda: R1.ik(R1.fk(Q), restarts=1.5), "Robot.ik(): restarts must be an int, got float 1.5"),
+    (lambda: R1.fk(Q, link=2), "Robot.fk(): no argument named link (its arguments: q)"),
+    (lambda: R1.fk(Q, 1, 2), "Robot.fk(): takes 1 positional argument, got 3"),
+    (lambda: cs.integrate(R1, Q, Q, Q, dt="x"), "integrate(): dt must be a float, got str 'x'"),
+    (lambda: cs.integrate(R1, Q, Q, Q, steps=[3]), "integrate(): steps must be an int, got list [3]"),
+    (lambda: cs.integrate("scara1", Q, Q, Q), "integrate(): robot must be a Robot, got str 'scara1'"),
+    (lambda: cs.integrate(R1, Q), "integrate(): missing argument qd0"),
+    (lambda: cs.rk4_step(R1, Q, Q, Q, dt=None), "rk4_step(): dt must be a float, got NoneType None"),
+    (lambda: cs.PID(kp=1.0, ki=0.0, kd=1.0, gravity_compensation="no"),
+     "PID(): gravity_compensation must be a bool, got str 'no'"),
+    (lambda: cs.CubicTrajectory([0.0, 1.0], np.zeros((2, 6))).evaluate(0.5, extrapolate=0),
+     "CubicTrajectory.evaluate(): extrapolate must be a str, got int 0"),
+    (lambda: cs.CubicTrajectory([0.0, 1.0], np.zeros((2, 6)), extrapolate="hold"),
+     "CubicTrajectory(): no argument named extrapolate (its arguments: times, q_points, qd_points, spline, "
+     "qd_start, qd_end)"),
+    # through the Python classes that call the engine: named as the user called them
+    (lambda: cs.Simulation(dt="x"), "Simulation(): dt must be a float, got str 'x'"),
+    (lambda: cs.Simulation(control_every=1.5), "Simulation(): control_every must be an int, got float 1.5"),
+    (lambda: cs.Simulation(end_stops="yes"), "Simulation(): end_stops must be a bool, got str 'yes'"),
+    (lambda: cs.Simulation().step("3"), "Simulation.step(): n must be an int, got str '3'"),
+    (lambda: cs.Simulation().step(10**19), "Simulation.step(): n is out of range, got int 10000000000000000000"),
+    (lambda: cs.Simulation().advance("3"), "Simulation.advance(): t_end must be a float, got str '3'"),
+])
+def test_a_wrong_argument_type_is_one_short_line_naming_the_argument(call, message):
+    # pybind11's own message lists every signature and repeats the call ("Invoked with: ...")
+    with pytest.raises(TypeError) as e:
+        call()
+    assert str(e.value) == message
+
+
+def test_right_scalar_types_pass_as_before():
+    # numpy scalars, and ints where floats are expected, as pybind11 accepts them
+    np.testing.assert_array_equal(R1.jacobian(Q, link=np.int64(-1)), R1.jacobian(Q))
+    np.testing.assert_array_equal(R1.with_base([0.0, 0.0, 0.0], yaw=np.float64(0.5)).fk(Q),
+                                  R1.with_base([0.0, 0.0, 0.0], yaw=0.5).fk(Q))
+    assert R1.with_base([0.0, 0.0, 0.0], yaw=1).base_yaw == 1.0
+    assert cs.Simulation(dt=np.float64(1e-3), control_every=np.int64(2)).control_every == 2
+    # errors that are not about an argument's type pass unchanged
+    with pytest.raises(ValueError, match="q must be an array of real numbers"):
+        R1.fk("a")
+    with pytest.raises(ValueError, match="n must"):
+        cs.Simulation().step(-1)
+
+
+def _signature(function):
+    """(name, [(parameter, annotation)]) from pybind11's docstring, None for an overloaded function."""
+    first = (function.__doc__ or "").splitlines()[0] if function.__doc__ else ""
+    if "(" not in first or "Overloaded function" in (function.__doc__ or ""):
+        return None
+    name, rest = first.split("(", 1)
+    depth, params, start = 0, [], 0
+    for i, ch in enumerate(rest):
+        if ch in "([" or (ch == ")" and depth == 0):
+            if ch == ")":
+                params.append(rest[start:i])
+                break
+            depth += 1
+        elif ch in ")]":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            params.append(rest[start:i])
+            start = i + 1
+    out = []
+    for p in (p.strip() for p in params):
+        if p in ("", "*", "/") or p.startswith("*"):
+            continue
+        decl = p.split(" = ")[0]
+        pname, _, annotation = decl.partition(": ")
+        out.append((pname, annotation))
+    return name, out
+
+
+def _compiled_functions():
+    # the package's compiled functions and classes (pybind11's function objects are builtins, its classes
+    # of the metaclass pybind11_type)
+    for name, f in vars(cs).items():
+        if type(f).__name__ == "builtin_function_or_method" and _signature(f):
+            yield name, f, None
+    for cls in (c for c in vars(cs).values() if type(c).__name__ == "pybind11_type"):
+        for name, f in vars(cls).items():
+            if isinstance(f, staticmethod):
+                f = f.__func__
+            elif type(f).__name__ == "instancemethod":
+                f = f.__func__
+            else:
+                continue
+            if _signature(f) and name == "__init__":
+                yield cls.__name__, f, cls           # called as the class
+            elif _signature(f) and not name.startswith("__"):
+                yield f"{cls.__name__}.{name}", f, None
+
+
+SCALARS = {"typing.SupportsFloat | typing.SupportsIndex": ("a float", "x"),
+           "typing.SupportsInt | typing.SupportsIndex": ("an int", "x"), "bool": ("a bool", "x"), "str": ("a str", 3)}
+DUMMIES = {"typing.SupportsFloat | typing.SupportsIndex": 0.0, "typing.SupportsInt | typing.SupportsIndex": 0,
+           "bool": False, "str": ""}
+
+
+def test_every_compiled_function_names_a_wrong_scalar_argument():
+    # each scalar parameter of each compiled function, method, static method and constructor (one
+    # signature), given a value of the wrong type while the others hold dummies: the short message names
+    # it (the engine is never reached: a call whose arguments do not convert runs nothing)
+    checked = 0
+    for label, f, cls in _compiled_functions():
+        _, params = _signature(f)
+        if cls is not None:
+            f, params = cls, params[1:]      # a constructor: without its self
+        for k, (pname, annotation) in enumerate(params):
+            if annotation not in SCALARS or pname == "self":
+                continue
+            kind, bad = SCALARS[annotation]
+            args = [None] if params[0][0] == "self" else []     # a method's self None
+            kwargs = {p: DUMMIES.get(a) for p, a in params if p != "self"}
+            kwargs[pname] = bad
+            with pytest.raises(TypeError) as e:
+                f(*args, **kwargs)
+            assert str(e.value) == f"{label}(): {pname} must be {kind}, got {type(bad).__name__} {bad!r}", label
+            checked += 1
+    assert checked >= 60, checked   # (62 parameters of float, int, bool and str in all)
+
+
+def test_a_type_error_raised_inside_a_compiled_call_passes_unchanged():
+    # a Python controller returning a str: the TypeError comes from inside the step, not from the arguments
+    class Bad(cs.Controller):
+        def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+            return "torques"
+
+    sim = cs.Simulation(dt=1e-3)
+    sim.add_robot(R1, Bad(), Q)
+    with pytest.raises((TypeError, ValueError)) as e:
+        sim.step(1)
+    assert "must be an int" not in str(e.value) and "Simulation.step" not in str(e.value)
+
+
+def test_writing_a_log_under_a_file_names_the_file(tmp_path):
+    import os
+
+    sim = cs.Simulation(dt=1e-3)
+    sim.add_robot(R1, cs.PID(kp=10.0, ki=0.0, kd=1.0), cs.SetPoint(Q))
+    log = sim.run(0.01, progress=False)
+    blocker = tmp_path / "results"
+    blocker.write_text("not a folder")
+    for path in (blocker / "run.csv", blocker / "deeper" / "run.csv"):
+        with pytest.raises(NotADirectoryError, match=f"'{blocker}' is a file, not a folder") as e:
+            log.to_csv(path)
+        assert e.value.filename == str(path)
+    assert blocker.read_text() == "not a folder" and os.listdir(tmp_path) == ["results"]

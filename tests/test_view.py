@@ -1011,3 +1011,132 @@ def test_two_holding_robots_are_different_greens():
     assert np.abs(a - b).max() > 0.2, (a, b)
     # the shades are COLORS' holding_shades, the first the holding colour
     assert view.COLORS["holding_shades"][0] == view.COLORS["holding"]
+
+
+# ---- inclines and the zoom on a held body ----
+
+@pytest.fixture(scope="module")
+def task_run():
+    """One cycle of the cooperative task (under a second), for its figures."""
+    from coopsim.tasks.handover import run
+
+    return run(cycles=1, score=False)
+
+
+def test_an_inclined_static_body_is_drawn_rotated_and_seen_from_its_side():
+    from coopsim.tasks import scene as task_scene
+
+    w = task_scene.world()
+    r1, r2 = task_scene.scaras()
+    sc = view.draw(new_axes(6.4, 4.8, 50), [r1, r2], [np.zeros(6), np.zeros(6)], world=w)
+    slope = task_scene.CONTAINER["slope"]
+    downhill = np.array([0.0, np.cos(slope), -np.sin(slope)])      # the tube's axis (scene.container_axes)
+    for name, half, T in task_scene.container_walls():
+        drawn = sc.faces("body", sc.body_index(name)).reshape(-1, 3)
+        # the polygons (tiles of the faces) lie on the box turned by its pose, and its corners (computed here
+        # directly) are among their vertices
+        local = (drawn - T[:3, 3]) @ T[:3, :3]
+        assert np.all(np.abs(local) <= half + 1e-12), name
+        assert np.all(np.isclose(np.abs(local), half, atol=1e-12).any(axis=1)), name
+        d = np.linalg.norm(corners(T, half)[:, None, :] - drawn[None, :, :], axis=2)
+        assert d.min(axis=1).max() < 1e-12, name
+        # and its long edges go down the axis at the slope, not level
+        c = corners(T, half)
+        edges = [c[j] - c[i] for i in range(8) for j in range(8) if np.isclose(np.linalg.norm(c[j] - c[i]),
+                                                                                 2 * half[0])]
+        for e in edges:
+            assert abs(abs(e @ downhill) / np.linalg.norm(e) - 1.0) < 1e-12
+            assert np.degrees(np.arcsin(abs(e[2]) / np.linalg.norm(e))) == pytest.approx(25.0, abs=1e-9)
+    # one incline (the tube's four walls), its slope written over it beside a level line
+    (inc,) = sc.inclines
+    assert sorted(inc["names"]) == sorted(n for n, _, _ in task_scene.container_walls())
+    assert inc["slope"] == pytest.approx(25.0, abs=1e-9)
+    np.testing.assert_allclose(inc["axis"], downhill, atol=1e-12)
+    assert [t.get_text() for t in sc.incline_labels] == ["25° incline"]
+    (level,) = sc.level_segments
+    assert level[0, 2] == pytest.approx(level[1, 2])                       # level
+    run = level[1] - level[0]
+    np.testing.assert_allclose(run / np.linalg.norm(run), [0.0, 1.0, 0.0], atol=1e-12)   # along the axis in plan
+    # the camera looks at the tube's side: its plan view direction within 45 degrees of square to the axis
+    v = view.geometry.view_direction(sc.ax.elev, sc.ax.azim)[:2]
+    assert abs(v @ downhill[:2]) / (np.linalg.norm(v) * np.linalg.norm(downhill[:2])) <= np.cos(np.radians(45)) + 1e-9
+
+
+def test_a_level_box_turned_about_z_is_no_incline():
+    w = cs.World(floor=True)
+    T = np.eye(4)
+    T[:3, :3] = [[np.cos(0.7), -np.sin(0.7), 0.0], [np.sin(0.7), np.cos(0.7), 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = [0.5, 0.2, 0.05]
+    w.add_static_box("table", [0.3, 0.1, 0.05], T)
+    sc = view.draw(new_axes(), [R1], [Q1], world=w)
+    assert sc.inclines == [] and sc.incline_labels == []
+
+
+def held_inside(sc, robot, body):
+    """Whether the inset's limits hold every corner of the body and of the robot's clamp boxes."""
+    L = sc.inset.limits
+    half, poses, _ = sc._bodies[sc.body_index(body)]
+    pts = [np.concatenate([corners(T, h) for T, h in zip(poses, half)])]
+    r = sc.robots[robot]
+    P, H = r.shapes(sc._q[robot])
+    pts += [corners(P[k], H[k]) for k, b in enumerate(r.boxes) if b.link >= r.clamp.fixed_link]
+    pts = np.concatenate(pts)
+    return bool(np.all((pts >= L[:, 0] - 1e-9) & (pts <= L[:, 1] + 1e-9))), pts
+
+
+def test_the_inset_frames_the_held_body_and_the_clamp_holding_it(task_run):
+    sim = task_run.sim
+    log = sim.log
+    t = 0.5 * sum(task_run.report["cycles"][0]["steps"]["insert"])
+    anim = view.animate(sim, t_start=t, t_end=t, inset=True, figsize=(6.4, 4.8), dpi=50)
+    sc = anim.scene
+    row = int(np.searchsorted(log.t, t, side="right")) - 1
+    assert log.robots[0].holding[row] == "bar"
+    assert sc.inset is not None and sc.inset.ax in sc.fig.axes and sc.inset.ax.get_visible()
+    ok, pts = held_inside(sc, 0, "bar")
+    assert ok
+    # a tight frame: a cube 1.3 times the larger extent of the bar and the clamp, much smaller than the scene's
+    side = np.ptp(sc.inset.limits, axis=1)
+    np.testing.assert_allclose(side, max(1.3 * np.ptp(pts, axis=0).max(), 0.06), rtol=1e-12)
+    assert side[0] < 0.5 * np.ptp(sc.limits, axis=1).max()
+    assert "bar held by scara1" in sc.inset_label.get_text()
+    # the inset shows the same boxes: the bar's faces as in the scene
+    np.testing.assert_allclose(sc.inset.faces("body", sc.inset.body_index("bar")),
+                               sc.faces("body", sc.body_index("bar")))
+    # the task's figure (insertion.png among report_figures) is this one
+    from coopsim.tasks.handover.report import insertion_figure
+
+    fig = insertion_figure(task_run)
+    assert len(fig.axes) == 2 and fig.axes[1].get_visible()
+    assert "bar held by scara1" in "".join(t.get_text() for t in fig.texts)
+
+
+def test_the_inset_follows_the_hold_and_hides_without_one(task_run):
+    sim = task_run.sim
+    log = sim.log
+    anim = view.animate(sim, fps=1, speed=2.0, inset=True, figsize=(3.2, 2.4), dpi=50)
+    shown = 0
+    for k, t in enumerate(anim.times):
+        anim.show_frame(k)
+        row = int(np.searchsorted(log.t, t, side="right")) - 1
+        holders = [i for i, rl in enumerate(log.robots) if rl.holding[row]]
+        assert anim.scene.inset.ax.get_visible() == bool(holders), t
+        for i in holders:
+            assert held_inside(anim.scene, i, log.robots[i].holding[row])[0], (t, i)
+        shown += bool(holders)
+    assert 0 < shown < len(anim.times)
+    # blitting draws the inset as a full draw does
+    frames = [f[..., :3].astype(int) for f in anim.frames()]
+    for k in (0, len(anim) // 2):
+        anim.show_frame(k)
+        np.testing.assert_array_equal(frames[k], render(anim.fig))
+
+
+def test_draw_insets_what_a_simulation_holds(task_run):
+    sc = view.draw(new_axes(), task_run.sim, inset=True)
+    held = [task_run.sim.holding(i) for i in range(2)]
+    assert sc.inset.ax.get_visible() == any(held)
+    sc2 = view.draw(new_axes(), task_run.sim, inset=True, held=[None, "bar"])
+    assert sc2.inset.ax.get_visible() and held_inside(sc2, 1, "bar")[0]
+    with pytest.raises(ValueError, match="held must hold one body name"):
+        view.draw(new_axes(), task_run.sim, inset=True, held=["bar"])

@@ -12,6 +12,7 @@ void bind_control(py::module_& m);
 void bind_task(py::module_& m);
 void bind_world(py::module_& m);
 void bind_simulation(py::module_& m);
+void short_type_errors(py::module_& m);
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "coopsim engine: robot models, dynamics, integration and collisions (C++, Eigen, Bullet)";
@@ -35,4 +36,6 @@ PYBIND11_MODULE(_core, m) {
   bind_task(m);
   bind_world(m);
   bind_simulation(m);
+  // last, once every function is bound: a wrong argument type is one short TypeError (short_errors.cpp)
+  short_type_errors(m);
 }

@@ -5,6 +5,7 @@ this package re-exports it and adds robot definitions, planning, plotting,
 views, and the cooperative task (:mod:`coopsim.tasks.handover`). SI units and radians throughout; arrays are numpy float64.
 """
 from . import _core
+from ._arguments import install as _install_short_type_errors
 from ._core import (
     Clamp,
     CubicTrajectory,
@@ -51,6 +52,8 @@ from . import view
 
 Robot.to_urdf = to_urdf
 Robot.from_urdf = staticmethod(from_urdf)
+# a wrong argument type in any compiled call: one short TypeError naming the argument (coopsim._arguments)
+_install_short_type_errors(_core)
 
 
 def build_info() -> dict:

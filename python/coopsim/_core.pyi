@@ -207,6 +207,10 @@ class Robot:
             ``drake:gear_ratio`` squared as the armature. ``<collision>`` boxes (or
             ``<visual>`` ones when a link has no collision) become the robot's
             boxes; meshes are left out (a robot without boxes gets the default ones).
+            The ``<visual>`` meshes (files found: ``package://`` through
+            ROS_PACKAGE_PATH or the URDF file's parent directories), boxes and
+            cylinders are kept in Python for the views (:func:`visuals`; the live
+            page and the replay draw them, :mod:`coopsim.view.parts`).
         
             tip: the last link of the chain (default: the end of the only chain of
                 movable joints, followed down single fixed joints). Movable joints
@@ -1405,6 +1409,10 @@ class SimulationCore:
     @property
     def world_every(self) -> int:
         ...
+def _short_type_errors(arg0: typing.Any, arg1: typing.Any) -> bool:
+    """
+    Points a compiled function at the dispatcher whose TypeErrors short_type_error shortens (coopsim._arguments).
+    """
 def box_clearances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any, half_b: typing.Any) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.int64], numpy.typing.NDArray[numpy.int64]]:
     """
     The clearance between two sets of boxes in each of N configurations: the smallest box_distance (m; <= 0: minus the overlap depth) over every pair of a box of one set and a box of the other, and the pair that has it.

@@ -11,6 +11,7 @@ Units: s, rad or m, N m or N. Arrays are float64, (rows, n) per robot.
 """
 from __future__ import annotations
 
+import errno
 import os
 import re
 import tempfile
@@ -478,10 +479,22 @@ def _none_str(v):
     return "" if v is None else str(v)
 
 
+def _file_in_the_way(folder: str) -> Optional[str]:
+    """The existing ancestor of `folder` (itself included) that is not a folder, or None: a file there
+    keeps the folder from being made."""
+    while True:
+        if os.path.lexists(folder):
+            return None if os.path.isdir(folder) else folder
+        parent = os.path.dirname(folder)
+        if parent == folder:
+            return None
+        folder = parent
+
+
 def _atomic_write(path, suffix: str, write: Callable[[str], None]) -> str:
     """Calls write(tmp) on a temporary file beside `path`, then renames it to `path`: a failure midway
     leaves any earlier file intact. The folder is made as needed. A path that cannot name a file is a
-    ValueError, a file system error an OSError naming `path` (not the temporary file)."""
+    ValueError, a file system error an OSError naming `path` (not the temporary file); a file where a folder of `path` should be is a NotADirectoryError naming that file."""
     if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
         raise ValueError(f"path must be a file name (str or path-like), got {path!r}")
     path = os.fspath(path)
@@ -489,6 +502,9 @@ def _atomic_write(path, suffix: str, write: Callable[[str], None]) -> str:
         raise ValueError(f"path must name a file, got {path!r}" + (" (a folder)" if path and os.path.isdir(path)
                                                                      else ""))
     folder = os.path.dirname(os.path.abspath(path))
+    blocker = _file_in_the_way(folder)
+    if blocker is not None:
+        raise NotADirectoryError(errno.ENOTDIR, f"cannot write the file: {blocker!r} is a file, not a folder", path)
     tmp = None
     try:
         os.makedirs(folder, exist_ok=True)  # a fresh output folder is made, as the file would be

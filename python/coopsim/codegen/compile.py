@@ -150,11 +150,11 @@ def compile(robot, *, cache: str | os.PathLike | None = None, verbose: bool = Fa
     (sympy dominates; g++ -O2 takes 2-5 s, about 20 s for general angles): a
     6-DOF R/P arm with alpha in {0, +-pi/2, pi} 10-20 s, a PUMA-like 6R arm
     (benchmarks/bench_codegen.py) about 19 s, 6-DOF arms with general angles
-    1.5-2 min; a cached build loads in under a millisecond. Closed forms win
+    1.5-2 min; a cached build loads in about 3 ms. Closed forms win
     on robots with many parallel or perpendicular axes (the SCARAs: about 3x
     the numeric path); on general arms the margin is small (a PUMA-like 6R
-    arm: about 2600 operations for M and h, forward dynamics about 1.2x the
-    numeric path's speed; arms with arbitrary angles can be slower than
+    arm: an operation count of 2375, forward dynamics from Python about 1.4x
+    the numeric path's speed; arms with arbitrary angles can be slower than
     numeric): compare both backends before choosing.
     """
     if not isinstance(robot, Robot):

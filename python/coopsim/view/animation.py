@@ -253,7 +253,7 @@ def _per_robot_rows(x, n_robots: int, rows: int, what: str, tails: list, dtype=f
 def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=None, t_start: Optional[float] = None,
             t_end: Optional[float] = None, duration: Optional[float] = None, reference=True, holding=None,
             collision_boxes: bool = False, colliding=None, contacts=None, bodies=None, world=None, label=True,
-            ax=None, figsize=(6.4, 4.8), dpi: float = 100.0, quality: Optional[float] = None,
+            ax=None, figsize=(6.4, 4.8), dpi: float = 100.0, quality: Optional[float] = None, inset: bool = False,
             **scene_options) -> Animation:
     """An animation of a simulation log: robots as shaded boxes, at `fps` frames per second and `speed`.
 
@@ -309,6 +309,11 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     - label: True for "t = ... s" at the top left and the speed at the
       top right, False for none, or a function of t (s) returning the
       text at the top left.
+
+    - inset: True adds a zoom on the held body (the log's
+      ``log[i].holding``) in the upper right: its limits follow the body and
+      the clamps holding it, frame by frame; hidden while nothing is held
+      (see :func:`~coopsim.view.draw`).
 
     ax: a 3D Axes to draw into (default a new figsize-inch figure at dpi,
     not managed by pyplot, so a notebook shows only the video).
@@ -436,9 +441,13 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         pose = p if p.ndim == 3 else p[at[k]]
         return Body(b.name, h, pose, b.color, b.alpha, b.scenery, b.tiled)
 
+    held_rows = [np.asarray(rl.holding, dtype=object) for rl in log.robots] if inset else None
+
     def frame_args(k: int) -> dict:
         r = at[k]
+        extra = {} if held_rows is None else dict(held=[str(h[r]) or None for h in held_rows])
         return dict(
+            **extra,
             q=[Q[i][k] for i in range(n)],
             reference=[None if R[i] is None else R[i][k] for i in range(n)],
             holding=[False if H[i] is None else bool(H[i][r]) for i in range(n)],
@@ -465,7 +474,7 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         scene_options.setdefault("floor", bool(wld.floor))
     if not robots and not checked_bodies:
         raise ValueError("nothing to draw: the log has no robots and the world no bodies")
-    scene = Scene(ax, robots, collision_boxes=collision_boxes, **scene_options)
+    scene = Scene(ax, robots, collision_boxes=collision_boxes, inset=inset, **scene_options)
     pts = []
     sample = np.unique(np.linspace(0, n_frames - 1, min(n_frames, 200)).astype(int))
     for k in sample:

@@ -23,13 +23,45 @@ from .geometry import (box_corners, box_faces, box_normals, box_samples, floor_t
                        split_quads, view_direction)
 from .world import _holding_mode, colliding_from_contacts, contact_lines, holding_now, resolve_world, world_bodies
 
-__all__ = ["Body", "COLORS", "Scene", "draw"]
+__all__ = ["Body", "COLORS", "Scene", "draw", "inclines"]
 
 _KEEP = object()   # update(): leave as it is
 
 #: The default camera (degrees, matplotlib's convention): from the front right, above the floor.
 DEFAULT_ELEV = 22.0
 DEFAULT_AZIM = -62.0
+#: A scenery box whose longest axis rises more than this (degrees) from level, and less than 90 minus this, is
+#: an incline: the default camera looks at its side, and a label gives its slope.
+INCLINE_MIN = 2.0
+#: The inset's places in the figure (x0, y0, width, height, figure fractions): the upper right or the upper left,
+#: whichever covers fewer of the scene's boxes when it first shows.
+INSET_PLACES = ((0.60, 0.47, 0.38, 0.43), (0.02, 0.47, 0.38, 0.43))
+
+
+def inclines(items) -> List[dict]:
+    """The inclines among scenery boxes: items are (name, poses (k, 4, 4), half extents (k, 3)); boxes with the
+    same orientation (a tube's walls) are one incline. Per incline a dict: names, slope (degrees, of the
+    longest axis from level), axis (3,) the unit longest axis pointing downhill, top (3,) m the highest corner."""
+    out = []
+    for name, poses, half in items:
+        for T, h in zip(np.asarray(poses, float).reshape(-1, 4, 4), np.asarray(half, float).reshape(-1, 3)):
+            a = T[:3, int(np.argmax(h))]
+            a = -a if a[2] > 0 else a
+            slope = float(np.degrees(np.arcsin(min(1.0, abs(a[2])))))
+            if not INCLINE_MIN < slope < 90.0 - INCLINE_MIN:
+                continue
+            top = box_corners(T[None], h[None])[0]
+            top = top[np.argmax(top[:, 2])]
+            for inc in out:
+                if np.allclose(inc["rotation"], T[:3, :3], atol=1e-9):
+                    inc["names"].append(name) if name not in inc["names"] else None
+                    inc["top"] = top if top[2] > inc["top"][2] else inc["top"]
+                    inc["size"] += float(np.prod(h))
+                    break
+            else:
+                out.append(dict(names=[name], slope=slope, axis=a, top=top, rotation=T[:3, :3].copy(),
+                                size=float(np.prod(h))))
+    return out
 
 
 def _per_robot_q(q, robots, what: str, allow_none: bool = False) -> list:
@@ -161,7 +193,8 @@ class Scene:
     def __init__(self, ax, robots, *, colors=None, collision_boxes: bool = False, floor=True, tile: float = 0.1,
                  limits=None, elev: Optional[float] = 22.0, azim: Optional[float] = None, axis: bool = False,
                  zoom: Optional[float] = None, contact_length: float = 0.04, edges: bool = True, linewidth: float = 0.4,
-                 cull: bool = False, ghost_margin: float = 0.002, triad: bool = True, names: bool = True):
+                 cull: bool = False, ghost_margin: float = 0.002, triad: bool = True, names: bool = True,
+                 inset: bool = False, _inset_of: Optional["Scene"] = None):
         from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # matplotlib loads only to draw
 
         self.robots = _robot_list(robots, allow_empty=True)
@@ -192,6 +225,14 @@ class Scene:
         self.triad_segments = np.zeros((0, 2, 3))
         self.scale = None                # m, the axes' length
         self.names: list = []            # the robots' names over their bases
+        self.inclines: List[dict] = []   # the inclined scenery (:func:`inclines`), found at the first update
+        self._inclines_found = False
+        self.level_segments = np.zeros((0, 2, 3))     # the inclines' level lines, m
+        self.incline_labels: list = []   # per incline its slope, written over its top
+        self._held: list = [None] * len(self.robots)   # per robot the name of the body it holds, or None
+        self.inset: Optional[Scene] = None             # the zoom on the held body (inset=True)
+        self.inset_label = None
+        self.inset_frame = None
         self._free = _rgba(c["free"], "COLORS['free']")
         self._colliding = _rgba(c["colliding"], "COLORS['colliding']")
 
@@ -221,7 +262,8 @@ class Scene:
         self._limits = self._given_limits
         self._fitted = False
 
-        ax.set_proj_type("persp", focal_length=0.9)
+        self._inset_of = _inset_of
+        ax.set_proj_type("ortho" if _inset_of is not None else "persp", focal_length=None if _inset_of else 0.9)
         ax.computed_zorder = False       # floor, then the boxes (sorted among themselves), then contact lines
         ax.view_init(elev=elev, azim=azim)
         if not axis:
@@ -242,8 +284,13 @@ class Scene:
         self.triad = Line3DCollection(np.zeros((0, 2, 3)), colors=["#d62728", "#2ca02c", "#1f5bff"], linewidths=1.8,
                                       zorder=0.7)
         ax.add_collection3d(self.triad, autolim=False)
-        for a in (self.floor, self.polys, self.lines, self.triad):
-            a.set_clip_on(False)       # a 3D Axes draws into a square: use the whole (wider) figure
+        # a level line from each incline's top along its axis in plan view: the slope shows against it
+        self.levels = Line3DCollection(np.zeros((0, 2, 3)), colors=["#555555"], linewidths=1.0, linestyles="--",
+                                       zorder=3)
+        ax.add_collection3d(self.levels, autolim=False)
+        if _inset_of is None:
+            for a in (self.floor, self.polys, self.lines, self.triad, self.levels):
+                a.set_clip_on(False)       # a 3D Axes draws into a square: use the whole (wider) figure
         self.label = self.fig.text(0.02, 0.975, "", va="top", ha="left", fontsize=9, zorder=4)
         # the boxes may use the whole subplot, not only the square a 3D Axes draws into: an empty frame over
         # the subplot keeps all of it in a tight bounding box (notebooks show figures with bbox_inches='tight')
@@ -253,10 +300,99 @@ class Scene:
         self.extent = Rectangle((pos.x0, pos.y0), pos.width, pos.height, transform=self.fig.transFigure,
                                 fill=False, edgecolor="none", linewidth=0.0, zorder=0)
         self.fig.add_artist(self.extent)
+        if _inset_of is not None:
+            self.label.set_visible(False)
+            self.extent.set_visible(False)
+        elif inset:
+            self._make_inset(colors=colors, edges=edges, linewidth=linewidth, cull=cull, ghost_margin=ghost_margin,
+                             contact_length=contact_length, tile=tile, elev=elev)
         self._verts = np.zeros((0, 4, 3))
         self._owner = np.zeros((0, 4), dtype=int)     # per polygon: kind, robot or body index, box, face
         self._cols = np.zeros((0, 4))
         self._segments = np.zeros((0, 2, 3))
+
+    def _make_inset(self, **options) -> None:
+        """The inset: a second scene of the same robots and bodies in a framed Axes at INSET_PLACE, seen from the
+        same camera (orthographic), its limits framing the held body and the clamps that hold it."""
+        from matplotlib.patches import Rectangle  # matplotlib loads only to draw
+
+        x0, y0, w, h = INSET_PLACES[0]
+        iax = self.fig.add_axes((x0, y0, w, h), projection="3d", zorder=2)
+        iax.patch.set_alpha(0.0)
+        # over the scene's boxes (drawn unclipped), under the inset's
+        self.inset_frame = Rectangle((x0, y0), w, h, transform=self.fig.transFigure, facecolor="white",
+                                     edgecolor="#444444", linewidth=1.0, zorder=1.5)
+        self.fig.add_artist(self.inset_frame)
+        self.inset_label = self.fig.text(x0 + 0.01, y0 + h - 0.01, "", va="top", ha="left", fontsize=7.5, zorder=4,
+                                         bbox=dict(boxstyle="square,pad=0.2", fc="white", ec="none", alpha=0.85))
+        self._inset_placed = False
+        self.inset = Scene(iax, self.robots, floor=False, axis=False, triad=False, names=False,
+                           _inset_of=self, **options)
+        self.inset._fitted = True
+        self._show_inset(False)
+
+    def _show_inset(self, visible: bool) -> None:
+        for a in (self.inset.ax, self.inset_frame, self.inset_label):
+            a.set_visible(visible)
+
+    def _place_inset(self) -> None:
+        """Moves the inset to the place of INSET_PLACES that covers the fewest of the scene's box corners."""
+        from mpl_toolkits.mplot3d import proj3d  # matplotlib loads only to draw
+
+        self._inset_placed = True
+        pts = self._verts.reshape(-1, 3)
+        if not len(pts):
+            return
+        self.ax.apply_aspect()
+        x, y, _ = proj3d.proj_transform(pts[:, 0], pts[:, 1], pts[:, 2], self.ax.get_proj())
+        f = self.fig.transFigure.inverted().transform(self.ax.transData.transform(np.column_stack([x, y])))
+        inside = [int(np.sum((f[:, 0] >= x0) & (f[:, 0] <= x0 + w) & (f[:, 1] >= y0) & (f[:, 1] <= y0 + h)))
+                  for x0, y0, w, h in INSET_PLACES]
+        x0, y0, w, h = INSET_PLACES[int(np.argmin(inside))]
+        self.inset.ax.set_position((x0, y0, w, h))
+        self.inset_frame.set_bounds(x0, y0, w, h)
+        self.inset_label.set_position((x0 + 0.01, y0 + h - 0.01))
+
+    def held_points(self) -> np.ndarray:
+        """The corners (m, 3) m of what the inset frames: every held body's boxes and the clamp boxes (links from
+        the clamp's fixed link on) of the robots holding it; empty when nothing is held."""
+        pts = []
+        for i, name in enumerate(self._held):
+            if not name or name not in self._body_names:
+                continue
+            half, poses, _ = self._bodies[self._body_names.index(name)]
+            pts.append(box_corners(poses, half).reshape(-1, 3))
+            r = self.robots[i]
+            first = r.clamp.fixed_link if r.clamp is not None else r.dof
+            poses_r, half_r = r.shapes(self._q[i])
+            on = np.array([b.link >= first for b in r.boxes], dtype=bool)
+            pts.append(box_corners(poses_r[on], half_r[on]).reshape(-1, 3))
+        return np.concatenate(pts) if pts else np.zeros((0, 3))
+
+    def _update_inset(self, changed: dict) -> None:
+        """The inset shows what the scene shows, framed on the held body and its clamps (hidden when nothing is
+        held): a cube 1.3 times the larger of their extents (at least 6 cm), centred on them."""
+        pts = self.held_points()
+        self._show_inset(bool(len(pts)))
+        if not len(pts):
+            return
+        inset = self.inset
+        if not self._inset_placed:
+            self._place_inset()
+        inset.ax.view_init(elev=self.ax.elev, azim=self.ax.azim)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        side = max(1.3 * float((hi - lo).max()), 0.06)
+        c = (lo + hi) / 2
+        inset._limits = np.column_stack([c - side / 2, c + side / 2])
+        inset._given_limits = inset._limits
+        for set_lim, (a, b) in zip((inset.ax.set_xlim, inset.ax.set_ylim, inset.ax.set_zlim), inset._limits):
+            set_lim(a, b)
+        inset.ax.set_box_aspect((1.0, 1.0, 1.0), zoom=1.25)
+        inset.update(**changed)
+        holders = [self.robots[i].name or f"robot {i}" for i, n in enumerate(self._held) if n]
+        bodies = sorted({n for n in self._held if n})
+        self.inset_label.set_text(f"zoom: {', '.join(bodies)} held by {' and '.join(holders)} "
+                                  f"(a {side * 100:.0f} cm cube)")
 
     # ---- set-up ----
 
@@ -309,7 +445,11 @@ class Scene:
         robots' top) at the robots, from the robots' centre towards the
         scenery's in plan view, when it is away from them; else (no
         scenery, or tall scenery such as a wall, which stays behind the
-        robots) DEFAULT_AZIM. The score of an azimuth is the mean over the
+        robots) DEFAULT_AZIM. With an incline among the scenery (a box tilted
+        from level, :func:`inclines`; the largest if several), the preferred
+        azimuth looks at the incline's side instead, square to its axis in
+        plan view, so that its slope shows, and the search below stays within
+        45 degrees of it. The score of an azimuth is the mean over the
         boxes of every frame of the square of the fraction of the box's
         sample points (:func:`~coopsim.view.geometry.box_samples`) hidden
         behind boxes of the other kind (bodies behind robots, robots behind
@@ -335,8 +475,6 @@ class Scene:
             if len(robots[1]) and len(bodies[1]):
                 tests.append((box_samples(*bodies), len(bodies[1]), *robots))
                 tests.append((box_samples(*robots), len(robots[1]), *bodies))
-        if not tests:
-            return float(self.ax.azim)
         preferred = DEFAULT_AZIM
         robot = stack([(p, h) for rb, p, h, _ in frames[0] if rb])
         scen = stack([(p, h) for rb, p, h, sc in frames[0] if sc and not rb])
@@ -346,9 +484,22 @@ class Scene:
             d = scen[0][:, :2, 3].mean(axis=0) - robot[0][:, :2, 3].mean(axis=0)
             if low and np.hypot(*d) > 0.1:
                 preferred = float(np.degrees(np.arctan2(d[1], d[0])))
+        steps = 24
+        slopes = inclines([("", p, h) for rb, p, h, sc in frames[0] if sc and not rb])
+        if slopes:
+            # an incline is seen from its side, square to its axis in plan view (of the two sides, the one
+            # nearer the camera's preferred direction), or its slope would not show: at most 45 degrees off
+            a = max(slopes, key=lambda inc: inc["size"])["axis"]
+            side = float(np.degrees(np.arctan2(a[0], -a[1])))
+            preferred = min((side, side + 180.0), key=lambda x: abs((x - preferred + 180.0) % 360.0 - 180.0))
+            steps = 6
+        if not tests:
+            if slopes:
+                self.ax.view_init(elev=self.ax.elev, azim=(preferred + 180.0) % 360.0 - 180.0)
+            return float(self.ax.azim)
         n_boxes = sum(t[1] for t in tests)
         elev = self.ax.elev
-        candidates = preferred + 7.5 * np.array([0] + [s * k for k in range(1, 25) for s in (1, -1)])
+        candidates = preferred + 7.5 * np.array([0] + [s * k for k in range(1, steps + 1) for s in (1, -1)])
 
         def score(a):
             v = view_direction(elev, a)
@@ -460,6 +611,33 @@ class Scene:
                                            bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=colour, lw=1.2,
                                                      alpha=0.8)))
 
+    def label_inclines(self) -> None:
+        """Finds the inclines among the scenery bodies (:func:`inclines`) and writes each one's slope over its
+        top, with a dashed level line from the top along its axis in plan view, the slope's run: the incline
+        shows its angle against it. The scene's first fit calls it; the camera looks at an incline's side
+        (:meth:`choose_azimuth`)."""
+        for t in self.incline_labels:
+            t.remove()
+        self.incline_labels = []
+        items = [(name, poses, half) for (half, poses, _), name, scenery
+                 in zip(self._bodies, self._body_names, self._body_scenery) if scenery and poses.ndim == 3]
+        self.inclines = [{k: v for k, v in inc.items() if k != "rotation"} for inc in inclines(items)]
+        segments = []
+        for inc in self.inclines:
+            names = [n for n in inc["names"] if n in self._body_names]
+            corners = np.concatenate([box_corners(*self._bodies[self._body_names.index(n)][1::-1]).reshape(-1, 3)
+                                      for n in names])
+            a = inc["axis"]
+            run = float(np.ptp(corners @ (np.array([a[0], a[1], 0.0]) / max(np.hypot(a[0], a[1]), 1e-12))))
+            top = inc["top"]
+            segments.append([top, top + run * np.array([a[0], a[1], 0.0]) / max(np.hypot(a[0], a[1]), 1e-12)])
+            if self._show_names and self._inset_of is None:
+                self.incline_labels.append(self.ax.text(*(top + [0.0, 0.0, 0.04]), f"{inc['slope']:.0f}° incline",
+                                                        fontsize=8, ha="center", va="bottom", zorder=4,
+                                                        color="#222222"))
+        self.level_segments = np.array(segments).reshape(-1, 2, 3)     # (m, 2, 3) m
+        self.levels.set_segments(self.level_segments)
+
     def _reach(self, points) -> float:
         """How far the points (m, 3) reach from the middle of the axes' place in the figure towards its edges,
         at most: 1 at an edge (the larger of x and y, as fractions of the half width and half height). A 3D
@@ -477,7 +655,7 @@ class Scene:
     # ---- state ----
 
     def update(self, q=_KEEP, *, reference=_KEEP, holding=_KEEP, colliding=_KEEP, contacts=_KEEP, bodies=_KEEP,
-               label=_KEEP) -> list:
+               label=_KEEP, held=_KEEP) -> list:
         """Shows the robots at q; returns the changed artists. Nothing is drawn here: call
         ``fig.canvas.draw_idle()`` or save the figure afterwards.
 
@@ -491,8 +669,19 @@ class Scene:
         along the normal. bodies: a list of :class:`Body` with (4, 4) or
         (m, 4, 4) poses. label: text at the top left. An argument left out
         keeps its value; None removes what it shows (holding None: not
-        holding; colliding None: all free).
+        holding; colliding None: all free). held: per robot the name of the
+        body it holds ('' or None: none), which the inset (inset=True) frames
+        with the robot's clamp.
         """
+        changed = dict(q=q, reference=reference, holding=holding, colliding=colliding, contacts=contacts,
+                       bodies=bodies)
+        changed = {k: v for k, v in changed.items() if v is not _KEEP}
+        if held is not _KEEP:
+            names = [None] * len(self.robots) if held is None else list(held)
+            if len(names) != len(self.robots) or not all(n is None or isinstance(n, str) for n in names):
+                raise ValueError(f"held must hold one body name (or None) per robot ({len(self.robots)}), got "
+                                 f"{held!r}")
+            self._held = [n or None for n in names]
         if q is not _KEEP:
             self._q = _per_robot_q(q, self.robots, "q")
         if reference is not _KEEP:
@@ -512,6 +701,9 @@ class Scene:
         if label is not _KEEP:
             self.label.set_text("" if label is None else str(label))
         self._rebuild()
+        if self.inset is not None:
+            self._update_inset(changed)
+            return [self.polys, self.lines, self.label, self.inset.polys, self.inset.lines, self.inset_label]
         return [self.polys, self.lines, self.label]
 
     def _rebuild(self) -> None:
@@ -542,6 +734,9 @@ class Scene:
             self.choose_azimuth([[(b[0] == 0, b[2], b[3], b[0] == 1 and self._body_scenery[b[1]])
                                   for b in boxes if b[0] < 2]])
             self.fit(np.concatenate([box_faces(b[2], b[3]).reshape(-1, 3) for b in boxes]))
+        if not self._inclines_found and self._inset_of is None:
+            self._inclines_found = True     # scenery does not move: once, with the first bodies shown
+            self.label_inclines()
 
         poses = np.concatenate([b[2] for b in boxes])
         half = np.concatenate([b[3] for b in boxes])
@@ -601,10 +796,16 @@ class Scene:
         if not getattr(canvas, "supports_blit", False):
             canvas.draw()
             return
+        inset = self.inset if self.inset is not None and self.inset.ax.get_visible() else None
         key = (canvas.get_width_height(physical=True), self.ax.elev, self.ax.azim, self.ax.roll,
-               None if self._limits is None else self._limits.tobytes(), self.fig.dpi)
+               None if self._limits is None else self._limits.tobytes(), self.fig.dpi, inset is not None)
+        # the inset's boxes, contact lines and text move with its limits: drawn over the background as the scene's
+        moving = [(self.ax, a) for a in (self.polys, self.lines, self.levels)]
+        if inset is not None:
+            moving += [(inset.ax, a) for a in (inset.polys, inset.lines)]
         if getattr(self, "_background", None) is None or self._background[0] != key:
-            dynamic = [self.polys, self.lines, self.label]
+            dynamic = ([a for _, a in moving] + [self.label] + self.incline_labels
+                       + ([self.inset_label, self.inset_frame] if inset is not None else []))
             visible = [a.get_visible() for a in dynamic]
             for a in dynamic:
                 a.set_visible(False)
@@ -615,12 +816,21 @@ class Scene:
                 for a, v in zip(dynamic, visible):
                     a.set_visible(v)
         canvas.restore_region(self._background[1])
-        for a in (self.polys, self.lines):
+        if inset is not None:
+            inset.ax.M = inset.ax.get_proj()     # its limits change from frame to frame (Axes3D.draw would do it)
+            inset.ax.invM = np.linalg.inv(inset.ax.M)
+        for ax, a in moving:
+            if inset is not None and ax is inset.ax and a is inset.polys:
+                self.fig.draw_artist(self.inset_frame)     # over the scene's boxes, under the inset's
             if a.get_visible():
                 a.do_3d_projection()
-                self.ax.draw_artist(a)
-        if self.label.get_visible() and self.label.get_text():
-            self.fig.draw_artist(self.label)
+                ax.draw_artist(a)
+            if a is self.levels:
+                for t in self.incline_labels:              # over the boxes, as a full draw puts them
+                    self.ax.draw_artist(t)
+        for t in [self.label] + ([self.inset_label] if inset is not None else []):
+            if t.get_visible() and t.get_text():
+                self.fig.draw_artist(t)
         canvas.blit(self.fig.bbox)
 
     # ---- what is drawn ----
@@ -724,7 +934,8 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
          contacts=None, bodies=None, world=None, floor=None, tile: float = 0.1, colors=None, limits=None,
          elev: Optional[float] = None, azim: Optional[float] = None, axis: bool = False, zoom: Optional[float] = None,
          contact_length: float = 0.04, edges: bool = True, cull: bool = False, ghost_margin: float = 0.002,
-         label: Optional[str] = None, triad: bool = True, names: bool = True) -> Scene:
+         label: Optional[str] = None, triad: bool = True, names: bool = True, inset: bool = False,
+         held=None) -> Scene:
     """Draws robots as shaded boxes in a 3D Axes; returns a :class:`Scene` to update with new q cheaply.
 
     ax: a 3D matplotlib Axes (``fig.add_subplot(projection='3d')``), or
@@ -782,7 +993,14 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
     triad: the world's x, y, z axes (red, green, blue) at the floor's
     corner, ``scene.scale`` m long (0.01 .. 5 m, under a fifth of the
     floor's smaller side), labelled with that length (not with axis=True).
-    names: each robot's name over its base. Robots holding are green in
+    names: each robot's name over its base, and each incline's slope
+    (scenery tilted from level, :func:`inclines`) over its top, beside a
+    dashed level line; the default camera looks at an incline's side.
+    inset: True adds a zoom on the held body in the upper right (an inset
+    3D Axes, ``scene.inset``, a Scene of its own): its limits frame the
+    held body and the clamp boxes holding it, hidden while nothing is held.
+    held: per robot the name of the body it holds (None: none; default with
+    a Simulation, what ``sim.holding(i)`` says). Robots holding are green in
     shades of their own (``COLORS['holding_shades']``), so two holding at
     once tell apart.
 
@@ -824,9 +1042,11 @@ def draw(ax, robots, q=None, *, reference=None, holding=None, collision_boxes: b
         fig.subplots_adjust(0, 0, 1, 1)
     elif getattr(ax, "name", None) != "3d":
         raise ValueError("ax must be a 3D Axes (fig.add_subplot(projection='3d')) or None")
+    if held is None and sim is not None:
+        held = [sim.holding(i) for i in range(len(robots))]
     scene = Scene(ax, robots, colors=colors, collision_boxes=collision_boxes, floor=floor, tile=tile,
                   limits=limits, elev=elev, azim=azim, axis=axis, zoom=zoom, contact_length=contact_length,
-                  edges=edges, cull=cull, ghost_margin=ghost_margin, triad=triad, names=names)
+                  edges=edges, cull=cull, ghost_margin=ghost_margin, triad=triad, names=names, inset=inset)
     scene.update(q, reference=reference, holding=holding, colliding=colliding, contacts=contacts, bodies=shown,
-                 label=label)
+                 label=label, held=held)
     return scene

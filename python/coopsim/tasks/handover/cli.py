@@ -120,7 +120,7 @@ def _outputs(args, res) -> int:
     if not args.no_video:
         paths.append(view.replay_html(res.sim, os.path.join(args.out, "task_replay.html"),
                                       title="coopsim: the cooperative bar handover", markers=step_markers(rep)))
-        anim = view.animate(res.sim, speed=args.speed, fps=20, path=os.path.join(args.out, "task.mp4"))
+        anim = view.animate(res.sim, speed=args.speed, fps=20, path=os.path.join(args.out, "task.mp4"), inset=True)
         paths.append(anim.path)
     if args.sweep:
         t1 = time.perf_counter()

@@ -8,6 +8,7 @@ from typing import List
 import numpy as np
 
 from ...log import _atomic_write
+from ... import view
 from ...plotting import plot_log
 from .sequence import TaskResult
 
@@ -79,7 +80,8 @@ def step_markers(report: dict) -> List[tuple]:
 def report_figures(result: TaskResult) -> dict:
     """The figures of a run's report, {file name: matplotlib Figure}: the joints with their references (one
     per robot, ``joints_<robot>.png``), the tracking errors (``tracking.png``) and the clearances with the
-    grasp forces (``clearance_forces.png``), all over time. Every y axis names its quantity and unit, one
+    grasp forces (``clearance_forces.png``), all over time; and the scene halfway through the first insertion
+    (``insertion.png``, :func:`insertion_figure`). Every y axis names its quantity and unit, one
     unit per axis (revolute joints in rad, prismatic ones in m); legends stand beside the panels."""
     import matplotlib.pyplot as plt  # matplotlib's import is heavy: only when plotting
 
@@ -115,6 +117,10 @@ def report_figures(result: TaskResult) -> dict:
     axes[2].set_xlabel("t (s)")
     finish(fig, axes, "Tracking errors", "tracking.png")
 
+    scene = insertion_figure(result)
+    if scene is not None:
+        figs["insertion.png"] = scene
+
     fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
     axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
     axes[0].plot(series["t"], series["clearance_container"] * 1e3, label="robot - container")
@@ -127,6 +133,21 @@ def report_figures(result: TaskResult) -> dict:
     axes[1].set_xlabel("t (s)")
     finish(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
     return figs
+
+
+def insertion_figure(result: TaskResult):
+    """The scene in 3D halfway through the first cycle's insertion (``insertion.png``): the container seen
+    from its side, its slope written over it, and an inset zoomed on the bar in SCARA #1's clamp. None for a
+    run that never reached an insertion."""
+    steps = [c.get("steps") or {} for c in result.report["cycles"]]
+    span = next((s["insert"] for s in steps if s.get("insert") and s["insert"][1] is not None), None)
+    if span is None:
+        return None
+    t = 0.5 * (span[0] + span[1])
+    anim = view.animate(result.sim, t_start=t, t_end=t, inset=True, figsize=(8.0, 6.0),
+                        label=lambda _: f"t = {t:.2f} s: the first bar going into the container")
+    anim.show_frame(0)
+    return anim.fig
 
 
 def plot_report(result: TaskResult, out_dir) -> List[str]:
