@@ -180,6 +180,8 @@ WRONG = [
     ("02_planning_and_control", "lab02-ex1-answer", "q_try = r.ik(T_try, opening=0.02)",
      "q_try = r.ik(T_try, opening=0.03)"),
     ("03_collisions_and_grasping", "lab03-ex2-answer", "mu_stick = 0.5", "mu_stick = 0.3"),  # below tan 20°
+    ("05_force_and_impedance", "lab05-ex2-answer", "D_crit = 2 * np.sqrt(K_crit * M_crit)",
+     "D_crit = np.sqrt(K_crit * M_crit)"),  # zeta 0.5: it overshoots
 ]
 
 
