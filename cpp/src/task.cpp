@@ -202,6 +202,7 @@ void TaskController::reset(const Robot& robot, double period) {
   commanded_ = {};
   for (int a : order_) commanded_[a] = true;
   prev_accel_.setZero();
+  ref_valid_ = false;
   s_ = TaskState();
   s_.n = n_;
   s_.jaw = jaw_of(robot);
@@ -233,6 +234,11 @@ const TaskState& TaskController::observe(const ControlInput& in, const TaskRefer
     s.pose_ref = ref->pose;
     twist_ref = ref->twist;
     accel_ref = ref->accel;
+  } else if (ref_valid_ && s.q_ref == ref_q_ && s.qd_ref == ref_qd_ && s.qdd_ref == ref_qdd_) {
+    // the same joint reference as at the last update (a set point): the same image
+    s.pose_ref = ref_pose_;
+    twist_ref = ref_twist_;
+    accel_ref = ref_accel_;
   } else {
     r.kinematics(in.q_ref, wsr_, false);
     s.pose_ref = r.tool_pose(wsr_);
@@ -240,6 +246,13 @@ const TaskState& TaskController::observe(const ControlInput& in, const TaskRefer
     r.tool_bias(wsr_, in.qd_ref, br);
     twist_ref = Jr * s.qd_ref;
     accel_ref = Jr * s.qdd_ref + br;
+    ref_q_ = s.q_ref;
+    ref_qd_ = s.qd_ref;
+    ref_qdd_ = s.qdd_ref;
+    ref_pose_ = s.pose_ref;
+    ref_twist_ = twist_ref;
+    ref_accel_ = accel_ref;
+    ref_valid_ = true;
   }
   r.kinematics(in.q, ws_, false);
   s.pose = r.tool_pose(ws_);
@@ -312,10 +325,16 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
     for (int k = 0; k < na; ++k) Jc(i, k) = s.J(rows[i], arm[k]);
   }
   VecN qa(na);
+  // singular: the LU's smallest pivot below 1e-9 of its largest (a cheap bound, no condition estimate)
+  using Mat66 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kTaskAxes, kTaskAxes>;
+  const auto singular = [](const Eigen::PartialPivLU<Mat66>& lu) {
+    const auto d = lu.matrixLU().diagonal().cwiseAbs();
+    return !(d.minCoeff() > 1e-9 * d.maxCoeff());
+  };
   if (m == na) {
-    const MatN Jsq = Jc;
-    Eigen::PartialPivLU<MatN> lu(Jsq);
-    if (!(lu.rcond() > 1e-9)) {
+    const Mat66 Jsq = Jc;
+    Eigen::PartialPivLU<Mat66> lu(Jsq);
+    if (singular(lu)) {
       std::ostringstream msg;
       msg << "task Jacobian singular at q = [" << s.q.transpose() << "] (commanded " << names_of(commanded_) << ")";
       throw std::domain_error(msg.str());
@@ -327,10 +346,11 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
       const int j = arm[k];
       q0[k] = s.qdd_ref[j] + null_kd_ * (s.qd_ref[j] - s.qd[j]) + null_kp_ * (s.q_ref[j] - s.q[j]);
     }
-    const MatN X = Jc.transpose();  // the pseudo-inverse J^T (J J^T)^-1: the null space is J's orthogonal one
-    const MatN A = Jc * X;
-    Eigen::PartialPivLU<MatN> lu(A);
-    if (!(lu.rcond() > 1e-12)) {
+    const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kTaskAxes> X = Jc.transpose();
+    // the pseudo-inverse J^T (J J^T)^-1: the null space is J's orthogonal one
+    const Mat66 A = Jc * X;
+    Eigen::PartialPivLU<Mat66> lu(A);
+    if (singular(lu)) {
       std::ostringstream msg;
       msg << "task Jacobian singular at q = [" << s.q.transpose() << "] (commanded " << names_of(commanded_) << ")";
       throw std::domain_error(msg.str());
@@ -349,8 +369,10 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
     const Eigen::Vector3d jv = s.J.col(j).head<3>(), jw = s.axes * s.J.col(j).tail<3>();
     tau[j] = out_[j] + jv.dot(ww.head<3>()) + jw.dot(ww.tail<3>());
   }
-  // the TCP's acceleration this commands (world), for the payload at the next update
+  // the TCP's acceleration this commands (world), for the payload at the next update: the jaw's
+  // planned acceleration, as in the arm's equation (not its correction)
   Vec6 acc = s.J * qdd_ + s.bias;
+  if (jaw >= 0) acc -= s.J.col(jaw) * (qdd_[jaw] - s.qdd_ref[jaw]);
   prev_accel_.head<3>() = acc.head<3>();
   prev_accel_.tail<3>() = s.axes * acc.tail<3>();
 }

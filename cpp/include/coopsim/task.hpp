@@ -161,6 +161,11 @@ class TaskController : public Controller {
   Workspace ws_, wsr_;
   TaskState s_;
   Vec6 prev_accel_ = Vec6::Zero();  // world [a; alpha] commanded at the last update (payload inertia)
+  // the reference's image at the last update, reused while the joint reference stays the same
+  bool ref_valid_ = false;
+  VecN ref_q_, ref_qd_, ref_qdd_;
+  Eigen::Isometry3d ref_pose_;
+  Vec6 ref_twist_, ref_accel_;
   VecN out_, qdd_;
   int n_ = 0;
 };
