@@ -8,7 +8,6 @@ import pytest
 
 import coopsim as cs
 from coopsim import grasp
-from coopsim._core import cooperation_wrenches
 from test_grasp import G_BAR, two_holders
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -25,7 +24,7 @@ def test_two_pins_holding_a_bar_off_centre_at_rest_carry_no_internal_wrench_and_
         c, pa, pb = bar_points(a, b)
         fa, fb = m_g * b / (a + b), m_g * a / (a + b)  # the pins' statics: forces up, no moment about c
         ha, hb = np.r_[0, 0, fa, 0, 0, 0], np.r_[0, 0, fb, 0, 0, 0]
-        r = cooperation_wrenches(c, pa, ha, pb, hb)
+        r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
         np.testing.assert_allclose(r["external"], [0, 0, m_g, 0, 0, 0], atol=1e-12)  # balances the weight
         np.testing.assert_allclose(r["internal"], 0, atol=1e-12 * m_g)
         assert r["squeeze"] == 0 and r["twist"] == 0 and r["shear"] == 0 and np.all(r["bending"] == 0)
@@ -41,7 +40,7 @@ def test_a_pure_squeeze_reads_as_squeeze_and_a_twist_as_twist():
     weight = np.r_[0, 0, G_BAR * 0.75, 0, 0, 0], np.r_[0, 0, G_BAR * 0.25, 0, 0, 0]
     for s in (3.0, -2.5, 40.0):  # > 0 pushing together (compression), < 0 pulling apart (tension)
         ha, hb = weight[0] + np.r_[s * e, 0, 0, 0], weight[1] + np.r_[-s * e, 0, 0, 0]
-        r = cooperation_wrenches(c, pa, ha, pb, hb)
+        r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
         assert r["squeeze"] == pytest.approx(s, rel=1e-2)
         assert r["squeeze"] == pytest.approx(s, rel=1e-12)  # exactly, in fact
         np.testing.assert_allclose(r["internal"], np.r_[s * e, 0, 0, 0, -s * e, 0, 0, 0], atol=1e-12)
@@ -50,20 +49,20 @@ def test_a_pure_squeeze_reads_as_squeeze_and_a_twist_as_twist():
     # a twist about the line: opposite moments along it, which move nothing
     tw = 0.4
     ha, hb = weight[0] + np.r_[0, 0, 0, tw * e], weight[1] + np.r_[0, 0, 0, -tw * e]
-    r = cooperation_wrenches(c, pa, ha, pb, hb)
+    r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
     assert r["twist"] == pytest.approx(tw, rel=1e-12)
     assert abs(r["squeeze"]) < 1e-12 and abs(r["shear"]) < 1e-12
     np.testing.assert_allclose(r["internal"], np.r_[0, 0, 0, tw * e, 0, 0, 0, -tw * e], atol=1e-12)
     np.testing.assert_allclose(r["bending"], 0, atol=1e-12)
     # a moment about the line that both apply alike turns the body: external, not internal
     ha, hb = weight[0] + np.r_[0, 0, 0, tw * e], weight[1] + np.r_[0, 0, 0, tw * e]
-    r = cooperation_wrenches(c, pa, ha, pb, hb)
+    r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
     assert abs(r["twist"]) < 1e-12 and np.abs(r["internal"]).max() < 1e-12
     np.testing.assert_allclose(r["external"][3:], 2 * tw * e, atol=1e-12)
     # bending: opposite moments across the line
     n = np.array([0.0, 1.0, 0.0])
     ha, hb = weight[0] + np.r_[0, 0, 0, 0.3 * n], weight[1] + np.r_[0, 0, 0, -0.3 * n]
-    r = cooperation_wrenches(c, pa, ha, pb, hb)
+    r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
     np.testing.assert_allclose(r["bending"], [0.3, 0.3], rtol=1e-12)
     assert abs(r["twist"]) < 1e-12 and abs(r["squeeze"]) < 1e-12 and abs(r["shear"]) < 1e-12
 
@@ -73,7 +72,7 @@ def test_random_holds_match_the_python_reference_and_the_weighted_limit():
     for _ in range(50):
         c, pa, pb = rng.normal(size=(3, 3))
         ha, hb = rng.normal(size=(2, 6)) * [5, 5, 5, 0.5, 0.5, 0.5]
-        r = cooperation_wrenches(c, pa, ha, pb, hb)
+        r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
         G = grasp.grasp_matrix([pa, pb], c)
         np.testing.assert_allclose(r["external"], G @ np.r_[ha, hb], atol=1e-12)
         ref = grasp.internal_wrenches([ha, hb], [pa, pb], c, metric="forces").reshape(-1)
@@ -91,13 +90,13 @@ def test_random_holds_match_the_python_reference_and_the_weighted_limit():
     # both points at one place: the old half difference is the internal part there
     c, p = np.zeros(3), np.array([0.1, 0.2, 0.0])
     ha, hb = rng.normal(size=(2, 6))
-    r = cooperation_wrenches(c, p, ha, p, hb)
+    r = cs.cooperation_wrenches(c, p, ha, p, hb)
     np.testing.assert_allclose(r["internal"], np.r_[(ha - hb) / 2, (hb - ha) / 2], atol=1e-12)
     assert np.isnan(r["squeeze"])
     with pytest.raises(ValueError, match="up must be a finite nonzero vector"):
-        cooperation_wrenches(c, p, ha, p, hb, up=np.zeros(3))
+        cs.cooperation_wrenches(c, p, ha, p, hb, up=np.zeros(3))
     with pytest.raises(ValueError, match="wrench_a"):
-        cooperation_wrenches(c, p, ha[:5], p, hb)
+        cs.cooperation_wrenches(c, p, ha[:5], p, hb)
 
 
 def test_the_old_half_difference_reads_an_uneven_weight_split_as_internal_the_squeeze_does_not():
@@ -214,3 +213,12 @@ def test_cooperation_bad_input_names_the_argument():
     with pytest.raises(ValueError, match="no cooperation columns"):
         table.cooperation(0, 1)
     assert [n for n, _, _ in cs.log.cooperation_schema()][:2] == ["body", "centre"]
+    with pytest.raises(ValueError, match=r"metric must be one of \['euclidean', 'forces'\], got 'l2'"):
+        grasp.internal_wrenches(np.zeros((2, 6)), np.eye(3)[:2], np.zeros(3), metric="l2")
+    # the least-norm split in the pin metric: the lever rule, and an internal part that changes nothing
+    c, pa, pb = bar_points(0.05, 0.15)
+    split = grasp.load_split([0, 0, G_BAR, 0, 0, 0], [pa, pb], c, metric="forces")
+    np.testing.assert_allclose(split, [[0, 0, 0.75 * G_BAR, 0, 0, 0], [0, 0, 0.25 * G_BAR, 0, 0, 0]], atol=1e-12)
+    squeezed = grasp.load_split([0, 0, G_BAR, 0, 0, 0], [pa, pb], c, internal=[[1, 0, 0, 0, 0, 0], [0] * 6],
+                                metric="forces")
+    np.testing.assert_allclose(squeezed - split, [[0.5, 0, 0, 0, 0, 0], [-0.5, 0, 0, 0, 0, 0]], atol=1e-12)
