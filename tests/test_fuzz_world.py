@@ -355,9 +355,9 @@ def test_fuzz_simulation_with_a_world(data):
         g = log.grasps
         assert set(g["event"]) <= {"grasp", "release"} and set(g["body"]) <= set(names)
         for a, b in ((0, 0), (0, 1), (1, 0), (-1, 0), ("a", 0)):
-            out = clear(lambda: log.internal_wrench(a, b), {"robot"}, {"robot": ("robot",)})
+            out = clear(lambda: log.cooperation(a, b), {"robot"}, {"robot": ("robot",)})
             if out is not None:
-                finite(out)
+                finite(out["external"][out["holding"]], out["internal"][out["holding"]])
 
 
 # ---- the grasp: the clamp rule, welds, release ----------------------------------------------

@@ -391,20 +391,21 @@ def test_load_sharing_bad_input_names_the_argument(call, match):
         call(grasp)
 
 
-def test_the_log_gives_the_internal_wrench_of_a_dual_hold():
+def test_the_deprecated_half_difference_is_the_internal_wrench_only_for_welds_at_one_point():
     sim = two_holders(-0.1, 0.1)
     log = sim.run(1.0, progress=False)
-    iw = log.internal_wrench(0, 1)
+    with pytest.warns(DeprecationWarning, match="not the internal wrench"):
+        iw = log.internal_wrench(0, 1)
     both = (log[0].holding == "bar") & (log[1].holding == "bar")
     assert both.any() and np.all(iw[~both] == 0)
     np.testing.assert_allclose(iw[-1], (log[0].weld[-1] - log[1].weld[-1]) / 2)
-    # the log's formula is the grasp module's internal part for two welds at one point (here the
-    # bar's centre); the welds' own points lie between each gripper's pads, but the grips are
-    # symmetric about the centre, so the weight splits evenly and the formula shows no squeeze
+    # it is the grasp module's internal part (either metric) for two welds at one point, here the bar's
+    # centre; the welds' own points lie between each gripper's pads (SimulationLog.cooperation has them)
     c = sim.body_state("bar")["position"]
-    internal = cs.grasp.internal_wrenches(np.array([log[0].weld[-1], log[1].weld[-1]]), [c, c], c)
-    np.testing.assert_allclose(internal[0], iw[-1], atol=1e-12)
-    assert np.abs(iw[-1][:3]).max() < 1e-3  # symmetric and at rest: hardly any squeeze
+    for metric in ("euclidean", "forces"):
+        internal = cs.grasp.internal_wrenches(np.array([log[0].weld[-1], log[1].weld[-1]]), [c, c], c, metric=metric)
+        np.testing.assert_allclose(internal[0], iw[-1], atol=1e-12)
+    assert np.abs(iw[-1][:3]).max() < 1e-3  # symmetric and at rest: the weight splits evenly
 
 
 def test_pressing_a_held_body_on_scenery_passes_the_scenery_force_to_the_robot():

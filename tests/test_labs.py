@@ -286,7 +286,7 @@ def test_the_tasks_report_figures_name_every_axis_with_one_unit_and_keep_legends
     assert _ylabels(figs["joints_scara2.png"]) == ["θ1 (rad)", "θ2 (rad)", "θ3 (rad)", "d4 (m)", "θ5 (rad)", "d6 (m)"]
     assert _ylabels(figs["tracking.png"]) == ["tool position\nerror (mm)", "largest revolute\njoint error (rad)",
                                               "largest prismatic\njoint error (m)"]
-    assert _ylabels(figs["clearance_forces.png"]) == ["clearance (mm)", "force (N)"]
+    assert _ylabels(figs["clearance_forces.png"]) == ["clearance (mm)", "force (N)", "position error (mm)"]
     for name, fig in figs.items():
         fig.canvas.draw()
         width = fig.bbox.x1

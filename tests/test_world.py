@@ -466,15 +466,19 @@ def test_bad_grasp_options_are_named(options, match):
         cs.Simulation(world=cs.World(), grasp_options=options)
 
 
-def test_the_internal_wrench_of_robots_the_log_lacks_is_an_error():
+def test_the_cooperation_of_robots_the_log_lacks_is_an_error():
     sim = cs.Simulation(world=cs.World(), log_every=10)
     sim.add_robot(cs.robots.scara1(), cs.PID(0.0, 0.0, 0.0), np.zeros(6) + 0.01)
     log = sim.run(0.01, progress=False)
-    # an IndexError ("list index out of range") before
     for a, b, name in ((0, 1, "b"), (2, 0, "a"), ("0", 0, "a"), (0, 0.5, "b")):
         with pytest.raises(ValueError, match=f"{name} must be the index of a robot of the log, in \\[0, 1\\)"):
+            log.cooperation(a, b)
+    # the deprecated half difference checks its robots as before (an IndexError before that), and warns
+    for a, b, name in ((0, 1, "b"), (2, 0, "a")):
+        with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match=f"{name} must be the index"):
             log.internal_wrench(a, b)
-    assert np.all(log.internal_wrench(0, 0) == 0)
+    with pytest.warns(DeprecationWarning, match="not the internal wrench"):
+        assert np.all(log.internal_wrench(0, 0) == 0)
 
 
 def test_world_bad_input():

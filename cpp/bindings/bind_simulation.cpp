@@ -7,6 +7,7 @@
 
 #include "convert.hpp"
 #include "coopsim/batch.hpp"
+#include "coopsim/cooperation.hpp"
 #include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/simulation.hpp"
@@ -79,6 +80,23 @@ py::dict log_dict(const Simulation& s, int i) {
 // Robot i's grasp log: (rows, 7) [held body id or -1, weld force (3), weld moment (3)].
 py::array_t<double> grasp_log(const Simulation& s, int i) {
   return view(s.log(i).grasp, s.log_rows(), true);
+}
+
+// Two holders' quantities (cooperation.hpp) by the names of cooperation_schema(), body and holding aside.
+py::dict cooperation_dict(const Cooperation& c) {
+  py::dict d;
+  d["centre"] = to_numpy(c.centre);
+  d["point_a"] = to_numpy(c.point_a);
+  d["point_b"] = to_numpy(c.point_b);
+  d["external"] = to_numpy(c.external);
+  d["internal"] = to_numpy(c.internal);
+  d["squeeze"] = c.squeeze;
+  d["twist"] = c.twist;
+  d["bending"] = to_numpy(c.bending);
+  d["shear"] = c.shear;
+  d["load_share"] = to_numpy(c.load_share);
+  d["relative_pose_error"] = to_numpy(c.relative_pose_error);
+  return d;
 }
 
 py::dict metrics_dict(const Simulation& s, int i) {
@@ -400,6 +418,18 @@ torques between controller updates, the log and tracking metrics.)doc")
            "held torque, tau_ext (n,) the environment's joint torque held over the step.")
       .def("sensor_log", [](const Simulation& s, int i) { return view(s.log(i).ft, s.log_rows(), true); },
            py::arg("i"), "Robot i's force/torque reading per log row, (rows, 12): world axes (6), sensor frame (6).")
+      .def("cooperation", [](Simulation& s, int a, int b) {
+             bool holding = false;
+             py::dict d = cooperation_dict(s.cooperation(a, b, &holding));
+             d["holding"] = holding;
+             return d;
+           }, py::arg("a"), py::arg("b"),
+           "Robots a < b holding one body now: holding (bool) and the quantities of cooperation_schema() (zeros "
+           "when not holding).")
+      .def("cooperation_log", [](Simulation& s, int a, int b) {
+             return view(s.cooperation_log(a, b), s.log_rows(), true);
+           }, py::arg("a"), py::arg("b"),
+           "Robots a < b: one row of cooperation_schema() per log row, (rows, width).")
       .def("grasp_log", &grasp_log, py::arg("i"),
            "Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force "
            "(3) N and moment (3) N m on it.")
@@ -494,6 +524,24 @@ torques between controller updates, the log and tracking metrics.)doc")
     for (const LogQuantityInfo& q : log_schema()) out.append(py::make_tuple(q.name, q.doc));
     return out;
   }, "The quantities a simulation logs per robot, in column order: [(name, description)], one column per joint.");
+
+  m.def("cooperation_schema", []() {
+    py::list out;
+    for (const CooperationColumn& c : cooperation_schema()) out.append(py::make_tuple(c.name, c.width, c.doc));
+    return out;
+  }, "The log's columns of a pair of robots holding one body, in row order: [(name, width, description)].");
+
+  m.def("cooperation_wrenches", [](const py::object& centre, const py::object& point_a, const py::object& wrench_a,
+                                   const py::object& point_b, const py::object& wrench_b, const py::object& up) {
+    using V3 = Eigen::Vector3d;
+    return cooperation_dict(cooperation(vector_arg<V3>(centre, 3, "centre"), vector_arg<V3>(point_a, 3, "point_a"),
+                                        vector_arg<Vec6>(wrench_a, 6, "wrench_a"), vector_arg<V3>(point_b, 3, "point_b"),
+                                        vector_arg<Vec6>(wrench_b, 6, "wrench_b"), vector_arg<V3>(up, 3, "up")));
+  }, py::arg("centre"), py::arg("point_a"), py::arg("wrench_a"), py::arg("point_b"), py::arg("wrench_b"),
+     py::arg("up") = std::vector<double>{0.0, 0.0, 1.0},
+     "Two holders' wrenches [f; mu] (6,) (N, N m about their points) at point_a, point_b (3,) m on a body "
+     "whose centre of mass is `centre` (3,) m: the engine's external, internal, squeeze, twist, bending, shear "
+     "and load_share (up (3,): against gravity), as the log's cooperation columns (relative_pose_error zero).");
 
   m.def("run_batch", [](const py::list& sims, double t_end, int threads) {
          std::vector<Simulation*> ptrs;

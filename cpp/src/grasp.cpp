@@ -182,6 +182,7 @@ void Simulation::grasp_rule_(double h) {
     hold.anchor_body = body.inverse() * anchor;
     hold.candidate = -1;
     grasp_events_.push_back(GraspEvent{time(), static_cast<int>(i), found, true, "grasp"});
+    pairs_attach_(static_cast<int>(i));
     changed = true;
   }
   if (changed) ignore_held_();
@@ -213,6 +214,7 @@ void Simulation::release_(Slot& s, const std::string& why, bool set_twist) {
   grasp_events_.push_back(GraspEvent{time(), static_cast<int>(&s - slots_.data()), s.grasp.held, false, why});
   s.grasp.held = -1;
   s.grasp.weld.setZero();
+  pairs_attach_(static_cast<int>(&s - slots_.data()));
 }
 
 void Simulation::release(int i) {

@@ -117,6 +117,7 @@ void Simulation::reserve(long steps) {
     s.record.log.ft.reserve(rows);
   }
   for (LogColumn& c : body_log_) c.reserve(rows);
+  for (Pair& p : pairs_) p.log.reserve(rows);
 }
 
 // The log stage: at every log_every-th step, the row at t_k (once per time, unless the applied
@@ -165,6 +166,7 @@ void Simulation::log_() {
     Eigen::Map<Eigen::Vector3d>(row + 10) = st.angular_velocity;
     body_log_[b].push(row);
   }
+  log_pairs_();
   logged_at_ = k_;
 }
 

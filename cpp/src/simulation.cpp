@@ -107,6 +107,11 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
   s.record.log.grasp = LogColumn(7);
   s.record.log.ft = LogColumn(12);
   slots_.push_back(std::move(s));
+  for (int a = 0; a + 1 < robot_count(); ++a) {
+    pairs_.emplace_back();
+    pairs_.back().a = a;
+    pairs_.back().b = robot_count() - 1;
+  }
   return robot_count() - 1;
 }
 
@@ -124,6 +129,10 @@ void Simulation::reset() {
   diverged_ = false;
   divergence_.clear();
   log_t_.clear();
+  for (Pair& p : pairs_) {
+    p.log.clear();
+    p.attached = false;
+  }
   for (Slot& s : slots_) {
     const int n = s.robot.dof();
     s.state.q = s.state.q0;

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LinkBox', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LinkBox', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -1231,6 +1231,14 @@ class SimulationCore:
         """
     def controller(self, i: typing.SupportsInt | typing.SupportsIndex) -> Controller:
         ...
+    def cooperation(self, a: typing.SupportsInt | typing.SupportsIndex, b: typing.SupportsInt | typing.SupportsIndex) -> dict:
+        """
+        Robots a < b holding one body now: holding (bool) and the quantities of cooperation_schema() (zeros when not holding).
+        """
+    def cooperation_log(self, a: typing.SupportsInt | typing.SupportsIndex, b: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Robots a < b: one row of cooperation_schema() per log row, (rows, width).
+        """
     def free_body_names(self) -> list[str]:
         ...
     def grasp_check(self, i: typing.SupportsInt | typing.SupportsIndex, body: str) -> dict:
@@ -1442,6 +1450,14 @@ def commandable_directions(robot: Robot, q0: typing.Any = None) -> tuple:
 def compiled_generated_names() -> list[str]:
     """
     Names of the robots whose generated dynamics are compiled into this build.
+    """
+def cooperation_schema() -> list:
+    """
+    The log's columns of a pair of robots holding one body, in row order: [(name, width, description)].
+    """
+def cooperation_wrenches(centre: typing.Any, point_a: typing.Any, wrench_a: typing.Any, point_b: typing.Any, wrench_b: typing.Any, up: typing.Any = [0.0, 0.0, 1.0]) -> dict:
+    """
+    Two holders' wrenches [f; mu] (6,) (N, N m about their points) at point_a, point_b (3,) m on a body whose centre of mass is `centre` (3,) m: the engine's external, internal, squeeze, twist, bending, shear and load_share (up (3,): against gravity), as the log's cooperation columns (relative_pose_error zero).
     """
 def dh_transform(theta: typing.SupportsFloat | typing.SupportsIndex, d: typing.SupportsFloat | typing.SupportsIndex, a: typing.SupportsFloat | typing.SupportsIndex, alpha: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """

@@ -15,14 +15,17 @@ import errno
 import os
 import re
 import tempfile
+import warnings
 from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from ._core import cooperation_schema as _engine_cooperation_schema
 from ._core import log_schema as _engine_log_schema
 from .plotting import plot_log
 
-__all__ = ["BODY_COLUMNS", "BodyLog", "QUANTITIES", "RobotLog", "SimulationLog", "log_schema", "rows_at"]
+__all__ = ["BODY_COLUMNS", "BodyLog", "QUANTITIES", "RobotLog", "SimulationLog", "cooperation_schema", "log_schema",
+           "rows_at"]
 
 
 def rows_at(t, times) -> np.ndarray:
@@ -47,6 +50,19 @@ def log_schema() -> List[Tuple[str, str]]:
     """The quantities logged per robot, in column order: [(name, description)], one column per joint."""
     return [tuple(x) for x in _engine_log_schema()]
 
+
+def cooperation_schema() -> List[Tuple[str, int, str]]:
+    """The engine's log columns of a pair of robots holding one body, in row order:
+    [(name, width, description)] (see :meth:`SimulationLog.cooperation`)."""
+    return [tuple(x) for x in _engine_cooperation_schema()]
+
+
+# where each cooperation quantity lies in a pair's row
+_COOPERATION_SLICES = {}
+for _name, _width, _ in cooperation_schema():
+    _start = sum(s.stop - s.start for s in _COOPERATION_SLICES.values())
+    _COOPERATION_SLICES[_name] = slice(_start, _start + _width)
+_COOPERATION_WIDTH = sum(s.stop - s.start for s in _COOPERATION_SLICES.values())
 
 #: Quantities stored per robot (the engine's schema), in column order.
 STORED: Tuple[str, ...] = tuple(name for name, _ in log_schema())
@@ -199,7 +215,8 @@ class SimulationLog:
 
     def __init__(self, t: np.ndarray, robots: Sequence[RobotLog], *, dt: Optional[float] = None,
                  control_every: Optional[int] = None, log_every: Optional[int] = None,
-                 bodies: Optional[Sequence[BodyLog]] = None, contacts=None, contact_points=None, grasps=None):
+                 bodies: Optional[Sequence[BodyLog]] = None, contacts=None, contact_points=None, grasps=None,
+                 cooperation: Optional[dict] = None):
         self.t = t
         self.robots: List[RobotLog] = list(robots)
         self.bodies = {b.name: b for b in (bodies or [])}
@@ -209,6 +226,8 @@ class SimulationLog:
         self._contacts = contacts
         self._contact_points = contact_points
         self._grasps = grasps
+        #: {(a, b): (rows, width) array of cooperation_schema()} for robots a < b (a simulation's log)
+        self._cooperation = dict(cooperation or {})
 
     def check(self, *, poses: bool = False) -> "SimulationLog":
         """Returns the log if it is consistent, else raises ValueError naming what is not: log.t
@@ -251,16 +270,65 @@ class SimulationLog:
                                  "unit quaternions")
         return self
 
-    def internal_wrench(self, a: int = 0, b: int = 1) -> np.ndarray:
-        """(w_a - w_b) / 2 (rows, 6) of robots a and b's weld wrenches on a body both hold (N, N m; each
-        weld's force and its moment about its own point, midway between its clamp's pads); zeros in the
-        rows where they do not hold the same body.
+    def _pair(self, a, b):
+        n = len(self.robots)
+        for name, i in (("a", a), ("b", b)):
+            if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not 0 <= i < n:
+                raise ValueError(f"{name} must be the index of a robot of the log, in [0, {n}), got {i!r}")
+        if a >= b:
+            raise ValueError(f"a must be less than b (robot a leads, b follows), got a = {a}, b = {b}")
+        return int(a), int(b)
 
-        This is the part that cancels on the body only when both welds act at one point. They do not:
-        each acts between its own clamp's pads, so an uneven split of the weight (holders at different
-        distances from the body's centre of mass do not carry half each) shows here as internal force
-        although nothing squeezes the body. :func:`coopsim.grasp.internal_wrenches` at the welds' points
-        gives the part that cancels (the log does not keep those points)."""
+    def cooperation(self, a: int = 0, b: int = 1) -> dict:
+        """What robots a and b (a < b) do together to a body both hold, per log row, as the engine
+        computed it (docs/world-and-grasp.md, "Two holders"). A dict of arrays, one row per log row:
+
+        - t (rows,) s; holding (rows,) bool, both hold one body; body (rows,) its name ('' when not);
+        - centre (rows, 3) m: the body's centre of mass c; point_a, point_b (rows, 3) m: the welds' points
+          p_a, p_b (world);
+        - external (rows, 6) N, N m: the net wrench of both welds on the body about c,
+          sum_k W_k h_k with W_k = [[I, 0], [S(p_k - c), I]];
+        - internal (rows, 12) N, N m: [f_a; mu_a; f_b; mu_b], the welds' wrenches' part in W's null space,
+          each about its own point, taking the external wrench as pins would share it (forces carry all
+          they can: :func:`coopsim.grasp.internal_wrenches` with metric="forces");
+        - squeeze (rows,) N: the internal force along the line from p_a to p_b, (f_a - f_b) . e / 2,
+          > 0 when the clamps push the body together (compression), < 0 when they pull it apart;
+        - twist (rows,) N m: the internal moment about that line, (mu_a - mu_b) . e / 2;
+        - bending (rows, 2) N m: each weld's moment across the line (magnitude); shear (rows,) N: the
+          internal force across the line that balances them (magnitude);
+        - load_share (rows, 2): each robot's part of the vertical load, f_k,up / (f_a + f_b)_up;
+        - relative_pose_error (rows, 6) m, rad: robot b's clamp frame against where a rigid hold with
+          a's since the second weld attached would put it: position (3), rotation vector (3), world axes.
+
+        Rows where they do not hold one body are NaN (holding False). ValueError for robots the log
+        lacks, a >= b, or a log without these columns (one read back from a table)."""
+        a, b = self._pair(a, b)
+        data = self._cooperation.get((a, b))
+        if data is None:
+            raise ValueError(f"the log has no cooperation columns for robots {a} and {b}: a simulation's log "
+                             "has them for every pair; tables (CSV, Excel) do not keep them")
+        data = np.asarray(data, dtype=float)
+        if data.shape != (len(self.t), _COOPERATION_WIDTH):
+            raise ValueError(f"wrong shape for the cooperation columns of robots {a} and {b}: expected "
+                             f"({len(self.t)}, {_COOPERATION_WIDTH}), got {data.shape}")
+        holding = data[:, 0] >= 0
+        out = {"t": self.t, "holding": holding,
+               "body": np.where(holding, self.robots[a].holding, "").astype(object)}
+        for name, sl in _COOPERATION_SLICES.items():
+            if name != "body":
+                out[name] = data[:, sl] if sl.stop - sl.start > 1 else data[:, sl.start]
+        return out
+
+    def internal_wrench(self, a: int = 0, b: int = 1) -> np.ndarray:
+        """Deprecated: (w_a - w_b) / 2 (rows, 6) of robots a and b's weld wrenches (zeros in the rows where
+        they do not hold one body), kept for old scripts; it warns (DeprecationWarning).
+
+        This is not the internal wrench. It is the part that cancels on the body only when both welds act
+        at one point; each acts between its own clamp's pads, so an uneven split of the weight between
+        holders at different distances from the centre of mass shows here although nothing squeezes the
+        body. Use :meth:`cooperation` (squeeze, internal, twist, bending, shear)."""
+        warnings.warn("SimulationLog.internal_wrench is (w_a - w_b) / 2, not the internal wrench: use "
+                      "SimulationLog.cooperation(a, b) (squeeze, internal)", DeprecationWarning, stacklevel=2)
         n = len(self.robots)
         for name, i in (("a", a), ("b", b)):
             if not isinstance(i, (int, np.integer)) or isinstance(i, (bool, np.bool_)) or not -n <= i < n:

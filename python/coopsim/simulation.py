@@ -367,6 +367,17 @@ class Simulation:
         """The weld's force (N) and moment (N m) on the body a robot holds, (6,), world frame."""
         return self._core.weld_wrench(_index(robot, self.robot_count))
 
+    def cooperation(self, a: int = 0, b: int = 1) -> dict:
+        """What robots a and b (a < b) do together to a body both hold, now: the log's row at this time
+        (:meth:`SimulationLog.cooperation` for the quantities and units, one row: centre, point_a,
+        point_b (3,), external (6,), internal (12,), squeeze, twist, shear (floats), bending,
+        load_share (2,), relative_pose_error (6,)), with holding (bool) and body (its name, or None).
+        When they do not hold one body: holding False and zeros."""
+        n = self.robot_count
+        d = self._core.cooperation(_index(a, n), _index(b, n))
+        d["body"] = self.holding(a) if d["holding"] else None
+        return d
+
     # ---- sensors ----
 
     def set_sensor(self, robot: int = 0, *, noise_force: Optional[float] = None,
@@ -532,7 +543,9 @@ class Simulation:
             robots.append(RobotLog(c.robot(i).name, t, holding=held, weld=g[:, 1:], ft_world=ft[:, :6],
                                    ft_clamp=ft[:, 6:], joint_types=c.robot(i).joint_types, **c.log(i)))
         bodies = [BodyLog(name, t, data) for name, data in zip(c.free_body_names(), c.body_log())]
+        pairs = {(a, b): c.cooperation_log(a, b) for b in range(self.robot_count) for a in range(b)}
         return SimulationLog(t, robots, dt=self.dt, control_every=self.control_every, log_every=self.log_every,
+                             cooperation=pairs,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,
                              grasps=c.grasp_events() if c.world is not None else None,
                              contact_points=c.contact_log() if c.log_contacts and c.world is not None else None)

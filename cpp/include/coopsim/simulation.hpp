@@ -65,6 +65,7 @@
 #include <Eigen/Cholesky>
 
 #include "coopsim/controller.hpp"
+#include "coopsim/cooperation.hpp"
 #include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/log.hpp"
@@ -208,6 +209,14 @@ class Simulation {
   const Vec6& weld_wrench(int i) const { return slot_(i).grasp.weld; }
   // The rule's conditions for robot i and free body `body` in the present state.
   GraspCheck grasp_check(int i, int body);
+  // ---- two holders of one body (cooperation.hpp) ----
+  // Robots a < b: their welds' quantities and relative pose error now (the log's row at t_k: the welds'
+  // wrenches of the last world step, the body as sampled then, the clamps at q); *holding, when given,
+  // tells whether they hold one body (else the values are zeros). Throws std::invalid_argument unless
+  // 0 <= a < b < robot_count().
+  Cooperation cooperation(int a, int b, bool* holding = nullptr);
+  // Their log column: one row of cooperation_schema() per log row.
+  const LogColumn& cooperation_log(int a, int b);
   void set_profiling(bool on) { profiling_ = on; }
   // ---- sensors (see SensorOptions) ----
   // Configures robot i's force/torque sensor; the noise generator restarts from the seed, the
@@ -344,6 +353,15 @@ class Simulation {
     } record;
   };
 
+  // A pair of robots a < b (made by add_robot): the clamps' relative pose when both began to hold one
+  // body, and the pair's log column.
+  struct Pair {
+    int a = 0, b = 0;
+    bool attached = false;  // X0 holds the relative pose of the present dual hold
+    Eigen::Isometry3d X0 = Eigen::Isometry3d::Identity();
+    LogColumn log{kCooperationWidth};
+  };
+
   Slot& slot_(int i);
   const Slot& slot_(int i) const;
   void start_();
@@ -385,10 +403,17 @@ class Simulation {
   void welds_(double h);
   void release_(Slot& s, const std::string& why, bool set_twist = true);
   GraspCheck grasp_check_(const Slot& s, const BodyState& st, int body) const;
+  // ---- cooperation (cooperation.cpp) ----
+  static Eigen::Isometry3d clamp_frame_(Slot& s);  // the clamp link's orientation at the weld's point
+  bool cooperation_(Pair& pair, Cooperation& out);  // false: the pair does not hold one body
+  void pairs_attach_(int i);                        // robot i grasped or let go: its pairs' X0
+  Pair& pair_(int a, int b);
+  void log_pairs_();
 
   SimulationOptions opt_;
   std::shared_ptr<World> world_;
   std::vector<Slot> slots_;
+  std::vector<Pair> pairs_;
   std::vector<LogColumn> body_log_;
   std::vector<int> free_ids_;
   std::vector<BodyState> body_now_;

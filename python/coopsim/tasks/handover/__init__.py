@@ -18,11 +18,11 @@ a robot's own links, or a bar touching anything but the jaws, the floor before p
 and the floor after release), a grasp that does not happen, a release that does not happen, or a bar
 that does not slide down the tube. The run stops at the first failure. :func:`run` returns a
 :class:`TaskResult` whose ``report`` holds, per cycle: durations per step, tracking errors (joint and
-tool), minimum clearances robot-robot and robot-container, peak weld and internal forces during the
-dual hold (the internal force is half the difference of the two welds' forces on the bar,
-``log.internal_wrench``, the part that cancels on it; each weld acts between its clamp's pads, at that
-robot's grip, and here the internal force is the uneven split of the bar's weight: #1 grasps a bar #2
-holds still, so its weld starts unstretched and #2 carries the load until it opens, giving m g / 2),
+tool), minimum clearances robot-robot and robot-container, peak weld forces, and over the dual hold the
+engine's ``log.cooperation(0, 1)``: the peak squeeze along the line between the grips (N, > 0 pushing the
+bar together), the peak internal force and moment, and the clamps' largest relative pose error since #1's
+grasp (#1 grasps a bar #2 holds still, so its weld starts unstretched and #2 carries the bar as a
+cantilever until it opens: no squeeze, but an internal shear, #1's lever-rule share, against two pins),
 every contact and grasp event, and success or the step and reason.
 
 Scene values: :mod:`coopsim.tasks.scene`. Planning values (m, rad, s) are the constants of

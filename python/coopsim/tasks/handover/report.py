@@ -52,9 +52,13 @@ def summary(report: dict) -> str:
             lines.append(f"  min clearance robot-robot {cr['min'] * 1e3:.1f} mm ({' - '.join(cr['between'])}, "
                          f"t = {cr['t']:.2f} s), robot-container {cc['min'] * 1e3:.1f} mm "
                          f"({' - '.join(cc['between'])})")
-            lines.append(f"  dual hold {c['dual_hold']:.3f} s; peak weld force #1 {c['peak_weld_force'][0]:.2f} N, "
-                         f"#2 {c['peak_weld_force'][1]:.2f} N; peak internal force {c['peak_internal_force']:.2f} N; "
+            lines.append(f"  peak weld force #1 {c['peak_weld_force'][0]:.2f} N, #2 {c['peak_weld_force'][1]:.2f} N; "
                          f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
+            pe = c["max_relative_pose_error"]
+            lines.append(f"  dual hold {c['dual_hold']:.3f} s: peak squeeze {c['peak_squeeze']:+.3f} N (> 0 pushing the "
+                         f"bar together), internal force {c['peak_internal_force']:.2f} N, internal moment "
+                         f"{c['peak_internal_moment']:.3f} N m; clamps' relative pose error {pe[0] * 1e3:.2f} mm, "
+                         f"{pe[1] * 1e3:.2f} mrad")
     ok = sum(c["success"] for c in report["cycles"])
     not_run = report["cycles_planned"] - len(report["cycles"])
     tail = (f" (cycle {len(report['cycles'])} not run: the run stops at the first failure)" if not_run == 1 else
@@ -80,7 +84,8 @@ def step_markers(report: dict) -> List[tuple]:
 def report_figures(result: TaskResult) -> dict:
     """The figures of a run's report, {file name: matplotlib Figure}: the joints with their references (one
     per robot, ``joints_<robot>.png``), the tracking errors (``tracking.png``) and the clearances with the
-    grasp forces (``clearance_forces.png``), all over time; and the scene halfway through the first insertion
+    grasp forces with the dual hold's internal force, squeeze and the clamps' relative position error
+    (``clearance_forces.png``), all over time; and the scene halfway through the first insertion
     (``insertion.png``, :func:`insertion_figure`). Every y axis names its quantity and unit, one
     unit per axis (revolute joints in rad, prismatic ones in m); legends stand beside the panels."""
     import matplotlib.pyplot as plt  # matplotlib's import is heavy: only when plotting
@@ -121,16 +126,22 @@ def report_figures(result: TaskResult) -> dict:
     if scene is not None:
         figs["insertion.png"] = scene
 
-    fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
     axes[0].plot(series["t"], series["clearance_robots"] * 1e3, label="robot - robot")
     axes[0].plot(series["t"], series["clearance_container"] * 1e3, label="robot - container")
     axes[0].set_ylabel("clearance (mm)")
     axes[0].set_ylim(0, 300)
     for i, rl in enumerate(log.robots):
         axes[1].plot(series["t"], series["weld_force"][:, i], label=f"weld force, {rl.name}")
-    axes[1].plot(series["t"], series["internal_force"], label="internal force\n(dual hold)", color="k", lw=1)
+    # the dual hold's internal force (NaN elsewhere: drawn only while both hold the bar)
+    axes[1].plot(series["t"], series["internal_force"], label="internal force |f_int|\n(dual hold)", color="k", lw=1)
+    axes[1].plot(series["t"], series["squeeze"], label="squeeze (dual hold;\n> 0 pushing together)", color="k",
+                 lw=1, ls="--")
     axes[1].set_ylabel("force (N)")
-    axes[1].set_xlabel("t (s)")
+    error = np.linalg.norm(series["relative_pose_error"][:, :3], axis=1) * 1e3
+    axes[2].plot(series["t"], error, label="clamps' relative\nposition error\n(dual hold)", color="k", lw=1)
+    axes[2].set_ylabel("position error (mm)")
+    axes[2].set_xlabel("t (s)")
     finish(fig, axes, "Clearances and grasp forces", "clearance_forces.png")
     return figs
 

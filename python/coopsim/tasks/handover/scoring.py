@@ -1,6 +1,7 @@
 """The per-cycle scores of a run, from its log: tracking errors (joint and tool), the smallest clearances
-robot-robot and robot-container, peak weld and internal forces during the dual hold, the contact and grasp
-events."""
+robot-robot and robot-container, the peak weld forces, and during the dual hold the squeeze, the internal
+force and moment, and the clamps' relative pose error (the engine's ``log.cooperation``), the contact and
+grasp events."""
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
@@ -46,7 +47,12 @@ def score_cycles(runner, results: List[dict]) -> dict:
     tcp_err = np.column_stack([np.linalg.norm(r.fk(rl.q)[:, :3, 3] - r.fk(rl.q_ref)[:, :3, 3], axis=1)
                                for r, rl in zip(robots, log.robots)])
     weld = np.column_stack([np.linalg.norm(rl.weld[:, :3], axis=1) for rl in log.robots])
-    internal = np.linalg.norm(log.internal_wrench(0, 1)[:, :3], axis=1)
+    # the dual hold, as the engine computed it per row (NaN where the robots do not both hold the bar)
+    co = log.cooperation(0, 1)
+    holding, internal = co["holding"], co["internal"]
+    internal_force = np.linalg.norm(internal[:, :3], axis=1)  # the same at both welds
+    internal_moment = np.maximum(np.linalg.norm(internal[:, 3:6], axis=1), np.linalg.norm(internal[:, 9:], axis=1))
+    pose_error = co["relative_pose_error"]
     grasps, contacts = log.grasps, log.contacts
     for c in results:
         m = _cycle_window(log, c["t_start"], c["t_end"])
@@ -66,9 +72,18 @@ def score_cycles(runner, results: List[dict]) -> dict:
         c["clearance_container"] = dict(min=float(d_rc[k]), t=float(log.t[k]),
                                         between=[names[r][cont[r][1][k]], walls[cont[r][2][k]]])
         c["peak_weld_force"] = [float(weld[m, i].max()) for i in range(2)]
-        both = m & (log[0].holding != "") & (log[0].holding == log[1].holding)
+        both = m & holding
         c["dual_hold"] = float(both.sum() * (log.t[1] - log.t[0])) if len(log.t) > 1 else 0.0
-        c["peak_internal_force"] = float(internal[both].max()) if both.any() else 0.0
+        if both.any():
+            k = np.flatnonzero(both)[np.argmax(np.abs(co["squeeze"][both]))]
+            c["peak_squeeze"] = float(co["squeeze"][k])  # N, signed: > 0 pushing the bar together
+            c["peak_internal_force"] = float(internal_force[both].max())
+            c["peak_internal_moment"] = float(internal_moment[both].max())
+            c["max_relative_pose_error"] = [float(np.linalg.norm(pose_error[both, :3], axis=1).max()),
+                                            float(np.linalg.norm(pose_error[both, 3:], axis=1).max())]
+        else:
+            c["peak_squeeze"] = c["peak_internal_force"] = c["peak_internal_moment"] = 0.0
+            c["max_relative_pose_error"] = [0.0, 0.0]
         g = grasps[(grasps.t >= c["t_start"]) & (grasps.t <= c["t_end"])]
         c["grasp_events"] = [dict(t=float(e.t), robot=int(e.robot), body=e.body, event=e.event, reason=e.reason)
                              for e in g.itertuples()]
@@ -78,5 +93,6 @@ def score_cycles(runner, results: List[dict]) -> dict:
                                for x in e.itertuples()]
         c["outcome"] = runner.outcome.get(c["bar"])
     series = dict(t=log.t, clearance_robots=d_rr, clearance_container=d_rc, tool_error=tcp_err, weld_force=weld,
-                  internal_force=internal)
+                  squeeze=co["squeeze"], internal_force=internal_force, internal_moment=internal_moment,
+                  load_share=co["load_share"], relative_pose_error=pose_error)
     return series

@@ -38,7 +38,9 @@ class TaskResult:
     sim: Simulation
     log: object
     series: Optional[dict] = None  # t (rows,), clearance_robots, clearance_container (m), tool_error (rows, 2) m,
-    #                                 weld_force (rows, 2) N, internal_force (rows,) N
+    #                                 weld_force (rows, 2) N; over the dual hold (NaN elsewhere, log.cooperation):
+    #                                 squeeze (rows,) N, internal_force (rows,) N, internal_moment (rows,) N m,
+    #                                 load_share (rows, 2), relative_pose_error (rows, 6) m, rad
     timing: Optional[dict] = None  # wall seconds of the run (planning and simulation) and of the scoring; kept out of
     #                                the report, which is the same bit for bit for the same input
     live: Optional[object] = None  # the coopsim.view.LiveView of a run with live=..., or None
