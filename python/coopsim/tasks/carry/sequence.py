@@ -89,9 +89,9 @@ class _Runner:
         while self.sim.time < t_end - 1e-12:
             t = t_end if chunk is None else min(t_end, self.sim.time + chunk)
             self.sim.advance(t)
-            self.check_contacts()
-            if held:
+            if held:   # first: a clamp that let go explains what the bar then hits
                 self.check_held()
+            self.check_contacts()
 
     def check_held(self):
         for i in range(2):
@@ -229,13 +229,23 @@ class _Runner:
                                  f"(at least {BACKED_OFF * 1e3:.0f} mm expected)")
 
 
+def _plain(x):
+    """Tuples as lists, numpy scalars as floats, all the way down: the report holds JSON's values."""
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in x]
+    return x.item() if isinstance(x, np.generic) else x
+
+
 def _angle(R) -> float:
     return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
 
 
 def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, controllers=computed_torque,
-        controller_name: Optional[str] = None, jaws_close=(True, True), dt: float = 2e-4, log_every: int = 25,
-        world_every: int = 5, control_every: int = 5, score_run: bool = True) -> CarryResult:
+        controller_name: Optional[str] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
+        dt: float = 2e-4, log_every: int = 25, world_every: int = 5, control_every: int = 5,
+        score_run: bool = True) -> CarryResult:
     """Runs the dual carry and scores it.
 
     seed: the start stands shifted and turned by a seeded draw (:func:`~.planning.random_start`; None: the
@@ -244,7 +254,8 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     :data:`~.disturbances.DISTURBANCES`, several (a list, or names joined by commas) or a
     :class:`~.disturbances.Disturbances`. controllers: a factory (robots, plan) -> one controller per robot, or
     :class:`~.controllers.Phased` ones (default the baseline, :func:`~.controllers.computed_torque`);
-    controller_name: its name in the report (default the factory's __name__). jaws_close: (2,) flags, False:
+    controller_name: its name in the report (default the factory's __name__). mass_factor: the bar's mass in
+    the controllers' models over the world's (> 0), instead of a 'mass' disturbance's. jaws_close: (2,) flags, False:
     that clamp's jaw is never commanded to close (a forced failure). dt (s), log_every, world_every,
     control_every: the simulation's (the robots integrated at 5 kHz, the controllers and the world at 1 kHz).
     score_run: compute the scores (:func:`~.scoring.score`).
@@ -270,6 +281,11 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     name = controller_name or getattr(controllers, "__name__", type(controllers).__name__)
     plan0 = make_plan(start, end)             # checks start and end; the disturbances need the start's yaw
     dist = disturbances(disturbance, plan0.start[3])
+    if mass_factor is not None:
+        if dist.mass_factor != 1.0:
+            raise ValueError(f"mass_factor {mass_factor!r} and the disturbance's mass factor {dist.mass_factor} both "
+                             f"given: give one of them")
+        dist = dataclasses.replace(dist, mass_factor=mass_factor)
     plan = make_plan(plan0.start, plan0.end, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
                      mass_factor=dist.mass_factor)
     runner = _Runner(plan, plan.start, dist, controllers, dt=dt, log_every=log_every, world_every=world_every,
@@ -288,7 +304,7 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     report = dict(success=failure is None, failure=failure, steps=runner.steps,
                   planned_steps={k: list(v) for k, v in plan.steps.items()},
                   simulated_time=runner.sim.time, seed=seed, start=list(plan.start), end=list(plan.end),
-                  controller=name, disturbance=dataclasses.asdict(dist), jaws_close=list(plan.close),
+                  controller=name, disturbance=_plain(dataclasses.asdict(dist)), jaws_close=list(plan.close),
                   dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                   placed=getattr(runner, "placed", None), backed_off=getattr(runner, "backed_off", None))
     series = None
