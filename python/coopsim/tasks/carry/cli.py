@@ -11,6 +11,7 @@ import os
 import time
 
 from ...view.animation import MAX_SPEED
+from ..handover.cli import check_out_folder
 from .controllers import CONTROLLERS
 from .disturbances import DISTURBANCES, disturbances
 from .report import summary, write_outputs, write_report
@@ -63,14 +64,7 @@ def parse_args(argv=None) -> argparse.Namespace:
         ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
     if not (0.0 < args.speed <= MAX_SPEED) or not math.isfinite(args.speed):   # also NaN
         ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g}, got {args.speed:g}")
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        ap.error(f"argument --out: {args.out!r} exists and is not a folder")
-    try:
-        os.makedirs(args.out, exist_ok=True)
-    except OSError as e:
-        ap.error(f"argument --out: cannot make the folder {args.out!r}: {e.strerror}")
-    if not os.access(args.out, os.W_OK | os.X_OK):
-        ap.error(f"argument --out: the folder {args.out!r} is not writable")
+    check_out_folder(ap, args.out)
     return args
 
 

@@ -2,39 +2,17 @@
 the welds' forces and stretch, the joint torques, a few frames of the scene) and the animation."""
 from __future__ import annotations
 
-import json
 import os
 from typing import Dict, List
 
 import numpy as np
 
 from ... import view
-from ...log import _atomic_write
+from ..handover.report import write_report
 from . import scene
 from .sequence import CarryResult
 
 __all__ = ["report_figures", "summary", "write_outputs", "write_report"]
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    return x
-
-
-def write_report(report: dict, path) -> str:
-    """The report as JSON, written atomically; returns the path."""
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(_jsonable(report), f, indent=1)
-
-    return _atomic_write(path, ".json", write)
 
 
 def summary(report: dict) -> str:
