@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -378,3 +381,13 @@ def test_the_command_line_writes_the_animation(tmp_path):
     out = tmp_path / "out"
     assert cli.main(["--out", str(out), "--speed", "4"]) == 0
     assert (out / "carry.mp4").stat().st_size > 50_000
+
+
+def test_the_module_runs_as_a_program_and_refuses_bad_arguments(tmp_path):
+    # the program's entry point, as a user calls it: a bad argument ends it before the run with one line
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(os.path.dirname(cs.__file__))] + sys.path))
+    p = subprocess.run([sys.executable, "-m", "coopsim.tasks.carry", "--out", str(tmp_path / "o"), "--mass-factor",
+                        "-1"], capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 2 and p.stdout == ""
+    assert p.stderr.strip().splitlines()[-1] == ("python -m coopsim.tasks.carry: error: argument --mass-factor: must be "
+                                                 "finite and > 0, got -1")
