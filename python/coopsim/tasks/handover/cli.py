@@ -66,19 +66,24 @@ def parse_args(argv=None) -> argparse.Namespace:
         ap.error(f"argument --threads: must be >= 1, got {args.threads}")
     if not (0.0 < args.speed <= MAX_SPEED):   # also NaN
         ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g} (400 %), got {args.speed:g}")
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        ap.error(f"argument --out: {args.out!r} exists and is not a folder")
-    try:
-        os.makedirs(args.out, exist_ok=True)
-    except OSError as e:
-        ap.error(f"argument --out: cannot make the folder {args.out!r}: {e.strerror}")
+    check_out_folder(ap, args.out)
     if not 0 <= args.port <= 65535:
         ap.error(f"argument --port: must be 0 (any free port) .. 65535, got {args.port}")
     if args.hold is not None and not (args.hold >= 0 and math.isfinite(args.hold)):
         ap.error(f"argument --hold: must be a finite number of seconds >= 0, got {args.hold:g}")
-    if not os.access(args.out, os.W_OK | os.X_OK):
-        ap.error(f"argument --out: the folder {args.out!r} is not writable")
     return args
+
+
+def check_out_folder(ap: argparse.ArgumentParser, out: str) -> None:
+    """--out: a folder, made if missing, writable; else the parser's one-line error (exit 2)."""
+    if os.path.exists(out) and not os.path.isdir(out):
+        ap.error(f"argument --out: {out!r} exists and is not a folder")
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as e:
+        ap.error(f"argument --out: cannot make the folder {out!r}: {e.strerror}")
+    if not os.access(out, os.W_OK | os.X_OK):
+        ap.error(f"argument --out: the folder {out!r} is not writable")
 
 
 def sweep_table(sw: dict) -> str:

@@ -1,0 +1,95 @@
+"""The dual carry: both SCARAs carry one bar from two stands to two others.
+
+The command line, ``python -m coopsim.tasks.carry`` (``--help`` for the options): runs the carry, writes its
+report (JSON and text), figures and animation, and prints the summary and the real-time factor.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+
+from ...view.animation import MAX_SPEED
+from ..handover.cli import check_out_folder
+from .controllers import CONTROLLERS
+from .disturbances import DISTURBANCES, disturbances
+from .report import summary, write_outputs, write_report
+from .runs import sweep
+from .sequence import run
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line's parser (its checks of the values are in :func:`parse_args`)."""
+    ap = argparse.ArgumentParser(prog="python -m coopsim.tasks.carry", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="out/carry", help="folder for the outputs (default out/carry; made if missing)")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="shift and turn the start stands by a seeded draw (>= 0; default: the planned start)")
+    ap.add_argument("--disturbance", action="append", default=None, metavar="NAME",
+                    help=f"one of {', '.join(DISTURBANCES)}; repeat it or join names with commas to combine them")
+    ap.add_argument("--controller", default="ct", help=f"one of {', '.join(CONTROLLERS)} (default ct, the baseline: "
+                                                       f"independent computed torque)")
+    ap.add_argument("--mass-factor", type=float, default=None, metavar="F",
+                    help="the bar's mass in the controllers' models over the world's (> 0; as the mass disturbances, "
+                         "which it excludes)")
+    ap.add_argument("--sweep", type=int, default=0, metavar="N", help="also run seeds 0 .. N-1 and print the rate")
+    ap.add_argument("--video", dest="video", action="store_true", default=True, help="write carry.mp4 (default)")
+    ap.add_argument("--no-video", dest="video", action="store_false", help="skip the animation")
+    ap.add_argument("--speed", type=float, default=1.0,
+                    help=f"simulated seconds per video second, > 0 and <= {MAX_SPEED:g} (default 1)")
+    return ap
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    """The arguments, every one checked before anything runs: a bad one is argparse's one-line error (exit 2).
+    `disturbance` comes back as the list of names."""
+    ap = parser()
+    args = ap.parse_args(argv)
+    if args.seed is not None and args.seed < 0:
+        ap.error(f"argument --seed: must be >= 0, got {args.seed}")
+    names = [n.strip() for item in (args.disturbance or []) for n in item.split(",") if n.strip()]
+    try:
+        disturbances(names, 0.0)
+    except ValueError as e:
+        ap.error(f"argument --disturbance: {e}")
+    args.disturbance = names
+    if args.mass_factor is not None:
+        if not (args.mass_factor > 0 and math.isfinite(args.mass_factor)):   # also NaN
+            ap.error(f"argument --mass-factor: must be finite and > 0, got {args.mass_factor:g}")
+        if any(n.startswith("mass") for n in names):
+            ap.error("argument --mass-factor: not with a mass disturbance (both set the bar's mass in the models)")
+    if args.controller not in CONTROLLERS:
+        ap.error(f"argument --controller: unknown controller {args.controller!r}: choose from {', '.join(CONTROLLERS)}")
+    if args.sweep < 0:
+        ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
+    if not (0.0 < args.speed <= MAX_SPEED) or not math.isfinite(args.speed):   # also NaN
+        ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g}, got {args.speed:g}")
+    check_out_folder(ap, args.out)
+    return args
+
+
+def main(argv=None) -> int:
+    """``python -m coopsim.tasks.carry``: runs the carry, writes its outputs, prints the summary; exit 0 on
+    success, 1 on a failed carry."""
+    args = parse_args(argv)
+    res = run(seed=args.seed, disturbance=args.disturbance, controllers=CONTROLLERS[args.controller],
+              controller_name=args.controller, mass_factor=args.mass_factor)
+    rep, wall = res.report, res.timing["run"]
+    rep["command_line"] = dict(seed=args.seed, disturbance=args.disturbance, controller=args.controller,
+                               mass_factor=args.mass_factor,
+                               sweep=args.sweep, video=args.video, speed=args.speed, out=args.out)
+    print(summary(rep))
+    print(f"simulated {rep['simulated_time']:.2f} s in {wall:.3f} s of wall time: "
+          f"{rep['simulated_time'] / wall:.0f}x real time (scoring {res.timing['scoring']:.3f} s more)")
+    paths = write_outputs(res, args.out, video=args.video, speed=args.speed)
+    if args.sweep:
+        t1 = time.perf_counter()
+        sw = sweep(range(args.sweep), disturbance=args.disturbance, controllers=CONTROLLERS[args.controller],
+                   controller_name=args.controller, mass_factor=args.mass_factor)
+        print(f"sweep of {args.sweep} seeds in {time.perf_counter() - t1:.1f} s: success rate "
+              f"{sw['success_rate'] * 100:.0f} %")
+        for r in sw["failures"]:
+            print(f"  seed {r['seed']}: FAILED in {r['step']}: {r['reason']}")
+        paths.append(write_report(sw, os.path.join(args.out, "sweep.json")))
+    print("wrote " + ", ".join(paths))
+    return 0 if rep["success"] else 1

@@ -1,0 +1,67 @@
+"""The dual carry's values (m, rad, s, kg), checked against the robots' kinematics in tests/test_carry.py.
+
+The robots are the handover scene's (:func:`coopsim.tasks.scene.scaras`: SCARA #1 at the origin with
+``L_base = 0.52``, SCARA #2 at (0.75, 0, 0) with ``L_base = 0.38``), the bar its bar (0.35 x 0.02 x 0.02 m,
+0.15 kg). Both clamps point down; SCARA #1 grips GRIP1 along the bar's own x axis from its centre, #2 GRIP2.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DEG = math.pi / 180.0
+
+GRIP1 = 0.10             # SCARA #1's grip along the bar's x axis from its centre (m)
+GRIP2 = -0.10            # SCARA #2's
+
+#: the bar's pose on the start stands and on the end stands: centre x, y, z (m), yaw (rad). Between them the
+#: bar moves 0.12 m in x and 0.10 m in y (so that neither pair of stands stands under the bar's other pose),
+#: turns by 20 deg and rises by 0.05 m
+START = (0.25, -0.15, 0.15, 165 * DEG)
+END = (0.37, -0.05, 0.19, 185 * DEG)
+LIFT = 0.05              # the bar rises this far off the start stands before the carry and comes down this far
+#                          onto the end stands after it
+
+#: the stands: two under each pose of the bar, STAND_AT m either side of its centre along it, each a box of
+#: half extents STAND_HALF (along the bar, across it; its height reaches from the floor to the bar's underside)
+STAND_AT = 0.04
+STAND_HALF = (0.015, 0.02)
+STAND_FRICTION = 0.8
+
+#: seeded variation of the start: the start stands (and the bar on them) shifted by up to these in x and y (m)
+#: and turned by up to this about the vertical (rad), uniformly
+START_SHIFT = 0.01
+START_TURN = 3 * DEG
+
+# ---- the clamps ----
+OPEN = 0.035             # jaw opening while approaching and leaving (m)
+FIXED_GAP = 0.001        # the fixed jaw's gap to the bar's side when the clamp arrives (m)
+CLOSE_SPEED = 0.02       # mean closing speed of the moving jaw near the bar (m/s)
+SQUEEZE = 0.012          # jaw reference while holding: the jaw stop holds it at the bar's width
+CLEAR_ABOVE = 0.06       # the clamps arrive from and leave to this far above their grips (m)
+#: elbow branch (sign of theta2; for SCARA #2 theta2 = theta3) of each robot throughout, and the turn of each
+#: clamp about its approach relative to the bar (0: tool x along the bar's +x, pi: along its -x). The same turn
+#: for both puts both moving jaws on the same side of the bar: closing, they shift it sideways by the fixed
+#: jaws' gap instead of turning it (opposite sides turned it by 7-9 mrad)
+BRANCH = (+1, +1)
+FLIP = (math.pi, math.pi)
+
+#: durations (s) of the steps: the approach (down from CLEAR_ABOVE), the grasp (jaws fast to 2 mm over the
+#: bar's width, slowly on to SQUEEZE, then settling), lift, carry, place (down onto the end stands), release
+#: (jaws open, the welds fade out) and back off (up CLEAR_ABOVE)
+TIMES = dict(start=0.2, approach=0.8, close=0.2, grasp_settle=0.3, lift=0.6, carry=2.4, place=0.6, open=0.2,
+             release_settle=0.3, back_off=0.6, end_settle=0.4)
+KNOTS = dict(approach=6, lift=6, carry=24, place=6, back_off=6)   # straight-line poses between the ends
+
+# ---- success ----
+PLACE_TOL = 0.005        # the bar at rest on the end stands within this of its planned pose (m) ...
+PLACE_TOL_ANGLE = 0.05   # ... and this (rad)
+BACKED_OFF = 0.025       # after backing off, every box of both robots at least this far from the bar (m)
+MIN_CLEARANCE = 0.05     # the planned motions keep the two robots' boxes this far apart (m), and
+JAW_STAND_CLEARANCE = 0.01  # the jaws this far from every stand, the bar held or not (m)
+
+# ---- control ----
+#: gains of the computed-torque baseline: omega (rad/s) per joint, kp = omega^2, kd = 2 omega (the wrist and
+#: jaw joints higher, as in the handover)
+OMEGA = (np.array([30.0, 30.0, 30.0, 60.0, 60.0, 60.0]), np.array([30.0, 30.0, 30.0, 30.0, 60.0, 60.0]))

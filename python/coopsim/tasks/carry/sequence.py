@@ -1,0 +1,314 @@
+"""The carry on a simulation: the plan's references installed once, the run advanced step by step with the
+rules that fail it, and :func:`run`, which returns the scored :class:`CarryResult`."""
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+
+from ..._core import DivergenceError, IKError, box_distances
+from ...simulation import Simulation
+from . import scene
+from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
+from .controllers import Phased, computed_torque, grip_point
+from .disturbances import Disturbances, disturbances
+from .planning import ROBOT_NAMES, STEPS, Plan, make_plan, random_start
+from .scoring import score
+
+__all__ = ["CarryError", "CarryResult", "run"]
+
+JAWS = ("/fixed_jaw", "/link6")
+CHUNK = 0.001          # s: while a grasp or release is awaited, and while the bar is held, the run goes in chunks
+HELD_CHUNK = 0.05      # of these, checking the grasps between them
+
+
+class CarryError(RuntimeError):
+    """A carry failed: `step` (one of :data:`~.planning.STEPS`), `t` (s), `reason`, and the bodies involved."""
+
+    def __init__(self, step: str, t: float, reason: str, bodies: Sequence[str] = ()):
+        super().__init__(f"{step} at t = {t:.4f} s: {reason}")
+        self.step, self.t, self.reason, self.bodies = step, float(t), reason, tuple(bodies)
+
+
+@dataclasses.dataclass
+class CarryResult:
+    """What :func:`run` returns: the report (plain values, JSON-ready), the simulation, its log, the plan, the
+    series behind the figures (None unless scored) and the wall times (kept out of the report)."""
+
+    report: dict
+    sim: Simulation
+    log: object
+    plan: Plan
+    series: Optional[dict] = None
+    timing: Optional[dict] = None
+
+    @property
+    def success(self) -> bool:
+        return bool(self.report["success"])
+
+
+class _Runner:
+    """One carry on one simulation."""
+
+    def __init__(self, plan: Plan, start, dist: Disturbances, factory, *, dt, log_every, world_every,
+                 control_every):
+        self.plan, self.dist = plan, dist
+        self.robots = scene.scaras()
+        self.sim = Simulation(dt=dt, world=scene.world(start, plan.end), log_every=log_every,
+                              world_every=world_every, control_every=control_every)
+        made = factory(self.robots, plan)
+        self.phased = made if isinstance(made, Phased) else None
+        free = made.free if self.phased else made
+        if len(free) != 2 or (self.phased and len(self.phased.held) != 2):
+            raise ValueError(f"controllers must give one controller per robot (2), got {made!r}")
+        for r, c, ref in zip(self.robots, free, plan.references):
+            self.sim.add_robot(r, c, ref)
+        if dist.sensor_noise is not None:
+            for i in range(2):
+                self.sim.set_sensor(i, noise_force=dist.sensor_noise[0], noise_moment=dist.sensor_noise[1], seed=i + 1)
+        self.step = "approach"
+        self.steps: Dict[str, List[float]] = {}
+        self.contact_seen = 0
+        self.anchors: List[Optional[dict]] = [None, None]   # each weld's point in the clamp's link and in the bar
+        self.unexpected: List[dict] = []
+
+    # ---- running ----
+
+    def mark(self, step):
+        self.step = step
+        self.steps[step] = [self.sim.time, None]
+
+    def done(self):
+        self.steps[self.step][1] = self.sim.time
+
+    def run_to(self, t_end, chunk=None, held=False):
+        """Advances to t_end (in chunks of `chunk` s), checking contacts and, with `held`, that both clamps
+        still hold the bar after each chunk."""
+        while self.sim.time < t_end - 1e-12:
+            t = t_end if chunk is None else min(t_end, self.sim.time + chunk)
+            self.sim.advance(t)
+            if held:   # first: a clamp that let go explains what the bar then hits
+                self.check_held()
+            self.check_contacts()
+
+    def check_held(self):
+        for i in range(2):
+            if self.sim.holding(i) != scene.BAR:
+                g = self.sim.log.grasps
+                e = g[(g.robot == i) & (g.event == "release")]
+                why = f" ({e.reason.iloc[-1]} at t = {e.t.iloc[-1]:.4f} s)" if len(e) else ""
+                raise CarryError(self.step, self.sim.time, f"{ROBOT_NAMES[i]} let go of the bar{why}")
+
+    def record_anchor(self, i):
+        """The weld's point (midway between the pads now, just after the grasp) in the clamp's link frame and in
+        the bar's frame: the slip (the weld's stretch) is their distance later."""
+        r, q = self.robots[i], self.sim.state(i)[0]
+        p_link = grip_point(r, q)
+        p_world = (r.frames(q)[r.clamp.fixed_link] @ np.append(p_link, 1.0))[:3]
+        bar = self.sim.body_state(scene.BAR)["pose"]
+        self.anchors[i] = dict(t=self.sim.time, link=p_link, body=np.linalg.solve(bar, np.append(p_world, 1.0))[:3])
+
+    def wait_grasps(self, t_end):
+        """Runs to t_end in CHUNK steps, recording each weld's anchor when it appears; CarryError('grasp') if
+        either clamp does not hold the bar at t_end, naming the clamp rule's conditions that failed."""
+        while self.sim.time < t_end - 1e-12:
+            self.sim.advance(min(t_end, self.sim.time + CHUNK))
+            self.check_contacts()
+            for i in range(2):
+                if self.anchors[i] is None and self.sim.holding(i) == scene.BAR:
+                    self.record_anchor(i)
+        for i in range(2):
+            if self.sim.holding(i) != scene.BAR:
+                c = self.sim.grasp_check(i, scene.BAR)
+                failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not c[k]]
+                detail = (f"angle {np.degrees(c['angle']):.1f} deg, gaps {c['gap_fixed'] * 1e3:.1f} and "
+                          f"{c['gap_moving'] * 1e3:.1f} mm, speed {c['speed']:.3f} m/s")
+                raise CarryError("grasp", self.sim.time, f"{ROBOT_NAMES[i]} did not grasp the bar: the clamp rule's "
+                                 f"{', '.join(failed) or 'hold time'} failed ({detail})")
+
+    # ---- contacts ----
+
+    def allowed(self, a: str, b: str, begin: float) -> bool:
+        """Whether a contact between bodies a and b beginning at `begin` is expected: the bar with the jaws, with
+        the start stands until it is lifted off them, with the end stands from when it comes down onto them."""
+        if scene.BAR not in (a, b):
+            return False          # robot-robot, robot-scenery, a robot's own links
+        other = b if a == scene.BAR else a
+        if other.endswith(JAWS):
+            return True
+        if other.startswith("start_stand"):
+            return begin <= self.plan.steps["lift"][1]
+        if other.startswith("end_stand"):
+            return begin >= self.plan.steps["place"][0]
+        return False              # the floor, a robot's other links
+
+    def check_contacts(self):
+        ev = self.sim.contact_events()
+        if not ev:
+            return
+        n = len(ev["a"])
+        for k in range(self.contact_seen, n):
+            a, b, begin = ev["a"][k], ev["b"][k], float(ev["begin"][k])
+            if not self.allowed(a, b, begin):
+                raise CarryError(self.step, begin, f"unexpected contact between {a} and {b}", (a, b))
+        self.contact_seen = n
+
+    # ---- the carry ----
+
+    def carry(self):
+        plan, sim, S = self.plan, self.sim, self.plan.steps
+        self.mark("approach")
+        self.run_to(S["approach"][1])
+        self.done()
+        self.mark("grasp")
+        self.wait_grasps(S["grasp"][1])
+        if self.phased:
+            for i, c in enumerate(self.phased.held):
+                sim.set_controller(i, c)
+        self.done()
+        self.mark("lift")
+        self.run_to(S["lift"][1], HELD_CHUNK, held=True)
+        self.done()
+        self.mark("carry")
+        t0, t1 = S["carry"]
+        if self.dist.push is not None:
+            force, at, T = self.dist.push
+            mid = t0 + at * (t1 - t0)
+            self.run_to(mid - T / 2, HELD_CHUNK, held=True)
+            sim.set_body_wrench(scene.BAR, np.r_[force, 0.0, 0.0, 0.0])
+            self.run_to(mid + T / 2, HELD_CHUNK, held=True)
+            sim.set_body_wrench(scene.BAR, np.zeros(6))
+        self.run_to(t1, HELD_CHUNK, held=True)
+        self.done()
+        self.mark("place")
+        self.run_to(S["place"][1], HELD_CHUNK, held=True)
+        self.done()
+        self.mark("release")
+        t_open = S["release"][1]
+        while sim.time < t_open - 1e-12:
+            self.run_to(min(t_open, sim.time + CHUNK))
+        for i in range(2):
+            if sim.holding(i) is not None:
+                raise CarryError("release", sim.time, f"{ROBOT_NAMES[i]} did not let go of the bar")
+        if self.phased:
+            for i, c in enumerate(self.phased.free):
+                sim.set_controller(i, c)
+        self.done()
+        self.mark("back off")
+        self.run_to(S["back off"][1])
+        self.done()
+        self.check_placed()
+        self.check_backed_off()
+
+    def check_placed(self):
+        """The bar at rest on the end stands within PLACE_TOL and PLACE_TOL_ANGLE of its planned pose."""
+        b = self.sim.body_state(scene.BAR)
+        want = self.plan.bar.pose(self.plan.t_end)
+        d = float(np.linalg.norm(b["pose"][:3, 3] - want[:3, 3]))
+        ang = _angle(want[:3, :3].T @ b["pose"][:3, :3])
+        speed = float(np.linalg.norm(b["velocity"]))
+        self.placed = dict(position_error=d, angle_error=ang, speed=speed)
+        if d > PLACE_TOL or ang > PLACE_TOL_ANGLE or speed > 1e-3:
+            raise CarryError("place", self.sim.time, f"the bar came to {d * 1e3:.1f} mm and {ang * 1e3:.1f} mrad from "
+                             f"its planned pose on the end stands, moving at {speed * 1e3:.2f} mm/s (allowed "
+                             f"{PLACE_TOL * 1e3:.0f} mm, {PLACE_TOL_ANGLE * 1e3:.0f} mrad, at rest)")
+
+    def check_backed_off(self):
+        """Every box of both robots at least BACKED_OFF m from the bar."""
+        from_bar = []
+        bar = self.sim.body_state(scene.BAR)["pose"][None]
+        for i, r in enumerate(self.robots):
+            P, H = r.shapes(self.sim.state(i)[0])
+            from_bar.append(float(box_distances(P, H, bar, scene.BAR_HALF_EXTENTS[None]).min()))
+        self.backed_off = from_bar
+        for i, d in enumerate(from_bar):
+            if d < BACKED_OFF:
+                raise CarryError("back off", self.sim.time, f"{ROBOT_NAMES[i]} ended {d * 1e3:.1f} mm from the bar "
+                                 f"(at least {BACKED_OFF * 1e3:.0f} mm expected)")
+
+
+def _plain(x):
+    """Tuples as lists, numpy scalars as floats, all the way down: the report holds JSON's values."""
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in x]
+    return x.item() if isinstance(x, np.generic) else x
+
+
+def _angle(R) -> float:
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, controllers=computed_torque,
+        controller_name: Optional[str] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
+        dt: float = 2e-4, log_every: int = 25, world_every: int = 5, control_every: int = 5,
+        score_run: bool = True) -> CarryResult:
+    """Runs the dual carry and scores it.
+
+    seed: the start stands shifted and turned by a seeded draw (:func:`~.planning.random_start`; None: the
+    planned START). start, end: the bar's (x, y, z, yaw) on the start and end stands (m, rad; default START
+    and END; start and seed exclude each other). disturbance: None, a name of
+    :data:`~.disturbances.DISTURBANCES`, several (a list, or names joined by commas) or a
+    :class:`~.disturbances.Disturbances`. controllers: a factory (robots, plan) -> one controller per robot, or
+    :class:`~.controllers.Phased` ones (default the baseline, :func:`~.controllers.computed_torque`);
+    controller_name: its name in the report (default the factory's __name__). mass_factor: the bar's mass in
+    the controllers' models over the world's (> 0), instead of a 'mass' disturbance's. jaws_close: (2,) flags, False:
+    that clamp's jaw is never commanded to close (a forced failure). dt (s), log_every, world_every,
+    control_every: the simulation's (the robots integrated at 5 kHz, the controllers and the world at 1 kHz).
+    score_run: compute the scores (:func:`~.scoring.score`).
+
+    A run fails, naming its step (approach, grasp, lift, carry, place, release, back off), time and reason, on
+    an unexpected contact (robot-robot, a robot with a stand or the floor or its own links, the bar with
+    anything but the jaws, the start stands before it is lifted and the end stands once it comes down), a
+    grasp that does not happen by the end of the grasp step, a clamp letting go while carrying (its weld
+    stretched beyond 5 mm), a release that does not happen, the bar not at rest on the end stands within
+    PLACE_TOL and PLACE_TOL_ANGLE of its planned pose, or a robot left within BACKED_OFF of the bar.
+
+    Returns a :class:`CarryResult`. Raises ValueError for bad arguments and IKError (naming the robot and the
+    step) for a plan out of reach, both before anything runs.
+    """
+    if seed is not None and start is not None:
+        raise ValueError("give start or seed, not both: seed draws the start")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    start = random_start(int(seed)) if seed is not None else (START if start is None else start)
+    end = END if end is None else end
+    if not callable(controllers):
+        raise ValueError(f"controllers must be a factory (robots, plan) -> controllers, got {controllers!r}")
+    name = controller_name or getattr(controllers, "__name__", type(controllers).__name__)
+    plan0 = make_plan(start, end)             # checks start and end; the disturbances need the start's yaw
+    dist = disturbances(disturbance, plan0.start[3])
+    if mass_factor is not None:
+        if dist.mass_factor != 1.0:
+            raise ValueError(f"mass_factor {mass_factor!r} and the disturbance's mass factor {dist.mass_factor} both "
+                             f"given: give one of them")
+        dist = dataclasses.replace(dist, mass_factor=mass_factor)
+    plan = make_plan(plan0.start, plan0.end, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
+                     mass_factor=dist.mass_factor)
+    runner = _Runner(plan, plan.start, dist, controllers, dt=dt, log_every=log_every, world_every=world_every,
+                     control_every=control_every)
+    failure = None
+    t_wall = time.perf_counter()
+    try:
+        runner.carry()
+    except CarryError as e:
+        failure = dict(step=e.step, t=e.t, reason=e.reason, bodies=list(e.bodies))
+    except (IKError, DivergenceError) as e:
+        failure = dict(step=runner.step, t=runner.sim.time, reason=f"{type(e).__name__}: {e}", bodies=[])
+    if runner.step in runner.steps and runner.steps[runner.step][1] is None:
+        runner.steps[runner.step][1] = runner.sim.time
+    t_run = time.perf_counter() - t_wall
+    report = dict(success=failure is None, failure=failure, steps=runner.steps,
+                  planned_steps={k: list(v) for k, v in plan.steps.items()},
+                  simulated_time=runner.sim.time, seed=seed, start=list(plan.start), end=list(plan.end),
+                  controller=name, disturbance=_plain(dataclasses.asdict(dist)), jaws_close=list(plan.close),
+                  dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
+                  placed=getattr(runner, "placed", None), backed_off=getattr(runner, "backed_off", None))
+    series = None
+    if score_run:
+        series = score(runner, report)
+    timing = dict(run=t_run, scoring=time.perf_counter() - t_wall - t_run)
+    return CarryResult(report, runner.sim, runner.sim.log, plan, series, timing)

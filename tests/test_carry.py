@@ -1,0 +1,393 @@
+"""The dual carry (coopsim.tasks.carry): the path checked with the robots' kinematics before it is run, the
+default carry, the seeded starts, every disturbance run and scored, failures naming their step and reason, the
+controllers' plug-in, bad input at the API and the command line, and the report's files."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import coopsim as cs
+from coopsim.tasks import carry as C
+from coopsim.tasks.carry import cli, constants as K, controllers as CT, planning as P, scene as S
+
+JAWS = ("/fixed_jaw", "/link6")
+G = 9.81
+
+
+def _samples(plan, n=3000):
+    t = np.linspace(0.0, plan.t_end, n)
+    return t, [ref.evaluate(t) for ref in plan.references]
+
+
+def _geometry(plan):
+    """What the planned references do, sampled densely: (robot-robot clearance (N,), jaws-stands clearance,
+    robots-stands clearance, robots-floor lowest point)."""
+    r1, r2 = S.scaras()
+    t, ev = _samples(plan)
+    (A, HA), (B, HB) = r1.shapes(ev[0][0]), r2.shapes(ev[1][0])
+    rr = cs.box_clearances(A, HA, B, HB)[0]
+    stands = S.stands(plan.start, plan.end)
+    PS, HS = np.array([s[2] for s in stands]), np.array([s[1] for s in stands])
+    jaw_stand, all_stand = [], []
+    for r, (q, _, _) in zip((r1, r2), ev):
+        Pq, Hq = r.shapes(q)
+        jaw = [k for k, b in enumerate(r.boxes) if b.name in ("fixed_jaw", "link6")]
+        jaw_stand.append(cs.box_clearances(Pq[:, jaw], Hq[jaw], PS, HS)[0].min())
+        all_stand.append(cs.box_clearances(Pq, Hq, PS, HS)[0].min())
+    return rr, min(jaw_stand), min(all_stand)
+
+
+# ---- the geometry, checked before the path was chosen ----
+
+@pytest.mark.parametrize("seed", [None, 0, 1, 2, 3, 4])
+def test_the_path_is_reached_on_one_branch_each_with_clearances(seed):
+    start = P.random_start(seed) if seed is not None else K.START
+    plan = P.make_plan(start)
+    r1, r2 = S.scaras()
+    t, ev = _samples(plan)
+    for i, (r, (q, qd, _)) in enumerate(zip((r1, r2), ev)):
+        # one elbow branch for the whole run (sign of theta2; SCARA #2's closed form keeps theta3 = theta2)
+        assert np.all(np.sign(q[:, 1]) == K.BRANCH[i]) and np.abs(q[:, 1]).min() > 0.3
+        if i == 1:
+            np.testing.assert_allclose(q[:, 2], q[:, 1], atol=1e-9)
+        # within the joint limits (the quills with margin: below 0.02 m of stroke a wrist box meets its arm), no
+        # joint flipping between knots (speeds of a slow carry)
+        lo, hi = r.q_limits.T
+        assert np.all(q >= lo - 1e-9) and np.all(q <= hi + 1e-9)
+        assert q[:, 2 if i == 0 else 3].min() > 0.03
+        assert np.abs(qd[:, :5]).max() < 1.5
+        # every knot of the carry is the bar's planned pose times this clamp's grip (the closed form to 1e-9)
+        tk, Q = plan.knots[i]
+        held = (tk >= plan.steps["lift"][0]) & (tk <= plan.steps["place"][1])
+        want = plan.bar.pose(tk[held]) @ plan.grips[i]
+        got = r.fk(Q[held])
+        assert np.abs(got[:, :3, 3] - want[:, :3, 3]).max() < 1e-9
+        assert np.abs(got[:, :3, :3] - want[:, :3, :3]).max() < 1e-9
+    # between the knots the two references place the bar within 0.1 mm of each other
+    assert P.reference_disagreement(plan) < 1e-4
+    rr, jaw_stand, all_stand = _geometry(plan)
+    assert rr.min() > K.MIN_CLEARANCE          # measured 0.14 m: the arms live 0.10 m apart in height
+    assert jaw_stand > K.JAW_STAND_CLEARANCE   # 0.015 m: the stands stand between the grips
+    assert all_stand >= jaw_stand - 1e-12
+
+
+def test_the_stands_stand_clear_of_the_bar_s_other_pose():
+    # the end stands reach higher than the bar lies at the start: they must stand outside its footprint
+    bar0 = S.bar_pose(*K.START)[None]
+    bar1 = S.bar_pose(*K.END)[None]
+    he = S.BAR_HALF_EXTENTS[None]
+    for name, h, T in S.stands():
+        other = bar1 if name.startswith("start") else bar0
+        own = bar0 if name.startswith("start") else bar1
+        assert cs.box_distances(T[None], h[None], other, he).min() > 0.01, name
+        # and each carries its bar: its top at the bar's underside, under the bar's footprint
+        assert cs.box_distances(T[None], h[None], own, he).min() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_pose_out_of_reach_is_an_ik_error_at_planning_time():
+    with pytest.raises(cs.IKError, match=r"^SCARA #\d, (approach|lift|carry|place|back off): "):
+        C.run(end=(0.9, 0.45, 0.19, 0.0))
+    with pytest.raises(cs.IKError, match=r"^SCARA #2, carry: .*joint 4 \(d4\) would need -"):
+        P.make_plan(end=(0.37, -0.05, 0.27, K.END[3]))    # too high for #2's quill at the carry's end
+
+
+# ---- the default carry ----
+
+@pytest.fixture(scope="module")
+def default():
+    return C.run()
+
+
+def test_the_default_carry_succeeds(default):
+    rep, log = default.report, default.log
+    assert rep["success"] and rep["failure"] is None, rep["failure"]
+    assert list(rep["steps"]) == list(C.STEPS)
+    # the bar at rest on the end stands, within the stated tolerance of its planned pose
+    bar = default.sim.body_state("bar")
+    want = S.bar_pose(*K.END)
+    assert np.linalg.norm(bar["pose"][:3, 3] - want[:3, 3]) < K.PLACE_TOL
+    assert np.linalg.norm(bar["velocity"]) < 1e-6
+    assert rep["placed"]["angle_error"] < K.PLACE_TOL_ANGLE
+    # both robots backed off: every box of each at least BACKED_OFF from the bar, the jaws open
+    for i, r in enumerate(default.sim.robots):
+        q = default.sim.state(i)[0]
+        P_, H_ = r.shapes(q)
+        assert cs.box_distances(P_, H_, bar["pose"][None], S.BAR_HALF_EXTENTS[None]).min() > K.BACKED_OFF
+        assert q[5] > K.OPEN - 1e-3
+    # grasps and releases through the clamp rule: both grasp in the grasp step, both open in the release step
+    g = log.grasps
+    assert sorted(zip(g.robot, g.event, g.reason)) == [(0, "grasp", "grasp"), (0, "release", "opened"),
+                                                       (1, "grasp", "grasp"), (1, "release", "opened")]
+    t0, t1 = rep["planned_steps"]["grasp"]
+    assert all(t0 < t < t1 for t in g[g.event == "grasp"].t)
+    t0, t1 = rep["planned_steps"]["release"]
+    assert all(t0 < t < t1 for t in g[g.event == "release"].t)
+    # no unexpected contact, read from the log's events: only the bar, with the jaws, with the start stands
+    # from the start, with the end stands once it comes down
+    lift_end, place_start = rep["planned_steps"]["lift"][1], rep["planned_steps"]["place"][0]
+    for x in log.contacts.itertuples():
+        assert "bar" in (x.a, x.b), x
+        other = x.b if x.a == "bar" else x.a
+        if other.endswith(JAWS):
+            continue
+        assert (other.startswith("start_stand") and x.begin < 0.01) or \
+               (other.startswith("end_stand") and place_start < x.begin), x
+        if other.startswith("start_stand"):
+            assert x.end < lift_end, x
+
+
+def test_the_scores_of_the_default_carry(default):
+    rep, s, log = default.report, default.series, default.log
+    sc = rep["scores"]
+    carried = s["carried"]
+    # the bar's pose error, recomputed from the log's body rows against the plan
+    body = log.bodies["bar"]
+    err = np.linalg.norm(body.position - default.plan.bar.pose(body.t)[:, :3, 3], axis=1)
+    assert sc["bar_position_error_mm"]["max"] == pytest.approx(err[carried].max() * 1e3, rel=1e-9)
+    assert 0.1 < sc["bar_position_error_mm"]["rms"] <= sc["bar_position_error_mm"]["max"] < 3.0
+    assert 0.1 < sc["bar_angle_error_mrad"]["rms"] <= sc["bar_angle_error_mrad"]["max"] < 5.0
+    assert sc["dual_hold"] == pytest.approx(4.54, abs=0.05)
+    # in the steady middle of the carry the two welds carry the bar's weight between them (to 1 %), each
+    # roughly half (the split is the robots', the welds acting 0.10 m either side of the centre)
+    t = s["t"]
+    mid = (t > 3.6) & (t < 3.9)
+    lift = s["weld"][mid, :, 2].sum(axis=1)
+    assert np.abs(lift - S.BAR_MASS * G).max() < 0.01 * S.BAR_MASS * G
+    for x, i in zip(sc["robots"], range(2)):
+        w = np.linalg.norm(log.robots[i].weld[:, :3], axis=1)
+        assert x["peak_weld_force"] == pytest.approx(w.max(), rel=1e-12)
+        assert 0.5 < x["peak_weld_force"] < 1.5
+        assert 0.0 < x["max_slip_mm"] < 1.0          # the welds stretch under the load, far below 5 mm
+        assert len(x["peak_torque"]) == 6 and 0 < x["torque_limit_fraction"] < 0.5
+        assert x["tool_error_mm"]["max"] < 2.0
+        # an ideal sensor reads the weld's force exactly while holding (nothing else touches the clamp)
+        assert x["sensed_force_error"]["max"] < 1e-9
+    # the stretch: zero at each grasp (the anchors are recorded within 1 ms of it), below the 5 mm slip limit
+    h = s["holding"]
+    for i in range(2):
+        first = np.flatnonzero(h[:, i])[0]
+        assert s["weld_stretch"][first, i] < 5e-5
+    assert sc["clearance_robots"]["min"] > K.MIN_CLEARANCE
+    assert C.summary(rep).splitlines()[1].startswith("success in 7.10 s")
+
+
+def test_the_payload_model_carries_the_point_mass():
+    # with_point_mass against an independent sum: the extra gravity term is -J^T of the mass's weight at its
+    # point (G(q) in tau = M qdd + C + G)
+    r1, r2 = S.scaras()
+    plan = P.make_plan()
+    for r, q in zip((r1, r2), plan.q_grasp):
+        p = CT.grip_point(r, q)
+        model = CT.with_point_mass(r, r.clamp.fixed_link, p, 0.075)
+        J = r.jacobian(q, r.clamp.fixed_link, p)[:3]
+        np.testing.assert_allclose(model.gravity(q) - r.gravity(q), -J.T @ [0.0, 0.0, -0.075 * G], atol=1e-12)
+        # and its mass matrix gains m J^T J
+        np.testing.assert_allclose(model.mass_matrix(q) - r.mass_matrix(q), 0.075 * J.T @ J, atol=1e-12)
+        # the grip point: midway between the pads, i.e. at the tool centre point for a clamp closed on the bar
+        F = r.frames(q)[r.clamp.fixed_link]
+        np.testing.assert_allclose((F @ np.append(p, 1))[:3], r.fk(q)[:3, 3], atol=1e-12)
+
+
+# ---- seeds, disturbances, controllers ----
+
+def test_five_seeded_starts_all_succeed():
+    # fast (5 runs of 0.1 s): not marked slow
+    sw = C.sweep(range(5))
+    assert sw["success_rate"] == 1.0, sw["failures"]
+    starts = np.array([r["start"] for r in sw["runs"]])
+    assert np.all(np.abs(starts[:, :2] - K.START[:2]) <= K.START_SHIFT)
+    assert np.all(np.abs(starts[:, 3] - K.START[3]) <= K.START_TURN) and len(np.unique(starts[:, 0])) == 5
+
+
+def test_the_same_seed_gives_the_same_report():
+    a, b = C.run(seed=3), C.run(seed=3)
+    assert json.dumps(a.report, sort_keys=True, default=str) == json.dumps(b.report, sort_keys=True, default=str)
+    assert a.success and a.report["start"] != list(K.START)
+
+
+@pytest.fixture(scope="module")
+def disturbed():
+    out = {}
+    for name in ("none", "mass+50", "mass-50", "push", "grip-offset", "noise"):
+        for ctrl in ("ct", "ct-payload"):
+            out[name, ctrl] = C.run(disturbance=name, controllers=C.CONTROLLERS[ctrl], controller_name=ctrl)
+    return out
+
+
+@pytest.mark.parametrize("name", ["none", "mass+50", "mass-50", "push", "grip-offset", "noise"])
+def test_each_disturbance_runs_and_is_scored(disturbed, name):
+    for ctrl in ("ct", "ct-payload"):
+        res = disturbed[name, ctrl]
+        assert res.success, res.report["failure"]
+        assert res.report["disturbance"]["names"] == ([] if name == "none" else [name])
+        assert res.report["controller"] == ctrl and "scores" in res.report
+
+
+def _robots(res, key):
+    return [x[key] for x in res.report["scores"]["robots"]]
+
+
+def test_what_each_disturbance_changes(disturbed):
+    base = disturbed["none", "ct"]
+    # the baseline's model has no bar: a wrong bar mass does not reach it (the runs are the same)
+    for name in ("mass+50", "mass-50"):
+        np.testing.assert_array_equal(disturbed[name, "ct"].log.robots[0].tau, base.log.robots[0].tau)
+    # with the bar's share in the models the factor acts: +50 % lifts the bar higher than -50 % (the quills'
+    # feed-forward carries more weight), and the known bar tracks better than no bar
+    z = {n: disturbed[n, "ct-payload"].series["bar"][:, 2, 3] for n in ("mass+50", "mass-50", "none")}
+    mid = (base.series["t"] > 3.6) & (base.series["t"] < 3.9)
+    assert z["mass+50"][mid].mean() > z["none"][mid].mean() > z["mass-50"][mid].mean()
+    assert disturbed["none", "ct-payload"].report["scores"]["bar_position_error_mm"]["rms"] < \
+        base.report["scores"]["bar_position_error_mm"]["rms"]
+    # the push: the welds hold it, each weld's peak force up by a good part of the 2 N
+    assert all(p > b + 0.4 for p, b in zip(_robots(disturbed["push", "ct"], "peak_weld_force"),
+                                           _robots(base, "peak_weld_force")))
+    f = disturbed["push", "ct"].series
+    t0, t1 = base.report["planned_steps"]["carry"]
+    window = (f["t"] > (t0 + t1) / 2 - 0.09) & (f["t"] < (t0 + t1) / 2 + 0.09)
+    push = np.array([-2.0 * math.sin(K.START[3]), 2.0 * math.cos(K.START[3])])
+    assert (f["weld"][window][:, :, :2].sum(axis=1) @ push).mean() < -2.0   # the welds resist it
+    # the grip 5 mm off: the references disagree with the welds by 5 mm, which they take up as stretch
+    slip = _robots(disturbed["grip-offset", "ct"], "max_slip_mm")
+    assert sum(slip) > sum(_robots(base, "max_slip_mm")) + 1.0 and max(slip) < 5.0
+    # noisy sensors: the motion is the baseline's (it reads no sensor), the sensed force is off by the noise:
+    # sigma sqrt(3) RMS for three components of 0.5 N
+    n = disturbed["noise", "ct"]
+    np.testing.assert_array_equal(n.log.robots[1].q, base.log.robots[1].q)
+    for e in _robots(n, "sensed_force_error"):
+        assert e["rms"] == pytest.approx(0.5 * math.sqrt(3), rel=0.08)
+
+
+def test_a_controller_factory_plugs_in():
+    seen = {}
+
+    def pd(robots, plan):        # a deliberately different controller: PD with gravity compensation
+        seen["plan"] = plan
+        return [cs.PID(400.0, 0.0, 40.0) for _ in robots]
+
+    res = C.run(controllers=pd)
+    assert isinstance(seen["plan"], C.Plan) and res.report["controller"] == "pd"
+    assert all(type(c).__name__ == "PID" for c in res.sim.controllers)
+    # phased controllers: the held ones while both hold, the free ones again after the release
+    ph = C.run(controllers=C.computed_torque_payload)
+    assert ph.success and all(c.model is None for c in ph.sim.controllers)
+    with pytest.raises(ValueError, match="one controller per robot"):
+        C.run(controllers=lambda robots, plan: [cs.ComputedTorque(1.0, 1.0)])
+
+
+# ---- failures name their step ----
+
+def test_jaws_that_never_close_fail_the_grasp():
+    res = C.run(jaws_close=(False, True))
+    f = res.report["failure"]
+    assert not res.success and f["step"] == "grasp"
+    # the open jaw counts as commanded closed (its reference at its opening), but its moving jaw does not touch:
+    # 35 mm open on a 20 mm bar, the fixed jaw at it
+    assert f["reason"].startswith("SCARA #1 did not grasp the bar: the clamp rule's touching failed (angle "), f
+    assert 12.0 < float(f["reason"].split("gaps ")[1].split(" and ")[1].split(" mm")[0]) < 15.0
+    assert C.summary(res.report).splitlines()[1].startswith("FAILED in grasp at t = ")
+    assert "scores" in res.report          # a failed run is scored too
+
+
+def test_a_hard_push_tears_the_bar_out_in_the_carry():
+    d = C.Disturbances(push=((0.0, 0.0, -60.0), 0.5, 0.2), names=("push",))
+    res = C.run(disturbance=d)
+    f = res.report["failure"]
+    assert f["step"] == "carry" and "let go of the bar (slipped" in f["reason"], f
+
+
+# ---- bad input: one-line errors ----
+
+@pytest.mark.parametrize("kwargs, says", [
+    (dict(disturbance="bogus"), "unknown disturbance 'bogus'"),
+    (dict(disturbance="mass+50,mass-50"), "both set mass_factor"),
+    (dict(mass_factor=0.0), "mass_factor must be a finite number > 0"),
+    (dict(mass_factor=-1.0), "mass_factor must be a finite number > 0"),
+    (dict(mass_factor=float("nan")), "mass_factor must be a finite number > 0"),
+    (dict(mass_factor=2.0, disturbance="mass+50"), "both given"),
+    (dict(start=(0.25, float("nan"), 0.15, 0.0)), "start must be four finite numbers"),
+    (dict(end=(0.3, 0.1)), "end must be four finite numbers"),
+    (dict(seed=-1), "seed must be an integer >= 0"),
+    (dict(seed=1, start=K.START), "give start or seed"),
+    (dict(controllers="ct"), "controllers must be a factory"),
+])
+def test_bad_input_at_the_api_is_a_one_line_error(kwargs, says):
+    with pytest.raises(ValueError) as e:
+        C.run(**kwargs)
+    assert says in str(e.value) and "\n" not in str(e.value)
+
+
+def test_bad_disturbances_are_refused_when_made():
+    for bad in (dict(mass_factor=0), dict(grip_offset=(0.0, 0.5)), dict(sensor_noise=(-1.0, 0.0)),
+                dict(push=((0.0, float("nan"), 0.0), 0.5, 0.2)), dict(push=((0.0, 1.0, 0.0), 1.5, 0.2))):
+        with pytest.raises(ValueError):
+            C.Disturbances(**bad)
+
+
+def _cli_error(capsys, argv):
+    with pytest.raises(SystemExit) as e:
+        cli.parse_args(argv)
+    return e.value.code, capsys.readouterr().err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--disturbance", "bogus"], "argument --disturbance: unknown disturbance 'bogus'"),
+    (["--disturbance", "push,wind"], "argument --disturbance: unknown disturbance 'wind'"),
+    (["--disturbance", "mass+50", "--disturbance", "mass-50"], "both set mass_factor"),
+    (["--mass-factor", "0"], "argument --mass-factor: must be finite and > 0"),
+    (["--mass-factor", "-0.5"], "argument --mass-factor: must be finite and > 0"),
+    (["--mass-factor", "nan"], "argument --mass-factor: must be finite and > 0"),
+    (["--mass-factor", "1.5", "--disturbance", "mass-50"], "argument --mass-factor: not with a mass disturbance"),
+    (["--seed", "-3"], "argument --seed: must be >= 0"),
+    (["--seed", "x"], "argument --seed: invalid int value"),
+    (["--controller", "lqr"], "argument --controller: unknown controller 'lqr'"),
+    (["--speed", "nan"], "argument --speed: must be > 0"),
+    (["--speed", "9"], "argument --speed: must be > 0 and <= 4"),
+    (["--sweep", "-1"], "argument --sweep: must be >= 0"),
+])
+def test_bad_input_at_the_command_line_is_a_one_line_error(capsys, tmp_path, argv, says):
+    code, line = _cli_error(capsys, argv + ["--out", str(tmp_path / "out")])
+    assert code == 2 and line.startswith("python -m coopsim.tasks.carry: error: ") and says in line, line
+
+
+def test_good_arguments_parse(tmp_path):
+    a = cli.parse_args(["--out", str(tmp_path / "o"), "--disturbance", "push,noise", "--disturbance", "mass+50",
+                        "--controller", "ct-payload", "--no-video", "--seed", "2"])
+    assert a.disturbance == ["push", "noise", "mass+50"] and a.controller == "ct-payload" and not a.video
+    assert a.seed == 2 and (tmp_path / "o").is_dir()
+
+
+def test_the_command_line_writes_the_report_and_its_figures(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = cli.main(["--out", str(out), "--no-video", "--disturbance", "push"])
+    text = capsys.readouterr().out
+    assert code == 0 and "x real time" in text and text.splitlines()[1].startswith("success")
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["success"] and rep["disturbance"]["names"] == ["push"] and rep["controller"] == "ct"
+    assert rep["command_line"]["disturbance"] == ["push"]
+    for name in ("bar_path.png", "weld_forces.png", "joint_torques.png", "frames.png"):
+        assert (out / name).stat().st_size > 20_000, name
+    assert (out / "summary.txt").read_text().startswith("dual carry, controller ct, disturbance push")
+
+
+@pytest.mark.slow
+def test_the_command_line_writes_the_animation(tmp_path):
+    out = tmp_path / "out"
+    assert cli.main(["--out", str(out), "--speed", "4"]) == 0
+    assert (out / "carry.mp4").stat().st_size > 50_000
+
+
+def test_the_module_runs_as_a_program_and_refuses_bad_arguments(tmp_path):
+    # the program's entry point, as a user calls it: a bad argument ends it before the run with one line
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(os.path.dirname(cs.__file__))] + sys.path))
+    p = subprocess.run([sys.executable, "-m", "coopsim.tasks.carry", "--out", str(tmp_path / "o"), "--mass-factor",
+                        "-1"], capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 2 and p.stdout == ""
+    assert p.stderr.strip().splitlines()[-1] == ("python -m coopsim.tasks.carry: error: argument --mass-factor: must be "
+                                                 "finite and > 0, got -1")
