@@ -244,6 +244,9 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def("set_robot", &Simulation::set_robot, py::arg("i"), py::arg("robot"),
            "Replaces robot i by a robot of the same joints and boxes (copied); q and qd stay, the controller "
            "is reset, with a world the robot's link bodies and exclusions follow.")
+      .def("add_cooperative", &Simulation::add_cooperative, py::arg("controller"), py::arg("robots"),
+           py::keep_alive<1, 2>())
+      .def("remove_cooperative", &Simulation::remove_cooperative, py::arg("k"))
       .def("set_controller", &Simulation::set_controller, py::arg("i"), py::arg("controller"),
            py::keep_alive<1, 3>(),
            "Replaces robot i's controller (checked as add_robot's); the state stays, the new controller "

@@ -10,6 +10,7 @@ void bind_trajectory(py::module_& m);
 void bind_ik(py::module_& m);
 void bind_control(py::module_& m);
 void bind_task(py::module_& m);
+void bind_cooperative(py::module_& m);
 void bind_world(py::module_& m);
 void bind_simulation(py::module_& m);
 void short_type_errors(py::module_& m);
@@ -34,6 +35,7 @@ PYBIND11_MODULE(_core, m) {
   bind_ik(m);
   bind_control(m);
   bind_task(m);
+  bind_cooperative(m);
   bind_world(m);
   bind_simulation(m);
   // last, once every function is bound: a wrong argument type is one short TypeError (short_errors.cpp)

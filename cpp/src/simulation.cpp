@@ -200,6 +200,12 @@ void Simulation::start_() {
     if (body_log_.size() != free_ids_.size()) body_log_.assign(free_ids_.size(), LogColumn(13));
   }
   const double period = opt_.dt * opt_.control_every;
+  for (Coop& g : coops_) {
+    if (!g.active) continue;
+    std::vector<const Robot*> rs;
+    for (int i : g.robots) rs.push_back(&slots_[i].robot);
+    g.controller->reset(rs, period);
+  }
   for (Slot& s : slots_) {
     s.control.controller->reset(s.robot, period);
     s.control.updated_at = -1;
@@ -338,6 +344,7 @@ bool Simulation::control_() {
   Stopwatch watch(profiling_, profile_.controllers);
   const double t = time();
   const bool control = k_ % opt_.control_every == 0;
+  if (control && !coops_.empty()) cooperate_();
   ControlInput in;
   in.t = t;
   bool fresh = false;
@@ -347,7 +354,7 @@ bool Simulation::control_() {
     fresh = true;
     const int n = s.robot.dof();
     c.reference->evaluate(t, c.q_ref.data(), c.qd_ref.data(), c.qdd_ref.data());
-    if (control) {
+    if (control && c.coop < 0) {
       in.n = n;
       in.q = s.state.q.data();
       in.qd = s.state.qd.data();

@@ -34,6 +34,9 @@ from .urdf import from_urdf, to_urdf
 from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
 from ._core import (
+    CooperativeController,
+    CoopMember,
+    ObjectControl,
     TASK_AXES,
     HybridForce,
     Impedance,
@@ -96,6 +99,7 @@ __all__ = [
     "from_urdf",
     "to_urdf",
     "view",
+    "CooperativeController", "CoopMember", "ObjectControl",
     "TASK_AXES", "HybridForce", "Impedance", "Payload", "TaskController", "TaskState", "commandable_directions", "task_axes",  # noqa: E501
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
     "sweep", "sweeps", "TaskRun",

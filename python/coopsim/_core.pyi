@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LinkBox', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -1123,6 +1123,114 @@ class HybridForce(TaskController):
     @property
     def kv(self) -> numpy.typing.NDArray[numpy.float64]:
         ...
+class CoopMember:
+    """
+    One robot of a cooperative group at an update (a copy).
+    """
+    @property
+    def grip(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (4, 4) the held body's pose in the TCP frame (identity when holding nothing).
+        """
+    @property
+    def holding(self) -> bool:
+        ...
+    @property
+    def q(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def q_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def qd(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def qd_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def qdd_ref(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,).
+        """
+    @property
+    def robot(self) -> int:
+        """
+        Its index in the simulation.
+        """
+    @property
+    def t(self) -> float:
+        """
+        s.
+        """
+    @property
+    def wrench(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) the sensor, world axes, about the TCP: what the clamp applies.
+        """
+class CooperativeController:
+    """
+    Abstract controller of several robots at once (Simulation.add_cooperative).
+    
+    Subclass it in Python: call super().__init__(), define compute(t, members) -> list of tau, one (n,)
+    array per member (a CoopMember: q, qd, the joint reference, the sensor's wrench, what it holds and
+    the grip), and optionally reset(robots, period). The simulation saturates each tau at its robot's
+    limits. The built-in law: ObjectControl.
+    """
+    def __init__(self) -> None:
+        ...
+class ObjectControl(CooperativeController):
+    """
+    Object-level (symmetric) control of two arms holding one object.
+    
+    The object's desired motion becomes the wrench on it, distributed to the clamps with a commanded
+    load share and internal squeeze, closed on the sensed wrenches, and each arm's task-space torques:
+    
+    1. object error e = reference - measured (position m; rotation vector of R_ref R^T, rad; world) and
+       its rate; a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s: scalars or (6,) over x, y, z, rx, ry, rz);
+    2. the object wrench from the controller's model of the object (mass kg, inertia (3, 3) kg m^2
+       about its centre in its own frame): h_d = [m (a* - g); I alpha* + w x I w];
+    3. the clamps' wrenches: the least-norm solution of  sum_k W_k h_k = h_d, clamp 0 carries
+       `load_share` of the vertical load, the squeeze is `squeeze` N (compression positive), each
+       clamp's wrench having only the components its arm commands (forces; moments about its commanded
+       rotation axes): the rest of the object wrench (e.g. the roll about the bar's own axis) is
+       carried by the clamps' structure and is not commanded;
+    4. each arm: its TCP accelerates as a point of the object (a* carried to it), and applies
+       h_k + kp_force (h_k - h_k,sensed) + ki_force * integral(h_k - h_k,sensed) through J^T, with its own
+       inverse dynamics (TaskController.torques; the jaw position-controlled).
+    The object's pose is the reference member's (robot 0 of the group) grip applied to its TCP; its
+    reference the same grip on its TCP at its joint reference.
+    """
+    def __init__(self, mass: typing.SupportsFloat | typing.SupportsIndex, inertia: typing.Any, *, kp: typing.Any = 400.0, kd: typing.Any = 40.0, load_share: typing.SupportsFloat | typing.SupportsIndex = 0.5, squeeze: typing.SupportsFloat | typing.SupportsIndex = 0.0, kp_force: typing.SupportsFloat | typing.SupportsIndex = 0.5, ki_force: typing.SupportsFloat | typing.SupportsIndex = 10.0, integral_limit: typing.SupportsFloat | typing.SupportsIndex = 50.0) -> None:
+        ...
+    @property
+    def clamp_wrenches(self) -> list:
+        """
+        Each clamp's commanded wrench on the object (6,), world, about its TCP.
+        """
+    @property
+    def load_share(self) -> float:
+        ...
+    @property
+    def object_error(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) m, rad: the object's pose error at the last update (world).
+        """
+    @property
+    def object_wrench(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) N, N m: the wrench commanded on the object, about its centre.
+        """
+    @property
+    def squeeze(self) -> float:
+        ...
 class World:
     """
     A Bullet dynamics world: an optional floor (the plane z = 0), static boxes
@@ -1194,6 +1302,8 @@ class SimulationCore:
         Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at every one of `samples` random poses.
         """
     def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4', world: World = None, world_every: typing.SupportsInt | typing.SupportsIndex = 1, contact_forces: bool = True, log_contacts: bool = False, grasp: bool = True, grasp_options: dict = {}) -> None:
+        ...
+    def add_cooperative(self, controller: CooperativeController, robots: collections.abc.Sequence[typing.SupportsInt | typing.SupportsIndex]) -> int:
         ...
     def add_robot(self, robot: Robot, controller: Controller, reference: typing.Any, q0: typing.Any = None, qd0: typing.Any = None) -> int:
         """
@@ -1289,6 +1399,8 @@ class SimulationCore:
         """
         Releases what robot i holds, now.
         """
+    def remove_cooperative(self, k: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
     def reset(self) -> None:
         """
         Back to t = 0 and the initial states; clears log and metrics.

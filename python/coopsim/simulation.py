@@ -120,6 +120,19 @@ class Simulation:
                              f"got {type(controller).__name__}")
         return self._core.add_robot(robot, controller, reference, q0, qd0)
 
+    def add_cooperative(self, controller, robots) -> int:
+        """Drives robots `robots` (indices) together with a coopsim.CooperativeController (ObjectControl or a
+        subclass) from the next controller update on; their own controllers stand aside
+        until remove_cooperative. A robot belongs to one group at most. Returns the group's index."""
+        if not isinstance(controller, _core.CooperativeController):
+            raise ValueError(f"controller must be a coopsim.CooperativeController, got {type(controller).__name__}")
+        idx = [_index(i, self.robot_count) for i in robots]
+        return self._core.add_cooperative(controller, idx)
+
+    def remove_cooperative(self, group: int) -> None:
+        """Group `group` stops driving; its robots' own controllers are reset and drive again."""
+        self._core.remove_cooperative(int(group))
+
     # ---- description ----
 
     @property

@@ -66,6 +66,7 @@
 
 #include "coopsim/controller.hpp"
 #include "coopsim/cooperation.hpp"
+#include "coopsim/cooperative.hpp"
 #include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/log.hpp"
@@ -180,6 +181,18 @@ class Simulation {
   // the other bodies keeping their states. Refused (std::invalid_argument) while the robot holds a
   // body, with another gravity than the world's, or where the world cannot hold a box at q.
   void set_robot(int i, const Robot& robot);
+
+  // ---- cooperative controllers (cooperative.hpp) ----
+  // `controller` drives robots `robots` together (their own controllers stand aside) from the next
+  // controller update on; it is reset now when the run is under way, else at its start. A robot
+  // belongs to one group at most; controller->check() sees the robots. Returns the group's index.
+  int add_cooperative(std::shared_ptr<CooperativeController> controller, std::vector<int> robots);
+  // Group k stops driving: its robots' own controllers are reset and drive from the next update.
+  void remove_cooperative(int k);
+  int cooperative_count() const { return static_cast<int>(coops_.size()); }
+  const std::shared_ptr<CooperativeController>& cooperative(int k) const;
+  const std::vector<int>& cooperative_robots(int k) const;
+  bool cooperative_active(int k) const;
 
   int robot_count() const { return static_cast<int>(slots_.size()); }
   const Robot& robot(int i) const { return slot_(i).robot; }
@@ -300,6 +313,7 @@ class Simulation {
       VecN q_ref, qd_ref, qdd_ref;  // the reference at the last update
       VecN tau, tau_max;            // held torque (saturated at tau_max)
       long updated_at = -1;         // step of the last controller / reference update
+      int coop = -1;                // the cooperative group driving it (-1: its own controller)
     } control;
     struct State {  // the integration: the state and the first stage of the next step
       VecN q0, qd0;                 // initial state
@@ -368,6 +382,7 @@ class Simulation {
   // ---- the step's stages (see the header comment) ----
   void stages_();                        // the stages at t_k, in order
   bool control_();                       // control: true when some robot was updated
+  void cooperate_();                     // control: the cooperative groups' torques at t_k
   bool world_due_() const { return world_ && world_at_ != k_ && k_ % opt_.world_every == 0; }
   void links_to_world_();                // world: the links' poses and twists; the free bodies at t_k
   void grasp_(double h);                 // grasp: the clamp rule, the welds
@@ -419,6 +434,14 @@ class Simulation {
   std::vector<BodyState> body_now_;
   std::vector<Eigen::Isometry3d> box_poses_;  // scratch of world_step_
   std::vector<LoggedContact> contact_log_;
+  struct Coop {
+    std::shared_ptr<CooperativeController> controller;
+    std::vector<int> robots;
+    bool active = true;
+  };
+  std::vector<Coop> coops_;
+  std::vector<CoopMember> members_;  // scratch of cooperate_
+  std::vector<VecN> coop_tau_;
   std::vector<std::pair<int, Vec6>> body_wrenches_;  // set_body_wrench: (world id, wrench), nonzero
   long world_at_ = -1;
   bool profiling_ = false;

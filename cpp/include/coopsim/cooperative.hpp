@@ -1,0 +1,100 @@
+// Cooperative control: one controller drives several robots at once (Simulation::add_cooperative),
+// seeing all their states, their clamps' sensed wrenches and what each holds; the simulation calls
+// it where it calls the robots' own controllers, which stand aside while it drives them.
+//
+// The held object, as the controllers see it (member 0 is the reference member, the leader):
+//   its pose  T_o = T_tcp,0 G_0, G_k the body's pose in clamp k's TCP frame from its weld and the
+//             present kinematics (the weld's pose at attach carried by the clamp link);
+//   its reference T_o,ref = T_tcp,0,ref G_0, the reference member's TCP at its joint reference;
+//   twists and accelerations carried from the TCP to the object's centre as a rigid body's.
+// The clamps' wrenches h_k = [f_k; mu_k] are what each clamp applies to the object at its TCP
+// (the sensor's reading, world axes); the object-level quantities (external wrench about the
+// object's centre, squeeze, load share) are cooperation.hpp's.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "coopsim/cooperation.hpp"
+#include "coopsim/task.hpp"
+
+namespace coopsim {
+
+// One robot of a cooperative group at an update.
+struct CoopMember {
+  int robot = -1;                 // its index in the simulation
+  ControlInput in;                // q, qd, the joint reference and the sensor (ControlInput::wrench)
+  int held = -1;                  // the free body it holds (world id), -1: none
+  Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();  // the held body's pose in the TCP frame
+};
+
+class CooperativeController {
+ public:
+  virtual ~CooperativeController() = default;
+  // Throws std::invalid_argument when it cannot drive these robots (their number, gains' sizes).
+  virtual void check(const std::vector<const Robot*>& robots) const {}
+  // Once before the first update of a run (or when it starts driving a running simulation).
+  virtual void reset(const std::vector<const Robot*>& robots, double period) = 0;
+  // Writes each member's torques (members[k].in.n values) to tau[k].
+  virtual void compute(double t, const std::vector<CoopMember>& members, const std::vector<double*>& tau) = 0;
+};
+
+// Object-level control of two arms holding one object (documentation, Python's too).
+class ObjectControl : public CooperativeController {
+ public:
+  static constexpr char kDoc[] = R"doc(
+Object-level (symmetric) control of two arms holding one object.
+
+The object's desired motion becomes the wrench on it, distributed to the clamps with a commanded
+load share and internal squeeze, closed on the sensed wrenches, and each arm's task-space torques:
+
+1. object error e = reference - measured (position m; rotation vector of R_ref R^T, rad; world) and
+   its rate; a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s: scalars or (6,) over x, y, z, rx, ry, rz);
+2. the object wrench from the controller's model of the object (mass kg, inertia (3, 3) kg m^2
+   about its centre in its own frame): h_d = [m (a* - g); I alpha* + w x I w];
+3. the clamps' wrenches: the least-norm solution of  sum_k W_k h_k = h_d, clamp 0 carries
+   `load_share` of the vertical load, the squeeze is `squeeze` N (compression positive), each
+   clamp's wrench having only the components its arm commands (forces; moments about its commanded
+   rotation axes): the rest of the object wrench (e.g. the roll about the bar's own axis) is
+   carried by the clamps' structure and is not commanded;
+4. each arm: its TCP accelerates as a point of the object (a* carried to it), and applies
+   h_k + kp_force (h_k - h_k,sensed) + ki_force * integral(h_k - h_k,sensed) through J^T, with its own
+   inverse dynamics (TaskController.torques; the jaw position-controlled).
+The object's pose is the reference member's (robot 0 of the group) grip applied to its TCP; its
+reference the same grip on its TCP at its joint reference.)doc";
+  struct Gains {
+    Vec6 kp = Vec6::Constant(400.0), kd = Vec6::Constant(40.0);
+    double kp_force = 0.5, ki_force = 10.0, integral_limit = 50.0;
+  };
+  ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains gains, double load_share = 0.5,
+                double squeeze = 0.0);
+  void check(const std::vector<const Robot*>& robots) const override;
+  void reset(const std::vector<const Robot*>& robots, double period) override;
+  void compute(double t, const std::vector<CoopMember>& members, const std::vector<double*>& tau) override;
+
+  double mass() const { return mass_; }
+  const Eigen::Matrix3d& inertia() const { return inertia_; }
+  const Gains& gains() const { return gains_; }
+  double load_share() const { return share_; }
+  double squeeze() const { return squeeze_; }
+  // After the last update: the object's pose error (6, world: m, rad), the wrench commanded on it
+  // (6, about its centre), each clamp's commanded wrench (world, about its TCP).
+  const Vec6& object_error() const { return err_; }
+  const Vec6& object_wrench() const { return hd_; }
+  const std::vector<Vec6>& clamp_wrenches() const { return cmd_; }
+
+ private:
+  double mass_;
+  Eigen::Matrix3d inertia_;
+  Gains gains_;
+  double share_, squeeze_;
+  // run state
+  std::vector<std::shared_ptr<TaskController>> arms_;
+  std::vector<Vec6> I_, cmd_;
+  Vec6 err_ = Vec6::Zero(), hd_ = Vec6::Zero();
+  Eigen::Vector3d g_ = Eigen::Vector3d::Zero();
+  double h_ = 0.0;
+};
+
+}  // namespace coopsim

@@ -1,0 +1,207 @@
+// Cooperative control (cooperative.hpp): the object-level quantities of two clamps, object-level
+// (symmetric) control with a commanded load share and squeeze.
+#include "coopsim/cooperative.hpp"
+
+#include <Eigen/QR>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "internal.hpp"
+
+namespace coopsim {
+
+namespace {
+
+// A law-less task controller: the cooperative laws use its observe() and torques().
+class Arm : public TaskController {
+ public:
+  using TaskController::TaskController;
+  void compute_task(const TaskState&, double*) override {
+    throw std::logic_error("a cooperative arm is driven by its cooperative controller");
+  }
+};
+
+Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// world [v; w] <-> task axes of a state
+Vec6 to_world(const TaskState& s, const Vec6& v) {
+  Vec6 o;
+  o.head<3>() = v.head<3>();
+  o.tail<3>() = s.axes * v.tail<3>();
+  return o;
+}
+Vec6 to_task(const TaskState& s, const Vec6& v) {
+  Vec6 o;
+  o.head<3>() = v.head<3>();
+  o.tail<3>() = s.axes.transpose() * v.tail<3>();
+  return o;
+}
+
+// A point r away of a rigid body with twist (v, w) and acceleration (a, alpha): its twist and acceleration.
+void carry(const Vec6& twist, const Vec6& acc, const Eigen::Vector3d& r, Vec6& t_out, Vec6& a_out) {
+  const Eigen::Vector3d w = twist.tail<3>(), al = acc.tail<3>();
+  t_out.head<3>() = twist.head<3>() + w.cross(r);
+  t_out.tail<3>() = w;
+  a_out.head<3>() = acc.head<3>() + al.cross(r) + w.cross(w.cross(r));
+  a_out.tail<3>() = al;
+}
+
+void require_two(const std::vector<const Robot*>& robots, const char* what) {
+  if (robots.size() != 2)
+    throw std::invalid_argument(std::string(what) + " drives two robots holding one object, got " +
+                                std::to_string(robots.size()));
+}
+
+void require_holding(const std::vector<CoopMember>& m) {
+  if (m[0].held < 0 || m[1].held < 0 || m[0].held != m[1].held)
+    throw std::invalid_argument("the cooperative controller's robots " + std::to_string(m[0].robot) + " and " +
+                                std::to_string(m[1].robot) + " do not hold the same body" +
+                                (m[0].held < 0 || m[1].held < 0 ? " (one holds nothing)" : ""));
+}
+
+Vec6 checked_vec6(const Vec6& v, const char* name, bool positive) {
+  for (int i = 0; i < 6; ++i)
+    if (!std::isfinite(v[i]) || (positive ? !(v[i] > 0) : v[i] < 0))
+      throw std::invalid_argument(std::string(name) + " must be finite and " + (positive ? "> 0" : ">= 0") +
+                                  ", got " + detail::num(v[i]) + " at entry " + std::to_string(i + 1));
+  return v;
+}
+
+void check_nonneg(double x, const char* name) {
+  if (!std::isfinite(x) || x < 0)
+    throw std::invalid_argument(std::string(name) + " must be finite and >= 0, got " + detail::num(x));
+}
+
+}  // namespace
+
+// ---- object-level control ----
+
+ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains gains, double load_share,
+                             double squeeze)
+    : mass_(mass), inertia_(inertia), gains_(gains), share_(load_share), squeeze_(squeeze) {
+  if (!std::isfinite(mass_) || !(mass_ > 0))
+    throw std::invalid_argument("mass (the object's, in the controller's model) must be finite and > 0 kg, got " +
+                                detail::num(mass_));
+  Payload p;
+  p.mass = mass_;
+  p.inertia = inertia_;
+  TaskController::check_payload(p);
+  checked_vec6(gains_.kp, "kp", false);
+  checked_vec6(gains_.kd, "kd", false);
+  check_nonneg(gains_.kp_force, "kp_force");
+  check_nonneg(gains_.ki_force, "ki_force");
+  check_nonneg(gains_.integral_limit, "integral_limit");
+  if (!std::isfinite(share_) || share_ < 0 || share_ > 1)
+    throw std::invalid_argument("load_share must be in [0, 1], got " + detail::num(share_));
+  if (!std::isfinite(squeeze_)) throw std::invalid_argument("squeeze must be finite");
+}
+
+void ObjectControl::check(const std::vector<const Robot*>& robots) const {
+  require_two(robots, "ObjectControl");
+  for (const Robot* r : robots)
+    if (!r->clamp().present()) throw std::invalid_argument("robot '" + r->name() + "' has no clamp");
+}
+
+void ObjectControl::reset(const std::vector<const Robot*>& robots, double period) {
+  check(robots);
+  arms_.clear();
+  for (const Robot* r : robots) {
+    arms_.push_back(std::make_shared<Arm>());
+    arms_.back()->reset(*r, period);
+  }
+  g_ = robots[0]->gravity_acceleration();
+  I_.assign(robots.size(), Vec6::Zero());
+  cmd_.assign(robots.size(), Vec6::Zero());
+  h_ = period;
+}
+
+void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const std::vector<double*>& tau) {
+  if (arms_.size() != 2 || m.size() != 2) throw std::logic_error("ObjectControl.compute called before reset()");
+  require_holding(m);
+  const TaskState& s0 = arms_[0]->observe(m[0].in);
+  const TaskState& s1 = arms_[1]->observe(m[1].in);
+  const TaskState* s[2] = {&s0, &s1};
+  // the object: pose, twist and their references from member 0's TCP and grip
+  const Eigen::Isometry3d To = s0.pose * m[0].grip, Tr = s0.pose_ref * m[0].grip;
+  const Eigen::Vector3d c = To.translation();
+  Vec6 tw, tw_ref, acc_ref, unused;
+  carry(to_world(s0, s0.velocity), Vec6::Zero(), c - s0.pose.translation(), tw, unused);
+  carry(to_world(s0, s0.velocity_ref), to_world(s0, s0.accel_ref), Tr.translation() - s0.pose_ref.translation(),
+        tw_ref, acc_ref);
+  err_.head<3>() = Tr.translation() - c;
+  err_.tail<3>() = rotation_vector(Tr.linear() * To.linear().transpose());
+  const Vec6 rate = tw_ref - tw;
+  const Eigen::Matrix3d Iw = To.linear() * inertia_ * To.linear().transpose();
+  const Eigen::Vector3d w = tw.tail<3>();
+  // the object's acceleration and the wrench it takes
+  Vec6 a;
+  for (int i = 0; i < 6; ++i) a[i] = acc_ref[i] + gains_.kd[i] * rate[i] + gains_.kp[i] * err_[i];
+  hd_.head<3>() = mass_ * (a.head<3>() - g_);
+  hd_.tail<3>() = Iw * a.tail<3>() + w.cross(Iw * w);
+  // distribution: columns per clamp: fx, fy, fz and one moment per commanded rotation axis
+  std::vector<Eigen::Vector3d> axes[2];
+  for (int k = 0; k < 2; ++k)
+    for (int r = 0; r < 3; ++r)
+      if (s[k]->commanded[3 + r]) axes[k].push_back(s[k]->axes.col(r));
+  const int cols = 6 + static_cast<int>(axes[0].size() + axes[1].size());
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(8, cols);
+  Eigen::VectorXd b(8);
+  const Eigen::Vector3d p[2] = {s0.pose.translation(), s1.pose.translation()};
+  const Eigen::Vector3d e = (p[1] - p[0]).normalized();
+  int col = 0, first[2];
+  for (int k = 0; k < 2; ++k) {
+    first[k] = col;
+    const Eigen::Vector3d r = p[k] - c;
+    for (int j = 0; j < 3; ++j) {
+      Eigen::Vector3d u = Eigen::Vector3d::Unit(j);
+      A.block<3, 1>(0, col) = u;
+      A.block<3, 1>(3, col) = r.cross(u);
+      A(7, col) = (k == 0 ? 0.5 : -0.5) * e[j];
+      ++col;
+    }
+    for (const Eigen::Vector3d& u : axes[k]) A.block<3, 1>(3, col++) = u;
+  }
+  A(6, first[0] + 2) = 1.0 - share_;  // (1 - share) f0z - share f1z = 0
+  A(6, first[1] + 2) = -share_;
+  b.head<6>() = hd_;
+  b[6] = 0.0;
+  b[7] = squeeze_;
+  // least norm, the directions the clamps can barely produce (a moment about the line through their
+  // points, from forces whose lever is the TCPs' millimetres off it) left to the structure: singular
+  // values below 1e-3 of the largest count as zero
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+  cod.setThreshold(1e-3);
+  cod.compute(A);
+  const Eigen::VectorXd x = cod.solve(b);
+  // each arm: its TCP moves with the object; it applies its wrench, closed on its sensor
+  for (int k = 0; k < 2; ++k) {
+    Vec6 hk = Vec6::Zero();
+    hk.head<3>() = x.segment<3>(first[k]);
+    for (size_t j = 0; j < axes[k].size(); ++j) hk.tail<3>() += x[first[k] + 3 + static_cast<int>(j)] * axes[k][j];
+    cmd_[k] = hk;
+    Vec6 tk, ak;
+    carry(tw, a, p[k] - c, tk, ak);
+    const Vec6 want = to_task(*s[k], hk), got = s[k]->wrench;
+    Vec6 apply = Vec6::Zero();
+    for (int i = 0; i < 6; ++i) {
+      if (!s[k]->commanded[i]) continue;
+      const double ei = want[i] - got[i];
+      double I = I_[k][i] + ei * h_;
+      if (gains_.ki_force > 0) {
+        const double imax = gains_.integral_limit / gains_.ki_force;
+        I = std::max(-imax, std::min(imax, I));
+      }
+      I_[k][i] = I;
+      apply[i] = want[i] + gains_.kp_force * ei + gains_.ki_force * I;
+    }
+    arms_[k]->torques(*s[k], to_task(*s[k], ak), apply, tau[k]);
+  }
+  (void)t;
+}
+
+}  // namespace coopsim
