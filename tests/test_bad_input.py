@@ -715,3 +715,15 @@ def test_writing_a_log_under_a_file_names_the_file(tmp_path):
             log.to_csv(path)
         assert e.value.filename == str(path)
     assert blocker.read_text() == "not a folder" and os.listdir(tmp_path) == ["results"]
+
+
+def test_every_compiled_class_and_function_answers_with_short_type_errors():
+    """The short errors reach every compiled entry point, those added since included: coopsim._arguments
+    switched them at import (labels as the user calls them)."""
+    from coopsim import _arguments
+
+    labels = {v[0] for v in _arguments._FUNCTIONS.values()}
+    assert {"Impedance", "HybridForce", "ObjectControl", "Robot.tool_bias", "SimulationCore.add_cooperative",
+            "integrate"} <= labels
+    with pytest.raises(TypeError, match=r"^Impedance\(\): force_feedback must be a bool"):
+        cs.Impedance(1.0, 1.0, 1.0, force_feedback="yes")
