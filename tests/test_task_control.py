@@ -212,7 +212,10 @@ def press_and_slide(F=-5.0, **kw):
     k = log.t > t0
     fz = log.ft_world[k, 2] - BAR_M * G
     p = np.array([r.fk(qq)[:3, 3] for qq in log.q[k]])
-    pr = np.array([r.fk(qq)[:3, 3] for qq in log.q_ref[k]])
+    # the path: the arm's reference with the jaw's opening as it is (the TCP is midway between the jaws)
+    qr = log.q_ref[k].copy()
+    qr[:, 5] = log.q[k][:, 5]
+    pr = np.array([r.fk(qq)[:3, 3] for qq in qr])
     return log.t[k] - t0, fz, (p - pr)[:, :2], sim
 
 
@@ -299,7 +302,9 @@ def test_the_task_state_a_law_sees():
     J = r.tool_jacobian(q)
     np.testing.assert_allclose(s.jacobian[:3], J[:3], atol=1e-15)
     np.testing.assert_allclose(s.jacobian[3:], B.T @ J[3:], atol=1e-15)
-    np.testing.assert_allclose(s.error[:3], r.fk(Q0)[:3, 3] - r.fk(q)[:3, 3], atol=1e-15)
+    qr = Q0.copy()
+    qr[5] = q[5]  # the reference's TCP with the jaw where it is
+    np.testing.assert_allclose(s.error[:3], r.fk(qr)[:3, 3] - r.fk(q)[:3, 3], atol=1e-15)
     np.testing.assert_allclose(s.velocity, s.jacobian @ qd, atol=1e-14)
     np.testing.assert_allclose(s.wrench, np.concatenate([w[:3], B.T @ w[3:]]), atol=1e-15)
     np.testing.assert_allclose(s.external, -s.wrench, atol=0)

@@ -1,5 +1,5 @@
 // Cooperative controllers: CoopMember, the abstract CooperativeController (subclassable from
-// Python) and ObjectControl.
+// Python), ObjectControl and LeaderFollower.
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
@@ -91,7 +91,7 @@ Abstract controller of several robots at once (Simulation.add_cooperative).
 Subclass it in Python: call super().__init__(), define compute(t, members) -> list of tau, one (n,)
 array per member (a CoopMember: q, qd, the joint reference, the sensor's wrench, what it holds and
 the grip), and optionally reset(robots, period). The simulation saturates each tau at its robot's
-limits. The built-in law: ObjectControl.)doc")
+limits. The built-in laws: ObjectControl, LeaderFollower.)doc")
       .def(py::init<>());
 
   py::class_<ObjectControl, CooperativeController, std::shared_ptr<ObjectControl>>(m, "ObjectControl",
@@ -124,4 +124,17 @@ limits. The built-in law: ObjectControl.)doc")
          return out;
        }, "Each clamp's commanded wrench on the object (6,), world, about its TCP.");
 
+
+  py::class_<LeaderFollower, CooperativeController, std::shared_ptr<LeaderFollower>>(m, "LeaderFollower",
+                                                                                       LeaderFollower::kDoc)
+      .def(py::init([](const py::object& k, const py::object& d, const py::object& mass, double object_mass,
+                       double kp, double kd, double share) {
+             return std::make_shared<LeaderFollower>(kp, kd, coopsim::gains(table(k, "stiffness"), "stiffness"),
+                                                     coopsim::gains(table(d, "damping"), "damping"),
+                                                     coopsim::gains(table(mass, "mass"), "mass"), object_mass, share);
+           }),
+           py::arg("stiffness"), py::arg("damping"), py::arg("mass"), py::kw_only(), py::arg("object_mass"),
+           py::arg("kp") = 900.0, py::arg("kd") = 60.0, py::arg("follower_share") = 0.5)
+      .def_property_readonly("relative_error", [](const LeaderFollower& c) { return to_numpy(c.relative_error()); },
+                             "(6,) the follower's pose error from where the grips put it (task axes: m, rad).");
 }

@@ -1,5 +1,5 @@
 // Cooperative control (cooperative.hpp): the object-level quantities of two clamps, object-level
-// (symmetric) control with a commanded load share and squeeze.
+// (symmetric) control with a commanded load share and squeeze, and leader-follower.
 #include "coopsim/cooperative.hpp"
 
 #include <Eigen/QR>
@@ -201,6 +201,94 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
     }
     arms_[k]->torques(*s[k], to_task(*s[k], ak), apply, tau[k]);
   }
+  (void)t;
+}
+
+// ---- leader-follower ----
+
+LeaderFollower::LeaderFollower(double kp, double kd, Eigen::VectorXd stiffness, Eigen::VectorXd damping,
+                               Eigen::VectorXd mass, double object_mass, double follower_share)
+    : kp_(kp), kd_(kd), k_(std::move(stiffness)), d_(std::move(damping)), m_(std::move(mass)),
+      object_mass_(object_mass), share_(follower_share) {
+  check_nonneg(kp_, "kp");
+  check_nonneg(kd_, "kd");
+  check_nonneg(object_mass_, "object_mass");
+  if (!std::isfinite(share_) || share_ < 0 || share_ > 1)
+    throw std::invalid_argument("follower_share must be in [0, 1], got " + detail::num(share_));
+  // the values' checks are the impedance's
+  Impedance(k_, d_, m_);
+}
+
+void LeaderFollower::check(const std::vector<const Robot*>& robots) const {
+  require_two(robots, "LeaderFollower");
+  for (const Robot* r : robots)
+    if (!r->clamp().present()) throw std::invalid_argument("robot '" + r->name() + "' has no clamp");
+  Impedance(k_, d_, m_).check(*robots[1]);
+}
+
+void LeaderFollower::reset(const std::vector<const Robot*>& robots, double period) {
+  check(robots);
+  arms_.clear();
+  // both arms command the directions both can (the SCARAs: x, y, z, yaw): a leader holding a rotation
+  // the follower yields to would bend the object between them; the rest follows the joint reference
+  const auto a = commandable_directions(*robots[0]), b = commandable_directions(*robots[1]);
+  std::vector<std::string> common;
+  for (int i = 0; i < kTaskAxes; ++i)
+    if (a[i] && b[i]) common.push_back(task_axis_name(i));
+  for (const Robot* r : robots) {
+    arms_.push_back(std::make_shared<Arm>(common));
+    arms_.back()->reset(*r, period);
+  }
+  Impedance imp(k_, d_, m_);
+  imp.reset(*robots[1], period);
+  // the follower's parameters by axis, as the impedance spreads them
+  K_ = Md_ = D_ = Vec6::Zero();
+  std::vector<int> order;
+  for (int a = 0; a < kTaskAxes; ++a)
+    if (arms_[1]->commanded()[a]) order.push_back(a);
+  for (size_t j = 0; j < order.size(); ++j) {
+    const auto pick = [&](const Eigen::VectorXd& v) { return v.size() == 1 ? v[0] : v[static_cast<Eigen::Index>(j)]; };
+    K_[order[j]] = pick(k_);
+    D_[order[j]] = pick(d_);
+    Md_[order[j]] = pick(m_);
+  }
+  g_ = robots[0]->gravity_acceleration();
+  lead_acc_.setZero();
+  rel_.setZero();
+}
+
+void LeaderFollower::compute(double t, const std::vector<CoopMember>& m, const std::vector<double*>& tau) {
+  if (arms_.size() != 2 || m.size() != 2) throw std::logic_error("LeaderFollower.compute called before reset()");
+  require_holding(m);
+  // the leader: task-space computed torque on its own reference, carrying what it feels
+  const TaskState& sl = arms_[0]->observe(m[0].in);
+  Vec6 al = Vec6::Zero();
+  for (int i = 0; i < 6; ++i)
+    if (sl.commanded[i]) al[i] = sl.accel_ref[i] + kd_ * sl.error_rate[i] + kp_ * sl.error[i];
+  arms_[0]->torques(sl, al, sl.wrench, tau[0]);
+  // the follower's reference: where the grips put it, given the leader's clamp position and its planned
+  // orientation (the leader's own rotation errors, e.g. a wrist yielding, would swing the follower's
+  // reference through the object's lever: the follower follows the leader's translation)
+  const Eigen::Isometry3d G = m[0].grip * m[1].grip.inverse();  // follower TCP in the leader's TCP frame
+  Eigen::Isometry3d lead = sl.pose_ref;
+  lead.translation() = sl.pose.translation();
+  TaskController::TaskReference ref;
+  ref.pose = lead * G;
+  Vec6 tw_l = to_world(sl, sl.velocity), acc_l = to_world(sl, al);
+  const Vec6 tw_r = to_world(sl, sl.velocity_ref), acc_r = to_world(sl, sl.accel_ref);
+  tw_l.tail<3>() = tw_r.tail<3>();
+  acc_l.tail<3>() = acc_r.tail<3>();
+  carry(tw_l, acc_l, ref.pose.translation() - lead.translation(), ref.twist, ref.accel);
+  const TaskState& sf = arms_[1]->observe(m[1].in, &ref);
+  rel_ = sf.error;
+  // its impedance, driven by its sensed wrench less its share of the object's weight
+  Vec6 weight = Vec6::Zero();
+  weight.head<3>() = share_ * object_mass_ * g_;  // the share of the weight pulling on the follower's clamp
+  const Vec6 ext = sf.external - to_task(sf, weight);
+  Vec6 af = Vec6::Zero();
+  for (int i = 0; i < 6; ++i)
+    if (sf.commanded[i]) af[i] = sf.accel_ref[i] + (ext[i] + D_[i] * sf.error_rate[i] + K_[i] * sf.error[i]) / Md_[i];
+  arms_[1]->torques(sf, af, sf.wrench, tau[1]);
   (void)t;
 }
 

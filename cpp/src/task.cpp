@@ -234,25 +234,34 @@ const TaskState& TaskController::observe(const ControlInput& in, const TaskRefer
     s.pose_ref = ref->pose;
     twist_ref = ref->twist;
     accel_ref = ref->accel;
-  } else if (ref_valid_ && s.q_ref == ref_q_ && s.qd_ref == ref_qd_ && s.qdd_ref == ref_qdd_) {
-    // the same joint reference as at the last update (a set point): the same image
-    s.pose_ref = ref_pose_;
-    twist_ref = ref_twist_;
-    accel_ref = ref_accel_;
   } else {
-    r.kinematics(in.q_ref, wsr_, false);
-    s.pose_ref = r.tool_pose(wsr_);
-    r.tool_jacobian(wsr_, Jr);
-    r.tool_bias(wsr_, in.qd_ref, br);
-    twist_ref = Jr * s.qd_ref;
-    accel_ref = Jr * s.qdd_ref + br;
-    ref_q_ = s.q_ref;
-    ref_qd_ = s.qd_ref;
-    ref_qdd_ = s.qdd_ref;
-    ref_pose_ = s.pose_ref;
-    ref_twist_ = twist_ref;
-    ref_accel_ = accel_ref;
-    ref_valid_ = true;
+    // the arm's joint reference with the jaw where it is: the TCP (midway between the jaws) is referred
+    // to the jaw's measured opening, which a jaw squeezing a body does not follow to its reference
+    VecN qr = s.q_ref, qdr = s.qd_ref;
+    if (s.jaw >= 0) {
+      qr[s.jaw] = s.q[s.jaw];
+      qdr[s.jaw] = s.qd[s.jaw];
+    }
+    if (ref_valid_ && qr == ref_q_ && qdr == ref_qd_ && s.qdd_ref == ref_qdd_) {
+      // the same as at the last update (a set point, the jaw still): the same image
+      s.pose_ref = ref_pose_;
+      twist_ref = ref_twist_;
+      accel_ref = ref_accel_;
+    } else {
+      r.kinematics(qr.data(), wsr_, false);
+      s.pose_ref = r.tool_pose(wsr_);
+      r.tool_jacobian(wsr_, Jr);
+      r.tool_bias(wsr_, qdr.data(), br);
+      twist_ref = Jr * qdr;
+      accel_ref = Jr * s.qdd_ref + br;
+      ref_q_ = qr;
+      ref_qd_ = qdr;
+      ref_qdd_ = s.qdd_ref;
+      ref_pose_ = s.pose_ref;
+      ref_twist_ = twist_ref;
+      ref_accel_ = accel_ref;
+      ref_valid_ = true;
+    }
   }
   r.kinematics(in.q, ws_, false);
   s.pose = r.tool_pose(ws_);

@@ -36,6 +36,7 @@ from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simula
 from ._core import (
     CooperativeController,
     CoopMember,
+    LeaderFollower,
     ObjectControl,
     TASK_AXES,
     HybridForce,
@@ -99,7 +100,7 @@ __all__ = [
     "from_urdf",
     "to_urdf",
     "view",
-    "CooperativeController", "CoopMember", "ObjectControl",
+    "CooperativeController", "CoopMember", "LeaderFollower", "ObjectControl",
     "TASK_AXES", "HybridForce", "Impedance", "Payload", "TaskController", "TaskState", "commandable_directions", "task_axes",  # noqa: E501
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
     "sweep", "sweeps", "TaskRun",

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -1182,7 +1182,7 @@ class CooperativeController:
     Subclass it in Python: call super().__init__(), define compute(t, members) -> list of tau, one (n,)
     array per member (a CoopMember: q, qd, the joint reference, the sensor's wrench, what it holds and
     the grip), and optionally reset(robots, period). The simulation saturates each tau at its robot's
-    limits. The built-in law: ObjectControl.
+    limits. The built-in laws: ObjectControl, LeaderFollower.
     """
     def __init__(self) -> None:
         ...
@@ -1231,6 +1231,29 @@ class ObjectControl(CooperativeController):
     @property
     def squeeze(self) -> float:
         ...
+class LeaderFollower(CooperativeController):
+    """
+    Leader-follower control of two arms holding one object (after Luh and Zheng).
+    
+    The leader (robot 0 of the group) tracks its own reference in task space, like computed torque on
+    its TCP: a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s), the sensed wrench cancelled (it carries
+    what it feels). The follower's reference is where its clamp must be for the grip it holds, given the
+    leader's clamp: T_f,ref = T_lead G_leader G_f^-1, T_lead the leader's measured position with its planned
+    orientation (the leader's own rotation errors would swing the follower's reference through the object's
+    lever), its twist and acceleration carried as a rigid body's from the leader's measured velocity and
+    commanded acceleration; around it the follower is an impedance (stiffness N/m and N m/rad, damping
+    N s/m, mass kg: scalars or one per commanded direction) driven by its sensed wrench, less
+    `follower_share` of the object's weight (`object_mass`, the model's, kg): it carries that part and
+    yields to the rest, so the internal force stays small. Both arms command the directions both can
+    (the SCARAs: x, y, z, yaw); the rest follows their joint references.
+    """
+    def __init__(self, stiffness: typing.Any, damping: typing.Any, mass: typing.Any, *, object_mass: typing.SupportsFloat | typing.SupportsIndex, kp: typing.SupportsFloat | typing.SupportsIndex = 900.0, kd: typing.SupportsFloat | typing.SupportsIndex = 60.0, follower_share: typing.SupportsFloat | typing.SupportsIndex = 0.5) -> None:
+        ...
+    @property
+    def relative_error(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) the follower's pose error from where the grips put it (task axes: m, rad).
+        """
 class World:
     """
     A Bullet dynamics world: an optional floor (the plane z = 0), static boxes

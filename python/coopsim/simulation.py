@@ -121,8 +121,8 @@ class Simulation:
         return self._core.add_robot(robot, controller, reference, q0, qd0)
 
     def add_cooperative(self, controller, robots) -> int:
-        """Drives robots `robots` (indices) together with a coopsim.CooperativeController (ObjectControl or a
-        subclass) from the next controller update on; their own controllers stand aside
+        """Drives robots `robots` (indices) together with a coopsim.CooperativeController (ObjectControl,
+        LeaderFollower or a subclass) from the next controller update on; their own controllers stand aside
         until remove_cooperative. A robot belongs to one group at most. Returns the group's index."""
         if not isinstance(controller, _core.CooperativeController):
             raise ValueError(f"controller must be a coopsim.CooperativeController, got {type(controller).__name__}")

@@ -97,4 +97,45 @@ reference the same grip on its TCP at its joint reference.)doc";
   double h_ = 0.0;
 };
 
+// Leader-follower (documentation, Python's too).
+class LeaderFollower : public CooperativeController {
+ public:
+  static constexpr char kDoc[] = R"doc(
+Leader-follower control of two arms holding one object (after Luh and Zheng).
+
+The leader (robot 0 of the group) tracks its own reference in task space, like computed torque on
+its TCP: a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s), the sensed wrench cancelled (it carries
+what it feels). The follower's reference is where its clamp must be for the grip it holds, given the
+leader's clamp: T_f,ref = T_lead G_leader G_f^-1, T_lead the leader's measured position with its planned
+orientation (the leader's own rotation errors would swing the follower's reference through the object's
+lever), its twist and acceleration carried as a rigid body's from the leader's measured velocity and
+commanded acceleration; around it the follower is an impedance (stiffness N/m and N m/rad, damping
+N s/m, mass kg: scalars or one per commanded direction) driven by its sensed wrench, less
+`follower_share` of the object's weight (`object_mass`, the model's, kg): it carries that part and
+yields to the rest, so the internal force stays small. Both arms command the directions both can
+(the SCARAs: x, y, z, yaw); the rest follows their joint references.)doc";
+  LeaderFollower(double kp, double kd, Eigen::VectorXd stiffness, Eigen::VectorXd damping,
+                 Eigen::VectorXd mass, double object_mass, double follower_share = 0.5);
+  void check(const std::vector<const Robot*>& robots) const override;
+  void reset(const std::vector<const Robot*>& robots, double period) override;
+  void compute(double t, const std::vector<CoopMember>& members, const std::vector<double*>& tau) override;
+  double kp() const { return kp_; }
+  double kd() const { return kd_; }
+  const Eigen::VectorXd& stiffness() const { return k_; }
+  const Eigen::VectorXd& damping() const { return d_; }
+  const Eigen::VectorXd& mass() const { return m_; }
+  double object_mass() const { return object_mass_; }
+  double follower_share() const { return share_; }
+  // The follower's pose error from its reference after the last update (6, task axes: m, rad).
+  const Vec6& relative_error() const { return rel_; }
+
+ private:
+  double kp_, kd_;
+  Eigen::VectorXd k_, d_, m_;
+  double object_mass_, share_;
+  std::vector<std::shared_ptr<TaskController>> arms_;
+  Vec6 K_, D_, Md_, rel_ = Vec6::Zero(), lead_acc_ = Vec6::Zero();
+  Eigen::Vector3d g_ = Eigen::Vector3d::Zero();
+};
+
 }  // namespace coopsim

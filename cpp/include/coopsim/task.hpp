@@ -18,7 +18,9 @@
 // twist [v; w] and its derivative [a; alpha] of the TCP projected on the axes; the reference's
 // come from the joint reference by the robot's kinematics: x_ref = FK(q_ref), xd_ref = J(q_ref)
 // qd_ref, xdd_ref = J(q_ref) qdd_ref + Jd(q_ref, qd_ref) qd_ref (a plan_cartesian trajectory is
-// such a reference).
+// such a reference), with the jaw's position and velocity the measured ones: the TCP, midway between
+// the jaws, is referred to the opening the jaw has (a jaw squeezing a body stops short of its
+// reference).
 //
 // The commanded directions: those whose row of the task Jacobian (the arm's joints, the jaw
 // excluded) is not zero somewhere in the joint limits (checked at reset at the reference's
