@@ -51,7 +51,8 @@ def score(runner, report: dict) -> dict:
     """Adds report['scores'] from the run's log and returns the series behind the figures (numpy arrays over the
     log's rows): t, bar_planned (rows, 4, 4), bar (rows, 4, 4), position_error (m), angle_error (rad),
     weld (rows, 2, 6) N and N m, weld_stretch (rows, 2) m, tau (2 lists of (rows, n)), holding (rows, 2) bool,
-    clearance_robots (m)."""
+    clearance_robots (m), cooperation (the log's cooperation columns of the two robots), pair (rows) bool (both
+    carry the bar: the rows of the cooperation scores), airborne (rows) bool (and it touches no stand)."""
     log, plan, robots = runner.sim.log, runner.plan, runner.robots
     t = log.t
     body = log.bodies[scene.BAR]
@@ -125,7 +126,7 @@ def score(runner, report: dict) -> dict:
     return dict(t=t, bar=bar, bar_planned=planned, position_error=pos_err, angle_error=ang_err, weld=weld,
                 weld_points=weld_points, weld_stretch=stretch, holding=holding, carried=carried,
                 tau=[rl.tau for rl in log.robots], clearance_robots=d_rr, tool_error=tcp_err, cooperation=co,
-                both=pair, airborne=airborne)
+                pair=pair, airborne=airborne)
 
 
 def _touching_stands(contacts, t) -> np.ndarray:
