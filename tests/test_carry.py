@@ -464,7 +464,6 @@ def test_a_clamp_letting_go_under_a_cooperative_law_fails_the_carry_naming_it():
 
 # ---- sweeps ----
 
-@pytest.mark.slow
 def test_a_sweep_on_two_threads_scores_each_run_as_a_run_alone():
     """2 controllers x 2 disturbances x 2 seeds through coopsim.sweep on 2 threads: the table's rows, in the
     grid's order, hold exactly the scores of the same runs done one by one."""
