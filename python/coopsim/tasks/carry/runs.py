@@ -7,7 +7,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from ..._core import IKError
-from ...sweeps import sweep as _sweep
+from ...sweeps import OptionsRun, sweep as _sweep
 from .controllers import CONTROLLERS
 from .disturbances import DISTURBANCES
 from .planning import random_start
@@ -17,7 +17,7 @@ from .sequence import run
 __all__ = ["CarryRun", "sweep", "sweep_table"]
 
 
-class CarryRun:
+class CarryRun(OptionsRun):
     """One carry as an item of :func:`coopsim.sweep`: `options` are the keywords of :func:`~.sequence.run`
     (seed=, disturbance=, controllers= a name of :data:`~.controllers.CONTROLLERS`, controller_options=, ...;
     score_run=True unless given). Plain values only, so it pickles anywhere."""
@@ -27,17 +27,6 @@ class CarryRun:
                      "squeeze_rms_N", "squeeze_max_N", "internal_force_rms_N", "internal_force_max_N",
                      "load_share_deviation", "relative_position_max_mm", "relative_angle_max_mrad",
                      "slip_max_mm_0", "slip_max_mm_1", "torque_fraction_0", "torque_fraction_1")
-
-    def __init__(self, **options):
-        self.options = dict(options)
-
-    def __eq__(self, other):
-        return isinstance(other, CarryRun) and self.options == other.options
-
-    __hash__ = None
-
-    def __repr__(self) -> str:
-        return "CarryRun(" + ", ".join(f"{k}={v!r}" for k, v in self.options.items()) + ")"
 
     def sweep_run(self):
         """Runs the carry; returns (:func:`~.scoring.score_row` of its report with simulated_time, the
