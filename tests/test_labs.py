@@ -182,6 +182,8 @@ WRONG = [
     ("03_collisions_and_grasping", "lab03-ex2-answer", "mu_stick = 0.5", "mu_stick = 0.3"),  # below tan 20°
     ("05_force_and_impedance", "lab05-ex2-answer", "D_crit = 2 * np.sqrt(K_crit * M_crit)",
      "D_crit = np.sqrt(K_crit * M_crit)"),  # zeta 0.5: it overshoots
+    ("06_cooperative_control", "lab06-ex1-answer", "squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),  # a push, not a pull
+    ("06_cooperative_control", "lab06-ex2-answer", "share_cmd = 0.3", "share_cmd = 0.7"),  # SCARA #1's share
 ]
 
 

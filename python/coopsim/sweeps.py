@@ -76,6 +76,23 @@ def _run_simulation(sim: Simulation, t_end: float, keep_log: bool) -> dict:
     return row
 
 
+class OptionsRun:
+    """A run that runs itself from keywords (plain values, so it pickles anywhere): the base of the tasks'
+    sweep items (:class:`coopsim.TaskRun`, :class:`coopsim.tasks.carry.CarryRun`), which define
+    ``sweep_run()`` and ``sweep_columns``. Equal when their options are."""
+
+    def __init__(self, **options):
+        self.options = dict(options)
+
+    def __eq__(self, other):
+        return type(other) is type(self) and self.options == other.options
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(" + ", ".join(f"{k}={v!r}" for k, v in self.options.items()) + ")"
+
+
 def _is_run(x) -> bool:
     """A Simulation, or a run that runs itself (an instance with sweep_run(), such as coopsim.TaskRun)."""
     return isinstance(x, Simulation) or (not isinstance(x, type) and callable(getattr(x, "sweep_run", None)))

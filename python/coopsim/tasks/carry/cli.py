@@ -15,7 +15,7 @@ from ..handover.cli import check_out_folder
 from .controllers import CONTROLLERS
 from .disturbances import DISTURBANCES, disturbances
 from .report import summary, write_outputs, write_report
-from .runs import sweep
+from .runs import sweep_table
 from .sequence import run
 
 
@@ -32,7 +32,16 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--mass-factor", type=float, default=None, metavar="F",
                     help="the bar's mass in the controllers' models over the world's (> 0; as the mass disturbances, "
                          "which it excludes)")
-    ap.add_argument("--sweep", type=int, default=0, metavar="N", help="also run seeds 0 .. N-1 and print the rate")
+    ap.add_argument("--sweep", type=int, default=0, metavar="N",
+                    help="also sweep seeds 0 .. N-1 for every controller of --sweep-controllers and disturbance of "
+                         "--sweep-disturbances (threads: --threads), print the table's means and write sweep.csv and "
+                         "sweep.json")
+    ap.add_argument("--sweep-controllers", default=None, metavar="A,B",
+                    help="the sweep's controllers, joined by commas (default: --controller)")
+    ap.add_argument("--sweep-disturbances", default=None, metavar="A,B",
+                    help="the sweep's disturbances, one per run, joined by commas (default: the run's --disturbance, "
+                         "combined)")
+    ap.add_argument("--threads", type=int, default=2, help="the sweep's threads (>= 1, default 2)")
     ap.add_argument("--video", dest="video", action="store_true", default=True, help="write carry.mp4 (default)")
     ap.add_argument("--no-video", dest="video", action="store_false", help="skip the animation")
     ap.add_argument("--speed", type=float, default=1.0,
@@ -62,34 +71,66 @@ def parse_args(argv=None) -> argparse.Namespace:
         ap.error(f"argument --controller: unknown controller {args.controller!r}: choose from {', '.join(CONTROLLERS)}")
     if args.sweep < 0:
         ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
+    if args.threads < 1:
+        ap.error(f"argument --threads: must be >= 1, got {args.threads}")
+    args.sweep_controllers = _list(args.sweep_controllers) or [args.controller]
+    for c in args.sweep_controllers:
+        if c not in CONTROLLERS:
+            ap.error(f"argument --sweep-controllers: unknown controller {c!r}: choose from {', '.join(CONTROLLERS)}")
+    args.sweep_disturbances = _list(args.sweep_disturbances) or [",".join(names) or "none"]
+    for d in args.sweep_disturbances:
+        if d not in DISTURBANCES and d != ",".join(names):
+            ap.error(f"argument --sweep-disturbances: unknown disturbance {d!r}: choose from {', '.join(DISTURBANCES)}")
+    if args.mass_factor is not None and any(d.startswith("mass") for d in args.sweep_disturbances):
+        ap.error("argument --mass-factor: not with a mass disturbance in the sweep")
     if not (0.0 < args.speed <= MAX_SPEED) or not math.isfinite(args.speed):   # also NaN
         ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g}, got {args.speed:g}")
     check_out_folder(ap, args.out)
     return args
 
 
+def _list(text):
+    return [x.strip() for x in (text or "").split(",") if x.strip()]
+
+
+#: the sweep table's columns printed, as their means per controller and disturbance
+SWEEP_SUMMARY = ("success", "bar_error_rms_mm", "bar_error_max_mm", "squeeze_rms_N", "internal_force_max_N",
+                 "load_share_deviation", "relative_position_max_mm", "wall_time")
+
+
 def main(argv=None) -> int:
     """``python -m coopsim.tasks.carry``: runs the carry, writes its outputs, prints the summary; exit 0 on
     success, 1 on a failed carry."""
     args = parse_args(argv)
-    res = run(seed=args.seed, disturbance=args.disturbance, controllers=CONTROLLERS[args.controller],
-              controller_name=args.controller, mass_factor=args.mass_factor)
+    res = run(seed=args.seed, disturbance=args.disturbance, controllers=args.controller,
+              mass_factor=args.mass_factor)
     rep, wall = res.report, res.timing["run"]
     rep["command_line"] = dict(seed=args.seed, disturbance=args.disturbance, controller=args.controller,
                                mass_factor=args.mass_factor,
-                               sweep=args.sweep, video=args.video, speed=args.speed, out=args.out)
+                               sweep=args.sweep, sweep_controllers=args.sweep_controllers,
+                               sweep_disturbances=args.sweep_disturbances, threads=args.threads, video=args.video,
+                               speed=args.speed, out=args.out)
     print(summary(rep))
     print(f"simulated {rep['simulated_time']:.2f} s in {wall:.3f} s of wall time: "
           f"{rep['simulated_time'] / wall:.0f}x real time (scoring {res.timing['scoring']:.3f} s more)")
     paths = write_outputs(res, args.out, video=args.video, speed=args.speed)
     if args.sweep:
         t1 = time.perf_counter()
-        sw = sweep(range(args.sweep), disturbance=args.disturbance, controllers=CONTROLLERS[args.controller],
-                   controller_name=args.controller, mass_factor=args.mass_factor)
-        print(f"sweep of {args.sweep} seeds in {time.perf_counter() - t1:.1f} s: success rate "
-              f"{sw['success_rate'] * 100:.0f} %")
-        for r in sw["failures"]:
-            print(f"  seed {r['seed']}: FAILED in {r['step']}: {r['reason']}")
-        paths.append(write_report(sw, os.path.join(args.out, "sweep.json")))
+        table = sweep_table(args.sweep_controllers, args.sweep_disturbances, range(args.sweep), threads=args.threads,
+                            mass_factor=args.mass_factor)
+        n = len(table)
+        print(f"sweep of {n} runs ({len(args.sweep_controllers)} controllers x {len(args.sweep_disturbances)} "
+              f"disturbances x {args.sweep} seeds) on {args.threads} threads in {time.perf_counter() - t1:.1f} s: "
+              f"success rate {table.success.astype(bool).mean() * 100:.0f} %; means:")
+        means = table.groupby(["controller", "disturbance"], sort=False)[list(SWEEP_SUMMARY)].mean()
+        print(means.to_string(float_format=lambda x: f"{x:.3f}"))
+        for r in table[~table.success.astype(bool)].itertuples():
+            print(f"  {r.controller}, {r.disturbance}, seed {r.seed}: FAILED in {r.step}: {r.reason or r.error}")
+        p = os.path.join(args.out, "sweep.csv")
+        table.to_csv(p)
+        paths.append(p)
+        records = table.drop(columns=[c for c in ("log",) if c in table]).to_dict(orient="records")
+        paths.append(write_report(dict(success_rate=float(table.success.astype(bool).mean()), runs=records),
+                                  os.path.join(args.out, "sweep.json")))
     print("wrote " + ", ".join(paths))
     return 0 if rep["success"] else 1

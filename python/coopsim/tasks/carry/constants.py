@@ -65,3 +65,11 @@ JAW_STAND_CLEARANCE = 0.01  # the jaws this far from every stand, the bar held o
 #: gains of the computed-torque baseline: omega (rad/s) per joint, kp = omega^2, kd = 2 omega (the wrist and
 #: jaw joints higher, as in the handover)
 OMEGA = (np.array([30.0, 30.0, 30.0, 60.0, 60.0, 60.0]), np.array([30.0, 30.0, 30.0, 30.0, 60.0, 60.0]))
+#: gains of object-level control (``object``, :class:`coopsim.ObjectControl`): the bar's pose error
+#: a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s: omega 50 rad/s, critically damped; at ObjectControl's
+#: default 400 and 40 a bar mass wrong by -50 % in the model left the bar 10 mm RMS off its path), the clamps'
+#: wrenches closed on their sensors with kp_force and ki_force (1/s), the integral bounded by integral_limit
+#: (N, N m). ki_force 5 (the engine's default 10): the integral drives each clamp's wrench to the one the
+#: model commands, so a wrong model mass moves the bar (-50 %: 1.4 mm RMS off its path at 5, 2.0 mm at 10,
+#: 0.6 mm at 0), while without it a commanded load share is not met (0.3 commanded: 0.29 at 5, 0.196 at 0)
+OBJECT_GAINS = dict(kp=2500.0, kd=100.0, kp_force=0.5, ki_force=5.0, integral_limit=50.0)

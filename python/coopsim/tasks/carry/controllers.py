@@ -1,12 +1,27 @@
 """The carry's controllers: factories ``(robots, plan) -> per-robot controllers`` that :func:`~.sequence.run`
 takes as ``controllers=``.
 
-A factory returns either a list of one :class:`coopsim.Controller` per robot, driving it for the whole run,
-or :class:`Phased` controllers: ``free`` ones while the robots do not hold the bar together and ``held``
-ones from the moment both clamps hold it (the end of the grasp) until both have let go (the end of the
-release), installed with :meth:`coopsim.Simulation.set_controller`. A factory reads what it needs from the
-plan (:class:`~.planning.Plan`): its references, its grips, the bar's planned path, and
-``plan.model_bar_mass``, the bar's mass its model should take (the 'mass' disturbances scale it).
+A factory returns one of three things:
+
+- a list of one :class:`coopsim.Controller` per robot, driving it for the whole run;
+- :class:`Phased` controllers: ``free`` ones while the robots do not hold the bar together and ``held``
+  ones from the moment both clamps hold it (the end of the grasp) until both have let go (the end of the
+  release), installed with :meth:`coopsim.Simulation.set_controller`;
+- :class:`Cooperative`: ``free`` per-robot controllers and one :class:`coopsim.CooperativeController`
+  (``law``) that drives both robots together from the end of the grasp to the end of the place
+  (:meth:`coopsim.Simulation.add_cooperative`); it is removed before the jaws open
+  (:meth:`coopsim.Simulation.remove_cooperative`), and the free controllers release the bar and back off.
+  The robots' references stay the planned joint trajectories: a law reads them through its members.
+
+A factory reads what it needs from the plan (:class:`~.planning.Plan`): its references, its grips, the bar's
+planned path, and ``plan.model_bar_mass``, the bar's mass its model should take (the 'mass' disturbances
+scale it). Factories may take keyword options after (robots, plan) (``functools.partial`` or
+:func:`run`'s ``controller_options`` set them).
+
+The choices by name are :data:`CONTROLLERS` (the command line's ``--controller``, :func:`~.sequence.run`'s
+``controllers="object"``, the sweeps'); :func:`register_controller` adds one. A cooperative law from the
+engine plugs in as ``register_controller(name, cooperative(make_law))``, ``make_law(robots, plan, **options)``
+returning the law.
 
 - :func:`computed_torque` (``ct``), the baseline: each arm on its own, :class:`coopsim.ComputedTorque` on its
   reference with the robot alone as its model. The model knows no bar: it is wrong by the bar's whole share
@@ -16,6 +31,12 @@ plan (:class:`~.planning.Plan`): its references, its grips, the bar's planned pa
   link (with the bar's mass at the two grips 0.10 m either side of its centre its inertia about the vertical
   through the centre is m 0.01 m^2, within 2 % of the bar's m L^2 / 12). Here a bar mass wrong by +-50 % is a
   model wrong by +-50 % of that share.
+- :func:`object_control` (``object``): :class:`coopsim.ObjectControl` drives both arms during the hold,
+  object-level control with the bar's model mass ``plan.model_bar_mass`` (so the 'mass' disturbances scale
+  it) and the inertia of a box of that mass with the bar's size, a commanded load share (0.5: SCARA #1
+  carries half of the bar's weight) and squeeze (0 N); the gains :data:`~.constants.OBJECT_GAINS`. The
+  bar's reference is SCARA #1's (its planned joint trajectory and its grip); SCARA #2's TCP moves as a
+  point of the bar. Free, the baseline.
 """
 from __future__ import annotations
 
@@ -24,10 +45,12 @@ from typing import Callable, Dict, List, Sequence
 
 import numpy as np
 
-from ..._core import ComputedTorque, Controller, Robot
-from .constants import OMEGA
+from ..._core import ComputedTorque, Controller, CooperativeController, ObjectControl, Robot, box_inertia
+from . import scene
+from .constants import OBJECT_GAINS, OMEGA
 
-__all__ = ["CONTROLLERS", "Phased", "computed_torque", "computed_torque_payload", "with_point_mass"]
+__all__ = ["CONTROLLERS", "Cooperative", "Phased", "computed_torque", "computed_torque_payload", "cooperative",
+           "object_control", "register_controller", "with_point_mass"]
 
 
 @dataclasses.dataclass
@@ -36,6 +59,16 @@ class Phased:
 
     free: Sequence[Controller]
     held: Sequence[Controller]
+
+
+@dataclasses.dataclass
+class Cooperative:
+    """Per-robot controllers `free` (one per robot: outside the dual hold, and the robots' own controllers,
+    standing aside, during it) and one cooperative `law` (a :class:`coopsim.CooperativeController`) driving
+    both robots from the end of the grasp to the end of the place."""
+
+    free: Sequence[Controller]
+    law: CooperativeController
 
 
 def _gains(i):
@@ -99,5 +132,55 @@ def computed_torque_payload(robots: Sequence[Robot], plan) -> Phased:
     return Phased(free=computed_torque(robots, plan), held=held)
 
 
-#: the controller factories by their command-line names
-CONTROLLERS: Dict[str, Callable] = {"ct": computed_torque, "ct-payload": computed_torque_payload}
+def cooperative(make_law: Callable[..., CooperativeController]) -> Callable[..., Cooperative]:
+    """A factory of :class:`Cooperative` controllers from ``make_law(robots, plan, **options)`` -> a
+    :class:`coopsim.CooperativeController`: the law drives both arms during the dual hold, the baseline
+    (:func:`computed_torque`) outside it. Its name is the law maker's."""
+
+    def factory(robots: Sequence[Robot], plan, **options) -> Cooperative:
+        return Cooperative(free=computed_torque(robots, plan), law=make_law(robots, plan, **options))
+
+    factory.__name__ = getattr(make_law, "__name__", "cooperative")
+    factory.__doc__ = make_law.__doc__
+    return factory
+
+
+def bar_model(plan):
+    """The bar as the controllers' models take it: (mass kg, inertia (3, 3) kg m^2 about its centre in its own
+    frame): ``plan.model_bar_mass`` and a solid box of that mass with the bar's size."""
+    m = plan.model_bar_mass
+    return m, np.asarray(box_inertia(m, *(2.0 * scene.BAR_HALF_EXTENTS)))
+
+
+def _object_control_law(robots: Sequence[Robot], plan, *, load_share: float = 0.5, squeeze: float = 0.0,
+                        **gains) -> ObjectControl:
+    """Object-level control (:class:`coopsim.ObjectControl`) with the bar's model (:func:`bar_model`): SCARA
+    #1 carries `load_share` of its weight, the clamps squeeze it with `squeeze` N (compression positive); gains
+    (kp 1/s^2, kd 1/s, kp_force, ki_force 1/s, integral_limit N) default to :data:`~.constants.OBJECT_GAINS`."""
+    unknown = set(gains) - set(OBJECT_GAINS)
+    if unknown:
+        raise ValueError(f"unknown option(s) of object control: {', '.join(sorted(unknown))} (choose from "
+                         f"load_share, squeeze, {', '.join(OBJECT_GAINS)})")
+    m, inertia = bar_model(plan)
+    return ObjectControl(m, inertia, load_share=load_share, squeeze=squeeze, **{**OBJECT_GAINS, **gains})
+
+
+_object_control_law.__name__ = "object_control"
+#: ``object``: :class:`coopsim.ObjectControl` during the dual hold (options: load_share, squeeze and the gains
+#: of :data:`~.constants.OBJECT_GAINS`), the baseline outside it
+object_control = cooperative(_object_control_law)
+
+#: the controller factories by name (the command line's ``--controller``, ``run(controllers=NAME)``, sweeps)
+CONTROLLERS: Dict[str, Callable] = {"ct": computed_torque, "ct-payload": computed_torque_payload,
+                                    "object": object_control}
+
+
+def register_controller(name: str, factory: Callable) -> None:
+    """Adds `factory` to :data:`CONTROLLERS` as `name` (a new name: ValueError for one taken)."""
+    if not isinstance(name, str) or not name or name != name.strip() or "," in name:
+        raise ValueError(f"name must be a non-empty string without commas or surrounding spaces, got {name!r}")
+    if name in CONTROLLERS:
+        raise ValueError(f"a controller named {name!r} exists: choose another name")
+    if not callable(factory):
+        raise ValueError(f"factory must be callable (robots, plan, **options) -> controllers, got {factory!r}")
+    CONTROLLERS[name] = factory

@@ -22,7 +22,7 @@ from . import scene
 from .constants import (BRANCH, CLEAR_ABOVE, CLOSE_SPEED, END, FIXED_GAP, FLIP, GRIP1, GRIP2, KNOTS, LIFT, OPEN,
                         SQUEEZE, START, START_SHIFT, START_TURN, TIMES)
 
-__all__ = ["BarPath", "Plan", "grip_pose", "make_plan", "random_start", "reference_disagreement", "STEPS"]
+__all__ = ["BarPath", "Plan", "grip_pose", "held_references", "make_plan", "random_start", "reference_disagreement", "STEPS"]
 
 #: the steps of a carry, in order
 STEPS = ("approach", "grasp", "lift", "carry", "place", "release", "back off")
@@ -223,6 +223,25 @@ def make_plan(start=START, end=END, *, robots=None, grip_offsets=(0.0, 0.0), clo
         knots.append((np.array(k.t), np.array(k.q)))
     return Plan(bar, grips, refs, steps, float(t_end), tuple(start), tuple(end), q_grasp,
                 mass_factor * scene.BAR_MASS, knots, tuple(offsets.tolist()), tuple(bool(c) for c in close))
+
+
+def held_references(plan: Plan) -> List[CubicTrajectory]:
+    """Each robot's reference with its jaw's reference at the bar's width, instead of SQUEEZE, from the lift to
+    the end of the place (the arm joints' as planned). The jaw stop holds a closed jaw at the bar's width either
+    way, but the tool centre point lies midway between the jaws: at the jaw's reference SQUEEZE the
+    reference's TCP is (width - SQUEEZE) / 2 = 4 mm along the jaw axis from the clamp's, and a law that reads
+    the held object's reference from its TCP reference (:class:`coopsim.ObjectControl`: the object is the grip
+    applied to the reference member's TCP) would carry the bar that far off its path. The cooperative laws
+    run on these (:func:`~.sequence.run`)."""
+    t0, t1 = plan.steps["lift"][0], plan.steps["place"][1]
+    out = []
+    for t, q in plan.knots:
+        q = q.copy()
+        held = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
+        if plan.close[len(out)]:
+            q[held, 5] = 2.0 * scene.BAR_HALF_EXTENTS[1]
+        out.append(CubicTrajectory(t, q))
+    return out
 
 
 def reference_disagreement(plan: Plan, robots=None, samples: int = 4000) -> float:

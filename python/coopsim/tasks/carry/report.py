@@ -40,6 +40,15 @@ def summary(report: dict) -> str:
                          f"{x['torque_limit_fraction'] * 100:.0f} % of its limit; tool error "
                          f"{x['tool_error_mm']['rms']:.2f} / {x['tool_error_mm']['max']:.2f} mm RMS / max; sensed "
                          f"force error {x['sensed_force_error']['rms']:.2f} N RMS")
+        c = s.get("cooperation")
+        if c:
+            ls = c["load_share"]
+            lines.append(f"  together while carried: squeeze {c['squeeze_N']['rms']:.3f} N RMS, {c['squeeze_N']['max']:.3f} N "
+                         f"max (commanded {c['squeeze_commanded_N']:.2f} N); internal force {c['internal_force_N']['rms']:.3f} "
+                         f"N RMS, {c['internal_force_N']['max']:.3f} N max; SCARA #1's load share {ls['mean']:.3f} "
+                         f"(commanded {c['load_share_commanded']:.2f}, off by {ls['mean_abs_deviation']:.3f} on average); "
+                         f"relative pose error {c['relative_position_error_mm']:.2f} mm, "
+                         f"{c['relative_angle_error_mrad']:.2f} mrad max")
         if s["clearance_robots"]:
             lines.append(f"  min clearance robot-robot {s['clearance_robots']['min'] * 1e3:.0f} mm at t = "
                          f"{s['clearance_robots']['t']:.2f} s; {len(s['grasp_events'])} grasp events, "

@@ -1,6 +1,7 @@
 """The scores of a carry, from its log: the bar's pose against its planned path, the welds' wrenches and
-stretch (slip), the joint torques, tracking, clearances, the force sensors against the welds, and every grasp
-and contact event."""
+stretch (slip), the joint torques, tracking, clearances, the force sensors against the welds, what the two
+clamps do to the bar together (the engine's cooperation columns: squeeze, internal wrench, load share,
+relative pose error) and every grasp and contact event."""
 from __future__ import annotations
 
 from typing import List
@@ -50,7 +51,8 @@ def score(runner, report: dict) -> dict:
     """Adds report['scores'] from the run's log and returns the series behind the figures (numpy arrays over the
     log's rows): t, bar_planned (rows, 4, 4), bar (rows, 4, 4), position_error (m), angle_error (rad),
     weld (rows, 2, 6) N and N m, weld_stretch (rows, 2) m, tau (2 lists of (rows, n)), holding (rows, 2) bool,
-    clearance_robots (m)."""
+    clearance_robots (m), cooperation (the log's cooperation columns of the two robots), pair (rows) bool (both
+    carry the bar: the rows of the cooperation scores), airborne (rows) bool (and it touches no stand)."""
     log, plan, robots = runner.sim.log, runner.plan, runner.robots
     t = log.t
     body = log.bodies[scene.BAR]
@@ -97,10 +99,11 @@ def score(runner, report: dict) -> dict:
             # touches the clamp then): its noise and filter
             sensed_force_error=dict(rms=_rms(np.linalg.norm(rl.ft_world[h, :3] - weld[h, i, :3], axis=1)),
                                     max=_max(np.linalg.norm(rl.ft_world[h, :3] - weld[h, i, :3], axis=1)))))
-    # ---- internal force: it plugs in here ----
-    # The internal (squeezing, twisting) part of the two weld wrenches needs the welds' points: they are
-    # `weld_points` below, per row (the anchors carried by the clamps' links). Until the engine's internal-force
-    # computation lands, the score carries the raw weld wrenches per robot (above, and `weld` in the series).
+    # ---- the two clamps together: the engine's cooperation columns (SimulationLog.cooperation) ----
+    co = log.cooperation(0, 1)
+    pair = co["holding"] & (co["body"] == scene.BAR) & carried   # as the bar's pose: lift, carry, place
+    airborne = pair & ~_touching_stands(log.contacts, t)
+    s["cooperation"] = cooperation_scores(co, pair, airborne, report.get("commanded"))
     k = np.flatnonzero(np.isfinite(d_rr))
     j = k[np.argmin(d_rr[k])] if len(k) else 0
     s["clearance_robots"] = dict(min=float(d_rr[j]), t=float(t[j])) if len(k) else None
@@ -122,7 +125,88 @@ def score(runner, report: dict) -> dict:
                 weld_points[rows, i] = F[:, :3, :3] @ a["link"] + F[:, :3, 3]
     return dict(t=t, bar=bar, bar_planned=planned, position_error=pos_err, angle_error=ang_err, weld=weld,
                 weld_points=weld_points, weld_stretch=stretch, holding=holding, carried=carried,
-                tau=[rl.tau for rl in log.robots], clearance_robots=d_rr, tool_error=tcp_err)
+                tau=[rl.tau for rl in log.robots], clearance_robots=d_rr, tool_error=tcp_err, cooperation=co,
+                pair=pair, airborne=airborne)
+
+
+def _touching_stands(contacts, t) -> np.ndarray:
+    """(rows,) bool: the bar touches a stand at the log's times t (its contact events with the stands, an
+    event's end NaN while it lasts)."""
+    out = np.zeros(len(t), bool)
+    for x in contacts.itertuples():
+        other = x.b if x.a == scene.BAR else x.a if x.b == scene.BAR else None
+        if other is not None and "stand" in other:
+            out |= (t >= x.begin) & (t <= (np.inf if np.isnan(x.end) else x.end))
+    return out
+
+
+def cooperation_scores(co: dict, pair, airborne, commanded=None) -> dict:
+    """The scores of the two clamps together, from the log's cooperation columns `co`
+    (:meth:`coopsim.SimulationLog.cooperation`) over the rows `pair` where both hold the bar (the carry's
+    scores: both carrying it, from the lift to the end of the place, as the bar's pose error; the grasp's
+    closing and the release's hand-over to the free controllers are left out) and `airborne` where they hold
+    it off the stands:
+
+    - squeeze_N: the internal force along the line between the welds (compression positive): rms, max (of
+      its magnitude), mean; internal_force_N: the magnitude of the internal wrench's force (each weld's,
+      equal and opposite): rms, max; twist_Nm, bending_Nm: their largest magnitudes (pair rows);
+    - load_share: SCARA #1's part of the vertical load against the commanded one (``commanded['load_share']``,
+      the lever rule's when the controllers command none): mean and mean_abs_deviation (airborne rows only:
+      while a stand carries part of the bar, the welds' vertical load is not its weight);
+    - relative_position_error_mm, relative_angle_error_mrad: the clamps' relative pose against the one they
+      had when the second weld attached, largest (pair rows);
+    - squeeze_commanded_N, load_share_commanded; rows_pair, rows_airborne (the rows counted)."""
+    pair, airborne = np.asarray(pair, bool), np.asarray(airborne, bool)
+    sq = co["squeeze"][pair]
+    f_int = np.linalg.norm(co["internal"][pair][:, :3], axis=1)
+    share = co["load_share"][airborne, 0]
+    share = share[np.isfinite(share)]
+    want = (commanded or {}).get("load_share", [0.5, 0.5])[0]
+    rel = co["relative_pose_error"][pair]
+    return dict(
+        squeeze_N=dict(rms=_rms(sq), max=_max(np.abs(sq)), mean=float(np.mean(sq)) if len(sq) else 0.0),
+        internal_force_N=dict(rms=_rms(f_int), max=_max(f_int)),
+        twist_Nm=_max(np.abs(co["twist"][pair])), bending_Nm=_max(np.abs(co["bending"][pair])),
+        load_share=dict(mean=float(np.mean(share)) if len(share) else float("nan"),
+                        mean_abs_deviation=float(np.mean(np.abs(share - want))) if len(share) else float("nan")),
+        relative_position_error_mm=_max(np.linalg.norm(rel[:, :3], axis=1)) * 1e3,
+        relative_angle_error_mrad=_max(np.linalg.norm(rel[:, 3:], axis=1)) * 1e3,
+        squeeze_commanded_N=float((commanded or {}).get("squeeze", 0.0)), load_share_commanded=float(want),
+        rows_pair=int(pair.sum()), rows_airborne=int(airborne.sum()))
+
+
+def score_row(report: dict) -> dict:
+    """One flat row of a run's outcome and scores (a sweep's columns): success, step, reason (of a failure);
+    the bar's position error rms and max (mm) and angle error max (mrad) while carried; the squeeze's rms and
+    max (N), the internal force's rms and max (N); the load share's mean absolute deviation from the
+    commanded one; the relative pose error's max (mm, mrad); each robot's largest slip (mm) and its largest
+    joint torque as a fraction of its limits. The scores are NaN for a run not scored."""
+    f = report.get("failure") or {}
+    row = dict(success=bool(report["success"]), step=f.get("step"), reason=f.get("reason"))
+    s = report.get("scores")
+    nan = float("nan")
+    c = (s or {}).get("cooperation", {})
+    get = (lambda *k: _dig(s, k)) if s else (lambda *k: nan)
+    row.update(
+        bar_error_rms_mm=get("bar_position_error_mm", "rms"), bar_error_max_mm=get("bar_position_error_mm", "max"),
+        bar_angle_max_mrad=get("bar_angle_error_mrad", "max"),
+        squeeze_rms_N=get("cooperation", "squeeze_N", "rms"), squeeze_max_N=get("cooperation", "squeeze_N", "max"),
+        internal_force_rms_N=get("cooperation", "internal_force_N", "rms"),
+        internal_force_max_N=get("cooperation", "internal_force_N", "max"),
+        load_share_deviation=get("cooperation", "load_share", "mean_abs_deviation"),
+        relative_position_max_mm=c.get("relative_position_error_mm", nan),
+        relative_angle_max_mrad=c.get("relative_angle_error_mrad", nan))
+    for i in range(2):
+        r = s["robots"][i] if s else {}
+        row[f"slip_max_mm_{i}"] = r.get("max_slip_mm", nan)
+        row[f"torque_fraction_{i}"] = r.get("torque_limit_fraction", nan)
+    return row
+
+
+def _dig(d, keys):
+    for k in keys:
+        d = d[k]
+    return float(d)
 
 
 def _jaw_as(q_ref, q) -> np.ndarray:

@@ -8,13 +8,13 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from ..._core import DivergenceError, IKError, box_distances
+from ..._core import CooperativeController, DivergenceError, IKError, box_distances
 from ...simulation import Simulation
 from . import scene
 from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
-from .controllers import Phased, computed_torque, grip_point
+from .controllers import CONTROLLERS, Cooperative, Phased, computed_torque, grip_point
 from .disturbances import Disturbances, disturbances
-from .planning import ROBOT_NAMES, STEPS, Plan, make_plan, random_start
+from .planning import ROBOT_NAMES, STEPS, Plan, held_references, make_plan, random_start
 from .scoring import score
 
 __all__ = ["CarryError", "CarryResult", "run"]
@@ -60,9 +60,14 @@ class _Runner:
                               world_every=world_every, control_every=control_every)
         made = factory(self.robots, plan)
         self.phased = made if isinstance(made, Phased) else None
-        free = made.free if self.phased else made
+        self.coop = made if isinstance(made, Cooperative) else None
+        free = made.free if isinstance(made, (Phased, Cooperative)) else made
         if len(free) != 2 or (self.phased and len(self.phased.held) != 2):
             raise ValueError(f"controllers must give one controller per robot (2), got {made!r}")
+        if self.coop is not None and not isinstance(self.coop.law, CooperativeController):
+            raise ValueError(f"a Cooperative's law must be a coopsim.CooperativeController, got {self.coop.law!r}")
+        self.group: Optional[int] = None
+        self.commanded = commanded_sharing(self.coop.law if self.coop else None, plan)
         for r, c, ref in zip(self.robots, free, plan.references):
             self.sim.add_robot(r, c, ref)
         if dist.sensor_noise is not None:
@@ -88,7 +93,13 @@ class _Runner:
         still hold the bar after each chunk."""
         while self.sim.time < t_end - 1e-12:
             t = t_end if chunk is None else min(t_end, self.sim.time + chunk)
-            self.sim.advance(t)
+            try:
+                self.sim.advance(t)
+            except ValueError:
+                # a cooperative law refuses robots that no longer hold one body: a clamp let go
+                if self.group is not None and any(self.sim.holding(i) != scene.BAR for i in range(2)):
+                    self.check_held()
+                raise
             if held:   # first: a clamp that let go explains what the bar then hits
                 self.check_held()
             self.check_contacts()
@@ -167,6 +178,10 @@ class _Runner:
         if self.phased:
             for i, c in enumerate(self.phased.held):
                 sim.set_controller(i, c)
+        if self.coop:
+            for i, ref in enumerate(held_references(plan)):
+                sim.set_reference(i, ref)
+            self.group = sim.add_cooperative(self.coop.law, [0, 1])
         self.done()
         self.mark("lift")
         self.run_to(S["lift"][1], HELD_CHUNK, held=True)
@@ -186,6 +201,11 @@ class _Runner:
         self.run_to(S["place"][1], HELD_CHUNK, held=True)
         self.done()
         self.mark("release")
+        if self.group is not None:     # the bar rests on the end stands: the free controllers open the jaws
+            sim.remove_cooperative(self.group)
+            self.group = None
+            for i, ref in enumerate(self.plan.references):
+                sim.set_reference(i, ref)
         t_open = S["release"][1]
         while sim.time < t_open - 1e-12:
             self.run_to(min(t_open, sim.time + CHUNK))
@@ -229,6 +249,20 @@ class _Runner:
                                  f"(at least {BACKED_OFF * 1e3:.0f} mm expected)")
 
 
+def commanded_sharing(law, plan: Plan) -> dict:
+    """What the controllers command of the bar's sharing while both hold it: dict(load_share=(2,) SCARA #1's
+    and #2's parts of the vertical load, squeeze N, source). A law with ``load_share`` and ``squeeze``
+    (:class:`coopsim.ObjectControl`) commands those; otherwise nothing is commanded and the reference is what
+    two pins at the planned grips would share (the lever rule: each carries the other's distance from the
+    centre over their distance) without squeezing."""
+    if law is not None and hasattr(law, "load_share") and hasattr(law, "squeeze"):
+        a = float(law.load_share)
+        return dict(load_share=[a, 1.0 - a], squeeze=float(law.squeeze), source="controller")
+    s = [float(G[0, 3]) for G in plan.grips]     # the grips' positions along the bar from its centre (m)
+    a = abs(s[1]) / (abs(s[0]) + abs(s[1]))
+    return dict(load_share=[a, 1.0 - a], squeeze=0.0, source="lever rule")
+
+
 def _plain(x):
     """Tuples as lists, numpy scalars as floats, all the way down: the report holds JSON's values."""
     if isinstance(x, dict):
@@ -242,8 +276,28 @@ def _angle(R) -> float:
     return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
 
 
+def _factory(controllers, name, options):
+    """(the factory, its name in the report) of run's `controllers` (a name of CONTROLLERS or a factory) with
+    `options` (keywords for the factory, or None)."""
+    if isinstance(controllers, str):
+        if controllers not in CONTROLLERS:
+            raise ValueError(f"unknown controller {controllers!r}: choose from {', '.join(CONTROLLERS)}")
+        name, controllers = name or controllers, CONTROLLERS[controllers]
+    if not callable(controllers):
+        raise ValueError(f"controllers must be a name ({', '.join(CONTROLLERS)}) or a factory (robots, plan) -> "
+                         f"controllers, got {controllers!r}")
+    if name is None:
+        inner = getattr(controllers, "func", controllers)       # a functools.partial: its function's name
+        name = getattr(inner, "__name__", type(controllers).__name__)
+    if options is None:
+        return controllers, name
+    if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
+        raise ValueError(f"controller_options must be a dict of keywords for the controllers' factory, got {options!r}")
+    return (lambda robots, plan: controllers(robots, plan, **options)), name
+
+
 def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, controllers=computed_torque,
-        controller_name: Optional[str] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
+        controller_name: Optional[str] = None, controller_options: Optional[dict] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
         dt: float = 2e-4, log_every: int = 25, world_every: int = 5, control_every: int = 5,
         score_run: bool = True) -> CarryResult:
     """Runs the dual carry and scores it.
@@ -252,9 +306,12 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     planned START). start, end: the bar's (x, y, z, yaw) on the start and end stands (m, rad; default START
     and END; start and seed exclude each other). disturbance: None, a name of
     :data:`~.disturbances.DISTURBANCES`, several (a list, or names joined by commas) or a
-    :class:`~.disturbances.Disturbances`. controllers: a factory (robots, plan) -> one controller per robot, or
-    :class:`~.controllers.Phased` ones (default the baseline, :func:`~.controllers.computed_torque`);
-    controller_name: its name in the report (default the factory's __name__). mass_factor: the bar's mass in
+    :class:`~.disturbances.Disturbances`. controllers: a name of :data:`~.controllers.CONTROLLERS` ('ct',
+    'ct-payload', 'object') or a factory (robots, plan) -> one controller per robot,
+    :class:`~.controllers.Phased` or :class:`~.controllers.Cooperative` ones (default the baseline,
+    :func:`~.controllers.computed_torque`); controller_options: keywords for the factory (e.g. ``squeeze``,
+    ``load_share`` and gains for 'object'); controller_name: its name in the report (default the name given,
+    or the factory's __name__). mass_factor: the bar's mass in
     the controllers' models over the world's (> 0), instead of a 'mass' disturbance's. jaws_close: (2,) flags, False:
     that clamp's jaw is never commanded to close (a forced failure). dt (s), log_every, world_every,
     control_every: the simulation's (the robots integrated at 5 kHz, the controllers and the world at 1 kHz).
@@ -276,9 +333,7 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     start = random_start(int(seed)) if seed is not None else (START if start is None else start)
     end = END if end is None else end
-    if not callable(controllers):
-        raise ValueError(f"controllers must be a factory (robots, plan) -> controllers, got {controllers!r}")
-    name = controller_name or getattr(controllers, "__name__", type(controllers).__name__)
+    factory, name = _factory(controllers, controller_name, controller_options)
     plan0 = make_plan(start, end)             # checks start and end; the disturbances need the start's yaw
     dist = disturbances(disturbance, plan0.start[3])
     if mass_factor is not None:
@@ -288,7 +343,7 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
         dist = dataclasses.replace(dist, mass_factor=mass_factor)
     plan = make_plan(plan0.start, plan0.end, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
                      mass_factor=dist.mass_factor)
-    runner = _Runner(plan, plan.start, dist, controllers, dt=dt, log_every=log_every, world_every=world_every,
+    runner = _Runner(plan, plan.start, dist, factory, dt=dt, log_every=log_every, world_every=world_every,
                      control_every=control_every)
     failure = None
     t_wall = time.perf_counter()
@@ -304,7 +359,8 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     report = dict(success=failure is None, failure=failure, steps=runner.steps,
                   planned_steps={k: list(v) for k, v in plan.steps.items()},
                   simulated_time=runner.sim.time, seed=seed, start=list(plan.start), end=list(plan.end),
-                  controller=name, disturbance=_plain(dataclasses.asdict(dist)), jaws_close=list(plan.close),
+                  controller=name, controller_options=_plain(dict(controller_options or {})),
+                  commanded=runner.commanded, disturbance=_plain(dataclasses.asdict(dist)), jaws_close=list(plan.close),
                   dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                   placed=getattr(runner, "placed", None), backed_off=getattr(runner, "backed_off", None))
     series = None

@@ -7,29 +7,18 @@ from typing import Sequence
 import numpy as np
 
 from ..._core import IKError
-from ...sweeps import sweep as _sweep
+from ...sweeps import OptionsRun, sweep as _sweep
 from .planning import random_bar
 from .sequence import run
 
 
-class TaskRun:
+class TaskRun(OptionsRun):
     """One run of the cooperative task as an item of :func:`coopsim.sweep`: `options` are the keywords of
     :func:`coopsim.tasks.handover.run` (seed=, bars=, cycles=, container_shift=, ...; score=False unless
     given). Plain values only, so it pickles anywhere."""
 
     #: the sweep's first columns for these runs
     sweep_columns = ("success", "step", "reason", "bar_x", "bar_y", "bar_yaw")
-
-    def __init__(self, **options):
-        self.options = dict(options)
-
-    def __eq__(self, other):
-        return isinstance(other, TaskRun) and self.options == other.options
-
-    __hash__ = None
-
-    def __repr__(self) -> str:
-        return "TaskRun(" + ", ".join(f"{k}={v!r}" for k, v in self.options.items()) + ")"
 
     def sweep_run(self):
         """Runs the task; returns (its columns: success, step and reason of the failure, simulated_time, the
