@@ -1,5 +1,6 @@
 """Cooperative control: one controller driving both SCARAs holding one bar (Simulation.add_cooperative):
-object-level control with a commanded load share and squeeze, a law written in Python, and bad input."""
+object-level control with a commanded load share and squeeze, leader-follower, a law written in Python, and
+bad input."""
 from __future__ import annotations
 
 import numpy as np
@@ -89,6 +90,47 @@ def test_other_commands_are_met_too(squeeze, share):
     co = sim.log.cooperation(0, 1)
     assert co["squeeze"][-1] == pytest.approx(squeeze, rel=0.01)
     assert co["load_share"][-1][0] == pytest.approx(share, rel=0.01)
+
+
+def test_leader_follower_keeps_the_clamps_together_while_the_leader_moves(record_property):
+    """SCARA #1 leads the held bar 4.5 cm (quintic, 1 s); SCARA #2 follows as an impedance on its sensed
+    wrench (K 300 N/m). The clamps' relative pose error (the log's cooperation columns, against the pose at the
+    second weld) stays within 0.05 mm and 0.5 mrad, the squeeze within 0.1 N, and the follower carries its half
+    of the weight (share 0.5 within 1 %)."""
+    sim = held()
+    r1 = sim.robots[0]
+    q, _ = sim.state(0)
+    T0 = r1.fk(q)
+    T1 = T0.copy()
+    T1[:2, 3] += [0.04, -0.02]
+    t0 = sim.time
+    sim.set_reference(0, cs.plan_cartesian(r1, [T0, T0, T1, T1], [t0, t0 + 0.2, t0 + 1.2, t0 + 1.7], q_start=q,
+                                           opening=q[5], intermediate=12, time_law="quintic", spline=True))
+    lf = cs.LeaderFollower(300.0, 30.0, 1.0, object_mass=BAR_M)
+    sim.add_cooperative(lf, [0, 1])
+    sim.run(t0 + 1.7, progress=False)
+    assert sim.holding(0) == "bar" and sim.holding(1) == "bar"
+    co = sim.log.cooperation(0, 1)
+    k = sim.log.t > t0
+    rpe = co["relative_pose_error"][k]
+    np.testing.assert_allclose(sim.body_state("bar")["position"][:2] - CENTRE[:2], [0.04, -0.02], atol=5e-4)
+    record_property("relative position error (mm)", float(np.abs(rpe[:, :3]).max() * 1e3))
+    record_property("relative rotation error (mrad)", float(np.abs(rpe[:, 3:]).max() * 1e3))
+    assert np.abs(rpe[:, :3]).max() < 5e-5 and np.abs(rpe[:, 3:]).max() < 5e-4
+    assert np.abs(co["squeeze"][k]).max() < 0.1
+    assert co["load_share"][k][-1][0] == pytest.approx(0.5, rel=0.01)
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda: cs.LeaderFollower(-1.0, 1.0, 1.0, object_mass=BAR_M), "stiffness must be >= 0"),
+    (lambda: cs.LeaderFollower(1.0, 1.0, 0.0, object_mass=BAR_M), "mass must be > 0"),
+    (lambda: cs.LeaderFollower(1.0, 1.0, 1.0, object_mass=float("nan")), "object_mass must be finite"),
+    (lambda: cs.LeaderFollower(1.0, 1.0, 1.0, object_mass=BAR_M, follower_share=-0.1), "follower_share must be in"),
+    (lambda: cs.LeaderFollower(1.0, 1.0, 1.0, object_mass=BAR_M, kp=float("inf")), "kp must be finite"),
+])
+def test_bad_leader_follower_input_is_named(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
 
 
 class PythonIndependent(cs.CooperativeController):
