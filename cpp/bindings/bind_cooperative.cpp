@@ -97,7 +97,8 @@ limits. The built-in laws: ObjectControl, LeaderFollower.)doc")
   py::class_<ObjectControl, CooperativeController, std::shared_ptr<ObjectControl>>(m, "ObjectControl",
                                                                                      ObjectControl::kDoc)
       .def(py::init([](double mass, const py::object& inertia, const py::object& kp, const py::object& kd,
-                       double load_share, double squeeze, double kp_force, double ki_force, double ilim) {
+                       double load_share, double squeeze, double kp_force, double ki_force, double ilim,
+                       const py::object& impedance, double accel_filter) {
              ObjectControl::Gains g;
              g.kp = six(kp, "kp");
              g.kd = six(kd, "kd");
@@ -106,12 +107,21 @@ limits. The built-in laws: ObjectControl, LeaderFollower.)doc")
              g.integral_limit = ilim;
              Arr I = array(inertia, {3, 3}, "inertia");
              const Eigen::Matrix3d In = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I.data());
-             return std::make_shared<ObjectControl>(mass, In, g, load_share, squeeze);
+             if (impedance.is_none()) return std::make_shared<ObjectControl>(mass, In, g, load_share, squeeze);
+             const py::tuple t = py::tuple(impedance);
+             if (t.size() != 3) throw py::value_error("impedance must be (stiffness, damping, mass)");
+             return std::make_shared<ObjectControl>(mass, In, g, load_share, squeeze, true, six(t[0], "stiffness"),
+                                                    six(t[1], "damping"), six(t[2], "impedance mass"), accel_filter);
            }),
            py::arg("mass"), py::arg("inertia"), py::kw_only(), py::arg("kp") = ObjectControl::Gains().kp[0],
            py::arg("kd") = ObjectControl::Gains().kd[0], py::arg("load_share") = 0.5, py::arg("squeeze") = 0.0,
            py::arg("kp_force") = ObjectControl::Gains().kp_force, py::arg("ki_force") = ObjectControl::Gains().ki_force,
-           py::arg("integral_limit") = ObjectControl::Gains().integral_limit)
+           py::arg("integral_limit") = ObjectControl::Gains().integral_limit, py::arg("impedance") = py::none(),
+           py::arg("accel_filter") = 0.002)
+      .def_property_readonly("compliant_offset", [](const ObjectControl& c) { return to_numpy(c.compliant_offset()); },
+                             "(6,) m, rad: the impedance's offset from the reference at the last update (world).")
+      .def_property_readonly("push_estimate", [](const ObjectControl& c) { return to_numpy(c.push_estimate()); },
+                             "(6,) N, N m: the push on the object estimated at the last update (impedance).")
       .def_property_readonly("load_share", &ObjectControl::load_share)
       .def_property_readonly("squeeze", &ObjectControl::squeeze)
       .def_property_readonly("object_error", [](const ObjectControl& c) { return to_numpy(c.object_error()); },

@@ -82,8 +82,14 @@ void check_nonneg(double x, const char* name) {
 // ---- object-level control ----
 
 ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains gains, double load_share,
-                             double squeeze)
-    : mass_(mass), inertia_(inertia), gains_(gains), share_(load_share), squeeze_(squeeze) {
+                             double squeeze, bool impedance, Vec6 stiffness, Vec6 damping, Vec6 imp_mass,
+                             double accel_filter)
+    : mass_(mass), inertia_(inertia), gains_(gains), share_(load_share), squeeze_(squeeze), impedance_(impedance),
+      K_(stiffness), D_(damping), Md_(imp_mass), accel_filter_(accel_filter) {
+  checked_vec6(K_, "stiffness", false);
+  checked_vec6(D_, "damping", false);
+  checked_vec6(Md_, "impedance mass", true);
+  check_nonneg(accel_filter_, "accel_filter");
   if (!std::isfinite(mass_) || !(mass_ > 0))
     throw std::invalid_argument("mass (the object's, in the controller's model) must be finite and > 0 kg, got " +
                                 detail::num(mass_));
@@ -118,6 +124,13 @@ void ObjectControl::reset(const std::vector<const Robot*>& robots, double period
   I_.assign(robots.size(), Vec6::Zero());
   cmd_.assign(robots.size(), Vec6::Zero());
   h_ = period;
+  xc_.setZero();
+  vc_.setZero();
+  ac_.setZero();
+  acc_f_.setZero();
+  push_.setZero();
+  has_prev_ = false;
+  acc_alpha_ = accel_filter_ > 0 ? -std::expm1(-period / accel_filter_) : 1.0;
 }
 
 void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const std::vector<double*>& tau) {
@@ -135,14 +148,38 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
         tw_ref, acc_ref);
   err_.head<3>() = Tr.translation() - c;
   err_.tail<3>() = rotation_vector(Tr.linear() * To.linear().transpose());
-  const Vec6 rate = tw_ref - tw;
+  Vec6 rate = tw_ref - tw;
   const Eigen::Matrix3d Iw = To.linear() * inertia_ * To.linear().transpose();
   const Eigen::Vector3d w = tw.tail<3>();
+  if (impedance_) {
+    // the push: the object's Newton-Euler with its measured acceleration (the twist's difference,
+    // low-pass filtered) less the clamps' sensed wrenches and its weight
+    if (has_prev_) acc_f_ += acc_alpha_ * ((tw - tw_prev_) / h_ - acc_f_);
+    tw_prev_ = tw;
+    has_prev_ = true;
+    Vec6 hs[2];
+    for (int k = 0; k < 2; ++k) hs[k] = s[k]->sensed ? to_world(*s[k], s[k]->wrench) : Vec6(Vec6::Zero());
+    const Eigen::Vector3d up = g_.norm() > 0 ? Eigen::Vector3d(-g_) : Eigen::Vector3d::UnitZ();
+    const Cooperation sensed = cooperation(c, s0.pose.translation(), hs[0], s1.pose.translation(), hs[1], up);
+    push_.head<3>() = mass_ * (acc_f_.head<3>() - g_) - sensed.external.head<3>();
+    push_.tail<3>() = Iw * acc_f_.tail<3>() + w.cross(Iw * w) - sensed.external.tail<3>();
+    // the admittance: the compliant offset from the reference, M xc'' + D xc' + K xc = push (semi-implicit Euler)
+    for (int i = 0; i < 6; ++i) {
+      ac_[i] = (push_[i] - D_[i] * vc_[i] - K_[i] * xc_[i]) / Md_[i];
+      vc_[i] += ac_[i] * h_;
+      xc_[i] += vc_[i] * h_;
+    }
+    // the motion loop tracks the reference moved by the offset
+    err_ += xc_;
+    rate += vc_;
+    acc_ref += ac_;
+  }
   // the object's acceleration and the wrench it takes
   Vec6 a;
   for (int i = 0; i < 6; ++i) a[i] = acc_ref[i] + gains_.kd[i] * rate[i] + gains_.kp[i] * err_[i];
   hd_.head<3>() = mass_ * (a.head<3>() - g_);
   hd_.tail<3>() = Iw * a.tail<3>() + w.cross(Iw * w);
+  if (impedance_) hd_ -= push_;  // the clamps take the push: the motion loop follows x_c without an error
   // distribution: columns per clamp: fx, fy, fz and one moment per commanded rotation axis
   std::vector<Eigen::Vector3d> axes[2];
   for (int k = 0; k < 2; ++k)

@@ -1195,8 +1195,16 @@ class ObjectControl(CooperativeController):
     
     1. object error e = reference - measured (position m; rotation vector of R_ref R^T, rad; world) and
        its rate; a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s: scalars or (6,) over x, y, z, rx, ry, rz);
+       with `impedance` = (stiffness, damping, mass) (scalars or (6,): N/m, N m/rad; N s/m, N m s/rad;
+       kg, kg m^2) the object yields to a push as that mass-spring-damper: a compliant offset x_c from
+       the reference obeys mass x_c'' + damping x_c' + stiffness x_c = h_push (an admittance, integrated
+       at each update) and the motion loop tracks the reference moved by x_c. h_push is estimated from
+       the object's Newton-Euler equations: its model times its measured acceleration (the twist's
+       difference, low-pass filtered with time constant accel_filter s) less its weight and the clamps'
+       sensed wrenches. The motion loop (kp, kd) should be several times faster than the impedance;
     2. the object wrench from the controller's model of the object (mass kg, inertia (3, 3) kg m^2
-       about its centre in its own frame): h_d = [m (a* - g); I alpha* + w x I w];
+       about its centre in its own frame): h_d = [m (a* - g); I alpha* + w x I w] (less h_push with an
+       impedance: the clamps take the push, the motion loop follows x_c without an error);
     3. the clamps' wrenches: the least-norm solution of  sum_k W_k h_k = h_d, clamp 0 carries
        `load_share` of the vertical load, the squeeze is `squeeze` N (compression positive), each
        clamp's wrench having only the components its arm commands (forces; moments about its commanded
@@ -1208,12 +1216,17 @@ class ObjectControl(CooperativeController):
     The object's pose is the reference member's (robot 0 of the group) grip applied to its TCP; its
     reference the same grip on its TCP at its joint reference.
     """
-    def __init__(self, mass: typing.SupportsFloat | typing.SupportsIndex, inertia: typing.Any, *, kp: typing.Any = 400.0, kd: typing.Any = 40.0, load_share: typing.SupportsFloat | typing.SupportsIndex = 0.5, squeeze: typing.SupportsFloat | typing.SupportsIndex = 0.0, kp_force: typing.SupportsFloat | typing.SupportsIndex = 0.5, ki_force: typing.SupportsFloat | typing.SupportsIndex = 10.0, integral_limit: typing.SupportsFloat | typing.SupportsIndex = 50.0) -> None:
+    def __init__(self, mass: typing.SupportsFloat | typing.SupportsIndex, inertia: typing.Any, *, kp: typing.Any = 400.0, kd: typing.Any = 40.0, load_share: typing.SupportsFloat | typing.SupportsIndex = 0.5, squeeze: typing.SupportsFloat | typing.SupportsIndex = 0.0, kp_force: typing.SupportsFloat | typing.SupportsIndex = 0.5, ki_force: typing.SupportsFloat | typing.SupportsIndex = 10.0, integral_limit: typing.SupportsFloat | typing.SupportsIndex = 50.0, impedance: typing.Any = None, accel_filter: typing.SupportsFloat | typing.SupportsIndex = 0.002) -> None:
         ...
     @property
     def clamp_wrenches(self) -> list:
         """
         Each clamp's commanded wrench on the object (6,), world, about its TCP.
+        """
+    @property
+    def compliant_offset(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) m, rad: the impedance's offset from the reference at the last update (world).
         """
     @property
     def load_share(self) -> float:
@@ -1227,6 +1240,11 @@ class ObjectControl(CooperativeController):
     def object_wrench(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (6,) N, N m: the wrench commanded on the object, about its centre.
+        """
+    @property
+    def push_estimate(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (6,) N, N m: the push on the object estimated at the last update (impedance).
         """
     @property
     def squeeze(self) -> float:

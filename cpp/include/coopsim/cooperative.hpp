@@ -51,8 +51,16 @@ load share and internal squeeze, closed on the sensed wrenches, and each arm's t
 
 1. object error e = reference - measured (position m; rotation vector of R_ref R^T, rad; world) and
    its rate; a* = a_ref + kd e_rate + kp e (kp 1/s^2, kd 1/s: scalars or (6,) over x, y, z, rx, ry, rz);
+   with `impedance` = (stiffness, damping, mass) (scalars or (6,): N/m, N m/rad; N s/m, N m s/rad;
+   kg, kg m^2) the object yields to a push as that mass-spring-damper: a compliant offset x_c from
+   the reference obeys mass x_c'' + damping x_c' + stiffness x_c = h_push (an admittance, integrated
+   at each update) and the motion loop tracks the reference moved by x_c. h_push is estimated from
+   the object's Newton-Euler equations: its model times its measured acceleration (the twist's
+   difference, low-pass filtered with time constant accel_filter s) less its weight and the clamps'
+   sensed wrenches. The motion loop (kp, kd) should be several times faster than the impedance;
 2. the object wrench from the controller's model of the object (mass kg, inertia (3, 3) kg m^2
-   about its centre in its own frame): h_d = [m (a* - g); I alpha* + w x I w];
+   about its centre in its own frame): h_d = [m (a* - g); I alpha* + w x I w] (less h_push with an
+   impedance: the clamps take the push, the motion loop follows x_c without an error);
 3. the clamps' wrenches: the least-norm solution of  sum_k W_k h_k = h_d, clamp 0 carries
    `load_share` of the vertical load, the squeeze is `squeeze` N (compression positive), each
    clamp's wrench having only the components its arm commands (forces; moments about its commanded
@@ -68,7 +76,8 @@ reference the same grip on its TCP at its joint reference.)doc";
     double kp_force = 0.5, ki_force = 10.0, integral_limit = 50.0;
   };
   ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains gains, double load_share = 0.5,
-                double squeeze = 0.0);
+                double squeeze = 0.0, bool impedance = false, Vec6 stiffness = Vec6::Zero(),
+                Vec6 damping = Vec6::Zero(), Vec6 imp_mass = Vec6::Ones(), double accel_filter = 0.002);
   void check(const std::vector<const Robot*>& robots) const override;
   void reset(const std::vector<const Robot*>& robots, double period) override;
   void compute(double t, const std::vector<CoopMember>& members, const std::vector<double*>& tau) override;
@@ -78,6 +87,11 @@ reference the same grip on its TCP at its joint reference.)doc";
   const Gains& gains() const { return gains_; }
   double load_share() const { return share_; }
   double squeeze() const { return squeeze_; }
+  bool impedance() const { return impedance_; }
+  // After the last update (impedance): the compliant offset from the reference (6, world: m, rad) and
+  // the estimated push on the object (6, N and N m about its centre).
+  const Vec6& compliant_offset() const { return xc_; }
+  const Vec6& push_estimate() const { return push_; }
   // After the last update: the object's pose error (6, world: m, rad), the wrench commanded on it
   // (6, about its centre), each clamp's commanded wrench (world, about its TCP).
   const Vec6& object_error() const { return err_; }
@@ -89,6 +103,13 @@ reference the same grip on its TCP at its joint reference.)doc";
   Eigen::Matrix3d inertia_;
   Gains gains_;
   double share_, squeeze_;
+  bool impedance_ = false;
+  Vec6 K_, D_, Md_;
+  double accel_filter_ = 0.002;
+  Vec6 xc_ = Vec6::Zero(), vc_ = Vec6::Zero(), ac_ = Vec6::Zero(), acc_f_ = Vec6::Zero(), tw_prev_ = Vec6::Zero(),
+       push_ = Vec6::Zero();
+  double acc_alpha_ = 1.0;
+  bool has_prev_ = false;
   // run state
   std::vector<std::shared_ptr<TaskController>> arms_;
   std::vector<Vec6> I_, cmd_;
