@@ -309,6 +309,17 @@ def test_the_task_state_a_law_sees():
     np.testing.assert_allclose(s.wrench, np.concatenate([w[:3], B.T @ w[3:]]), atol=1e-15)
     np.testing.assert_allclose(s.external, -s.wrench, atol=0)
     assert s.sensed and s.commanded == ("x", "y", "z", "pitch", "yaw") and s.jaw == 5
+    # a moving reference: its image with the jaw's measured opening and speed, the jaw's planned acceleration
+    qd_ref, qdd_ref = np.linspace(0.3, -0.2, 6), np.linspace(-1.0, 2.0, 6)
+    c.compute(0.0, q, qd, Q0, qd_ref, qdd_ref, wrench=w)
+    s = c.state
+    qr, qdr = Q0.copy(), qd_ref.copy()
+    qr[5], qdr[5] = q[5], qd[5]
+    Jr = r.tool_jacobian(qr)
+    to_task = lambda v: np.concatenate([v[:3], B.T @ v[3:]])  # noqa: E731
+    np.testing.assert_allclose(s.pose_ref, r.fk(qr), atol=1e-15)
+    np.testing.assert_allclose(s.velocity_ref, to_task(Jr @ qdr), atol=1e-14)
+    np.testing.assert_allclose(s.accel_ref, to_task(Jr @ qdd_ref + r.tool_bias(qr, qdr)), atol=1e-13)
     c2 = pickle.loads(pickle.dumps(c))
     assert isinstance(c2, cs.Impedance) and np.array_equal(c2.stiffness, c.stiffness)
 

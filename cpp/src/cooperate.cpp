@@ -74,14 +74,14 @@ void Simulation::cooperate_() {
       Slot::Control& c = s.control;
       const Robot& r = s.robot;
       c.reference->evaluate(t, c.q_ref.data(), c.qd_ref.data(), c.qdd_ref.data());
-      sense_(s, true);
+      r.kinematics(s.state.q.data(), s.ws, false);  // the frames, for the sensor, the grip and the controller
+      sense_(s, true, true);
       CoopMember& m = members_[a];
       m.robot = g.robots[a];
       m.in = ControlInput{r.dof(), t, s.state.q.data(), s.state.qd.data(), c.q_ref.data(), c.qd_ref.data(),
-                          c.qdd_ref.data(), s.sensor.world.data()};
+                          c.qdd_ref.data(), s.sensor.world.data(), &s.ws};
       m.held = s.grasp.held;
       if (m.held >= 0) {
-        r.kinematics(s.state.q.data(), s.ws, false);
         m.grip = r.tool_pose(s.ws).inverse() * (r.frame(s.ws, r.clamp().fixed_link) * s.grasp.weld_X);
       } else {
         m.grip.setIdentity();

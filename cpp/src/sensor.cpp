@@ -70,7 +70,7 @@ void Simulation::sense_() {
   for (Slot& s : slots_) sense_(s);
 }
 
-void Simulation::sense_(Slot& s, bool now) {
+void Simulation::sense_(Slot& s, bool now, bool framed) {
   {
     Slot::Sensor& z = s.sensor;
     const SensorOptions& o = z.opt;
@@ -102,7 +102,7 @@ void Simulation::sense_(Slot& s, bool now) {
       return;
     }
     Workspace& ws = s.ws;
-    r.kinematics(s.state.q.data(), ws, false);
+    if (!framed) r.kinematics(s.state.q.data(), ws, false);
     const Eigen::Isometry3d T = r.tool_pose(ws);
     const Eigen::Vector3d p = T.translation();
     const int n = r.dof();

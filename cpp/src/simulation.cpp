@@ -362,9 +362,12 @@ bool Simulation::control_() {
       in.qd_ref = c.qd_ref.data();
       in.qdd_ref = c.qdd_ref.data();
       in.wrench = nullptr;
+      in.frames = nullptr;
       if (c.controller->senses()) {  // the sensor at t_k: the contact and weld wrenches of the last world step
-        sense_(s, true);
+        s.robot.kinematics(s.state.q.data(), s.ws, false);  // the frames, for the sensor and the controller
+        sense_(s, true, true);
         in.wrench = s.sensor.world.data();
+        in.frames = &s.ws;
       }
       VecN u(n);
       c.controller->compute(in, u.data());

@@ -73,6 +73,31 @@ Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
 
 int jaw_of(const Robot& r) { return r.clamp().present() ? r.clamp().moving_joint - 1 : -1; }
 
+using Mat66 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kTaskAxes, kTaskAxes>;
+using Vec6d = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kTaskAxes, 1>;
+
+// x = A^-1 b by LU with partial pivoting, fixed-size (unrolled) for the sizes the arms have; false
+// when A is singular: its smallest pivot below 1e-9 of its largest (a cheap bound, no condition estimate)
+template <int N>
+bool solve_fixed(const Mat66& A, const Vec6d& b, Vec6d& x) {
+  const Eigen::PartialPivLU<Eigen::Matrix<double, N, N>> lu(A.template topLeftCorner<N, N>());
+  const auto d = lu.matrixLU().diagonal().cwiseAbs();
+  if (!(d.minCoeff() > 1e-9 * d.maxCoeff())) return false;
+  x = lu.solve(b.template head<N>());
+  return true;
+}
+
+bool solve_square(const Mat66& A, const Vec6d& b, Vec6d& x) {
+  switch (A.rows()) {
+    case 1: return solve_fixed<1>(A, b, x);
+    case 2: return solve_fixed<2>(A, b, x);
+    case 3: return solve_fixed<3>(A, b, x);
+    case 4: return solve_fixed<4>(A, b, x);
+    case 5: return solve_fixed<5>(A, b, x);
+    default: return solve_fixed<6>(A, b, x);
+  }
+}
+
 }  // namespace
 
 const char* task_axis_name(int axis) {
@@ -235,39 +260,40 @@ const TaskState& TaskController::observe(const ControlInput& in, const TaskRefer
     twist_ref = ref->twist;
     accel_ref = ref->accel;
   } else {
-    // the arm's joint reference with the jaw where it is: the TCP (midway between the jaws) is referred
-    // to the jaw's measured opening, which a jaw squeezing a body does not follow to its reference
-    VecN qr = s.q_ref, qdr = s.qd_ref;
-    if (s.jaw >= 0) {
-      qr[s.jaw] = s.q[s.jaw];
-      qdr[s.jaw] = s.qd[s.jaw];
-    }
-    if (ref_valid_ && qr == ref_q_ && qdr == ref_qd_ && s.qdd_ref == ref_qdd_) {
-      // the same as at the last update (a set point, the jaw still): the same image
-      s.pose_ref = ref_pose_;
-      twist_ref = ref_twist_;
-      accel_ref = ref_accel_;
-    } else {
-      r.kinematics(qr.data(), wsr_, false);
-      s.pose_ref = r.tool_pose(wsr_);
+    if (!(ref_valid_ && s.q_ref == ref_q_ && s.qd_ref == ref_qd_ && s.qdd_ref == ref_qdd_)) {
+      r.kinematics(in.q_ref, wsr_, false);
+      ref_pose_ = r.tool_pose(wsr_);
       r.tool_jacobian(wsr_, Jr);
-      r.tool_bias(wsr_, qdr.data(), br);
-      twist_ref = Jr * qdr;
-      accel_ref = Jr * s.qdd_ref + br;
-      ref_q_ = qr;
-      ref_qd_ = qdr;
+      r.tool_bias(wsr_, in.qd_ref, br);
+      ref_twist_ = Jr * s.qd_ref;
+      ref_accel_ = Jr * s.qdd_ref + br;
+      ref_jaw_ = s.jaw >= 0 ? Eigen::Vector3d(Jr.col(s.jaw).head<3>()) : Eigen::Vector3d::Zero();
+      ref_q_ = s.q_ref;
+      ref_qd_ = s.qd_ref;
       ref_qdd_ = s.qdd_ref;
-      ref_pose_ = s.pose_ref;
-      ref_twist_ = twist_ref;
-      ref_accel_ = accel_ref;
-      ref_valid_ = true;
+      ref_valid_ = true;  // a set point's image is reused while it stays
+    }
+    s.pose_ref = ref_pose_;
+    twist_ref = ref_twist_;
+    accel_ref = ref_accel_;
+    if (s.jaw >= 0) {
+      // the TCP, midway between the jaws, referred to the jaw's measured opening and speed (a jaw squeezing
+      // a body stops short of its reference): it slides by u d along the jaw's axis, u = J's jaw column
+      // (half the axis, turning with the clamp at w), d = q_jaw - q_jaw,ref; the jaw's planned acceleration
+      const double d = s.q[s.jaw] - s.q_ref[s.jaw], dd = s.qd[s.jaw] - s.qd_ref[s.jaw];
+      const Eigen::Vector3d& u = ref_jaw_;
+      const Eigen::Vector3d w = ref_twist_.tail<3>(), al = ref_accel_.tail<3>(), wu = w.cross(u);
+      s.pose_ref.translation() += d * u;
+      twist_ref.head<3>() += dd * u + d * wu;
+      accel_ref.head<3>() += 2.0 * dd * wu + d * (al.cross(u) + w.cross(wu));
     }
   }
-  r.kinematics(in.q, ws_, false);
-  s.pose = r.tool_pose(ws_);
+  if (!in.frames) r.kinematics(in.q, ws_, false);
+  const Workspace& wk = in.frames ? *in.frames : ws_;  // the caller's frames at q, when it has them
+  s.pose = r.tool_pose(wk);
   s.axes = task_axes(s.pose);
-  r.tool_jacobian(ws_, Jg);
-  r.tool_bias(ws_, in.qd, bg);
+  r.tool_jacobian(wk, Jg);
+  r.tool_bias(wk, in.qd, bg);
   const Eigen::Matrix3d Bt = s.axes.transpose();
   auto to_task = [&](const Vec6& w) {
     Vec6 o;
@@ -334,21 +360,15 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
     for (int k = 0; k < na; ++k) Jc(i, k) = s.J(rows[i], arm[k]);
   }
   VecN qa(na);
-  // singular: the LU's smallest pivot below 1e-9 of its largest (a cheap bound, no condition estimate)
-  using Mat66 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kTaskAxes, kTaskAxes>;
-  const auto singular = [](const Eigen::PartialPivLU<Mat66>& lu) {
-    const auto d = lu.matrixLU().diagonal().cwiseAbs();
-    return !(d.minCoeff() > 1e-9 * d.maxCoeff());
+  Vec6d x(m);
+  const auto singular = [&]() {
+    std::ostringstream msg;
+    msg << "task Jacobian singular at q = [" << s.q.transpose() << "] (commanded " << names_of(commanded_) << ")";
+    return std::domain_error(msg.str());
   };
   if (m == na) {
-    const Mat66 Jsq = Jc;
-    Eigen::PartialPivLU<Mat66> lu(Jsq);
-    if (singular(lu)) {
-      std::ostringstream msg;
-      msg << "task Jacobian singular at q = [" << s.q.transpose() << "] (commanded " << names_of(commanded_) << ")";
-      throw std::domain_error(msg.str());
-    }
-    qa = lu.solve(rhs);
+    if (!solve_square(Mat66(Jc), Vec6d(rhs), x)) throw singular();
+    qa = x;
   } else {
     VecN q0(na);
     for (int k = 0; k < na; ++k) {
@@ -358,14 +378,8 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
     const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kTaskAxes> X = Jc.transpose();
     // the pseudo-inverse J^T (J J^T)^-1: the null space is J's orthogonal one
     const Mat66 A = Jc * X;
-    Eigen::PartialPivLU<Mat66> lu(A);
-    if (singular(lu)) {
-      std::ostringstream msg;
-      msg << "task Jacobian singular at q = [" << s.q.transpose() << "] (commanded " << names_of(commanded_) << ")";
-      throw std::domain_error(msg.str());
-    }
-    const VecN resid = rhs - Jc * q0;
-    qa = q0 + X * lu.solve(resid);
+    if (!solve_square(A, Vec6d(rhs - Jc * q0), x)) throw singular();
+    qa = q0 + X * x;
   }
   for (int k = 0; k < na; ++k) qdd_[arm[k]] = qa[k];
   // M qdd + C + G + K qd (+ friction) of the model, plus J^T w in the world

@@ -31,6 +31,8 @@ struct ControlInput {
   // environment (see SensorOptions). In a simulation it is read at the start of the step, from
   // the contact and weld wrenches of the last world step.
   const double* wrench = nullptr;
+  // The robot's frames at q (Robot::kinematics, frames only) when the caller has them, else null.
+  const Workspace* frames = nullptr;
 };
 
 class Controller {

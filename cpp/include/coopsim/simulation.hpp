@@ -390,7 +390,8 @@ class Simulation {
   void contacts_to_robots_(double h);    // its contacts as joint torques, held; its events
   void hold_external_();                 // every robot's external torque at t_k, held over the step
   void sense_();                         // sense: the force/torque sensors at t_k
-  void sense_(Slot& s, bool now = false);  // one robot's (now: an ideal one too, off the log's rows)
+  // one robot's (now: an ideal one too, off the log's rows; framed: s.ws holds the frames at q already)
+  void sense_(Slot& s, bool now = false, bool framed = false);
   void reset_sensor_(Slot& s);
   const Slot::Sensor& fresh_sensor_(int i);  // robot i's sensor, read now if stale
   void log_();                           // log: the row at t_k

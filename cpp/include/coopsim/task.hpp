@@ -168,6 +168,7 @@ class TaskController : public Controller {
   VecN ref_q_, ref_qd_, ref_qdd_;
   Eigen::Isometry3d ref_pose_;
   Vec6 ref_twist_, ref_accel_;
+  Eigen::Vector3d ref_jaw_ = Eigen::Vector3d::Zero();  // the tool Jacobian's jaw column (linear) at the reference
   VecN out_, qdd_;
   int n_ = 0;
 };
