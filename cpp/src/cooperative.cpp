@@ -181,13 +181,16 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
   hd_.tail<3>() = Iw * a.tail<3>() + w.cross(Iw * w);
   if (impedance_) hd_ -= push_;  // the clamps take the push: the motion loop follows x_c without an error
   // distribution: columns per clamp: fx, fy, fz and one moment per commanded rotation axis
-  std::vector<Eigen::Vector3d> axes[2];
+  // (fixed-size storage: the update does not allocate)
+  Eigen::Vector3d axes[2][3];
+  int n_axes[2] = {0, 0};
   for (int k = 0; k < 2; ++k)
     for (int r = 0; r < 3; ++r)
-      if (s[k]->commanded[3 + r]) axes[k].push_back(s[k]->axes.col(r));
-  const int cols = 6 + static_cast<int>(axes[0].size() + axes[1].size());
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(8, cols);
-  Eigen::VectorXd b(8);
+      if (s[k]->commanded[3 + r]) axes[k][n_axes[k]++] = s[k]->axes.col(r);
+  const int cols = 6 + n_axes[0] + n_axes[1];
+  using Dist = Eigen::Matrix<double, 8, Eigen::Dynamic, 0, 8, 12>;
+  Dist A = Dist::Zero(8, cols);
+  Eigen::Matrix<double, 8, 1> b;
   const Eigen::Vector3d p[2] = {s0.pose.translation(), s1.pose.translation()};
   const Eigen::Vector3d e = (p[1] - p[0]).normalized();
   int col = 0, first[2];
@@ -201,7 +204,7 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
       A(7, col) = (k == 0 ? 0.5 : -0.5) * e[j];
       ++col;
     }
-    for (const Eigen::Vector3d& u : axes[k]) A.block<3, 1>(3, col++) = u;
+    for (int j = 0; j < n_axes[k]; ++j) A.block<3, 1>(3, col++) = axes[k][j];
   }
   A(6, first[0] + 2) = 1.0 - share_;  // (1 - share) f0z - share f1z = 0
   A(6, first[1] + 2) = -share_;
@@ -211,15 +214,15 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
   // least norm, the directions the clamps can barely produce (a moment about the line through their
   // points, from forces whose lever is the TCPs' millimetres off it) left to the structure: singular
   // values below 1e-3 of the largest count as zero
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+  Eigen::CompleteOrthogonalDecomposition<Dist> cod(8, cols);
   cod.setThreshold(1e-3);
   cod.compute(A);
-  const Eigen::VectorXd x = cod.solve(b);
+  const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 12, 1> x = cod.solve(b);
   // each arm: its TCP moves with the object; it applies its wrench, closed on its sensor
   for (int k = 0; k < 2; ++k) {
     Vec6 hk = Vec6::Zero();
     hk.head<3>() = x.segment<3>(first[k]);
-    for (size_t j = 0; j < axes[k].size(); ++j) hk.tail<3>() += x[first[k] + 3 + static_cast<int>(j)] * axes[k][j];
+    for (int j = 0; j < n_axes[k]; ++j) hk.tail<3>() += x[first[k] + 3 + j] * axes[k][j];
     cmd_[k] = hk;
     Vec6 tk, ak;
     carry(tw, a, p[k] - c, tk, ak);
