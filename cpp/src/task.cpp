@@ -234,6 +234,13 @@ void TaskController::reset(const Robot& robot, double period) {
   s_.commanded = commanded_;
   out_ = VecN::Zero(n_);
   qdd_ = VecN::Zero(n_);
+  jaw_inertia_ = 0.0;
+  if (s_.jaw >= 0) {  // the jaw's own inertia: as the last joint (prismatic) M_jj is the same at every q
+    MatN M;
+    const VecN q0 = VecN::Zero(n_);
+    run_model_->mass_matrix(q0.data(), ws_, M);
+    jaw_inertia_ = M(s_.jaw, s_.jaw);
+  }
 }
 
 Vec6 TaskController::per_axis(const Eigen::VectorXd& v, const char* name) const { return spread(v, order_, name); }
@@ -383,7 +390,23 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
   }
   for (int k = 0; k < na; ++k) qdd_[arm[k]] = qa[k];
   // M qdd + C + G + K qd (+ friction) of the model, plus J^T w in the world
+  // with the jaw's planned acceleration: the arm does not answer the jaw's correction (a jaw squeezing a
+  // body does not move); the jaw's own torque takes its correction times its own inertia
+  double correction = 0.0;
+  if (jaw >= 0) {
+    correction = qdd_[jaw] - s.qdd_ref[jaw];
+    qdd_[jaw] = s.qdd_ref[jaw];
+  }
   run_model_->rnea(s.q.data(), s.qd.data(), qdd_.data(), ws_, out_, 1.0, true);
+  if (jaw >= 0) {
+    if (jaw != n - 1) {  // links beyond the jaw: its inertia depends on q
+      MatN M;
+      run_model_->mass_matrix(s.q.data(), ws_, M);
+      jaw_inertia_ = M(jaw, jaw);
+    }
+    out_[jaw] += jaw_inertia_ * correction;
+    qdd_[jaw] += correction;
+  }
   Vec6 ww;
   ww.head<3>() = wrench.head<3>();
   ww.tail<3>() = s.axes * wrench.tail<3>();

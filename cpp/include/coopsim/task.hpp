@@ -39,8 +39,10 @@
 //         null space tracks the joint reference, so at rest the deviation from the reference has
 //         no component there (SCARA #2's elbow stays on the planned one as far as the task allows);
 //         with the inverse dynamics below the null-space motion does not disturb the task,
-// then tau = M qdd + C + G + K qd (one Newton-Euler pass of `model`, default the robot) + J^T w_world,
-// saturated at the actuator limits by the simulation.
+// then tau = M qdd + C + G + K qd (one Newton-Euler pass of `model`, default the robot, with the jaw's
+// planned acceleration) + J^T w_world, plus on the jaw its correction times its own inertia M_jj (the
+// arm does not answer a jaw correction that a jaw squeezing a body does not follow), saturated at the
+// actuator limits by the simulation.
 #pragma once
 
 #include <array>
@@ -170,6 +172,7 @@ class TaskController : public Controller {
   Vec6 ref_twist_, ref_accel_;
   Eigen::Vector3d ref_jaw_ = Eigen::Vector3d::Zero();  // the tool Jacobian's jaw column (linear) at the reference
   VecN out_, qdd_;
+  double jaw_inertia_ = 0.0;  // M_jj of the jaw (kg), for its own correction's torque
   int n_ = 0;
 };
 
