@@ -184,6 +184,7 @@ WRONG = [
      "D_crit = np.sqrt(K_crit * M_crit)"),  # zeta 0.5: it overshoots
     ("06_cooperative_control", "lab06-ex1-answer", "squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),  # a push, not a pull
     ("06_cooperative_control", "lab06-ex2-answer", "share_cmd = 0.3", "share_cmd = 0.7"),  # SCARA #1's share
+    ("06_cooperative_control", "lab06-ex3-answer", "if p > 1.0)", "if p > 0.1)"),  # the takeover's 0.1 N peak
 ]
 
 

@@ -73,3 +73,14 @@ OMEGA = (np.array([30.0, 30.0, 30.0, 60.0, 60.0, 60.0]), np.array([30.0, 30.0, 3
 #: model commands, so a wrong model mass moves the bar (-50 %: 1.4 mm RMS off its path at 5, 2.0 mm at 10,
 #: 0.6 mm at 0), while without it a commanded load share is not met (0.3 commanded: 0.29 at 5, 0.196 at 0)
 OBJECT_GAINS = dict(kp=2500.0, kd=100.0, kp_force=0.5, ki_force=5.0, integral_limit=50.0)
+#: leader-follower (``leader-follower``, :class:`coopsim.LeaderFollower`): SCARA #1 leads on its own reference,
+#: a* = a_ref + kd e_rate + kp e (the engine's defaults kp 900 1/s^2, kd 60 1/s: omega 30 rad/s, critically
+#: damped, as the baseline's arm joints); SCARA #2 follows as an impedance over x, y, z, yaw (the directions both
+#: SCARAs command) around where the grips put it: stiffness 2000 N/m and 20 N m/rad, mass 1 kg and
+#: 0.01 kg m^2, damping 90 N s/m and 0.9 N m s/rad (omega 45 rad/s, damping ratio 1.0 on every axis). At
+#: 2000 N/m the follower yields 0.2 mm to the 0.37 N a model mass wrong by 50 % leaves over; stiffer, the
+#: default carry's bar error moves by under 0.01 mm up to 2e5 N/m, and with these damping and mass the follower
+#: rings against the bar from 2.5e5 N/m (docs/carry.md). follower_share 0.5: the follower carries half of the
+#: model's weight of the bar
+LEADER_FOLLOWER = dict(stiffness=(2000.0, 2000.0, 2000.0, 20.0), damping=(90.0, 90.0, 90.0, 0.9),
+                       mass=(1.0, 1.0, 1.0, 0.01), kp=900.0, kd=60.0, follower_share=0.5)

@@ -37,20 +37,27 @@ returning the law.
   carries half of the bar's weight) and squeeze (0 N); the gains :data:`~.constants.OBJECT_GAINS`. The
   bar's reference is SCARA #1's (its planned joint trajectory and its grip); SCARA #2's TCP moves as a
   point of the bar. Free, the baseline.
+- :func:`leader_follower` (``leader-follower``): :class:`coopsim.LeaderFollower` drives both arms during the
+  hold. SCARA #1 leads: task-space computed torque on its own reference, carrying what it feels. SCARA #2
+  follows: an impedance over x, y, z and yaw around where the grips put its clamp given the leader's, driven
+  by its sensed wrench less its share (``follower_share``, 0.5) of the weight of the bar's model mass
+  ``plan.model_bar_mass`` (so the 'mass' disturbances scale it); the values
+  :data:`~.constants.LEADER_FOLLOWER`. Free, the baseline.
 """
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Dict, List, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from ..._core import ComputedTorque, Controller, CooperativeController, ObjectControl, Robot, box_inertia
+from ..._core import (ComputedTorque, Controller, CooperativeController, LeaderFollower, ObjectControl, Robot,
+                     box_inertia)
 from . import scene
-from .constants import OBJECT_GAINS, OMEGA
+from .constants import LEADER_FOLLOWER, OBJECT_GAINS, OMEGA
 
 __all__ = ["CONTROLLERS", "Cooperative", "Phased", "computed_torque", "computed_torque_payload", "cooperative",
-           "object_control", "register_controller", "with_point_mass"]
+           "leader_follower", "object_control", "register_controller", "with_point_mass"]
 
 
 @dataclasses.dataclass
@@ -65,10 +72,13 @@ class Phased:
 class Cooperative:
     """Per-robot controllers `free` (one per robot: outside the dual hold, and the robots' own controllers,
     standing aside, during it) and one cooperative `law` (a :class:`coopsim.CooperativeController`) driving
-    both robots from the end of the grasp to the end of the place."""
+    both robots from the end of the grasp to the end of the place. `load_share`: SCARA #1's part of the bar's
+    vertical load that the law commands, when it commands one and does not show it as its own ``load_share``
+    (None: the law's ``load_share``, or none commanded; the report's ``commanded``)."""
 
     free: Sequence[Controller]
     law: CooperativeController
+    load_share: Optional[float] = None
 
 
 def _gains(i):
@@ -132,13 +142,18 @@ def computed_torque_payload(robots: Sequence[Robot], plan) -> Phased:
     return Phased(free=computed_torque(robots, plan), held=held)
 
 
-def cooperative(make_law: Callable[..., CooperativeController]) -> Callable[..., Cooperative]:
+def cooperative(make_law: Callable[..., CooperativeController], load_share: Optional[Callable[..., float]] = None
+                ) -> Callable[..., Cooperative]:
     """A factory of :class:`Cooperative` controllers from ``make_law(robots, plan, **options)`` -> a
     :class:`coopsim.CooperativeController`: the law drives both arms during the dual hold, the baseline
-    (:func:`computed_torque`) outside it. Its name is the law maker's."""
+    (:func:`computed_torque`) outside it. Its name is the law maker's. `load_share`: optional
+    ``load_share(**options)`` -> SCARA #1's commanded part of the bar's vertical load
+    (:attr:`Cooperative.load_share`), for a law that commands one without showing it."""
 
     def factory(robots: Sequence[Robot], plan, **options) -> Cooperative:
-        return Cooperative(free=computed_torque(robots, plan), law=make_law(robots, plan, **options))
+        law = make_law(robots, plan, **options)
+        share = None if load_share is None else float(load_share(**options))
+        return Cooperative(free=computed_torque(robots, plan), law=law, load_share=share)
 
     factory.__name__ = getattr(make_law, "__name__", "cooperative")
     factory.__doc__ = make_law.__doc__
@@ -170,9 +185,33 @@ _object_control_law.__name__ = "object_control"
 #: of :data:`~.constants.OBJECT_GAINS`), the baseline outside it
 object_control = cooperative(_object_control_law)
 
+def _leader_follower_law(robots: Sequence[Robot], plan, **options) -> LeaderFollower:
+    """Leader-follower control (:class:`coopsim.LeaderFollower`): SCARA #1 leads on its reference, SCARA #2
+    follows as an impedance around where the grips put it, less `follower_share` of the weight of the bar's
+    model mass ``plan.model_bar_mass``. Options (stiffness N/m and N m/rad, damping N s/m and N m s/rad, mass kg
+    and kg m^2: scalars or (4,) over x, y, z, yaw; kp 1/s^2, kd 1/s: the leader's; follower_share) default to
+    :data:`~.constants.LEADER_FOLLOWER`."""
+    unknown = set(options) - set(LEADER_FOLLOWER)
+    if unknown:
+        raise ValueError(f"unknown option(s) of leader-follower: {', '.join(sorted(unknown))} (choose from "
+                         f"{', '.join(LEADER_FOLLOWER)})")
+    o = {**LEADER_FOLLOWER, **options}
+    return LeaderFollower(o.pop("stiffness"), o.pop("damping"), o.pop("mass"), object_mass=plan.model_bar_mass, **o)
+
+
+def _leader_share(*, follower_share: float = LEADER_FOLLOWER["follower_share"], **_) -> float:
+    return 1.0 - follower_share
+
+
+_leader_follower_law.__name__ = "leader_follower"
+#: ``leader-follower``: :class:`coopsim.LeaderFollower` during the dual hold (options: those of
+#: :data:`~.constants.LEADER_FOLLOWER`), the baseline outside it; it commands SCARA #1 1 - follower_share of the
+#: bar's weight
+leader_follower = cooperative(_leader_follower_law, _leader_share)
+
 #: the controller factories by name (the command line's ``--controller``, ``run(controllers=NAME)``, sweeps)
 CONTROLLERS: Dict[str, Callable] = {"ct": computed_torque, "ct-payload": computed_torque_payload,
-                                    "object": object_control}
+                                    "object": object_control, "leader-follower": leader_follower}
 
 
 def register_controller(name: str, factory: Callable) -> None:

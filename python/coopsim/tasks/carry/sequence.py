@@ -67,7 +67,7 @@ class _Runner:
         if self.coop is not None and not isinstance(self.coop.law, CooperativeController):
             raise ValueError(f"a Cooperative's law must be a coopsim.CooperativeController, got {self.coop.law!r}")
         self.group: Optional[int] = None
-        self.commanded = commanded_sharing(self.coop.law if self.coop else None, plan)
+        self.commanded = commanded_sharing(self.coop, plan)
         for r, c, ref in zip(self.robots, free, plan.references):
             self.sim.add_robot(r, c, ref)
         if dist.sensor_noise is not None:
@@ -249,15 +249,20 @@ class _Runner:
                                  f"(at least {BACKED_OFF * 1e3:.0f} mm expected)")
 
 
-def commanded_sharing(law, plan: Plan) -> dict:
+def commanded_sharing(coop: Optional[Cooperative], plan: Plan) -> dict:
     """What the controllers command of the bar's sharing while both hold it: dict(load_share=(2,) SCARA #1's
-    and #2's parts of the vertical load, squeeze N, source). A law with ``load_share`` and ``squeeze``
-    (:class:`coopsim.ObjectControl`) commands those; otherwise nothing is commanded and the reference is what
-    two pins at the planned grips would share (the lever rule: each carries the other's distance from the
-    centre over their distance) without squeezing."""
+    and #2's parts of the vertical load, squeeze N, source). A cooperative law with ``load_share`` and
+    ``squeeze`` (:class:`coopsim.ObjectControl`) commands those; a :class:`~.controllers.Cooperative` with its
+    own ``load_share`` (leader-follower: the leader carries what the follower does not) commands that and no
+    squeeze; otherwise nothing is commanded and the reference is what two pins at the planned grips would share
+    (the lever rule: each carries the other's distance from the centre over their distance) without squeezing."""
+    law = coop.law if coop is not None else None
     if law is not None and hasattr(law, "load_share") and hasattr(law, "squeeze"):
         a = float(law.load_share)
         return dict(load_share=[a, 1.0 - a], squeeze=float(law.squeeze), source="controller")
+    if coop is not None and coop.load_share is not None:
+        a = float(coop.load_share)
+        return dict(load_share=[a, 1.0 - a], squeeze=0.0, source="controller")
     s = [float(G[0, 3]) for G in plan.grips]     # the grips' positions along the bar from its centre (m)
     a = abs(s[1]) / (abs(s[0]) + abs(s[1]))
     return dict(load_share=[a, 1.0 - a], squeeze=0.0, source="lever rule")
@@ -307,11 +312,11 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     and END; start and seed exclude each other). disturbance: None, a name of
     :data:`~.disturbances.DISTURBANCES`, several (a list, or names joined by commas) or a
     :class:`~.disturbances.Disturbances`. controllers: a name of :data:`~.controllers.CONTROLLERS` ('ct',
-    'ct-payload', 'object') or a factory (robots, plan) -> one controller per robot,
+    'ct-payload', 'object', 'leader-follower') or a factory (robots, plan) -> one controller per robot,
     :class:`~.controllers.Phased` or :class:`~.controllers.Cooperative` ones (default the baseline,
     :func:`~.controllers.computed_torque`); controller_options: keywords for the factory (e.g. ``squeeze``,
-    ``load_share`` and gains for 'object'); controller_name: its name in the report (default the name given,
-    or the factory's __name__). mass_factor: the bar's mass in
+    ``load_share`` and gains for 'object', ``stiffness`` for 'leader-follower'); controller_name: its name in
+    the report (default the name given, or the factory's __name__). mass_factor: the bar's mass in
     the controllers' models over the world's (> 0), instead of a 'mass' disturbance's. jaws_close: (2,) flags, False:
     that clamp's jaw is never commanded to close (a forced failure). dt (s), log_every, world_every,
     control_every: the simulation's (the robots integrated at 5 kHz, the controllers and the world at 1 kHz).
