@@ -443,42 +443,6 @@ def test_leader_follower_under_the_disturbances(disturbed):
         assert p_max < bound and a_max < (30.0 if name == "noise" else 1.0), (name, p_max, a_max)
 
 
-def test_the_held_references_keep_the_jaw_reference_at_the_bar_s_width():
-    """Cooperative laws run on references whose jaw is at the bar's width while both hold it (the arm joints
-    the plan's): their TCP (midway between the jaws) is then the bar's planned pose times the grip with the
-    jaw closed on the bar, at every knot."""
-    plan = P.make_plan()
-    held = P.held_references(plan)
-    width = 2 * S.BAR_HALF_EXTENTS[1]
-    for i, (r, ref, s) in enumerate(zip(S.scaras(), held, (K.GRIP1, K.GRIP2))):
-        tk = plan.knots[i][0]
-        k = (tk >= plan.steps["lift"][0]) & (tk <= plan.steps["place"][1])
-        q, q_plan = ref.evaluate(tk)[0], plan.references[i].evaluate(tk)[0]
-        np.testing.assert_array_equal(q[:, :5], q_plan[:, :5])
-        assert np.all(q[k, 5] == width) and np.all(q[~k, 5] == q_plan[~k, 5])
-        want = plan.bar.pose(tk[k]) @ P.grip_pose(s, K.FLIP[i], width)
-        assert np.abs(r.fk(q[k])[:, :3, 3] - want[:, :3, 3]).max() < 1e-9
-
-
-def test_the_held_references_matter_to_the_cooperative_laws(monkeypatch, disturbed):
-    """On the plan's references (jaw at SQUEEZE, 7.9 mm short of where the bar stops it) the task-space laws
-    command the jaw an acceleration it cannot follow, whose reaction reaches the arms' torques: measured,
-    leader-follower's relative pose error 0.89 mm and 4.8 mrad (0.15 and 0.72 on the held references), its
-    internal force 0.34 N peak (0.11). Should the engine leave the jaw's correction out of the arm's torques,
-    this test fails: the held references are then no longer needed."""
-    from coopsim.tasks.carry import sequence as SQ
-
-    monkeypatch.setattr(SQ, "held_references", lambda plan: plan.references)
-    plain = C.run(controllers="leader-follower")
-    held = disturbed["none", "leader-follower"]
-    assert plain.success and held.success
-    a, b = (r.report["scores"]["cooperation"] for r in (plain, held))
-    msg = f"plan's references {a}; held references {b}"
-    assert a["relative_position_error_mm"] > 3 * b["relative_position_error_mm"], msg
-    assert a["relative_angle_error_mrad"] > 3 * b["relative_angle_error_mrad"], msg
-    assert a["internal_force_N"]["max"] > 2 * b["internal_force_N"]["max"], msg
-
-
 class _Shared(cs.CooperativeController):
     """Independent computed torque per arm plus each arm's share of the bar's weight through J^T at its TCP: a
     cooperative law in Python."""

@@ -145,6 +145,13 @@ limits. The built-in laws: ObjectControl, LeaderFollower.)doc")
            }),
            py::arg("stiffness"), py::arg("damping"), py::arg("mass"), py::kw_only(), py::arg("object_mass"),
            py::arg("kp") = 900.0, py::arg("kd") = 60.0, py::arg("follower_share") = 0.5)
+      .def_property_readonly("kp", &LeaderFollower::kp, "The leader's gain, 1/s^2.")
+      .def_property_readonly("kd", &LeaderFollower::kd, "The leader's gain, 1/s.")
+      .def_property_readonly("stiffness", [](const LeaderFollower& c) { return to_numpy(c.stiffness()); })
+      .def_property_readonly("damping", [](const LeaderFollower& c) { return to_numpy(c.damping()); })
+      .def_property_readonly("mass", [](const LeaderFollower& c) { return to_numpy(c.mass()); })
+      .def_property_readonly("object_mass", &LeaderFollower::object_mass, "kg, the model's.")
+      .def_property_readonly("follower_share", &LeaderFollower::follower_share)
       .def_property_readonly("relative_error", [](const LeaderFollower& c) { return to_numpy(c.relative_error()); },
                              "(6,) the follower's pose error from where the grips put it (task axes: m, rad).");
 }

@@ -1268,10 +1268,37 @@ class LeaderFollower(CooperativeController):
     def __init__(self, stiffness: typing.Any, damping: typing.Any, mass: typing.Any, *, object_mass: typing.SupportsFloat | typing.SupportsIndex, kp: typing.SupportsFloat | typing.SupportsIndex = 900.0, kd: typing.SupportsFloat | typing.SupportsIndex = 60.0, follower_share: typing.SupportsFloat | typing.SupportsIndex = 0.5) -> None:
         ...
     @property
+    def damping(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def follower_share(self) -> float:
+        ...
+    @property
+    def kd(self) -> float:
+        """
+        The leader's gain, 1/s.
+        """
+    @property
+    def kp(self) -> float:
+        """
+        The leader's gain, 1/s^2.
+        """
+    @property
+    def mass(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
+    @property
+    def object_mass(self) -> float:
+        """
+        kg, the model's.
+        """
+    @property
     def relative_error(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (6,) the follower's pose error from where the grips put it (task axes: m, rad).
         """
+    @property
+    def stiffness(self) -> numpy.typing.NDArray[numpy.float64]:
+        ...
 class World:
     """
     A Bullet dynamics world: an optional floor (the plane z = 0), static boxes

@@ -22,7 +22,7 @@ from . import scene
 from .constants import (BRANCH, CLEAR_ABOVE, CLOSE_SPEED, END, FIXED_GAP, FLIP, GRIP1, GRIP2, KNOTS, LIFT, OPEN,
                         SQUEEZE, START, START_SHIFT, START_TURN, TIMES)
 
-__all__ = ["BarPath", "Plan", "grip_pose", "held_references", "make_plan", "random_start", "reference_disagreement", "STEPS"]
+__all__ = ["BarPath", "Plan", "grip_pose", "make_plan", "random_start", "reference_disagreement", "STEPS"]
 
 #: the steps of a carry, in order
 STEPS = ("approach", "grasp", "lift", "carry", "place", "release", "back off")
@@ -223,28 +223,6 @@ def make_plan(start=START, end=END, *, robots=None, grip_offsets=(0.0, 0.0), clo
         knots.append((np.array(k.t), np.array(k.q)))
     return Plan(bar, grips, refs, steps, float(t_end), tuple(start), tuple(end), q_grasp,
                 mass_factor * scene.BAR_MASS, knots, tuple(offsets.tolist()), tuple(bool(c) for c in close))
-
-
-def held_references(plan: Plan) -> List[CubicTrajectory]:
-    """Each robot's reference with its jaw's reference at the bar's width, instead of SQUEEZE, from the lift to
-    the end of the place (the arm joints' as planned). The cooperative laws run on these (:func:`~.sequence.run`).
-
-    The jaw stop holds a closed jaw at the bar's width either way, and the task-space controllers refer the
-    reference's tool centre point to the jaw's measured opening. But they position-control the jaw within the
-    arm's inverse dynamics: at the jaw reference SQUEEZE the jaw, stopped by the bar 7.9 mm short of it, is
-    commanded an acceleration it cannot follow, and that acceleration's reaction enters the arm joints'
-    torques. On the plan's references the bar ran 0.52 mm RMS off its path under object control (0.44 mm on
-    these), and under leader-follower the clamps' relative pose error reached 0.89 mm and 4.8 mrad (0.15 mm
-    and 0.72 mrad on these), the internal force 0.34 N (0.11 N)."""
-    t0, t1 = plan.steps["lift"][0], plan.steps["place"][1]
-    out = []
-    for t, q in plan.knots:
-        q = q.copy()
-        held = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
-        if plan.close[len(out)]:
-            q[held, 5] = 2.0 * scene.BAR_HALF_EXTENTS[1]
-        out.append(CubicTrajectory(t, q))
-    return out
 
 
 def reference_disagreement(plan: Plan, robots=None, samples: int = 4000) -> float:

@@ -14,7 +14,7 @@ from . import scene
 from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
 from .controllers import CONTROLLERS, Cooperative, Phased, computed_torque, grip_point
 from .disturbances import Disturbances, disturbances
-from .planning import ROBOT_NAMES, STEPS, Plan, held_references, make_plan, random_start
+from .planning import ROBOT_NAMES, STEPS, Plan, make_plan, random_start
 from .scoring import score
 
 __all__ = ["CarryError", "CarryResult", "run"]
@@ -179,8 +179,6 @@ class _Runner:
             for i, c in enumerate(self.phased.held):
                 sim.set_controller(i, c)
         if self.coop:
-            for i, ref in enumerate(held_references(plan)):
-                sim.set_reference(i, ref)
             self.group = sim.add_cooperative(self.coop.law, [0, 1])
         self.done()
         self.mark("lift")
