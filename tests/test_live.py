@@ -770,3 +770,14 @@ def test_the_tasks_command_line_runs_it_live(tmp_path):
     assert "coopsim live view: http://127.0.0.1:" in res.stdout
     with open(tmp_path / "report.json", encoding="utf-8") as f:
         assert json.load(f)["success"] is True
+
+
+def test_a_lab_notebook_puts_the_live_page_in_a_cell():
+    """Lab 02 runs its PID plan in the live page shown in a cell (the notebook itself is executed by
+    tests/test_notebooks_and_examples.py)."""
+    import json
+    from pathlib import Path
+
+    nb = json.loads((Path(__file__).resolve().parents[1] / "notebooks" / "02_planning_and_control.ipynb").read_text())
+    code = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
+    assert any("cs.view.live(" in c and ".show(" in c and ".run_to(" in c for c in code)
