@@ -158,9 +158,10 @@ def push_held_bar(payload=True, model=None, K=300.0, M=1.0, zeta=0.4, F=1.0):
 def test_impedance_pushing_the_held_bar():
     """The clamp holds the bar (payload known: its weight and inertia out of the sensed wrench); a 1 N
     step on the bar's centre, 5 cm from the TCP: the clamp moves F/K (2 %) with the commanded damping
-    ratio (5 %), and before the push it held the reference (the weight did not sag it: under 0.1 mm)."""
+    ratio (5 %), and before the push it held the reference (the weight did not sag it: under 0.1 mm).
+    Measured: 0.996 F/K, zeta 0.398."""
     x, before = push_held_bar()
-    assert x[-1, 1] == pytest.approx(1.0 / 300.0, rel=0.02)
+    assert x[-1, 1] == pytest.approx(1.0 / 300.0, rel=0.01)
     assert zeta_from_overshoot(x[:, 1]) == pytest.approx(0.4, rel=0.05)
     assert np.abs(before).max() < 1e-4
 
@@ -221,16 +222,17 @@ def press_and_slide(F=-5.0, **kw):
 
 def test_hybrid_presses_with_the_setpoint_while_sliding_on_its_path(record_property):
     """Force along z settles at -5 N (mean within 2 % at rest and while sliding) while x, y track the
-    straight path within 1 mm, against friction (cancelled by the sensed wrench). After settling the
-    force's oscillation at rest is bounded: within 0.1 N (2 %) of the setpoint, no chatter; while sliding
-    (stick-slip at the table) within 0.5 N. The table's contact force agrees with the sensor."""
+    straight path within 1 mm (0.03 mm measured), against friction (cancelled by the sensed wrench). After
+    settling the force's oscillation against the table (a rigid contact) is bounded: within 0.05 N (1 %) of
+    the setpoint at rest and while sliding (0.012 N measured), no chatter. The table's contact force agrees
+    with the sensor."""
     t, fz, exy, sim = press_and_slide()
     rest, slide, after = (t > 0.3) & (t < 0.5), (t > 0.5) & (t < 1.5), (t > 1.8)
     for k in (rest, slide, after):
         assert fz[k].mean() == pytest.approx(-5.0, rel=0.02)
-    assert np.abs(exy).max() < 1e-3
-    assert np.abs(fz[rest] + 5.0).max() < 0.1 and np.abs(fz[after] + 5.0).max() < 0.1
-    assert np.abs(fz[slide] + 5.0).max() < 0.5
+    assert np.abs(exy).max() < 1e-4
+    assert np.abs(fz[rest] + 5.0).max() < 0.05 and np.abs(fz[after] + 5.0).max() < 0.05
+    assert np.abs(fz[slide] + 5.0).max() < 0.05
     record_property("force ripple at rest (N)", float(np.abs(fz[rest | after] + 5.0).max()))
     record_property("force ripple sliding (N)", float(np.abs(fz[slide] + 5.0).max()))
     record_property("path error (mm)", float(np.abs(exy).max() * 1e3))
