@@ -28,7 +28,8 @@ def main():
     args = ap.parse_args()
     repeats, seeds = (1, 2) if args.quick else (5, 5)
     controllers = list(C.CONTROLLERS)
-    print(f"{'controller':<14}{'simulated s':>12}{'run s':>9}{'x real time':>13}{'+ scoring s':>13}{'x real time':>13}")
+    width = max(len(c) for c in controllers + ["controller"]) + 2
+    print(f"{'controller':<{width}}{'simulated s':>12}{'run s':>9}{'x real time':>13}{'+ scoring s':>13}{'x real time':>13}")
     for name in controllers:
         best, best_scored = None, None
         for _ in range(repeats):
@@ -43,7 +44,7 @@ def main():
         assert res.success and scored.success, C.summary(scored.report)
         st = res.report["simulated_time"]
         flag = "" if st / best >= TARGET_RTF else f"  (below the {TARGET_RTF:.0f}x target)"
-        print(f"{name:<14}{st:>12.2f}{best:>9.3f}{st / best:>12.1f}x{best_scored:>13.3f}{st / best_scored:>12.1f}x{flag}")
+        print(f"{name:<{width}}{st:>12.2f}{best:>9.3f}{st / best:>12.1f}x{best_scored:>13.3f}{st / best_scored:>12.1f}x{flag}")
     t = time.perf_counter()
     table = C.sweep_table(controllers, DISTURBANCES, range(seeds), threads=2)
     w = time.perf_counter() - t

@@ -9,7 +9,8 @@ the bar they carry; grasps and releases happen only through the clamp rule. The 
 controllers that a factory ``(robots, plan) -> controllers`` makes, chosen by name from
 :data:`~.controllers.CONTROLLERS` (:mod:`.controllers`: the baseline ``ct``, independent computed torque;
 ``ct-payload``; ``object``, object-level control of both arms by one cooperative law while they hold the bar;
-``leader-follower``, SCARA #1 leading and #2 following as an impedance);
+``leader-follower``, SCARA #1 leading and #2 following as an impedance; ``object-impedance``, object-level
+control whose bar yields to a push as a mass-spring-damper);
 the run (:func:`run`) fails naming its step (approach, grasp, lift, carry,
 place, release, back off) and reason, and is scored from its log (:mod:`.scoring`): the bar's pose against
 its planned path, the welds' wrenches and stretch (slip), the joint torques, tracking, clearances, the force
@@ -27,7 +28,8 @@ Command line: ``python -m coopsim.tasks.carry --out out/carry`` (``--help`` for 
 """
 from .constants import END, START  # noqa: F401
 from .controllers import (CONTROLLERS, Cooperative, Phased, computed_torque, computed_torque_payload,  # noqa: F401
-                          cooperative, leader_follower, object_control, register_controller)
+                          cooperative, leader_follower, object_control, object_impedance,
+                          register_controller)
 from .disturbances import DISTURBANCES, Disturbances  # noqa: F401
 from .planning import STEPS, BarPath, Plan, make_plan, random_start  # noqa: F401
 from .report import report_figures, summary, write_outputs  # noqa: F401

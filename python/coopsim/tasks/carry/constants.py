@@ -84,3 +84,18 @@ OBJECT_GAINS = dict(kp=2500.0, kd=100.0, kp_force=0.5, ki_force=5.0, integral_li
 #: model's weight of the bar
 LEADER_FOLLOWER = dict(stiffness=(2000.0, 2000.0, 2000.0, 20.0), damping=(90.0, 90.0, 90.0, 0.9),
                        mass=(1.0, 1.0, 1.0, 0.01), kp=900.0, kd=60.0, follower_share=0.5)
+#: object impedance (``object-impedance``, :class:`coopsim.ObjectControl` with ``impedance``): object-level control
+#: as ``object`` (OBJECT_GAINS: the motion loop at omega 50 rad/s) whose bar yields to a push as a
+#: mass-spring-damper around its planned path, over x, y, z, rx, ry, rz (world): stiffness 300 N/m, mass 1 kg,
+#: damping 24 N s/m (omega 17.3 rad/s, damping ratio 0.69, about 3 times slower than the motion loop; the
+#: carry's 2 N push moves the bar F/K = 6.7 mm, and at 17.3 rad/s a step of it is there within its 0.2 s). The
+#: rotations scaled by the grips' distance from the bar's centre, r = 0.10 m: stiffness 300 r^2 = 3 N m/rad,
+#: mass 1 r^2 = 0.01 kg m^2, damping 0.24 N m s/rad (the same omega and damping ratio; a force at a grip sees the
+#: same stiffness turning the bar as moving it). The bar's weight in the model is part of the push's estimate: a
+#: model mass wrong by +-50 % moves the bar 0.5 * 0.15 kg * 9.81 m/s^2 / 300 N/m = 2.5 mm up or down.
+#: accel_filter 0.01 s (the engine's default 0.002): the time constant of the filter on the bar's measured
+#: acceleration in the push's estimate. Shorter, the estimate rings at the controllers' half rate (500 Hz) in
+#: the carry, tens of N through the clamps: at 0 s a clamp slips out; from 0.001 to 0.004 s it rings in some
+#: runs (with the model mass +50 % at 0.004 s a jaw then meets a stand); from 0.006 s it is quiet (0.01 N)
+OBJECT_IMPEDANCE = dict(stiffness=(300.0, 300.0, 300.0, 3.0, 3.0, 3.0), damping=(24.0, 24.0, 24.0, 0.24, 0.24, 0.24),
+                        mass=(1.0, 1.0, 1.0, 0.01, 0.01, 0.01), accel_filter=0.01)

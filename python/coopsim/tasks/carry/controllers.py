@@ -37,6 +37,13 @@ returning the law.
   carries half of the bar's weight) and squeeze (0 N); the gains :data:`~.constants.OBJECT_GAINS`. The
   bar's reference is SCARA #1's (its planned joint trajectory and its grip); SCARA #2's TCP moves as a
   point of the bar. Free, the baseline.
+- :func:`object_impedance` (``object-impedance``): the same object-level control (the same model, load share,
+  squeeze and gains), but the bar is an impedance: it yields to a push as a mass-spring-damper around its
+  planned path (:class:`coopsim.ObjectControl` with ``impedance``; the values
+  :data:`~.constants.OBJECT_IMPEDANCE`: 300 N/m, 1 kg, damping ratio 0.69, so the carry's 2 N push moves it
+  about F/K = 6.7 mm and it comes back after), the push estimated from the clamps' sensors and the bar's
+  measured acceleration. The model's weight of the bar is part of that estimate: a wrong model mass moves the
+  bar by its weight's error over the stiffness. Free, the baseline.
 - :func:`leader_follower` (``leader-follower``): :class:`coopsim.LeaderFollower` drives both arms during the
   hold. SCARA #1 leads: task-space computed torque on its own reference, carrying what it feels. SCARA #2
   follows: an impedance over x, y, z and yaw around where the grips put its clamp given the leader's, driven
@@ -54,10 +61,10 @@ import numpy as np
 from ..._core import (ComputedTorque, Controller, CooperativeController, LeaderFollower, ObjectControl, Robot,
                      box_inertia)
 from . import scene
-from .constants import LEADER_FOLLOWER, OBJECT_GAINS, OMEGA
+from .constants import LEADER_FOLLOWER, OBJECT_GAINS, OBJECT_IMPEDANCE, OMEGA
 
 __all__ = ["CONTROLLERS", "Cooperative", "Phased", "computed_torque", "computed_torque_payload", "cooperative",
-           "leader_follower", "object_control", "register_controller", "with_point_mass"]
+           "leader_follower", "object_control", "object_impedance", "register_controller", "with_point_mass"]
 
 
 @dataclasses.dataclass
@@ -172,18 +179,44 @@ def _object_control_law(robots: Sequence[Robot], plan, *, load_share: float = 0.
     """Object-level control (:class:`coopsim.ObjectControl`) with the bar's model (:func:`bar_model`): SCARA
     #1 carries `load_share` of its weight, the clamps squeeze it with `squeeze` N (compression positive); gains
     (kp 1/s^2, kd 1/s, kp_force, ki_force 1/s, integral_limit N) default to :data:`~.constants.OBJECT_GAINS`."""
-    unknown = set(gains) - set(OBJECT_GAINS)
+    return _object_law("object control", plan, load_share, squeeze, gains, None)
+
+
+def _object_impedance_law(robots: Sequence[Robot], plan, *, load_share: float = 0.5, squeeze: float = 0.0,
+                          **options) -> ObjectControl:
+    """Object impedance: :func:`object control <_object_control_law>` whose bar yields to a push as a
+    mass-spring-damper around its reference (:class:`coopsim.ObjectControl` with ``impedance``). Options: those of
+    object control, and stiffness (N/m, N m/rad), damping (N s/m, N m s/rad), mass (kg, kg m^2) (scalars or (6,)
+    over x, y, z, rx, ry, rz) and accel_filter (s), defaulting to :data:`~.constants.OBJECT_IMPEDANCE`."""
+    return _object_law("object impedance", plan, load_share, squeeze, options, OBJECT_IMPEDANCE)
+
+
+def _object_law(what, plan, load_share, squeeze, options, impedance) -> ObjectControl:
+    """ObjectControl with the bar's model, OBJECT_GAINS updated from `options`, and with `impedance` (a dict of
+    stiffness, damping, mass, accel_filter updated from `options`) or without (None)."""
+    known = list(OBJECT_GAINS) + list(impedance or ())
+    unknown = set(options) - set(known)
     if unknown:
-        raise ValueError(f"unknown option(s) of object control: {', '.join(sorted(unknown))} (choose from "
-                         f"load_share, squeeze, {', '.join(OBJECT_GAINS)})")
+        raise ValueError(f"unknown option(s) of {what}: {', '.join(sorted(unknown))} (choose from "
+                         f"load_share, squeeze, {', '.join(known)})")
     m, inertia = bar_model(plan)
-    return ObjectControl(m, inertia, load_share=load_share, squeeze=squeeze, **{**OBJECT_GAINS, **gains})
+    gains = {**OBJECT_GAINS, **{k: v for k, v in options.items() if k in OBJECT_GAINS}}
+    if impedance is not None:
+        o = {**impedance, **{k: v for k, v in options.items() if k in impedance}}
+        gains.update(impedance=(o["stiffness"], o["damping"], o["mass"]), accel_filter=o["accel_filter"])
+    return ObjectControl(m, inertia, load_share=load_share, squeeze=squeeze, **gains)
 
 
 _object_control_law.__name__ = "object_control"
 #: ``object``: :class:`coopsim.ObjectControl` during the dual hold (options: load_share, squeeze and the gains
 #: of :data:`~.constants.OBJECT_GAINS`), the baseline outside it
 object_control = cooperative(_object_control_law)
+_object_impedance_law.__name__ = "object_impedance"
+#: ``object-impedance``: :class:`coopsim.ObjectControl` with the bar's impedance
+#: (:data:`~.constants.OBJECT_IMPEDANCE`) during the dual hold (options: those of ``object`` and of
+#: OBJECT_IMPEDANCE), the baseline outside it
+object_impedance = cooperative(_object_impedance_law)
+
 
 def _leader_follower_law(robots: Sequence[Robot], plan, **options) -> LeaderFollower:
     """Leader-follower control (:class:`coopsim.LeaderFollower`): SCARA #1 leads on its reference, SCARA #2
@@ -211,7 +244,8 @@ leader_follower = cooperative(_leader_follower_law, _leader_share)
 
 #: the controller factories by name (the command line's ``--controller``, ``run(controllers=NAME)``, sweeps)
 CONTROLLERS: Dict[str, Callable] = {"ct": computed_torque, "ct-payload": computed_torque_payload,
-                                    "object": object_control, "leader-follower": leader_follower}
+                                    "object": object_control, "leader-follower": leader_follower,
+                                    "object-impedance": object_impedance}
 
 
 def register_controller(name: str, factory: Callable) -> None:

@@ -310,15 +310,15 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     and END; start and seed exclude each other). disturbance: None, a name of
     :data:`~.disturbances.DISTURBANCES`, several (a list, or names joined by commas) or a
     :class:`~.disturbances.Disturbances`. controllers: a name of :data:`~.controllers.CONTROLLERS` ('ct',
-    'ct-payload', 'object', 'leader-follower') or a factory (robots, plan) -> one controller per robot,
-    :class:`~.controllers.Phased` or :class:`~.controllers.Cooperative` ones (default the baseline,
+    'ct-payload', 'object', 'leader-follower', 'object-impedance') or a factory (robots, plan) -> one controller
+    per robot, :class:`~.controllers.Phased` or :class:`~.controllers.Cooperative` ones (default the baseline,
     :func:`~.controllers.computed_torque`); controller_options: keywords for the factory (e.g. ``squeeze``,
-    ``load_share`` and gains for 'object', ``stiffness`` for 'leader-follower'); controller_name: its name in
-    the report (default the name given, or the factory's __name__). mass_factor: the bar's mass in
-    the controllers' models over the world's (> 0), instead of a 'mass' disturbance's. jaws_close: (2,) flags, False:
-    that clamp's jaw is never commanded to close (a forced failure). dt (s), log_every, world_every,
-    control_every: the simulation's (the robots integrated at 5 kHz, the controllers and the world at 1 kHz).
-    score_run: compute the scores (:func:`~.scoring.score`).
+    ``load_share`` and gains for 'object', ``stiffness`` for 'leader-follower' and 'object-impedance');
+    controller_name: its name in the report (default the name given, or the factory's __name__). mass_factor:
+    the bar's mass in the controllers' models over the world's (> 0), instead of a 'mass' disturbance's.
+    jaws_close: (2,) flags, False: that clamp's jaw is never commanded to close (a forced failure). dt (s),
+    log_every, world_every, control_every: the simulation's (the robots integrated at 5 kHz, the controllers
+    and the world at 1 kHz). score_run: compute the scores (:func:`~.scoring.score`).
 
     A run fails, naming its step (approach, grasp, lift, carry, place, release, back off), time and reason, on
     an unexpected contact (robot-robot, a robot with a stand or the floor or its own links, the bar with
