@@ -43,17 +43,6 @@ class PyController : public Controller {
 
 Eigen::VectorXd gains(const py::handle& obj, const char* name) { return coopsim::gains(table(obj, name), name); }
 
-std::shared_ptr<const Robot> model_arg(const py::object& model) {
-  if (model.is_none()) return nullptr;
-  if (!py::isinstance<Robot>(model)) throw py::value_error("model must be a coopsim.Robot or None");
-  return std::make_shared<const Robot>(model.cast<const Robot&>());
-}
-
-py::object model_out(const std::shared_ptr<const Robot>& m) {
-  if (!m) return py::none();
-  return py::cast(*m);  // a copy: the controller's model stays immutable
-}
-
 py::array_t<double> np(const Eigen::VectorXd& v) { return to_numpy(v); }
 
 py::array_t<double> compute_py(Controller& c, double t, const py::object& q, const py::object& qd,

@@ -58,14 +58,6 @@ Payload payload_arg(const py::object& obj) {
   return obj.cast<Payload>();
 }
 
-std::shared_ptr<const Robot> model_arg(const py::object& model) {
-  if (model.is_none()) return nullptr;
-  if (!py::isinstance<Robot>(model)) throw py::value_error("model must be a coopsim.Robot or None");
-  return std::make_shared<const Robot>(model.cast<const Robot&>());
-}
-
-py::object model_out(const std::shared_ptr<const Robot>& m) { return m ? py::cast(*m) : py::none(); }
-
 py::object payload_out(const Payload& p) { return p.mass > 0 ? py::cast(p) : py::none(); }
 
 py::tuple axis_names(const std::array<bool, kTaskAxes>& mask) {

@@ -192,4 +192,14 @@ inline py::array_t<double> to_numpy(const Eigen::Isometry3d& T) {
   return out;
 }
 
+// A controller's model argument: a Robot (copied) or None.
+inline std::shared_ptr<const Robot> model_arg(const py::object& model) {
+  if (model.is_none()) return nullptr;
+  if (!py::isinstance<Robot>(model)) throw py::value_error("model must be a coopsim.Robot or None");
+  return std::make_shared<const Robot>(model.cast<const Robot&>());
+}
+
+// A controller's model for Python: a copy (the controller's model stays immutable), or None.
+inline py::object model_out(const std::shared_ptr<const Robot>& m) { return m ? py::cast(*m) : py::none(); }
+
 }  // namespace coopsim::py_convert

@@ -10,16 +10,11 @@
 #include <string>
 
 #include "coopsim/simulation.hpp"
+#include "internal.hpp"
 
 namespace coopsim {
 
 namespace {
-
-Eigen::Matrix3d skew(const Eigen::Vector3d& r) {
-  Eigen::Matrix3d S;
-  S << 0, -r.z(), r.y(), r.z(), 0, -r.x(), -r.y(), r.x(), 0;
-  return S;
-}
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kSamePoint = 1e-9;  // m: points closer count as one
@@ -33,7 +28,7 @@ Eigen::Matrix<double, 6, 12> grasp_matrix(const Eigen::Vector3d& c, const Eigen:
   for (int k = 0; k < 2; ++k) {
     W.block<3, 3>(0, 6 * k).setIdentity();
     W.block<3, 3>(3, 6 * k + 3).setIdentity();
-    W.block<3, 3>(3, 6 * k) = skew(*p[k] - c);
+    W.block<3, 3>(3, 6 * k) = detail::skew(*p[k] - c);
   }
   return W;
 }

@@ -23,11 +23,6 @@ class Arm : public TaskController {
   }
 };
 
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
-
 // world [v; w] <-> task axes of a state
 Vec6 to_world(const TaskState& s, const Vec6& v) {
   Vec6 o;
@@ -147,7 +142,7 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
   carry(to_world(s0, s0.velocity_ref), to_world(s0, s0.accel_ref), Tr.translation() - s0.pose_ref.translation(),
         tw_ref, acc_ref);
   err_.head<3>() = Tr.translation() - c;
-  err_.tail<3>() = rotation_vector(Tr.linear() * To.linear().transpose());
+  err_.tail<3>() = detail::rotation_vector(Tr.linear() * To.linear().transpose());
   Vec6 rate = tw_ref - tw;
   const Eigen::Matrix3d Iw = To.linear() * inertia_ * To.linear().transpose();
   const Eigen::Vector3d w = tw.tail<3>();

@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <Eigen/Geometry>
+
 namespace coopsim::detail {
 
 // Throws std::invalid_argument(msg) (Python's ValueError) unless ok.
@@ -18,6 +20,19 @@ inline std::string num(double x) {
   s.precision(6);
   s << x;
   return s.str();
+}
+
+// S(v), the cross-product matrix: S(v) x = v x x.
+inline Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+// The rotation vector (axis times angle, rad) of a rotation matrix.
+inline Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
 }
 
 }  // namespace coopsim::detail

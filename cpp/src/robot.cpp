@@ -27,12 +27,6 @@ bool finite_dh(const DHParams& p) {
   return std::isfinite(p.theta) && std::isfinite(p.d) && std::isfinite(p.a) && std::isfinite(p.alpha);
 }
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d S;
-  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return S;
-}
-
 // |r|^2 E - r r^T: the parallel-axis term per unit mass
 Eigen::Matrix3d shift_inertia(const Eigen::Vector3d& r) {
   Eigen::Matrix3d P = -r * r.transpose();
@@ -839,7 +833,7 @@ void Robot::mass_matrix_derivatives(const double* q, Workspace& ws, std::vector<
       MatN& D = dM[k];
       D += A + A.transpose();
       if (isR(k)) {
-        const Eigen::Matrix3d S = skew(zk);
+        const Eigen::Matrix3d S = detail::skew(zk);
         const Eigen::Matrix3d dI = S * I - I * S;
         D += Jw.transpose() * dI * Jw;
       }

@@ -66,11 +66,6 @@ Vec6 spread(const Eigen::VectorXd& v, const std::vector<int>& axes, const char* 
   return out;
 }
 
-Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
-
 int jaw_of(const Robot& r) { return r.clamp().present() ? r.clamp().moving_joint - 1 : -1; }
 
 using Mat66 = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kTaskAxes, kTaskAxes>;
@@ -317,7 +312,7 @@ const TaskState& TaskController::observe(const ControlInput& in, const TaskRefer
   s.velocity_ref = to_task(twist_ref);
   s.accel_ref = to_task(accel_ref);
   s.error.head<3>() = s.pose_ref.translation() - s.pose.translation();
-  s.error.tail<3>() = Bt * rotation_vector(s.pose_ref.linear() * s.pose.linear().transpose());
+  s.error.tail<3>() = Bt * detail::rotation_vector(s.pose_ref.linear() * s.pose.linear().transpose());
   s.error_rate = s.velocity_ref - s.velocity;
   // the sensor, less the payload's weight and inertia (acceleration commanded at the last update)
   s.sensed = in.wrench != nullptr;
