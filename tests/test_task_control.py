@@ -180,9 +180,9 @@ def test_impedance_without_the_payload_or_with_a_wrong_model_shows_it(record_pro
     heavy = cs.robots.scara1(gravity=(0, 0, -G), masses=1.2 * r.masses)
     x, before = push_held_bar(model=heavy)
     z_wrong = zeta_from_overshoot(x[:, 1])
-    record_property("zeta without payload", z_nopay)
-    record_property("zeta with a model 20 % heavy", z_wrong)
-    record_property("z offset with a model 20 % heavy (m)", before[2])
+    record_property("zeta without payload", float(z_nopay))
+    record_property("zeta with a model 20 % heavy", float(z_wrong))
+    record_property("z offset with a model 20 % heavy (m)", float(before[2]))
     assert before[2] > 1e-3  # millimetres off, not hidden
     assert abs(z_wrong / zeta - 1) > 0.02
     assert x[-1, 1] == pytest.approx(1.0 / K, rel=0.05)  # the stiffness still holds
