@@ -68,7 +68,8 @@ void Simulation::cooperate_() {
     if (!g.active || slots_[g.robots[0]].control.updated_at == k_) continue;
     members_.resize(g.robots.size());
     coop_tau_.resize(g.robots.size());
-    std::vector<double*> out(g.robots.size());
+    coop_out_.resize(g.robots.size());
+    std::vector<double*>& out = coop_out_;
     for (size_t a = 0; a < g.robots.size(); ++a) {
       Slot& s = slots_[g.robots[a]];
       Slot::Control& c = s.control;

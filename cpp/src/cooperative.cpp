@@ -67,11 +67,6 @@ Vec6 checked_vec6(const Vec6& v, const char* name, bool positive) {
   return v;
 }
 
-void check_nonneg(double x, const char* name) {
-  if (!std::isfinite(x) || x < 0)
-    throw std::invalid_argument(std::string(name) + " must be finite and >= 0, got " + detail::num(x));
-}
-
 }  // namespace
 
 // ---- object-level control ----
@@ -84,7 +79,7 @@ ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains 
   checked_vec6(K_, "stiffness", false);
   checked_vec6(D_, "damping", false);
   checked_vec6(Md_, "impedance mass", true);
-  check_nonneg(accel_filter_, "accel_filter");
+  detail::require_nonnegative(accel_filter_, "accel_filter");
   if (!std::isfinite(mass_) || !(mass_ > 0))
     throw std::invalid_argument("mass (the object's, in the controller's model) must be finite and > 0 kg, got " +
                                 detail::num(mass_));
@@ -94,9 +89,9 @@ ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains 
   TaskController::check_payload(p);
   checked_vec6(gains_.kp, "kp", false);
   checked_vec6(gains_.kd, "kd", false);
-  check_nonneg(gains_.kp_force, "kp_force");
-  check_nonneg(gains_.ki_force, "ki_force");
-  check_nonneg(gains_.integral_limit, "integral_limit");
+  detail::require_nonnegative(gains_.kp_force, "kp_force");
+  detail::require_nonnegative(gains_.ki_force, "ki_force");
+  detail::require_nonnegative(gains_.integral_limit, "integral_limit");
   if (!std::isfinite(share_) || share_ < 0 || share_ > 1)
     throw std::invalid_argument("load_share must be in [0, 1], got " + detail::num(share_));
   if (!std::isfinite(squeeze_)) throw std::invalid_argument("squeeze must be finite");
@@ -245,9 +240,9 @@ LeaderFollower::LeaderFollower(double kp, double kd, Eigen::VectorXd stiffness, 
                                Eigen::VectorXd mass, double object_mass, double follower_share)
     : kp_(kp), kd_(kd), k_(std::move(stiffness)), d_(std::move(damping)), m_(std::move(mass)),
       object_mass_(object_mass), share_(follower_share) {
-  check_nonneg(kp_, "kp");
-  check_nonneg(kd_, "kd");
-  check_nonneg(object_mass_, "object_mass");
+  detail::require_nonnegative(kp_, "kp");
+  detail::require_nonnegative(kd_, "kd");
+  detail::require_nonnegative(object_mass_, "object_mass");
   if (!std::isfinite(share_) || share_ < 0 || share_ > 1)
     throw std::invalid_argument("follower_share must be in [0, 1], got " + detail::num(share_));
   // the values' checks are the impedance's

@@ -1,6 +1,7 @@
 // Helpers the engine's sources share; internal (not installed, not part of the API).
 #pragma once
 
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -20,6 +21,12 @@ inline std::string num(double x) {
   s.precision(6);
   s << x;
   return s.str();
+}
+
+// Throws std::invalid_argument naming `name` unless x is finite and >= 0.
+inline void require_nonnegative(double x, const char* name) {
+  if (!std::isfinite(x) || x < 0)
+    throw std::invalid_argument(std::string(name) + " must be finite and >= 0, got " + num(x));
 }
 
 // S(v), the cross-product matrix: S(v) x = v x x.

@@ -47,11 +47,6 @@ void check_values(const Eigen::VectorXd& v, const char* name, bool positive, boo
   }
 }
 
-void check_scalar(double x, const char* name) {
-  if (!std::isfinite(x) || x < 0)
-    throw std::invalid_argument(std::string(name) + " must be finite and >= 0, got " + detail::num(x));
-}
-
 // v (1 value, or one per axis of `axes`) spread over the six axes
 Vec6 spread(const Eigen::VectorXd& v, const std::vector<int>& axes, const char* name) {
   if (v.size() != 1 && v.size() != static_cast<Eigen::Index>(axes.size())) {
@@ -172,15 +167,15 @@ TaskController::TaskController(std::vector<std::string> directions, double jaw_k
     : names_(std::move(directions)), jaw_kp_(jaw_kp), jaw_kd_(jaw_kd), null_kp_(null_kp), null_kd_(null_kd),
       payload_(std::move(payload)), model_(std::move(model)) {
   axes_of(names_, "directions");
-  check_scalar(jaw_kp_, "jaw_kp");
-  check_scalar(jaw_kd_, "jaw_kd");
-  check_scalar(null_kp_, "null_kp");
-  check_scalar(null_kd_, "null_kd");
+  detail::require_nonnegative(jaw_kp_, "jaw_kp");
+  detail::require_nonnegative(jaw_kd_, "jaw_kd");
+  detail::require_nonnegative(null_kp_, "null_kp");
+  detail::require_nonnegative(null_kd_, "null_kd");
   check_payload(payload_);
 }
 
 void TaskController::check_payload(const Payload& p) {
-  check_scalar(p.mass, "payload mass");
+  detail::require_nonnegative(p.mass, "payload mass");
   if (!p.com.allFinite()) throw std::invalid_argument("payload com must be finite");
   if (!p.inertia.allFinite()) throw std::invalid_argument("payload inertia must be finite");
   if ((p.inertia - p.inertia.transpose()).cwiseAbs().maxCoeff() > 1e-9 * (1.0 + p.inertia.cwiseAbs().maxCoeff()))
@@ -489,7 +484,7 @@ HybridForce::HybridForce(std::vector<std::string> force_directions, Eigen::Vecto
   check_values(kv_, "kv", false);
   check_values(kp_, "kp", false);
   check_values(kd_, "kd", false);
-  check_scalar(ilim_, "integral_limit");
+  detail::require_nonnegative(ilim_, "integral_limit");
   spread(f_, forder_, "force");
   spread(kpf_, forder_, "kp_force");
   spread(kif_, forder_, "ki_force");

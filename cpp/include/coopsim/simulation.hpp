@@ -443,6 +443,7 @@ class Simulation {
   std::vector<Coop> coops_;
   std::vector<CoopMember> members_;  // scratch of cooperate_
   std::vector<VecN> coop_tau_;
+  std::vector<double*> coop_out_;     // scratch of cooperate_: the members' torque outputs
   std::vector<std::pair<int, Vec6>> body_wrenches_;  // set_body_wrench: (world id, wrench), nonzero
   long world_at_ = -1;
   bool profiling_ = false;
