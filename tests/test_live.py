@@ -746,8 +746,8 @@ def test_the_task_runs_in_the_live_page_with_the_headless_result(views):
 def test_show_puts_the_live_page_in_a_notebook_cell(views, monkeypatch):
     import IPython.display
 
-    import coopsim.view.live  # noqa: F401  (the module, for its notebook check)
-    live_module = __import__("sys").modules["coopsim.view.live"]
+    import coopsim.view.live.session  # noqa: F401  (the module, for its notebook check)
+    live_module = __import__("sys").modules["coopsim.view.live.session"]
     shown = []
     monkeypatch.setattr(live_module, "_in_notebook", lambda: True)
     monkeypatch.setattr(IPython.display, "display", shown.append)

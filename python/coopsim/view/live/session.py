@@ -1,0 +1,338 @@
+"""The live view's session: the server, the one thread that runs the simulation paced, the page's requests
+queued to it, the run's start, end, failure and reset, the downloads, showing and closing."""
+from __future__ import annotations
+
+import math
+import queue
+import sys
+import threading
+import time
+from collections import deque
+from typing import Callable, List, Optional
+
+import numpy as np
+
+from ...pacing import Pacer
+from ...simulation import Simulation
+from ..parts import robot_parts
+from ..world import holding_now, robot_labels
+from .common import _FOREVER, _HOST, _number, _robot_colors
+from .data import _Data
+from .drawing import Frame, _Drawing
+from .panels import _Panels
+
+
+class LiveView(_Panels, _Data, _Drawing):
+    """A live page of a :class:`coopsim.Simulation`; made by :func:`live` (see there for the options).
+
+    Attributes: ``url``, ``host``, ``port``; ``pacer`` (the :class:`coopsim.Pacer` that runs it: its speed
+    and pause are what the page sets); ``server`` (the ``viser.ViserServer``); ``message`` (the last message
+    shown in the panel, e.g. a refused value); ``error`` (an exception that stopped the run, or None);
+    ``frames`` (frames sent); ``frame`` (the last :class:`Frame`).
+    """
+
+    def __init__(self, sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: float = 40.0,
+                 host: str = _HOST, port: int = 0, start: bool = True, collision_boxes: bool = False,
+                 contact_lines: bool = True, ghosts: bool = True, labels: bool = False, holding: str = "shared",
+                 history: float = 5.0, move_time: float = 1.0, resettable: bool = True,
+                 title: Optional[str] = None, quiet: bool = False):
+        if not isinstance(sim, Simulation):
+            raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
+        if t_end is not None:
+            t_end = _number(t_end, "t_end")
+            if t_end < sim.time:
+                raise ValueError(f"t_end must not be before the simulation's time {sim.time} s, got {t_end}")
+        if not isinstance(host, str) or not host:
+            raise ValueError(f"host must be a host name or address, got {host!r}")
+        if not isinstance(port, (int, np.integer)) or isinstance(port, bool) or not 0 <= port <= 65535:
+            raise ValueError(f"port must be 0 (any free port) .. 65535, got {port!r}")
+        self.history = _number(history, "history")
+        if self.history <= 0:
+            raise ValueError(f"history must be > 0 s, got {history!r}")
+        self._move_time = self._check_move_time(move_time)
+        holding_now(sim, mode=holding)      # checks the mode
+        self._holding_mode = holding
+        try:
+            import viser  # the optional live extra: only for a live view
+        except ImportError:
+            raise ImportError("coopsim.view.live needs viser: pip install 'coopsim[live]' "
+                              "(scripts/setup.sh installs it)") from None
+
+        self.sim = sim
+        self.pacer = Pacer(speed=speed, frame_rate=frame_rate)
+        self.t_end = t_end
+        self.resettable = bool(resettable)
+        self.robots = sim.robots
+        self.labels = robot_labels(self.robots)
+        self._references0 = sim.references
+        self._dt = sim.dt
+        self._control_every = sim.control_every
+        self._show = dict(collision_boxes=bool(collision_boxes), contact_lines=bool(contact_lines),
+                          ghosts=bool(ghosts), labels=bool(labels))
+        self._queue: "queue.Queue[Callable[[], None]]" = queue.Queue()
+        self._lock = threading.Lock()
+        self._reset_pending = False
+        self._closing = False
+        self._thread: Optional[threading.Thread] = None
+        self._driving = threading.Lock()     # held by the thread that runs the simulation now
+        self.error: Optional[BaseException] = None
+        self._finished = threading.Event()
+        self.stats: dict = {}
+        self.message = ""
+        self.frames = 0
+        self.frame: Optional[Frame] = None
+        self._changes = 0            # requests applied (a frame after one is drawn even if the time stands still)
+        self._shown = None
+        self._stats: deque = deque()
+        self._hist: List[deque] = [deque() for _ in self.robots]
+        self._last_plot = self._last_table = -math.inf
+        self._plot_robot = 0
+        self._table_robot = 0
+        self._colors = [_robot_colors(r, i) for i, r in enumerate(self.robots)]
+        self._parts = [robot_parts(r) for r in self.robots]      # the look (the boxes: on request)
+        self._part_meshes: list = []
+        self._ghost_meshes: list = []
+        self._moving = [np.array([b.link != 0 for b in r.boxes], dtype=bool) for r in self.robots]
+        self._world = sim.world
+        self._free_names = [n for n in (self._world.body_names if self._world is not None else [])
+                            if self._world.body(n)["kind"] == "free"]
+        self._gizmos = {}
+
+        self.server = viser.ViserServer(host=host, port=int(port), label=title or "coopsim", verbose=False)
+        try:
+            self.host, self.port = host, int(self.server.get_port())
+            self._build_scene()
+            self._build_panels()
+            self._draw(self._snapshot())
+        except BaseException:
+            self.server.stop()
+            raise
+        if not quiet and not _in_notebook():
+            print(f"coopsim live view: {self.url}", flush=True)
+        if start:
+            self.start(t_end)
+
+    @property
+    def url(self) -> str:
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else ("[::1]" if self.host == "::" else self.host)
+        return f"http://{host}:{self.port}"
+
+    def show(self, height: int = 600):
+        """In Jupyter, shows the live page in the cell (an IPython IFrame of :attr:`url`) and returns it;
+        elsewhere prints the URL and returns it."""
+        if _in_notebook():
+            from IPython.display import IFrame, display  # only inside a notebook
+
+            frame = IFrame(self.url, width="100%", height=int(height))
+            display(frame)
+            return frame
+        print(f"coopsim live view: {self.url}", flush=True)
+        return self.url
+
+    def _repr_html_(self) -> str:
+        return (f'<iframe src="{self.url}" width="100%" height="600" style="border:none"></iframe>'
+                f'<p>coopsim live view: <a href="{self.url}" target="_blank">{self.url}</a></p>')
+
+    def submit(self, fn: Callable[[], None]) -> None:
+        """Queues fn() to run on the simulation's thread between chunks (a ValueError it raises is
+        refused with a message in the panel)."""
+        self._queue.put(fn)
+
+    def call(self, fn: Callable, timeout: Optional[float] = 60.0):
+        """fn() run on the simulation's thread between chunks (at once when nothing runs it); returns its
+        value or raises its exception. For reading a running simulation consistently from another thread."""
+        done = threading.Event()
+        out = {}
+
+        def go():
+            try:
+                out["value"] = fn()
+            except BaseException as e:      # handed to the caller, not refused
+                out["error"] = e
+            done.set()
+        if self._driving.acquire(blocking=False):      # nobody runs the simulation now
+            try:
+                go()
+            finally:
+                self._driving.release()
+        else:
+            self.submit(go)
+            if not done.wait(timeout):
+                raise TimeoutError(f"the simulation's thread did not answer in {timeout} s")
+        if "error" in out:
+            raise out["error"]
+        return out.get("value")
+
+    def set_speed_percent(self, value) -> None:
+        """Sets the pacer's speed (0 .. 400 %), as the page's slider."""
+        self.submit(lambda: setattr(self.pacer, "speed_percent", value))
+
+    def pause(self) -> None:
+        self.submit(self.pacer.pause)
+
+    def resume(self) -> None:
+        self.submit(self.pacer.resume)
+
+    def one_step(self) -> None:
+        """Pauses and advances one control period (control_every steps)."""
+        def go():
+            self.pacer.pause()
+            self.sim.step(self._control_every)
+        self.submit(go)
+
+    def reset(self) -> None:
+        """Back to t = 0, the initial states and the references the simulation had when the view was made."""
+        if not self.resettable:
+            self._say("Refused: this run is sequenced from Python and cannot go back to its start")
+            return
+        with self._lock:
+            self._reset_pending = True
+
+    def start(self, t_end: Optional[float] = None) -> None:
+        """Runs the simulation paced in a thread of the view up to t_end (s; default the view's, else until
+        closed), then keeps serving the page (and its requests) until :meth:`close`."""
+        if self._thread is not None and self._thread.is_alive():
+            raise RuntimeError("the live view is already running its simulation")
+        t_end = self.t_end if t_end is None else _number(t_end, "t_end")
+        self._thread = threading.Thread(target=self._loop, args=(_FOREVER if t_end is None else t_end,),
+                                        name="coopsim-live", daemon=True)
+        self._thread.start()
+
+    def run_to(self, t_end: float) -> None:
+        """Runs the simulation paced up to t_end (s) in the calling thread (the simulation's thread), with
+        the page live; returns at t_end, or at once if the page closed the view. For a run sequenced from
+        Python (e.g. a task that plans phase by phase). An exception of the run shows in the panel and
+        propagates."""
+        t_end = _number(t_end, "t_end")
+        if self._thread is not None and self._thread.is_alive():
+            raise RuntimeError("the live view runs its simulation in its own thread (start()); use wait()")
+        with self._driving:
+            while not self._closing and self.sim.time < t_end - 0.5 * self._dt:
+                try:
+                    self.pacer.run(self.sim, t_end, on_frame=self._on_frame, keep_clock=True)
+                except BaseException as e:
+                    self._failed(e)
+                    raise
+                if self._reset_pending:
+                    self._do_reset()
+
+    def wait(self, timeout: Optional[float] = None) -> bool:
+        """Waits until the view's run reaches its t_end (or timeout s); re-raises the exception that
+        stopped it. Returns True when the run is over."""
+        end = None if timeout is None else time.monotonic() + timeout
+        while True:
+            if self.error is not None:
+                raise self.error
+            if self._finished.is_set():
+                return True
+            if end is not None and time.monotonic() >= end:
+                return False
+            time.sleep(0.02)
+
+    def _loop(self, t_end: float) -> None:
+        with self._driving:
+            while not self._closing:
+                if self._reset_pending:
+                    self._do_reset()
+                    self._finished.clear()
+                if self.error is None and self.sim.time < t_end - 0.5 * self._dt:
+                    try:
+                        self.pacer.run(self.sim, t_end, on_frame=self._on_frame)
+                    except BaseException as e:
+                        self._failed(e)
+                else:
+                    if self.sim.time >= t_end - 0.5 * self._dt:
+                        self._finished.set()
+                    try:
+                        self._on_frame(self.sim, self.pacer)
+                    except BaseException as e:
+                        self._failed(e)
+                        return
+                    time.sleep(1.0 / self.pacer.frame_rate)
+
+    def _failed(self, e: BaseException) -> None:
+        self.error = e
+        try:
+            self._say(f"Run stopped: {type(e).__name__}: {e}")
+        except Exception:      # pragma: no cover - the server may be gone
+            pass
+
+    def _do_reset(self) -> None:
+        with self._lock:
+            self._reset_pending = False
+        self.sim.reset()
+        for i, ref in enumerate(self._references0):
+            self.sim.set_reference(i, ref)
+        self.error = None
+        self._changes += 1
+        for h in self._hist:
+            h.clear()
+        self._stats.clear()
+        self._say("Reset to the start")
+
+    def _on_frame(self, sim, pacer):
+        """The pacer's frame hook, on the simulation's thread: apply the page's requests, then draw."""
+        while True:
+            try:
+                fn = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            self._changes += 1
+            try:
+                fn()
+            except ValueError as e:          # IKError is a ValueError
+                self._say(f"Refused: {e}")
+        if self._closing or self._reset_pending:
+            return False
+        self._draw(self._snapshot())
+        return None
+
+    def hold(self, seconds: Optional[float] = None) -> None:
+        """Keeps serving the page for `seconds` (None: until Ctrl-C when run from a terminal, else not at all),
+        then closes the view. For a script whose run is over but whose page should stay."""
+        if seconds is None:
+            seconds = math.inf if sys.stdout.isatty() else 0.0
+        try:
+            if seconds > 0:
+                print(f"the live page stays at {self.url}: Ctrl-C to stop", flush=True)
+                end = time.monotonic() + seconds
+                while time.monotonic() < end and self.server is not None:
+                    time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stops the run (between chunks) and the server, and frees the port."""
+        if self._closing and self.server is None:
+            return
+        self._closing = True
+        self.pacer.stop()
+        th = self._thread
+        if th is not None and th is not threading.current_thread():
+            th.join(timeout=30)
+        with self._driving:         # a run_to in progress ends at its next frame
+            pass
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<coopsim.view.LiveView {self.url} t={self.sim.time:.4g} s, {self.frames} frames>"
+
+def _in_notebook() -> bool:
+    ip = sys.modules.get("IPython")
+    if ip is None:
+        return False
+    try:
+        shell = ip.get_ipython()
+    except Exception:      # pragma: no cover
+        return False
+    return shell is not None and type(shell).__name__ == "ZMQInteractiveShell"
