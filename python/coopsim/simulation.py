@@ -127,11 +127,21 @@ class Simulation:
         if not isinstance(controller, _core.CooperativeController):
             raise ValueError(f"controller must be a coopsim.CooperativeController, got {type(controller).__name__}")
         idx = [_index(i, self.robot_count) for i in robots]
-        return self._core.add_cooperative(controller, idx)
+        k = self._core.add_cooperative(controller, idx)
+        self.__dict__.setdefault("_groups", {})[k] = (controller, tuple(idx))
+        return k
 
     def remove_cooperative(self, group: int) -> None:
         """Group `group` stops driving; its robots' own controllers are reset and drive again."""
         self._core.remove_cooperative(int(group))
+        self.__dict__.get("_groups", {}).pop(int(group), None)
+
+    @property
+    def cooperatives(self) -> List[dict]:
+        """The cooperative groups driving now (added by :meth:`add_cooperative`, not removed), in the order
+        of their indices: each {'group': index, 'controller': the CooperativeController, 'robots': [indices]}."""
+        groups = sorted(self.__dict__.get("_groups", {}).items())
+        return [dict(group=k, controller=c, robots=list(r)) for k, (c, r) in groups]
 
     # ---- description ----
 
