@@ -164,8 +164,8 @@ class LiveView(_Panels, _Data, _Drawing):
         return out.get("value")
 
     def set_speed_percent(self, value) -> None:
-        """Sets the pacer's speed (0 .. 400 %), as the page's slider."""
-        self.submit(lambda: setattr(self.pacer, "speed_percent", value))
+        """Sets the pacer's speed (0 .. 400 %), as the page's slider (refused in percent: the Run panel's)."""
+        self._set_speed_percent(value)
 
     def pause(self) -> None:
         self.submit(self.pacer.pause)
