@@ -781,3 +781,172 @@ def test_a_lab_notebook_puts_the_live_page_in_a_cell():
     nb = json.loads((Path(__file__).resolve().parents[1] / "notebooks" / "02_planning_and_control.ipynb").read_text())
     code = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
     assert any("cs.view.live(" in c and ".show(" in c and ".run_to(" in c for c in code)
+
+
+# ---- panels ----
+
+class Together(cs.CooperativeController):
+    """A cooperative law written in Python: each member on a joint PD to its reference."""
+
+    def __init__(self):
+        super().__init__()
+
+    def compute(self, t, members):
+        return [400.0 * (m.q_ref - m.q) + 40.0 * (m.qd_ref - m.qd) for m in members]
+
+
+def coop_scaras(**kw):
+    """Two SCARAs and a cooperative law for both (their own PIDs to stand aside under it)."""
+    sim = two_scaras(**kw)
+    for i in range(2):
+        sim.set_controller(i, cs.PID(100.0, 0.0, 10.0))
+    return sim, Together()
+
+
+def impedance_scara(world=None, **kw):
+    r = cs.robots.scara1()
+    sim = cs.Simulation(world=world, **kw)
+    sim.add_robot(r, cs.Impedance(400.0, 40.0, 1.0, force_feedback=False),
+                  np.array([0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03]))
+    return sim
+
+
+def test_the_robots_panel_names_the_cooperative_law_driving_and_gains_say_when_they_act(views):
+    sim, law = coop_scaras(control_every=5)
+    v = make(views, sim, speed=1.0)
+    until(lambda: sim.time > 0.02, "the run started")
+    assert "PID" in v._controller_md[0].content and "cooperative" not in v._controller_md[0].content
+    group = v.call(lambda: sim.add_cooperative(law, [0, 1]))
+    for i in range(2):
+        until(lambda: "cooperative group" in v._controller_md[i].content, f"robot {i} named under the group")
+        text = v._controller_md[i].content
+        assert f"group {group}" in text and "Together (written in Python, a cooperative law" in text
+        assert "stands aside" in text
+    v.set_gains(0, kp="500")
+    until(lambda: np.array_equal(v.call(lambda: sim.controllers[0]).kp, [500.0]), "the stand-aside PID's kp")
+    until(lambda: "acts when cooperative group" in v._msgs["robots"].content, "the message saying when")
+    v.call(lambda: sim.remove_cooperative(group))
+    until(lambda: "cooperative" not in v._controller_md[0].content, "the PID named again")
+    assert "PID" in v._controller_md[0].content and "500" in v._controller_md[0].content
+    assert v.error is None
+
+
+def test_a_task_space_laws_stiffness_set_from_the_view_builds_the_same_law_with_it(views):
+    sim = impedance_scara(control_every=5)
+    v = make(views, sim, speed=1.0)
+    until(lambda: sim.time > 0.02, "the run started")
+    text = v._controller_md[0].content
+    assert "Impedance" in text and "Python" not in text and "N/m" in text
+    assert set(v._gain_fields[0]) == {"stiffness", "damping", "mass"}
+    old = v.call(lambda: sim.controllers[0])
+    v.set_gains(0, stiffness="900, 900, 800, 50, 60")
+    until(lambda: v.call(lambda: sim.controllers[0]) is not old, "the new law")
+    c = v.call(lambda: sim.controllers[0])
+    assert isinstance(c, cs.Impedance) and np.array_equal(c.stiffness, [900, 900, 800, 50, 60])
+    assert np.array_equal(c.damping, old.damping) and np.array_equal(c.mass, old.mass)
+    assert c.force_feedback is False and c.directions == old.directions and c.jaw_kp == old.jaw_kp
+    until(lambda: "800" in v._controller_md[0].content, "the line shows the new stiffness")
+    assert v._gain_fields[0]["stiffness"].value == v._gain_text(0, "stiffness")
+    # refused: a negative damping, a wrong count; the message replaced by a later success
+    for gains in (dict(damping="-1"), dict(mass="1, 2")):
+        v.set_gains(0, **gains)
+        until(lambda: v._msgs["robots"].content.startswith("**Refused"), f"{gains} refused")
+    assert v.call(lambda: sim.controllers[0]) is c
+    v.set_gains(0, mass="2")
+    until(lambda: np.array_equal(v.call(lambda: sim.controllers[0]).mass, [2.0]), "the new mass")
+    until(lambda: "Refused" not in v._msgs["robots"].content and "mass" in v._msgs["robots"].content,
+          "the refusal replaced by the success")
+    assert v.error is None
+
+
+def test_each_panel_has_its_message_line_and_speeds_are_refused_in_percent(views):
+    sim = two_scaras(control_every=5)
+    v = make(views, sim, speed=1.0)
+    until(lambda: sim.time > 0.02, "the run started")
+    v.set_speed_percent(500)
+    assert v._msgs["run"].content == "**Refused: speed must be 0 .. 400 %, got 500 %**"
+    v.set_speed_percent("fast")
+    assert "Refused" in v._msgs["run"].content and "speed (%)" in v._msgs["run"].content
+    v.teach_joints(0, "1, 2")                        # a refusal in the Robots panel leaves the Run panel's
+    assert "Refused" in v._msgs["robots"].content and "speed" in v._msgs["run"].content
+    v.set_speed_percent(250)
+    until(lambda: v._msgs["run"].content == "**Speed 250 %**", "the success replaces the refusal")
+    assert v.pacer.speed == 2.5 and v._speed.value == 250
+    assert "Refused" in v._msgs["robots"].content
+    v.teach_joints(0, [0.1, 0.2, 0.05, 0.3, 1.2, 0.02])
+    until(lambda: "moving to" in v._msgs["robots"].content, "the teach move replaces the refusal")
+    with pytest.raises(ValueError, match="panel must be one of"):
+        v._say("x", "nowhere")
+
+
+def test_the_state_line_says_finished_paused_and_why_nothing_moves_without_nan(views):
+    sim = two_scaras()
+    v = make(views, sim, t_end=0.1, speed=4.0)
+    v.wait(timeout=WAIT)
+    until(lambda: "finished" in v._state_md.content, "finished stated")
+    assert "running" not in v._state_md.content and v.run_state == "finished"
+    v._resume_pressed()
+    assert "finished" in v._msgs["run"].content
+    v.close()
+    sim2 = two_scaras(control_every=5)
+    v2 = make(views, sim2, speed=1.0)
+    until(lambda: sim2.time > 0.02 and "running at 100 %" in v2._state_md.content, "running stated")
+    v2._pause_pressed()
+    until(lambda: "paused" in v2._state_md.content, "paused stated")
+    until(lambda: "– / – µs" in v2._time.content,
+          "no step time while nothing steps")
+    assert "nan" not in (v2._time.content + v2._state_md.content).lower()
+    assert v2.stats["step_mean"] is None and v2.stats["state"] == "paused"
+    v2.set_speed_percent(0)
+    until(lambda: v2.pacer.speed == 0.0, "speed 0")
+    v2._resume_pressed()
+    assert "speed is 0 %" in v2._msgs["run"].content and "nothing moves" in v2._msgs["run"].content
+    until(lambda: "speed 0 %" in v2._state_md.content, "paused at speed 0 stated")
+    v2.set_speed_percent(100)
+    until(lambda: "running at 100 %" in v2._state_md.content, "running again")
+    assert v2._outcome_md.content == ""
+
+
+def test_plots_of_the_sensed_wrench_task_error_and_cooperation_only_when_the_run_has_them(views):
+    v = make(views, two_scaras(), speed=4.0, t_end=0.05)
+    v.wait(timeout=WAIT)
+    assert set(v._plot_made) == {"q", "e"}
+    v.close()
+    sim = impedance_scara(world=cs.World())
+    v = make(views, sim, speed=4.0)
+    until(lambda: sim.time > 0.05 and v._plot_made["force"].data[0].size > 2, "the wrench plotted")
+    assert set(v._plot_made) == {"q", "e", "force", "moment", "task"}
+    t, fx, fy, fz = v._plot_made["force"].data
+    assert len(t) == len(fx) and np.all(np.isfinite(fz))
+    v.close()
+    sim, law = coop_scaras()
+    v = make(views, sim, speed=4.0)
+    until(lambda: sim.time > 0.02, "the run started")
+    v.call(lambda: sim.add_cooperative(law, [0, 1]))
+    until(lambda: "share" in v._plot_made and v._plot_made["share"].data[0].size > 1, "the cooperation plotted")
+    assert {"squeeze", "share", "force"} <= set(v._plot_made)
+
+
+def test_the_teach_controls_follow_the_target_and_the_reference(views):
+    sim = two_scaras()
+    v = make(views, sim, speed=1.0, move_time=0.3)
+    until(lambda: sim.time > 0.02, "the run started")
+    target = np.array([0.1, -0.4, 0.05, 0.3, 1.0, 0.02])
+    v.teach_joints(1, target)
+    sliders, field = v._teach[1]
+    until(lambda: np.allclose([s.value for s in sliders], target), "the sliders at the typed target")
+    assert field.value == ", ".join(f"{x:.4g}" for x in target)
+    v._toggle_gizmo(1, True)
+    until(lambda: np.allclose(v.gizmo_pose(1), sim.robots[1].fk(target), atol=1e-6), "the gizmo at the target")
+    # a reference set from Python: the controls follow what the robot tracks
+    other = np.array([0.2, -0.3, -0.1, 0.0, 0.5, 0.01])
+    v.call(lambda: sim.set_reference(1, other))
+    until(lambda: np.allclose([s.value for s in sliders], other), "the sliders follow the new reference")
+    until(lambda: np.allclose(v.gizmo_pose(1), sim.robots[1].fk(other), atol=1e-6), "the gizmo follows it")
+    # a user touching the controls is not fought: they are left as they are for a while
+    v._touch(0)
+    before = [s.value for s in v._teach[0][0]]
+    v.call(lambda: sim.set_reference(0, np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
+    time.sleep(0.3)
+    assert [s.value for s in v._teach[0][0]] == before
+    assert v.error is None
