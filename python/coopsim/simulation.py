@@ -555,6 +555,27 @@ class Simulation:
     @property
     def log(self) -> SimulationLog:
         """The log up to now: read-only views, without copying, that later steps do not change."""
+        return self.log_snapshot()
+
+    @property
+    def log_rows(self) -> int:
+        """The number of rows logged so far (O(1): no log is built)."""
+        return self._core.log_rows
+
+    def log_arrays(self, robot: int = 0) -> dict:
+        """Robot `robot`'s log so far without building a :class:`SimulationLog`, in O(1) whatever the run's
+        length: {'t': (rows,) s, and one (rows, n) array per quantity of the log schema}, read-only views
+        (no copy) that later steps do not change. For a reader of a running simulation that needs a few
+        rows (a live page's table: ``a['q'][-8:]``)."""
+        c = self._core
+        out = {"t": c.log_t()}
+        out.update(c.log(_index(robot, self.robot_count)))
+        return out
+
+    def log_snapshot(self, *, contact_points: bool = True) -> SimulationLog:
+        """The log up to now, as :attr:`log`; contact_points=False leaves out every contact point of every
+        world step (the one part copied, in time growing with the run: the tables do not hold them), so the
+        log is taken in about constant time (e.g. between chunks of a live run, to write it elsewhere)."""
         c = self._core
         t = c.log_t()
         names = np.array((c.world.body_names if c.world is not None else []) + [""], dtype=object)
@@ -571,7 +592,8 @@ class Simulation:
                              cooperation=pairs,
                              bodies=bodies, contacts=c.contact_events() if c.world is not None else None,
                              grasps=c.grasp_events() if c.world is not None else None,
-                             contact_points=c.contact_log() if c.log_contacts and c.world is not None else None)
+                             contact_points=c.contact_log() if contact_points and c.log_contacts and c.world is not None
+                             else None)
 
     def metrics(self) -> List[dict]:
         """Per robot, tracking metrics over every step so far (whatever log_every):
