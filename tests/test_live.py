@@ -977,3 +977,77 @@ def test_the_page_names_a_cooperative_law_and_states_finished_without_nan(browse
     finally:
         lp.close()
 
+
+# ---- long runs and downloads ----
+
+def _counting(monkeypatch, cls, name):
+    """Counts the calls of cls.name (a method) from now on; returns the list of calls."""
+    calls = []
+    real = getattr(cls, name)
+
+    def counted(self, *a, **kw):
+        calls.append(name)
+        return real(self, *a, **kw)
+    monkeypatch.setattr(cls, name, counted)
+    return calls
+
+
+def test_the_table_shows_the_newest_rows_reading_only_them(views, monkeypatch):
+    """As the run goes on, the Data table shows the last 8 rows of the chosen robot's log; its update reads
+    those rows alone (a count that a long log cannot change) and never builds the whole log
+    (Simulation.log / log_snapshot, which copy every logged contact point)."""
+    sim = two_scaras(world=cs.World(), log_every=20, log_contacts=True)
+    sim.run(1.0, progress=False)                  # a log already there: 251 rows
+    built = _counting(monkeypatch, cs.Simulation, "log_snapshot")
+    v = make(views, sim, speed=4.0)
+    counts, reads = set(), []
+
+    def progressed():
+        text = v._table.content
+        reads.append(v.table_rows_read)
+        if " rows (" in text:
+            counts.add(int(text.split(" of ")[1].split(" rows")[0]))
+        return len(counts) >= 3
+    until(progressed, "the table updated three times as the run went on")
+    v.pause()
+    until(lambda: v.pacer.paused, "paused")
+    rows = v.call(lambda: sim.log_rows)
+    until(lambda: f"of {rows} rows" in v._table.content, "the table at the paused run's last row")
+    assert built == []                            # the table never built the whole log
+    assert max(reads) == 8 and rows > 251 + 8
+    v._pick_table(1)                              # the second robot's rows
+    until(lambda: v._table.content.startswith(v.labels[1]), "the table of the second robot")
+    log = v.call(lambda: sim.log)
+    text = v._table.content
+    assert f"last 8 of {rows} rows ({len(log.columns())} columns)" in text
+    lines = text.splitlines()[-8:]
+    for line, t, q in zip(lines, log.t[-8:], log[1].q[-8:]):
+        assert line == f"| {t:.4f} | " + " | ".join(f"{x:.3f}" for x in q) + " |"
+    assert v.error is None
+
+
+def test_a_download_asked_while_one_is_prepared_says_so_and_the_first_is_sent(views, monkeypatch):
+    """The log's file is written off the simulation's thread with its progress in the Data panel's line
+    ('preparing CSV… 0 %' ... 'sent: N rows, X MB'); a second request meanwhile is refused with a line
+    saying so; the log is taken without its contact points (the tables do not hold them)."""
+    sim = two_scaras(world=cs.World(), log_every=1, log_contacts=True)
+    sim.run(0.5, progress=False)
+    taken = []
+    real = cs.Simulation.log_snapshot
+    monkeypatch.setattr(cs.Simulation, "log_snapshot",
+                        lambda self, **kw: taken.append(kw) or real(self, **kw))
+    v = make(views, sim, start=False)
+    v.download("csv")
+    v.download("xlsx")
+    assert "one download at a time" in v.download_text
+    until(lambda: v.download_state in ("sent", "failed"), "the CSV sent")
+    rows = sim.log_rows
+    assert v.download_state == "sent" and v.download_text.startswith(f"sent: {rows} rows, ")
+    assert taken == [{"contact_points": False}]   # one log taken, for the CSV alone
+    assert any(line.startswith("preparing CSV… 0 %") for line in v.download_lines)
+    assert not any("Excel…" in line for line in v.download_lines)
+    v.download("xlsx")                            # now one may ask again
+    until(lambda: v.download_state in ("sent", "failed") and "Excel" in v.download_text, "the Excel sent")
+    assert v.download_text.startswith(f"sent: {rows} rows, ")
+    with pytest.raises(ValueError, match="kind must be 'csv' or 'xlsx'"):
+        v.download("pdf")
