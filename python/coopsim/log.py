@@ -19,6 +19,7 @@ import os
 import re
 import tempfile
 import warnings
+import zipfile
 from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -492,10 +493,11 @@ class SimulationLog:
                  progress: Optional[Callable[[float], None]] = None) -> str:
         """Writes the table to an .xlsx workbook atomically, every value at full precision: sheet
         `sheet_name` holds the data (columns as :meth:`columns`), sheet 'info' the step size and
-        robots, sheet 'contacts' the contact events when there are any. Written row by row with
-        xlsxwriter in constant memory, nothing decimated: about 3 s for 4000 rows x 148 columns on a
-        2-core machine, against 8 s through pandas and 13 s with openpyxl; for long runs log less often
-        (log_every) or use to_csv (ten times faster). NaN and inf (a log written by hand) are empty cells.
+        robots, sheet 'contacts' the contact events when there are any. The workbook is xlsxwriter's, the
+        data sheet's rows are written into it a block at a time as text (numbers as ``%.17g``, which read
+        back exactly), nothing decimated: about 1 s for 4000 rows x 148 columns (10 MB of CSV) on a 2-core
+        machine, against 3 s cell by cell with xlsxwriter, 8 s through pandas and 13 s with openpyxl.
+        NaN and inf (a log written by hand) are empty cells.
         progress: called with the fraction of the data rows written (0 .. 1) after each block of rows and
         at the end. Raises ValueError past Excel's row limit."""
         _check_progress(progress)
@@ -512,22 +514,8 @@ class SimulationLog:
         def write(tmp):
             book = xlsxwriter.Workbook(tmp, {"constant_memory": True})
             try:
-                sheet = book.add_worksheet(sheet_name)
+                sheet = book.add_worksheet(sheet_name)     # the header here, the rows added below
                 sheet.write_row(0, 0, self.columns())
-                rows = len(data)
-                block = max(1, _BLOCK_VALUES // max(1, data.shape[1]))
-                for start in range(0, rows, block):
-                    part = data[start:start + block]
-                    finite = np.isfinite(part).all(axis=1)
-                    for i, (row, ok) in enumerate(zip(part.tolist(), finite.tolist()), start=start + 1):
-                        if ok:
-                            sheet.write_row(i, 0, row)
-                        else:   # a NaN or inf has no number cell: left empty
-                            sheet.write_row(i, 0, [v if math.isfinite(v) else None for v in row])
-                    if progress is not None:
-                        progress(min(start + block, rows) / rows)
-                if progress is not None and rows == 0:
-                    progress(1.0)
                 sheet = book.add_worksheet("info")
                 sheet.write_row(0, 0, ["key", "value"])
                 for i, row in enumerate(info, start=1):
@@ -541,6 +529,7 @@ class SimulationLog:
                         sheet.write_row(i, 0, ["" if isinstance(v, float) and v != v else v for v in row])
             finally:
                 book.close()
+            _add_rows(tmp, "xl/worksheets/sheet1.xml", data, progress)
 
         return _atomic_write(path, ".xlsx", write)
 
@@ -596,6 +585,57 @@ def _write_csv(f, cols: List[str], data: np.ndarray, progress) -> None:
         f.write(end.join(lines))
         if progress is not None:
             progress(min(start + block, rows) / rows)
+    if progress is not None and rows == 0:
+        progress(1.0)
+
+
+def _add_rows(book: str, sheet: str, data: np.ndarray, progress) -> None:
+    """Adds the rows of `data` (rows, columns) under the header row of the worksheet `sheet` (its part's
+    name) of the .xlsx file `book` (rewritten in place): each row as ``<row r="i">`` with one number cell
+    ``<c r="A2"><v>%.17g</v></c>`` per finite value (none for NaN or inf: an empty cell), and the sheet's
+    dimension to match. progress(fraction) after each block of rows."""
+    from xlsxwriter.utility import xl_col_to_name  # only when writing Excel
+
+    rows, width = data.shape
+    names = [xl_col_to_name(j) for j in range(width)]
+    fmt = '<row r="@">' + "".join(f'<c r="{n}@"><v>%.17g</v></c>' for n in names) + "</row>"
+    block = max(1, _BLOCK_VALUES // max(1, width))
+    tmp = book + ".rows"
+    try:
+        _copy_with_rows(book, tmp, sheet, data, fmt, names, block, progress)
+        os.replace(tmp, book)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _copy_with_rows(book, tmp, sheet, data, fmt, names, block, progress) -> None:
+    rows = len(data)
+    with zipfile.ZipFile(book) as zin, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zout:
+        for item in zin.infolist():
+            if item.filename != sheet:
+                zout.writestr(item, zin.read(item.filename))
+                continue
+            xml = zin.read(sheet).decode("utf-8")
+            head, tail = xml.split("</sheetData>", 1)
+            head = re.sub(r'<dimension ref="[^"]*"/>', f'<dimension ref="A1:{names[-1]}{rows + 1}"/>', head, count=1)
+            with zout.open(sheet, "w", force_zip64=True) as f:
+                f.write(head.encode("utf-8"))
+                for start in range(0, rows, block):
+                    part = data[start:start + block]
+                    finite = np.isfinite(part).all(axis=1)
+                    out = []
+                    for i, (r, ok) in enumerate(zip(part.tolist(), finite.tolist()), start=start + 2):
+                        if ok:
+                            out.append((fmt % tuple(r)).replace("@", str(i)))
+                        else:
+                            out.append(f'<row r="{i}">' + "".join(f'<c r="{n}{i}"><v>{v:.17g}</v></c>'
+                                                                  for n, v in zip(names, r) if math.isfinite(v))
+                                       + "</row>")
+                    f.write("".join(out).encode("ascii"))
+                    if progress is not None:
+                        progress(min(start + block, rows) / rows)
+                f.write(("</sheetData>" + tail).encode("utf-8"))
     if progress is not None and rows == 0:
         progress(1.0)
 
