@@ -380,8 +380,9 @@ def test_fuzz_to_urdf_names(robot, name):
 @given(make=st.sampled_from([cs.robots.scara1, cs.robots.scara2]), data=st.data())
 def test_fuzz_scara_keywords(make, data):
     defaults = cs.robots.SCARA1_DEFAULTS if make is cs.robots.scara1 else cs.robots.SCARA2_DEFAULTS
+    bounds = cs.robots.SCARA1_BOUNDS if make is cs.robots.scara1 else cs.robots.SCARA2_BOUNDS
     keys = data.draw(st.sets(st.sampled_from(sorted(defaults)), max_size=4), label="dimensions")
-    good = {k: finite_floats(0.005, 1.0) for k in keys}
+    good = {k: finite_floats(bounds[k].low, bounds[k].high) for k in keys}
     bad = {k: st.one_of(any_float, st.text(max_size=4), arrays, st.none(), st.lists(any_float, max_size=2))
            for k in keys}
     good |= dict(masses=st.one_of(st.none(), vectors(6, 0.01, 10)), friction=st.one_of(st.none(), vectors(6, 0, 5)),

@@ -743,21 +743,6 @@ def test_the_task_runs_in_the_live_page_with_the_headless_result(views):
     assert "Refused" in res.live.message          # a run sequenced from Python does not go back to its start
 
 
-def test_show_puts_the_live_page_in_a_notebook_cell(views, monkeypatch):
-    import IPython.display
-
-    import coopsim.view.live.session  # noqa: F401  (the module, for its notebook check)
-    live_module = __import__("sys").modules["coopsim.view.live.session"]
-    shown = []
-    monkeypatch.setattr(live_module, "_in_notebook", lambda: True)
-    monkeypatch.setattr(IPython.display, "display", shown.append)
-    v = make(views, two_scaras(), start=False)
-    frame = v.show(height=480)
-    assert shown == [frame] and isinstance(frame, IPython.display.IFrame)
-    assert frame.src == v.url and frame.height == 480
-    assert f'src="{v.url}"' in v._repr_html_()
-
-
 @pytest.mark.slow
 def test_the_tasks_command_line_runs_it_live(tmp_path):
     import json
@@ -1051,3 +1036,127 @@ def test_a_download_asked_while_one_is_prepared_says_so_and_the_first_is_sent(vi
     assert v.download_text.startswith(f"sent: {rows} rows, ")
     with pytest.raises(ValueError, match="kind must be 'csv' or 'xlsx'"):
         v.download("pdf")
+
+
+# ---- notebook, remote and rough edges ----
+
+def test_show_puts_the_page_in_a_cell_once_and_a_closed_view_says_so(views, monkeypatch):
+    import IPython.display
+
+    import coopsim.view.live.session  # noqa: F401  (the module, for its notebook check)
+    live_module = __import__("sys").modules["coopsim.view.live.session"]
+    shown = []
+    monkeypatch.setattr(live_module, "_in_notebook", lambda: True)
+    monkeypatch.setattr(IPython.display, "display", shown.append)
+    v = make(views, two_scaras(), start=False)
+    assert v.show(height=480) is None            # a cell's last line: nothing more to display
+    assert len(shown) == 1 and isinstance(shown[0], IPython.display.HTML)
+    frame = shown[0].data
+    assert f'<iframe src="{v.url}"' in frame and 'height="480"' in frame and "url_prefix" in frame
+    assert f'<iframe src="{v.url}"' in v._repr_html_()   # the view as a cell's last value: the page once
+    with pytest.raises(ValueError, match="height"):
+        v.show(height=0)
+    v.close()
+    for call, what in ((v.show, "show"), (lambda: v.run_to(1.0), "run_to")):
+        with pytest.raises(RuntimeError, match=rf"^this live view is closed: {what}\(\)"):
+            call()
+    assert len(shown) == 1 and "closed" in v._repr_html_() and "iframe" not in v._repr_html_()
+
+
+def test_quiet_prints_nothing_and_the_url_is_printed_once(views, capfd):
+    v = make(views, two_scaras(), start=False, quiet=True)
+    v.run_to(0.02)
+    v.close()
+    out, err = capfd.readouterr()              # the process's own stdout and stderr, every thread's
+    assert out == "" and err == "", (out, err)
+    v = make(views, two_scaras(), start=False, quiet=False)
+    v.close()
+    out, err = capfd.readouterr()
+    assert out == f"coopsim live view: {v.url}\n" and err == "", (out, err)   # viser's banner not among them
+
+
+def test_a_busy_port_is_refused_and_a_host_beyond_loopback_warns(views):
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        with pytest.raises(ValueError, match=rf"^port {port} is in use on 127.0.0.1 .*port=0"):
+            make(views, two_scaras(), start=False, port=port)
+    with pytest.warns(UserWarning, match=r"^host='0.0.0.0': the live page has no authentication") as w:
+        v = make(views, two_scaras(), start=False, host="0.0.0.0")
+    assert len(w) == 1 and w[0].filename == __file__        # pointed at the caller's line
+    assert v.server_url == f"http://127.0.0.1:{v.port}"
+    v.close()
+    from coopsim.view.live.serving import is_loopback
+
+    assert all(map(is_loopback, ("127.0.0.1", "127.0.1.1", "localhost", "::1", "[::1]")))
+    assert not any(map(is_loopback, ("0.0.0.0", "::", "", "192.168.1.20", "example.org")))
+
+
+def test_the_url_prefix_from_the_argument_or_the_environment(views, monkeypatch):
+    from coopsim.view.live.serving import ENV_PREFIX, url_prefix
+
+    monkeypatch.delenv(ENV_PREFIX, raising=False)
+    monkeypatch.delenv("JUPYTERHUB_SERVICE_PREFIX", raising=False)
+    v = make(views, two_scaras(), start=False, url_prefix="/proxy/{port}/")
+    assert v.url == f"/proxy/{v.port}/" and v.server_url == f"http://127.0.0.1:{v.port}"
+    assert v.server.get_host() == "127.0.0.1"       # the server stays on loopback: the proxy reaches it there
+    v.close()
+    monkeypatch.setenv(ENV_PREFIX, "https://hub.example.org/user/me/proxy/{port}")
+    v = make(views, two_scaras(), start=False)
+    assert v.url == f"https://hub.example.org/user/me/proxy/{v.port}/"
+    v.close()
+    assert url_prefix("") == ""                     # given: the server's own address, whatever the environment
+    monkeypatch.delenv(ENV_PREFIX)
+    assert url_prefix(None) == ""
+    monkeypatch.setenv("JUPYTERHUB_SERVICE_PREFIX", "/user/me/")
+    assert url_prefix("jupyter") == "/user/me/proxy/{port}/"
+    for bad, match in (("proxy/{port}", "url_prefix must be a path"), ("/p/{host}/", r"only \{port\}"),
+                       ("/p/?a=1", "plain path"), (3, "url_prefix must be a text")):
+        with pytest.raises(ValueError, match=match):
+            view.live(two_scaras(), start=False, quiet=True, url_prefix=bad)
+    monkeypatch.setenv(ENV_PREFIX, "ftp://x/")
+    with pytest.raises(ValueError, match=ENV_PREFIX):
+        view.live(two_scaras(), start=False, quiet=True)
+
+
+def test_a_scaras_dimensions_are_bounded_by_its_model():
+    for make_robot, defaults, bounds in ((cs.robots.scara1, cs.robots.SCARA1_DEFAULTS, cs.robots.SCARA1_BOUNDS),
+                                         (cs.robots.scara2, cs.robots.SCARA2_DEFAULTS, cs.robots.SCARA2_BOUNDS)):
+        assert set(bounds) == set(defaults)
+        for key, b in bounds.items():
+            assert 0 < b.low <= defaults[key] <= b.high and b.why
+            for v in (b.low, b.high):
+                assert make_robot(**{key: v}).dimensions[key] == v          # both ends included
+            for v in (b.low * 0.99, b.high * 1.01):
+                with pytest.raises(ValueError, match=rf"^{key} of {make_robot.__name__} must be {b.low:g} \.\. "
+                                                     rf"{b.high:g} m \("):
+                    make_robot(**{key: v})
+    with pytest.raises(ValueError, match=r"^L1 of scara1 must be 0.08 \.\. 0.6 m .*got 100$"):
+        cs.robots.scara1(L1=100)
+
+
+def test_a_rebuild_beyond_the_bounds_is_refused_and_the_floor_and_camera_follow_an_accepted_one(views):
+    sim = two_scaras(world=cs.World(), control_every=5)
+    v = make(views, sim, start=False)
+    radius, floor = v._radius, v._floor_size
+    distance = np.linalg.norm(np.asarray(v.server.initial_camera.position) - v._centre)
+    v.set_dimensions(0, L1=100)
+    assert v.message.startswith("Refused: L1 of scara1 must be 0.08 .. 0.6 m"), v.message
+    v.run_to(0.01)              # the page's requests are applied between chunks
+    assert sim.robots[0].dimensions["L1"] == cs.robots.SCARA1_DEFAULTS["L1"]
+    v.set_dimensions(0, L1=0.6, L2=0.6)
+    v.run_to(0.02)
+    assert sim.robots[0].dimensions["L1"] == 0.6
+    # the frame of the new scene: every box of the robots over the floor, the camera farther off
+    pts = np.concatenate([box_points(*r.shapes(sim.state(i)[0])) for i, r in enumerate(sim.robots)])
+    assert v._floor_size > floor and v._radius > radius
+    lo, hi = v._centre[:2] - v._floor_size / 2, v._centre[:2] + v._floor_size / 2
+    assert np.all(pts[:, :2] >= lo) and np.all(pts[:, :2] <= hi)
+    assert np.linalg.norm(np.asarray(v.server.initial_camera.position) - v._centre) > distance
+
+
+def box_points(poses, half):
+    from coopsim.view.geometry import box_corners
+
+    return box_corners(poses, half).reshape(-1, 3)

@@ -34,12 +34,13 @@ Units: m, kg, rad, N, N m.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, compiled_generated_names, dh_transform
 
-__all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS"]
+__all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS", "SCARA1_BOUNDS", "SCARA2_BOUNDS", "Bound"]
 
 DEG = math.pi / 180.0
 
@@ -55,6 +56,41 @@ SCARA1_DEFAULTS = dict(
     jaw_thickness=0.01,
     width=0.06,         # robot width w
     height=0.04,        # link height h
+)
+
+
+class Bound(NamedTuple):
+    """The range a dimension of a built-in SCARA may take (m, both ends included) and why."""
+    low: float
+    high: float
+    why: str
+
+
+# Why the ranges below. The robots' actuators (tau_limits), joint limits and strokes (q_limits) stay the
+# defaults' whatever the dimensions, and each link is a uniform box whose mass follows its volume: the
+# bounds keep a rebuilt robot one those actuators can move and the drawn parts can form.
+_ARM = "an arm segment: at least a joint housing (1.3 x the default width) long; at most where the arm's " \
+       "inertia about joint 1 is about 8x the default's for the same joint-1 torque limit"
+_ACROSS = "the links' cross-section: at least 2 cm; at most where the quill's force limit (joint 3 of " \
+          "SCARA #1, joint 4 of #2) still holds the links it carries, the longest quill included"
+_JAW = "the clamp's jaw plates: from a 2 mm plate to a 10 cm jaw; the opening strokes 0 .. 5 cm"
+_BASE = "the base height: link 1 above the base plate; at most a 1 m column, a bench robot"
+_WRIST = "the wrist and clamp body: 1 .. 30 cm, carried by the quill (its force limit)"
+
+#: SCARA #1's dimension bounds (m): Bound(low, high, why) per keyword of SCARA1_DEFAULTS; a dimension
+#: outside is refused by scara1() with a ValueError naming the range.
+SCARA1_BOUNDS = dict(
+    L_base=Bound(0.10, 1.00, _BASE),
+    L1=Bound(0.08, 0.60, _ARM),
+    L2=Bound(0.08, 0.60, _ARM),
+    L4=Bound(0.01, 0.30, _WRIST),
+    L5=Bound(0.01, 0.30, _WRIST),
+    quill_length=Bound(0.25, 0.60, "the quill: at least its stroke (0.25 m, q_limits), at most 0.6 m (its "
+                                   "weight on the joint-3 force limit)"),
+    jaw_length=Bound(0.01, 0.10, _JAW),
+    jaw_thickness=Bound(0.002, 0.03, _JAW),
+    width=Bound(0.02, 0.10, _ACROSS),
+    height=Bound(0.02, 0.08, _ACROSS),
 )
 _SCARA1_MASSES = np.array([3.0, 2.2, 0.8, 0.3, 0.25, 0.05])
 _SCARA1_K = np.array([1.0, 0.8, 4.0, 0.05, 0.05, 2.0])
@@ -75,6 +111,21 @@ SCARA2_DEFAULTS = dict(
     width=0.05,
     height=0.04,
 )
+
+#: SCARA #2's dimension bounds (m), as SCARA1_BOUNDS (three arm segments: shorter ones).
+SCARA2_BOUNDS = dict(
+    L_base=Bound(0.10, 1.00, _BASE),
+    L1=Bound(0.07, 0.40, _ARM),
+    L2=Bound(0.07, 0.40, _ARM),
+    L3=Bound(0.07, 0.40, _ARM),
+    L5=Bound(0.01, 0.30, _WRIST),
+    quill_length=Bound(0.30, 0.60, "the quill: at least its stroke (0.30 m, q_limits), at most 0.6 m (its "
+                                   "weight on the joint-4 force limit)"),
+    jaw_length=Bound(0.01, 0.10, _JAW),
+    jaw_thickness=Bound(0.002, 0.03, _JAW),
+    width=Bound(0.02, 0.10, _ACROSS),
+    height=Bound(0.02, 0.08, _ACROSS),
+)
 _SCARA2_MASSES = np.array([2.0, 1.6, 1.2, 0.6, 0.25, 0.05])
 _SCARA2_K = np.array([0.8, 0.6, 0.4, 3.0, 0.05, 2.0])
 _SCARA2_QLIM = np.array([[-170 * DEG, 170 * DEG], [-150 * DEG, 150 * DEG], [-150 * DEG, 150 * DEG],
@@ -82,7 +133,7 @@ _SCARA2_QLIM = np.array([[-170 * DEG, 170 * DEG], [-150 * DEG, 150 * DEG], [-150
 _SCARA2_TAU = np.array([25.0, 15.0, 8.0, 80.0, 1.5, 15.0])
 
 
-def _check_dims(dims: dict, defaults: dict, name: str) -> dict:
+def _check_dims(dims: dict, defaults: dict, name: str, bounds: dict) -> dict:
     unknown = set(dims) - set(defaults)
     if unknown:
         raise TypeError(f"{name}() got unknown dimension(s) {sorted(unknown)}; known: {sorted(defaults)}")
@@ -96,6 +147,9 @@ def _check_dims(dims: dict, defaults: dict, name: str) -> dict:
             raise ValueError(f"{key} must be a number in metres, got {value!r}") from None
         if not math.isfinite(v) or v <= 0:
             raise ValueError(f"{key} must be finite and > 0 m, got {value!r}")
+        b = bounds[key]
+        if not b.low <= v <= b.high:
+            raise ValueError(f"{key} of {name} must be {b.low:g} .. {b.high:g} m ({b.why}), got {value!r}")
         out[key] = v
     return out
 
@@ -123,7 +177,7 @@ def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backen
     for the mass properties, then the dynamics backend."""
     if backend not in ("generated", "numeric"):
         raise ValueError(f"backend must be 'generated' or 'numeric', got {backend!r}")
-    d = _check_dims(dims, spec["defaults"], spec["name"])
+    d = _check_dims(dims, spec["defaults"], spec["name"], spec["bounds"])
     if isinstance(base_yaw, (bool, str, complex)) or np.ndim(base_yaw) != 0:
         raise ValueError(f"base_yaw must be a number in radians, got {base_yaw!r}")
     dh, com, boxes, tool, jaw = spec["geometry"](d)
@@ -244,7 +298,8 @@ def scara1(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction
     pi/2 pointing down), d6 (jaw opening, m).
 
     Keyword dimensions (m): L_base, L1, L2, L4, L5, quill_length, jaw_length,
-    jaw_thickness, width, height; see SCARA1_DEFAULTS. base_position (3,) m
+    jaw_thickness, width, height; see SCARA1_DEFAULTS, each within
+    SCARA1_BOUNDS (outside: ValueError naming the range). base_position (3,) m
     and base_yaw (rad) place frame 0 in the world. masses (6,) kg overrides
     the volume-scaled masses; friction (6,) the viscous K. backend selects
     'generated' closed-form dynamics when compiled in, else 'numeric'.
@@ -260,13 +315,16 @@ def scara2(*, base_position=(0.0, 0.0, 0.0), base_yaw=0.0, masses=None, friction
     theta5 (clamp yaw about the vertical), d6 (jaw opening, m).
 
     Keyword dimensions (m): L_base, L1, L2, L3, L5, quill_length, jaw_length,
-    jaw_thickness, width, height; see SCARA2_DEFAULTS. Other keywords as for
+    jaw_thickness, width, height; see SCARA2_DEFAULTS, each within
+    SCARA2_BOUNDS. Other keywords as for
     scara1.
     """
     return _make(_SCARA2, dims, masses, friction, base_position, base_yaw, gravity, backend)
 
 
-_SCARA1 = dict(name="scara1", types="RRPRRP", defaults=SCARA1_DEFAULTS, geometry=_scara1_geometry,
+_SCARA1 = dict(name="scara1", types="RRPRRP", defaults=SCARA1_DEFAULTS, bounds=SCARA1_BOUNDS,
+               geometry=_scara1_geometry,
                masses=_SCARA1_MASSES, friction=_SCARA1_K, q_limits=_SCARA1_QLIM, tau_limits=_SCARA1_TAU)
-_SCARA2 = dict(name="scara2", types="RRRPRP", defaults=SCARA2_DEFAULTS, geometry=_scara2_geometry,
+_SCARA2 = dict(name="scara2", types="RRRPRP", defaults=SCARA2_DEFAULTS, bounds=SCARA2_BOUNDS,
+               geometry=_scara2_geometry,
                masses=_SCARA2_MASSES, friction=_SCARA2_K, q_limits=_SCARA2_QLIM, tau_limits=_SCARA2_TAU)

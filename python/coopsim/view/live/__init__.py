@@ -55,22 +55,31 @@ def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: 
          port: int = 0, start: bool = True, collision_boxes: bool = False, contact_lines: bool = True,
          ghosts: bool = True, labels: bool = False, holding: str = "shared", history: float = 5.0,
          move_time: float = 1.0, resettable: bool = True, title: Optional[str] = None,
+         url_prefix: Optional[str] = None,
          quiet: bool = False) -> LiveView:
     """A live view of `sim` (any :class:`coopsim.Simulation`: one or several robots, with or without a
     world) in the browser; returns the :class:`LiveView`.
 
     t_end: simulated time (s) the run goes to (None: until closed; the log grows meanwhile). speed: 0 .. 4
     (400 %). frame_rate: frames per second (Hz) the view aims at (the pacer sleeps to it; 40 reaches 30 or
-    more). host, port: where the server listens (127.0.0.1 by default, port 0: any free one; give another
-    host only on purpose). start: run at once in
+    more). host, port: where the server listens (127.0.0.1 by default, port 0: any free one; a busy port
+    is refused with a ValueError; another host only on purpose: it warns, the page has no
+    authentication). start: run at once in
     the view's thread (False: call :meth:`LiveView.start`, or drive it with :meth:`LiveView.run_to`).
     collision_boxes, contact_lines, ghosts, labels: what the Display panel shows at first. holding:
     'shared' (robots green while another robot holds the same body) or 'any'. history: seconds shown in the
     plots. move_time: duration (s) of a teach move. resettable: whether the page may reset the run to its
-    start (False for a run sequenced from Python). quiet: do not print the URL.
+    start (False for a run sequenced from Python). quiet: print nothing (the URL is not printed; viser's
+    banner never is). url_prefix: the page's address as the browser reaches it, for a remote Jupyter whose
+    browser cannot reach this machine's 127.0.0.1: a path from the Jupyter server's root with ``{port}``
+    for the server's port (``'/proxy/{port}/'``: jupyter-server-proxy), a full http(s) URL, or ``'jupyter'``
+    (``<JUPYTERHUB_SERVICE_PREFIX or />proxy/{port}/``); None: the environment's COOPSIM_LIVE_URL_PREFIX,
+    else ``'jupyter'`` under JupyterHub with jupyter-server-proxy installed, else the server's own address
+    (``''``). title: the page's title (its tab and panel; default "coopsim live view").
     """
     return LiveView(sim, t_end=t_end, speed=speed, frame_rate=frame_rate, host=host, port=port, start=start,
                     collision_boxes=collision_boxes, contact_lines=contact_lines, ghosts=ghosts, labels=labels,
-                    holding=holding, history=history, move_time=move_time, resettable=resettable, title=title,
+                    holding=holding, history=history, move_time=move_time, resettable=resettable,
+                    url_prefix=url_prefix, title=title,
                     quiet=quiet)
 

@@ -13,6 +13,11 @@ from ..world import colliding_from_contacts, contact_lines, holding_now, is_bar
 from .common import (_CONTACT_LENGTH, _CUBE_F, _CUBE_V, _ENVIRONMENT, _GHOST_MARGIN, _TABLE_EVERY, _rgb8,
                      _role_colors, quaternions)
 
+_FOV = np.radians(75.0)     # viser's camera: vertical field of view (rad)
+_FILL = 0.8                 # the scene's extent as a fraction of the view's half-height, each way from its centre
+_ELEV = DEFAULT_ELEV + 8.0  # degrees: the default camera's elevation
+_FLOOR_MARGIN = 0.3         # m of floor beyond the scene on each side
+
 
 class Frame:
     """One consistent snapshot of the simulation (taken on its thread between chunks).
@@ -33,34 +38,14 @@ class _Drawing:
     def _build_scene(self) -> None:
         sc = self.server.scene
         world = self._world
-        # everything in view: boxes of robots and world at the start, the floor under them
-        pts = [self._corners(*r.shapes(self.sim.state(i)[0])) for i, r in enumerate(self.robots)]
-        pts += [part_corners(p, part_poses(r, p, self.sim.state(i)[0])) for i, (r, p) in
-                enumerate(zip(self.robots, self._parts)) if p]
-        scenery = []
-        if world is not None:
-            for name in world.body_names:
-                d = world.body(name)
-                if d["kind"] == "static":
-                    scenery.append((name, np.array(d["pose"]), np.array(d["half_extents"])))
-                    pts.append(self._corners(np.array(d["pose"])[None], np.array(d["half_extents"])[None]))
-                elif d["kind"] == "free":
-                    pts.append(self._corners(np.array(self.sim.body_state(name)["pose"])[None],
-                                             np.array(d["half_extents"])[None]))
-        pts = np.concatenate(pts) if pts else np.zeros((1, 3))
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        self._centre = 0.5 * (lo + hi)
-        self._radius = max(0.3, float(np.linalg.norm(hi - lo)) / 2)
-        self._azim = self._choose_azimuth(scenery)
-        size = max(hi[0] - lo[0], hi[1] - lo[1]) + 0.6
-        floor = world is None or world.floor
         # the environment's light at a little under half: the paper's colours stay recognisable
         sc.configure_environment_map("warehouse", environment_intensity=_ENVIRONMENT)
-        if floor:
-            sc.add_box("/floor", color=_rgb8(COLORS["floor"][0]), dimensions=(size, size, 0.01),
-                       position=(self._centre[0], self._centre[1], -0.005), cast_shadow=False)
-            sc.add_grid("/floor/grid", width=size, height=size, cell_size=0.1, section_size=0.5,
-                        cell_color=_rgb8(COLORS["floor"][1]), position=(0.0, 0.0, 0.0051), shadow_opacity=0.0)
+        scenery = self._scenery()
+        self._floor = world is None or world.floor
+        self._azim = None
+        self._fit_scene()          # the extent and the floor; the camera once its azimuth is chosen
+        self._azim = self._unhidden_azimuth(self._choose_azimuth(scenery))
+        self._set_camera("perspective", initial=True)
         for name, P, H in scenery:          # fixed: one box each, sent once
             sc.add_box(f"/scenery/{name}", color=_rgb8(COLORS["scenery"]), dimensions=2 * H,
                        wxyz=quaternions(P[:3, :3])[0], position=P[:3, 3])
@@ -93,7 +78,98 @@ class _Drawing:
         for n in self._free_names:
             self._label_nodes.append(sc.add_label(f"/labels/{n}", n, position=self.sim.body_state(n)["position"],
                                                   visible=self._show["labels"]))
-        self._set_camera("perspective", initial=True)
+
+    def _scenery(self) -> list:
+        """[(name, pose (4, 4), half extents (3,))] of the world's static boxes."""
+        world = self._world
+        if world is None:
+            return []
+        out = []
+        for name in world.body_names:
+            d = world.body(name)
+            if d["kind"] == "static":
+                out.append((name, np.array(d["pose"]), np.array(d["half_extents"])))
+        return out
+
+    def _scene_points(self) -> np.ndarray:
+        """(m, 3) corners of everything to frame now: the robots' boxes and parts, the scenery, the free bodies."""
+        pts = [self._corners(*r.shapes(self.sim.state(i)[0])) for i, r in enumerate(self.robots)]
+        pts += [part_corners(p, part_poses(r, p, self.sim.state(i)[0])) for i, (r, p) in
+                enumerate(zip(self.robots, self._parts)) if p]
+        pts += [self._corners(P[None], H[None]) for _, P, H in self._scenery()]
+        pts += [self._corners(np.array(self.sim.body_state(n)["pose"])[None],
+                              np.array(self._world.body(n)["half_extents"])[None]) for n in self._free_names]
+        return np.concatenate(pts) if pts else np.zeros((1, 3))
+
+    def _fit_scene(self) -> None:
+        """Frames the scene as it is now: the floor under everything (_FLOOR_MARGIN beyond it), the camera's
+        centre, direction and distance (:meth:`_camera_pose`); the initial camera of pages to come set."""
+        pts = self._scene_points()
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        self._centre = 0.5 * (lo + hi)
+        self._radius = max(0.3, float(np.linalg.norm(hi - lo)) / 2)
+        self._points = pts
+        self._floor_size = float(max(hi[0] - lo[0], hi[1] - lo[1]) + 2 * _FLOOR_MARGIN)
+        if self._floor:
+            sc, size = self.server.scene, self._floor_size
+            sc.add_box("/floor", color=_rgb8(COLORS["floor"][0]), dimensions=(size, size, 0.01),
+                       position=(self._centre[0], self._centre[1], -0.005), cast_shadow=False)
+            sc.add_grid("/floor/grid", width=size, height=size, cell_size=0.1, section_size=0.5,
+                        cell_color=_rgb8(COLORS["floor"][1]), position=(0.0, 0.0, 0.0051), shadow_opacity=0.0)
+        if self._azim is not None:
+            self._set_camera("perspective", initial=True)
+
+    def _unhidden_azimuth(self, preferred: float) -> float:
+        """The azimuth (degrees) nearest `preferred` (every 15 degrees around) from which the camera sees the
+        centres of the free bodies and of the scenery past the robots' boxes (the bar not hidden behind a
+        robot at the start), those hidden counted, the free bodies first."""
+        targets = []            # the free bodies' top faces' centres
+        for n in self._free_names:
+            P = np.asarray(self.sim.body_state(n)["pose"])
+            targets.append(P[:3, 3] + P[:3, :3] @ [0.0, 0.0, self._world.body(n)["half_extents"][2]])
+        weights = [10.0] * len(targets)
+        for _, P, _ in self._scenery():
+            targets.append(P[:3, 3])
+            weights.append(1.0)
+        if not targets or not self.robots:
+            return preferred
+        # what may hide them: the robots' boxes and parts (a cylinder as its box), the scenery
+        poses, half = [], []
+        for i, r in enumerate(self.robots):
+            P, H = r.shapes(self.sim.state(i)[0])
+            poses.append(P)
+            half.append(H)
+            if self._parts[i]:
+                poses.append(part_poses(r, self._parts[i], self.sim.state(i)[0]))
+                half.append(np.array([p.scale for p in self._parts[i]]) / 2)
+        for _, P, H in self._scenery():
+            poses.append(P[None])
+            half.append(H[None])
+        poses, half = np.concatenate(poses), np.concatenate(half)
+        best = None
+        for k, step in enumerate(sorted(range(0, 360, 15), key=lambda a: min(a, 360 - a))):
+            azim = preferred + step
+            eye = self._camera_pose(view_direction(_ELEV, azim))[0]
+            hidden = sum(w for T, w in zip(targets, weights) if _segment_hits_boxes(eye, T, poses, half))
+            score = (hidden, min(step, 360 - step))
+            if best is None or score < best[0]:
+                best = (score, azim)
+        return float(best[1])
+
+    def _camera_pose(self, direction) -> tuple:
+        """(position (3,), look_at (3,)) of a camera looking at the scene's centre from `direction` (unit (3,),
+        from the centre towards the camera), as near as frames every point of the scene within _FILL of the
+        half-height of the view (viser's vertical field of view) vertically and horizontally (a landscape page
+        with its panel on the right leaves about a square to the scene)."""
+        d = np.asarray(direction, dtype=float)
+        right = np.cross(-d, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, -d)
+        o = self._points - self._centre
+        t = _FILL * np.tan(_FOV / 2)
+        depth_margin = np.maximum(np.abs(o @ right), np.abs(o @ up)) / t
+        dist = max(float(np.max(o @ d + depth_margin)), 0.3)
+        return self._centre + dist * d, self._centre.copy()
 
     def _build_parts(self) -> None:
         """The robots' parts as batched meshes, one per shape (unit cube, unit cylinder, each mesh file), each
@@ -165,7 +241,7 @@ class _Drawing:
         elif view == "side":
             pos, up = c + r * np.array([0.0, -2.4, 0.3]), (0.0, 0.0, 1.0)
         else:
-            pos, up = c + 2.1 * r * view_direction(DEFAULT_ELEV + 8.0, self._azim), (0.0, 0.0, 1.0)
+            pos, up = self._camera_pose(view_direction(_ELEV, self._azim))[0], (0.0, 0.0, 1.0)
         if initial:
             self.server.initial_camera.position = tuple(pos)
             self.server.initial_camera.look_at = tuple(c)
@@ -281,3 +357,25 @@ class _Drawing:
             self._robot_mesh.batched_scales = 2 * self._half
             self._parts = [robot_parts(r) for r in self.robots]
             self._build_parts()
+        # the floor and the camera's framing follow the new size (the pages' cameras moved to it)
+        self._fit_scene()
+        self._set_camera("perspective")
+
+
+def _segment_hits_boxes(a, b, poses, half) -> bool:
+    """Whether the segment a -> b (3,) passes through any of the boxes (poses (k, 4, 4), half extents (k, 3))
+    but those that hold b (the target's own), its last 2 % left out (the target's surface)."""
+    R, c = poses[:, :3, :3], poses[:, :3, 3]
+    p = np.einsum("kji,kj->ki", R, a - c)          # the segment in each box's frame
+    q = np.einsum("kji,kj->ki", R, b - c)
+    others = ~np.all(np.abs(q) <= half + 1e-9, axis=1)
+    R, c, p, q, half = R[others], c[others], p[others], q[others], half[others]
+    d = q - p
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-half - p) / d, (half - p) / d
+    lo, hi = np.minimum(t1, t2), np.maximum(t1, t2)
+    inside = np.abs(p) <= half                     # parallel to a slab: inside it or never
+    lo = np.where(d == 0, np.where(inside, -np.inf, np.inf), lo)
+    hi = np.where(d == 0, np.where(inside, np.inf, -np.inf), hi)
+    enter, leave = np.max(lo, axis=1), np.min(hi, axis=1)
+    return bool(np.any((enter <= leave) & (leave >= 0.0) & (enter <= 0.98)))

@@ -20,6 +20,7 @@ from .common import _FOREVER, _HOST, _number, _robot_colors
 from .data import _Data
 from .drawing import Frame, _Drawing
 from .panels import _Panels
+from . import serving
 
 
 class LiveView(_Panels, _Data, _Drawing):
@@ -35,6 +36,7 @@ class LiveView(_Panels, _Data, _Drawing):
                  host: str = _HOST, port: int = 0, start: bool = True, collision_boxes: bool = False,
                  contact_lines: bool = True, ghosts: bool = True, labels: bool = False, holding: str = "shared",
                  history: float = 5.0, move_time: float = 1.0, resettable: bool = True,
+                 url_prefix: Optional[str] = None,
                  title: Optional[str] = None, quiet: bool = False):
         if not isinstance(sim, Simulation):
             raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
@@ -46,6 +48,7 @@ class LiveView(_Panels, _Data, _Drawing):
             raise ValueError(f"host must be a host name or address, got {host!r}")
         if not isinstance(port, (int, np.integer)) or isinstance(port, bool) or not 0 <= port <= 65535:
             raise ValueError(f"port must be 0 (any free port) .. 65535, got {port!r}")
+        self._prefix = serving.url_prefix(url_prefix)      # checked before the server starts
         self.history = _number(history, "history")
         if self.history <= 0:
             raise ValueError(f"history must be > 0 s, got {history!r}")
@@ -98,7 +101,8 @@ class LiveView(_Panels, _Data, _Drawing):
                             if self._world.body(n)["kind"] == "free"]
         self._gizmos = {}
 
-        self.server = viser.ViserServer(host=host, port=int(port), label=title or "coopsim", verbose=False)
+        # quiet (viser's banner dropped), a busy port refused, a host beyond loopback warned, the tab titled
+        self.server = serving.start_server(viser, host, int(port), title or "coopsim live view")
         try:
             self.host, self.port = host, int(self.server.get_port())
             self._build_scene()
@@ -114,24 +118,40 @@ class LiveView(_Panels, _Data, _Drawing):
 
     @property
     def url(self) -> str:
-        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else ("[::1]" if self.host == "::" else self.host)
-        return f"http://{host}:{self.port}"
+        """Where a browser opens the page: through the URL prefix when there is one (a remote Jupyter's
+        proxy, e.g. ``/proxy/8123/``, relative to the Jupyter server), else :attr:`server_url`."""
+        return serving.page_url(self._prefix, self.host, self.port)
 
-    def show(self, height: int = 600):
-        """In Jupyter, shows the live page in the cell (an IPython IFrame of :attr:`url`) and returns it;
-        elsewhere prints the URL and returns it."""
+    @property
+    def server_url(self) -> str:
+        """The server's own address, ``http://127.0.0.1:<port>`` by default (what a proxy forwards to)."""
+        return serving.direct_url(self.host, self.port)
+
+    def _check_open(self, what: str) -> None:
+        if self.server is None or self._closing:
+            raise RuntimeError(f"this live view is closed: {what} needs an open one "
+                               f"(make another: cs.view.live(sim))")
+
+    def show(self, height: int = 600) -> None:
+        """In Jupyter, shows the live page in the cell (an iframe of :attr:`url`, height px, with its link);
+        elsewhere prints the URL. Returns None (as a cell's last line it shows the page once). RuntimeError
+        after :meth:`close`."""
+        self._check_open("show()")
+        if not isinstance(height, (int, np.integer)) or isinstance(height, bool) or height <= 0:
+            raise ValueError(f"height must be a positive number of pixels, got {height!r}")
         if _in_notebook():
-            from IPython.display import IFrame, display  # only inside a notebook
+            from IPython.display import HTML, display  # only inside a notebook
 
-            frame = IFrame(self.url, width="100%", height=int(height))
-            display(frame)
-            return frame
+            display(HTML(serving.frame_html(self.url, int(height), bool(self._prefix))))
+            return None
         print(f"coopsim live view: {self.url}", flush=True)
-        return self.url
+        return None
 
     def _repr_html_(self) -> str:
-        return (f'<iframe src="{self.url}" width="100%" height="600" style="border:none"></iframe>'
-                f'<p>coopsim live view: <a href="{self.url}" target="_blank">{self.url}</a></p>')
+        """The view as a cell's last value: the page in the cell (as :meth:`show`), or a line once closed."""
+        if self.server is None or self._closing:
+            return "<p>coopsim live view (closed)</p>"
+        return serving.frame_html(self.url, 600, bool(self._prefix))
 
     def submit(self, fn: Callable[[], None]) -> None:
         """Queues fn() to run on the simulation's thread between chunks (a ValueError it raises is
@@ -203,6 +223,7 @@ class LiveView(_Panels, _Data, _Drawing):
         the page live; returns at t_end, or at once if the page closed the view. For a run sequenced from
         Python (e.g. a task that plans phase by phase). An exception of the run shows in the panel and
         propagates."""
+        self._check_open("run_to()")
         t_end = _number(t_end, "t_end")
         if self._thread is not None and self._thread.is_alive():
             raise RuntimeError("the live view runs its simulation in its own thread (start()); use wait()")
