@@ -1160,3 +1160,145 @@ def box_points(poses, half):
     from coopsim.view.geometry import box_corners
 
     return box_corners(poses, half).reshape(-1, 3)
+
+
+class PrefixProxy:
+    """A reverse proxy on 127.0.0.1 as jupyter-server-proxy serves one: /proxy/<port>/<path> to
+    http://127.0.0.1:<port>/<path>, the page's HTTP requests and its websocket (with its subprotocol); in a
+    thread of its own, stopped by close()."""
+
+    def __init__(self):
+        import asyncio
+        import threading
+
+        self.requests = []
+        self._ready = threading.Event()
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+        assert self._ready.wait(WAIT), "the proxy started"
+
+    def _target(self, path):
+        import re
+
+        m = re.match(r"^/proxy/(\d+)(/.*)?$", path.partition("?")[0])
+        return (int(m.group(1)), m.group(2) or "/") if m else (None, None)
+
+    def _http(self, connection, request):
+        import urllib.request
+
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        self.requests.append(request.path)
+        if request.headers.get("Upgrade", "").lower() == "websocket":
+            return None
+        port, rest = self._target(request.path)
+        if port is None:
+            return Response(404, "Not Found", Headers(), b"")
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}{rest}", timeout=WAIT) as r:
+            body = r.read()
+            return Response(r.status, "OK", Headers({"Content-Type": r.headers.get("Content-Type", ""),
+                                                     "Content-Length": str(len(body))}), body)
+
+    async def _ws(self, connection):
+        import asyncio
+
+        from websockets.asyncio.client import connect
+
+        port, rest = self._target(connection.request.path)
+        sub = [connection.subprotocol] if connection.subprotocol else None
+        async with connect(f"ws://127.0.0.1:{port}{rest}", subprotocols=sub, max_size=None,
+                           compression=None) as back:
+            async def pump(a, b):
+                async for m in a:
+                    await b.send(m)
+            tasks = [asyncio.ensure_future(pump(connection, back)), asyncio.ensure_future(pump(back, connection))]
+            await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+            for t in tasks:
+                t.cancel()
+
+    def _run(self):
+        import asyncio
+
+        from websockets.asyncio.server import serve
+
+        asyncio.set_event_loop(self._loop)
+
+        async def main():
+            self._stop = asyncio.Event()
+            async with serve(self._ws, "127.0.0.1", 0, process_request=self._http, max_size=None, compression=None,
+                             select_subprotocol=lambda c, offered: offered[0] if offered else None) as server:
+                self.port = server.sockets[0].getsockname()[1]
+                self._ready.set()
+                await self._stop.wait()
+        self._loop.run_until_complete(main())
+
+    def close(self):
+        self._loop.call_soon_threadsafe(self._stop.set)
+        self._thread.join(WAIT)
+
+
+@pytest.mark.slow
+def test_the_page_through_a_jupyter_style_proxy_connects_and_its_tab_is_titled(browser, views, monkeypatch):  # noqa: F811
+    from coopsim.view.live.serving import ENV_PREFIX
+
+    proxy = PrefixProxy()
+    try:
+        monkeypatch.setenv(ENV_PREFIX, f"http://127.0.0.1:{proxy.port}/proxy/{{port}}/")
+        v = make(views, two_scaras(), speed=1.0, title="a proxied run")
+        assert v.url == f"http://127.0.0.1:{proxy.port}/proxy/{v.port}/"
+        lp = LivePage(browser, v)          # loads v.url (the proxy's) and waits for the view to see the page
+        try:
+            assert lp.page.title() == "a proxied run"
+            # the page's websocket: the proxy's address (the client keeps it in the page's query)
+            assert lp.page.url == f"{v.url}?websocket=ws://127.0.0.1:{proxy.port}/proxy/{v.port}"
+            assert any(p.rstrip("/") == f"/proxy/{v.port}" for p in proxy.requests)     # the websocket: proxied
+            t = v.sim.time
+            until(lambda: v.sim.time > t + 0.05 and v.frames > 5, "the run goes on, drawn")
+        finally:
+            lp.close()
+    finally:
+        proxy.close()
+
+
+@pytest.mark.slow
+def test_the_tasks_page_frames_the_robots_the_container_and_the_bar_at_the_start(browser, views, tmp_path):  # noqa: F811
+    """The main job's page at t = 0, as `python -m coopsim.tasks.handover --live` opens it: its tab titled
+    after the task, the bar, both robots and the container projected into the view's central part, the bar's
+    pixel the bar's red (not hidden behind SCARA #1)."""
+    from coopsim.tasks.handover.planning import default_bars
+    from coopsim.tasks.handover.sequence import _Runner
+
+    # the task's own simulation at its start (as handover.run(live=...) makes it)
+    sim = _Runner(default_bars(1), dt=2e-4, log_every=25, world_every=5, control_every=5, mouth=None, slope=None,
+                  handover_yaw=None, t_limit=120.0).sim
+    v = make(views, sim, start=False, title="coopsim: the cooperative bar handover")
+    lp = LivePage(browser, v, width=1280, height=720, keep=tmp_path)
+    try:
+        from PIL import Image
+
+        assert lp.page.title() == "coopsim: the cooperative bar handover"
+        bar = np.asarray(sim.body_state("bar")["position"])
+        box = lp.page.locator("canvas").first.bounding_box()
+        shot = []
+
+        def look():       # a large page drawn in software: a shot may take long
+            png = lp.page.screenshot(clip=box, timeout=WAIT * 1000)
+            shot[:] = [np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)]
+            return colour_near(shot[0], lp.project(bar)[0], is_red, radius=3)
+        until(look, "the bar red where it lies")
+        img = shot[0]
+        Image.fromarray(img.astype(np.uint8)).save(tmp_path / "task_t0.png")
+        H, W = img.shape[:2]
+        panel = 330            # px: the page's panel over the canvas's right-hand side
+        points = [bar] + [r.base_position + [0, 0, r.dimensions["L_base"]] for r in sim.robots]
+        points += [P[:3, 3] for _, P, _ in v._scenery()]
+        for uv in lp.project(np.array(points)):
+            assert 0.1 * W <= uv[0] <= W - panel and 0.1 * H <= uv[1] <= 0.9 * H, (uv, W, H)
+        # the robots fill the view: their parts span a good part of its height
+        rows = lp.project(v._scene_points())[:, 1]
+        assert rows.max() - rows.min() > 0.5 * H
+    finally:
+        lp.close()
+
