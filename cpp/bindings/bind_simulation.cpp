@@ -4,6 +4,9 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
 
 #include "convert.hpp"
 #include "coopsim/batch.hpp"
@@ -20,6 +23,25 @@ using namespace coopsim::py_convert;
 namespace {
 
 PyObject* divergence_type = nullptr;  // coopsim.DivergenceError, lives as long as the interpreter
+PyObject* busy_type = nullptr;        // coopsim.SimulationBusyError, likewise
+
+// A thread id as Python's threading.get_ident() gives it (an int), or its text where it is not a number.
+py::object thread_object(const std::string& text) {
+  try {
+    size_t used = 0;
+    const unsigned long long id = std::stoull(text, &used);
+    if (used == text.size()) return py::int_(id);
+  } catch (const std::exception&) {
+  }
+  return py::str(text);
+}
+
+py::object busy_object(const SimulationBusyError& e) {
+  py::object inst = py::reinterpret_borrow<py::object>(busy_type)(e.what());
+  inst.attr("holder") = e.holder();
+  inst.attr("thread") = thread_object(e.thread());
+  return inst;
+}
 
 py::object divergence_object(const DivergenceError& e) {
   py::object inst = py::reinterpret_borrow<py::object>(divergence_type)(e.what());
@@ -39,6 +61,8 @@ py::object exception_object(const std::exception_ptr& p) {
     return e.value();
   } catch (const DivergenceError& e) {
     return divergence_object(e);
+  } catch (const SimulationBusyError& e) {
+    return busy_object(e);
   } catch (const std::invalid_argument& e) {
     return py::reinterpret_borrow<py::object>(PyExc_ValueError)(e.what());
   } catch (const std::exception& e) {
@@ -184,14 +208,34 @@ void bind_simulation(py::module_& m) {
       "state; empty for a free body). The simulation keeps its log up to the last good step.",
       PyExc_RuntimeError, nullptr);
   m.attr("DivergenceError") = py::reinterpret_borrow<py::object>(divergence_type);
+  busy_type = PyErr_NewExceptionWithDoc(
+      "coopsim._core.SimulationBusyError",
+      "Another thread is running this simulation: a call that advances or changes it (advance, run, reset, "
+      "set_*, ...) was made from a thread other than its holder's. One driver at a time: pause or close the "
+      "other driver (e.g. the live view) first. Attributes: holder (str, the holder's label; 'another thread' "
+      "for a call holding it for its own duration), thread (int, the holder's threading.get_ident()).",
+      PyExc_RuntimeError, nullptr);
+  m.attr("SimulationBusyError") = py::reinterpret_borrow<py::object>(busy_type);
   py::register_local_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const DivergenceError& e) {
       py::object inst = divergence_object(e);
       PyErr_SetObject(divergence_type, inst.ptr());
+    } catch (const SimulationBusyError& e) {
+      py::object inst = busy_object(e);
+      PyErr_SetObject(busy_type, inst.ptr());
     }
   });
+
+  py::class_<Simulation::Hold>(m, "SimulationHold", R"doc(
+A hold on a SimulationCore's run (SimulationCore.hold; use coopsim.Simulation.driving): while it is held,
+only the thread that took it may advance or change the simulation. release() gives it back; it must be
+called on that thread.)doc")
+      .def("release", &Simulation::Hold::release,
+           "Gives the run back (nothing if already given back); RuntimeError from another thread than the "
+           "one that took it.")
+      .def_property_readonly("held", &Simulation::Hold::held, "Whether this hold still holds the run.");
 
   py::class_<Simulation>(m, "SimulationCore", R"doc(
 The C++ simulation loop behind coopsim.Simulation (use that class): robots
@@ -251,6 +295,26 @@ torques between controller updates, the log and tracking metrics.)doc")
            py::keep_alive<1, 3>(),
            "Replaces robot i's controller (checked as add_robot's); the state stays, the new controller "
            "is reset now and acts from the next controller update.")
+      .def("hold", [](Simulation& s, const py::object& label) {
+             // a py::object, checked here: pybind11's own message for a wrong type here crashes (3.1.0)
+             if (!py::isinstance<py::str>(label))
+               throw py::type_error("SimulationCore.hold(): label must be a str, got " +
+                                    std::string(py::str(py::type::of(label).attr("__name__"))));
+             return s.hold(label.cast<std::string>());
+           }, py::arg("label"), py::keep_alive<0, 1>(),
+           "Takes the run for the calling thread until the returned SimulationHold is released: another "
+           "thread's advance, run, reset, set_* ... then raises SimulationBusyError naming `label` (non-empty "
+           "str). Re-entrant on the holding thread. SimulationBusyError when another thread holds it.")
+      .def_property_readonly("holder", [](const Simulation& s) -> py::object {
+             std::thread::id id;
+             const std::string label = s.holder(&id);
+             if (id == std::thread::id() || label.empty()) return py::none();
+             std::ostringstream text;
+             text << id;
+             return py::make_tuple(label, thread_object(text.str()));
+           },
+           "(label, thread) of the thread holding the run now (thread: its threading.get_ident()), or None. "
+           "A snapshot: it may change at once.")
       .def("advance", [](Simulation& s, long n) {
              py::gil_scoped_release nogil;
              s.advance(n);

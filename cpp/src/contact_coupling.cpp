@@ -37,6 +37,7 @@ void Simulation::links_to_world_() {
 }
 
 void Simulation::set_body_wrench(int id, const Vec6& wrench) {
+  const Entry driving = enter_();  // one driver at a time
   if (!world_) throw std::invalid_argument("the simulation has no world");
   const BodySpec& b = world_->body(id);
   if (b.kind != BodyKind::Free)

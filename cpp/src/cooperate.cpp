@@ -9,6 +9,7 @@
 namespace coopsim {
 
 int Simulation::add_cooperative(std::shared_ptr<CooperativeController> controller, std::vector<int> robots) {
+  const Entry driving = enter_();  // one driver at a time
   if (!controller) throw std::invalid_argument("controller must not be None");
   for (const Coop& g : coops_)
     if (g.controller == controller && g.active)
@@ -34,6 +35,7 @@ int Simulation::add_cooperative(std::shared_ptr<CooperativeController> controlle
 }
 
 void Simulation::remove_cooperative(int k) {
+  const Entry driving = enter_();  // one driver at a time
   if (k < 0 || k >= cooperative_count())
     throw std::out_of_range("cooperative group " + std::to_string(k) + " out of range");
   Coop& g = coops_[k];

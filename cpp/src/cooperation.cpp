@@ -177,6 +177,7 @@ Simulation::Pair& Simulation::pair_(int a, int b) {
 }
 
 Cooperation Simulation::cooperation(int a, int b, bool* holding) {
+  const Entry driving = enter_();  // one driver at a time
   Pair& p = pair_(a, b);
   Cooperation out;
   const bool both = cooperation_(p, out);

@@ -96,6 +96,7 @@ GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) 
 }
 
 GraspCheck Simulation::grasp_check(int i, int body) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   if (!world_) throw std::invalid_argument("the simulation has no world");
   if (!s.robot.clamp().present()) throw std::invalid_argument("robot '" + s.robot.name() + "' has no clamp");
@@ -218,6 +219,7 @@ void Simulation::release_(Slot& s, const std::string& why, bool set_twist) {
 }
 
 void Simulation::release(int i) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   if (s.grasp.held < 0) return;
   release_(s, "released");

@@ -108,6 +108,7 @@ void LogColumn::reserve(long rows) {
 }
 
 void Simulation::reserve(long steps) {
+  const Entry driving = enter_();  // one driver at a time
   if (opt_.log_every == 0 || steps <= 0) return;
   const long rows = log_t_.rows() + steps / opt_.log_every + 2;
   log_t_.reserve(rows);

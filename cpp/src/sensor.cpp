@@ -25,6 +25,7 @@ void check_sensor_options(const SensorOptions& o) {
 }
 
 void Simulation::set_sensor(int i, const SensorOptions& options) {
+  const Entry driving = enter_();  // one driver at a time
   check_sensor_options(options);
   Slot& s = slot_(i);
   fresh_sensor_(i);  // a filter set now starts from the reading at this time
@@ -49,6 +50,7 @@ void Simulation::reset_sensor_(Slot& s) {
 }
 
 const Simulation::Slot::Sensor& Simulation::fresh_sensor_(int i) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   if (s.sensor.stale) {
     sense_(s, true);

@@ -27,7 +27,8 @@ std::vector<Eigen::Isometry3d> box_poses_at(const Robot& robot, const VecN& q, W
 
 }  // namespace
 
-Simulation::Simulation(SimulationOptions options, std::shared_ptr<World> world) : opt_(options) {
+Simulation::Simulation(SimulationOptions options, std::shared_ptr<World> world)
+    : driver_(make_driver_()), opt_(options) {
   check_step_size(opt_.dt);
   if (opt_.world_every < 1)
     throw std::invalid_argument("world_every must be >= 1, got " + std::to_string(opt_.world_every));
@@ -65,6 +66,7 @@ const Simulation::Slot& Simulation::slot_(int i) const {
 
 int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> controller,
                           std::shared_ptr<const Reference> reference, const double* q0, const double* qd0) {
+  const Entry driving = enter_();  // one driver at a time
   if (started_ || k_ != 0) throw std::invalid_argument("robots can only be added before the first step (call reset())");
   if (!controller) throw std::invalid_argument("controller must not be None");
   if (!reference) throw std::invalid_argument("reference must not be None");
@@ -116,6 +118,7 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
 }
 
 void Simulation::reset() {
+  const Entry driving = enter_();  // one driver at a time
   if (world_) world_->reset();
   for (LogColumn& c : body_log_) c.clear();
   contact_log_.clear();
@@ -220,6 +223,7 @@ void Simulation::qdd_(Slot& s, VecN& out) {
 }
 
 void Simulation::set_reference(int i, std::shared_ptr<const Reference> reference) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   if (!reference) throw std::invalid_argument("reference must not be None");
   if (reference->dof() != s.robot.dof())
@@ -229,6 +233,7 @@ void Simulation::set_reference(int i, std::shared_ptr<const Reference> reference
 }
 
 void Simulation::set_applied_forces(int i, const VecN& forces) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   const int n = s.robot.dof();
   if (forces.size() != n)
@@ -241,6 +246,7 @@ void Simulation::set_applied_forces(int i, const VecN& forces) {
 }
 
 void Simulation::set_applied_wrenches(int i, std::vector<ExternalWrench> wrenches) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   const int n = s.robot.dof();
   for (size_t k = 0; k < wrenches.size(); ++k) {
@@ -324,6 +330,7 @@ void Simulation::stages_() {
 }
 
 void Simulation::advance(long n) {
+  const Entry driving = enter_();  // one driver at a time
   if (n < 0) throw std::invalid_argument("n must be >= 0, got " + std::to_string(n));
   if (slots_.empty() && !world_)
     throw std::invalid_argument("the simulation has no robot: add one with add_robot()");
@@ -438,6 +445,7 @@ void Simulation::integrate_() {
 }
 
 long Simulation::run(double t_end, long chunk, const std::function<bool(long, long)>& progress) {
+  const Entry driving = enter_();  // one driver at a time
   if (chunk < 1) throw std::invalid_argument("chunk must be >= 1, got " + std::to_string(chunk));
   const long total = steps_until(t_end);
   reserve(total);
@@ -454,6 +462,7 @@ long Simulation::run(double t_end, long chunk, const std::function<bool(long, lo
 // ---- replacing a robot's controller in a run ----
 
 void Simulation::set_controller(int i, std::shared_ptr<Controller> controller) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   if (!controller) throw std::invalid_argument("controller must not be None");
   for (size_t k = 0; k < slots_.size(); ++k)
@@ -470,6 +479,7 @@ void Simulation::set_controller(int i, std::shared_ptr<Controller> controller) {
 // ---- replacing a robot in a run ----
 
 void Simulation::set_robot(int i, const Robot& robot) {
+  const Entry driving = enter_();  // one driver at a time
   Slot& s = slot_(i);
   const Robot& old = s.robot;
   const int n = old.dof();

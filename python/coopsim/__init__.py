@@ -32,7 +32,7 @@ from ._core import (
 from . import grasp, robots
 from .urdf import from_urdf, to_urdf
 from .planning import clamp_pose, plan_cartesian
-from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation
+from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation, SimulationBusyError
 from ._core import (
     CooperativeController,
     CoopMember,
@@ -102,6 +102,6 @@ __all__ = [
     "view",
     "CooperativeController", "CoopMember", "LeaderFollower", "ObjectControl",
     "TASK_AXES", "HybridForce", "Impedance", "Payload", "TaskController", "TaskState", "commandable_directions", "task_axes",  # noqa: E501
-    "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationLog", "run_batch", "simulate",  # noqa: E501
+    "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationBusyError", "SimulationLog", "run_batch", "simulate",  # noqa: E501
     "sweep", "sweeps", "TaskRun",
 ]

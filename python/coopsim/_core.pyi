@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationCore', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -1358,6 +1358,25 @@ class DivergenceError(RuntimeError):
     """
     The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time (s), robot (index; -1 when a free body of the world diverged, named in the message), q, qd (the rejected state; empty for a free body). The simulation keeps its log up to the last good step.
     """
+class SimulationBusyError(RuntimeError):
+    """
+    Another thread is running this simulation: a call that advances or changes it (advance, run, reset, set_*, ...) was made from a thread other than its holder's. One driver at a time: pause or close the other driver (e.g. the live view) first. Attributes: holder (str, the holder's label; 'another thread' for a call holding it for its own duration), thread (int, the holder's threading.get_ident()).
+    """
+class SimulationHold:
+    """
+    A hold on a SimulationCore's run (SimulationCore.hold; use coopsim.Simulation.driving): while it is held,
+    only the thread that took it may advance or change the simulation. release() gives it back; it must be
+    called on that thread.
+    """
+    def release(self) -> None:
+        """
+        Gives the run back (nothing if already given back); RuntimeError from another thread than the one that took it.
+        """
+    @property
+    def held(self) -> bool:
+        """
+        Whether this hold still holds the run.
+        """
 class SimulationCore:
     """
     The C++ simulation loop behind coopsim.Simulation (use that class): robots
@@ -1434,6 +1453,10 @@ class SimulationCore:
     def grasp_options(self) -> dict:
         """
         The clamp rule's options of this simulation: {name: value} (see simulation_defaults()).
+        """
+    def hold(self, label: typing.Any) -> SimulationHold:
+        """
+        Takes the run for the calling thread until the returned SimulationHold is released: another thread's advance, run, reset, set_* ... then raises SimulationBusyError naming `label` (non-empty str). Re-entrant on the holding thread. SimulationBusyError when another thread holds it.
         """
     def holding(self, i: typing.SupportsInt | typing.SupportsIndex) -> typing.Any:
         """
@@ -1557,6 +1580,11 @@ class SimulationCore:
     @property
     def grasp(self) -> bool:
         ...
+    @property
+    def holder(self) -> typing.Any:
+        """
+        (label, thread) of the thread holding the run now (thread: its threading.get_ident()), or None. A snapshot: it may change at once.
+        """
     @property
     def integrator(self) -> str:
         ...

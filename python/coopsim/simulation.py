@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from typing import Callable, List, Optional, Sequence
+from contextlib import contextmanager
+from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from . import _core
-from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, World
+from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, SimulationBusyError, World
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
 
@@ -26,7 +27,7 @@ from .pacing import Pacer, RunStats
 #: signature below shows; grasp_options=None takes the engine's defaults of the grasp options
 _DEFAULTS = _core.simulation_defaults()
 
-__all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation"]
+__all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation", "SimulationBusyError"]
 
 # by default a headless run of at least this many steps shows a progress bar
 # once it has lasted _PROGRESS_DELAY s of wall time
@@ -80,6 +81,15 @@ class Simulation:
     The description (options, robots, controllers, references, initial
     states) pickles; the state, applied inputs and log do not, so an
     unpickled simulation starts at t = 0.
+
+    One driver at a time: the engine holds the run for the thread advancing or changing it. A call
+    that advances (:meth:`step`, :meth:`run`, :meth:`advance`, :meth:`run_paced`) or changes the
+    simulation (:meth:`reset`, ``set_*``, ``add_*``, :meth:`release`, ...) from another thread while
+    one runs it raises :class:`SimulationBusyError` at once, naming the holder; a driver that runs
+    it for a while (the live view) holds it across its calls with :meth:`driving`. Reads
+    (:attr:`time`, :meth:`state`, :attr:`log`, :meth:`metrics`, ...) are not guarded: from another
+    thread they may see a step half done. :meth:`sensor`, :meth:`grasp_check` and
+    :meth:`cooperation` compute on the engine's scratch and count as changes.
     """
 
     def __init__(self, dt: float = _DEFAULTS["dt"], *, world: Optional[World] = None,
@@ -223,6 +233,35 @@ class Simulation:
     def __repr__(self) -> str:
         names = ", ".join(f"{r.name}/{type(c).__name__}" for r, c in zip(self.robots, self.controllers))
         return f"<coopsim.Simulation dt={self.dt:g} s, t={self.time:.6g} s, {names or 'no robots'}>"
+
+    # ---- one driver at a time ----
+
+    @contextmanager
+    def driving(self, label: str) -> Iterator["Simulation"]:
+        """Holds the run for the calling thread for the block: ``with sim.driving("the live view at
+        http://127.0.0.1:8080"): ...``.
+
+        Inside it this thread may step and change the simulation as usual (and nest other holds);
+        every other thread's call that advances or changes it (:meth:`step`, :meth:`run`,
+        :meth:`advance`, :meth:`reset`, ``set_*`` ...) raises :class:`SimulationBusyError` naming
+        `label`, until the block ends, normally or by an exception. Reads (:attr:`time`,
+        :meth:`state`, :attr:`log` ...) stay open to everyone and are not guarded. label: a
+        non-empty str naming the driver to the others. Raises SimulationBusyError at once when
+        another thread holds the run. Yields this simulation.
+        """
+        if not isinstance(label, str) or not label:
+            raise ValueError(f"label must be a non-empty str naming the driver, got {label!r}")
+        hold = self._core.hold(label)
+        try:
+            yield self
+        finally:
+            hold.release()
+
+    @property
+    def driver(self) -> Optional[Tuple[str, int]]:
+        """(label, thread) of the driver holding the run now (thread: its ``threading.get_ident()``;
+        label 'another thread' for a call holding it for its own duration), or None. A snapshot."""
+        return self._core.holder
 
     # ---- state ----
 
@@ -465,12 +504,7 @@ class Simulation:
 
     def step(self, n: int = 1) -> float:
         """Advances n steps (GIL released); returns the new time (s)."""
-        t0, s0, w0 = self.time, self.steps, time.perf_counter()
-        try:
-            self._core.advance(n)
-        finally:
-            w = time.perf_counter() - w0
-            self.stats = RunStats._make(self.time, self.time - t0, w, w, self.dt, self.steps - s0)
+        self._timed(self._core.advance, n)
         return self.time
 
     def run(self, t_end: float, *, progress: Optional[bool] = None) -> SimulationLog:
@@ -522,12 +556,24 @@ class Simulation:
         return list(errors)
 
     def _run(self, t_end: float, callback) -> None:
+        self._timed(self._core.run, t_end, callback)
+
+    def _timed(self, call, *args) -> None:
+        """call(*args), its run's statistics to :attr:`stats` (also when it fails, but for a
+        SimulationBusyError: that run is another thread's, and so are the statistics)."""
         t0, s0, w0 = self.time, self.steps, time.perf_counter()
         try:
-            self._core.run(t_end, callback)
-        finally:
-            w = time.perf_counter() - w0
-            self.stats = RunStats._make(self.time, self.time - t0, w, w, self.dt, self.steps - s0)
+            call(*args)
+        except SimulationBusyError:
+            raise
+        except BaseException:
+            self._record(t0, s0, w0)
+            raise
+        self._record(t0, s0, w0)
+
+    def _record(self, t0: float, s0: int, w0: float) -> None:
+        w = time.perf_counter() - w0
+        self.stats = RunStats._make(self.time, self.time - t0, w, w, self.dt, self.steps - s0)
 
     def steps_until(self, t_end: float) -> int:
         """The steps from now to time t_end (s), rounded down (0 at or past it); ValueError for a t_end in
@@ -544,11 +590,14 @@ class Simulation:
         on_frame(sim, pacer) for live drawing or control; it may change
         pacer.speed, pause()/resume() or stop(), or return False to stop.
         Pass your own `pacer` to keep control from outside. Returns (and
-        stores in :attr:`stats`) the run's statistics.
+        stores in :attr:`stats`) the run's statistics. The run holds the
+        simulation (:meth:`driving`): other threads' steps and changes raise
+        SimulationBusyError until it ends.
         """
         if pacer is None:
             pacer = Pacer(speed=speed, frame_rate=frame_rate)
-        return pacer.run(self, t_end, on_frame=on_frame, max_wall_time=max_wall_time)
+        with self.driving("a paced run (Simulation.run_paced)"):
+            return pacer.run(self, t_end, on_frame=on_frame, max_wall_time=max_wall_time)
 
     # ---- results ----
 

@@ -48,13 +48,26 @@
 //   integrate    RK4 or Euler to t_k+1 under the held torques             simulation.cpp
 // Divergence checks and their messages are in divergence.cpp, the self-collision exclusions in
 // self_collision.cpp, run_batch (batch.hpp) in batch.cpp.
+//
+// One driver at a time (simulation_hold.cpp): the simulation has a holder, the thread that is
+// advancing or changing the run. Every call that advances it (advance, run) or changes it (every
+// set_*, add_*, remove_cooperative, release, reset, reserve, set_profiling, and the calls that
+// compute on the simulation's scratch: grasp_check, cooperation, ft_*) made from another thread
+// while it is held throws SimulationBusyError at once, naming the holder: two threads never step
+// one simulation. A call with no holder takes the hold for its own duration (implicit, labelled
+// "another thread"); a driver takes it across many calls with hold(label) (explicit, re-entrant on
+// its thread). The reads (state, time, log, metrics, options, ...) take no hold and are not
+// guarded: read from another thread while the holder runs, they may see a step half done.
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <exception>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <array>
@@ -131,8 +144,45 @@ struct StepProfile {
   long steps = 0, world_steps = 0;
 };
 
-class Simulation {
+// Thrown by a call that advances or changes a simulation (see "One driver at a time" above) from
+// another thread than the one holding it. holder(): the holder's label ("another thread" for an
+// implicit hold); thread(): its thread's id (std::thread::id as printed; on Linux pthread_self(),
+// Python's threading.get_ident()). The message is one line:
+//   this simulation is being run by '<label>' (thread <id>); one driver at a time: pause or close it first
+class SimulationBusyError : public std::runtime_error {
  public:
+  SimulationBusyError(const std::string& holder, const std::string& thread);
+  const std::string& holder() const { return holder_; }
+  const std::string& thread() const { return thread_; }
+
+ private:
+  std::string holder_, thread_;
+};
+
+class Simulation {
+  struct Driver;  // the holder: an atomic thread id, a re-entrant depth, the label (simulation_hold.cpp)
+
+ public:
+  // An explicit hold on the run (hold()): while it lives, only its thread may advance or change
+  // the simulation. Movable, not copyable; release() (or the destructor) gives it back, and must
+  // run on the thread that took it (release() from another thread throws std::logic_error).
+  class Hold {
+   public:
+    Hold() = default;
+    Hold(Hold&& o) noexcept : driver_(std::move(o.driver_)) {}
+    Hold& operator=(Hold&& o) noexcept;
+    Hold(const Hold&) = delete;
+    Hold& operator=(const Hold&) = delete;
+    ~Hold();
+    void release();
+    bool held() const { return driver_ != nullptr; }
+
+   private:
+    friend class Simulation;
+    explicit Hold(std::shared_ptr<Driver> d) : driver_(std::move(d)) {}
+    std::shared_ptr<Driver> driver_;
+  };
+
   // With a world, every robot added brings its boxes into it as kinematic
   // bodies at the first step, and the step runs, in order: controllers;
   // link poses and twists into the world; the grasp rule and the welds; the
@@ -143,6 +193,7 @@ class Simulation {
   // Throws std::invalid_argument naming an option out of range.
   explicit Simulation(SimulationOptions options = SimulationOptions(), std::shared_ptr<World> world = nullptr);
   ~Simulation();
+  // (a simulation moved while held, or from, is not to be used: its holder stays with the moved-to one)
   Simulation(Simulation&&) = default;
   Simulation& operator=(Simulation&&) = default;
   Simulation(const Simulation&) = delete;
@@ -152,6 +203,18 @@ class Simulation {
   // q0, qd0 (null: the reference's q and qd at t = 0). Only before the first
   // step (or after reset()). Returns the robot's index. Throws
   // std::invalid_argument on mismatched sizes, naming the argument.
+  // ---- one driver at a time (see the header comment) ----
+  // Takes the run for the calling thread until the Hold is released: another thread's advance,
+  // run, reset or set_* then throws SimulationBusyError naming `label` (non-empty, e.g. "the live
+  // view at http://127.0.0.1:8080"). Re-entrant: the holding thread may take it again (the label
+  // of the outermost hold stays) and may call everything. Throws SimulationBusyError when another
+  // thread holds the run, std::invalid_argument for an empty label.
+  Hold hold(const std::string& label);
+  // The holder's label now ("" when nobody holds the run; "another thread" for an implicit hold)
+  // and, in *thread when given, its thread id (std::thread::id() when none), read together. A
+  // snapshot: it may change at once.
+  std::string holder(std::thread::id* thread = nullptr) const;
+
   int add_robot(const Robot& robot, std::shared_ptr<Controller> controller,
                 std::shared_ptr<const Reference> reference, const double* q0 = nullptr,
                 const double* qd0 = nullptr);
@@ -230,7 +293,7 @@ class Simulation {
   Cooperation cooperation(int a, int b, bool* holding = nullptr);
   // Their log column: one row of cooperation_schema() per log row.
   const LogColumn& cooperation_log(int a, int b);
-  void set_profiling(bool on) { profiling_ = on; }
+  void set_profiling(bool on);
   // ---- sensors (see SensorOptions) ----
   // Configures robot i's force/torque sensor; the noise generator restarts from the seed, the
   // filter keeps its state. Throws std::invalid_argument naming a bad option.
@@ -240,6 +303,7 @@ class Simulation {
   // TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
   // Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
   // rows and when asked here: its reading depends on the present state alone.)
+  // They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
   const Vec6& ft_clamp(int i) { return fresh_sensor_(i).clamp; }
   const Vec6& ft_world(int i) { return fresh_sensor_(i).world; }
   const Vec6& ft_true_clamp(int i) { return fresh_sensor_(i).true_clamp; }
@@ -378,6 +442,21 @@ class Simulation {
 
   Slot& slot_(int i);
   const Slot& slot_(int i) const;
+  // ---- the holder (simulation_hold.cpp) ----
+  // The implicit hold of one mutating call: takes the run when nobody holds it, enters it again
+  // on the holder's thread, throws SimulationBusyError otherwise. Released at the scope's end.
+  class Entry {
+   public:
+    explicit Entry(Driver& d);
+    ~Entry();
+    Entry(const Entry&) = delete;
+    Entry& operator=(const Entry&) = delete;
+
+   private:
+    Driver& driver_;
+  };
+  Entry enter_() { return Entry(*driver_); }
+  static std::shared_ptr<Driver> make_driver_();
   void start_();
   // ---- the step's stages (see the header comment) ----
   void stages_();                        // the stages at t_k, in order
@@ -426,6 +505,7 @@ class Simulation {
   Pair& pair_(int a, int b);
   void log_pairs_();
 
+  std::shared_ptr<Driver> driver_;  // on the heap: a Hold keeps it, a move of the simulation carries it
   SimulationOptions opt_;
   std::shared_ptr<World> world_;
   std::vector<Slot> slots_;
