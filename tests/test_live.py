@@ -738,9 +738,8 @@ def test_the_task_runs_in_the_live_page_with_the_headless_result(views):
     res = handover.run(cycles=1, score=False, live=dict(speed=4.0, quiet=True))
     views.append(res.live)
     assert res.success and res.report == headless.report
-    assert res.live.frames > 10 and res.live.error is None and not res.live.resettable
-    res.live.reset()
-    assert "Refused" in res.live.message          # a run sequenced from Python does not go back to its start
+    assert res.live.frames > 10 and res.live.error is None
+    assert res.live.run_state == "finished" and "1 of 1 cycles succeeded" in res.live.outcome
 
 
 @pytest.mark.slow
@@ -766,6 +765,237 @@ def test_a_lab_notebook_puts_the_live_page_in_a_cell():
     nb = json.loads((Path(__file__).resolve().parents[1] / "notebooks" / "02_planning_and_control.ipynb").read_text())
     code = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
     assert any("cs.view.live(" in c and ".show(" in c and ".run_to(" in c for c in code)
+
+
+# ---- the main job as a session ----
+
+def _cli(tmp_path, *args):
+    """The main job's command line with --live in a process of its own; (process, the page's URL)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--cycles", "1", "--no-video",
+                             "--out", str(tmp_path), *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, env=env)
+    lines = []
+    end = time.monotonic() + WAIT
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        if "coopsim live view: http://" in line:
+            return proc, line.split("coopsim live view: ")[1].split()[0], lines
+    proc.kill()
+    pytest.fail("the command line printed no URL: " + "".join(lines))
+
+
+def _finish(proc, lines, sig=None, timeout=WAIT):
+    import signal
+
+    if sig is not None:
+        proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=timeout)
+    return proc.returncode, "".join(lines) + out
+
+
+class _Url:
+    """What LivePage needs of a view served by another process: its URL (the page's state read in the page)."""
+
+    def __init__(self, url):
+        self.url = url
+
+
+def _text_in_page(page, text):
+    page.get_by_text(text).first.wait_for(timeout=WAIT * 1000)
+
+
+@pytest.mark.slow
+def test_the_main_job_waits_for_start_then_serves_downloads_and_reset_after_the_run(browser, tmp_path):  # noqa: F811
+    """`--live`: paused at t = 0 until Start; after the run the page states it finished, shows the summary,
+    sends the log and runs the task again on Reset; Ctrl-C closes it with no traceback."""
+    proc, url, lines = _cli(tmp_path, "--hold", "600")
+    try:
+        page = browser.new_page(viewport={"width": 900, "height": 700}, accept_downloads=True)
+        page.goto(url)
+        page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
+        _text_in_page(page, "waiting")
+        time.sleep(1.0)                      # still waiting, at t = 0 (no Start yet)
+        assert "0.0000 s" in page.get_by_text("Simulated time").first.locator("xpath=..").inner_text()
+        thumb = page.locator('label:visible', has_text="Speed (%)").first
+        slider = page.locator(f'[id="{thumb.get_attribute("for")}"] [role="slider"]')
+        slider.focus()
+        page.keyboard.press("End")           # 400 %
+        page.get_by_role("button", name="Start", exact=True).click()
+        _text_in_page(page, "1 of 1 cycles succeeded")
+        _text_in_page(page, "finished")
+        _text_in_page(page, "the page stays until Ctrl-C")      # the outputs written, the page served
+        page.get_by_role("tab", name="Data").click()
+        with page.expect_download(timeout=WAIT * 1000) as d:
+            page.get_by_role("button", name="Download CSV", exact=True).click()
+        path = tmp_path / "page.csv"
+        d.value.save_as(path)
+        got = cs.SimulationLog.read_csv(path)
+        assert got.t[-1] > 10.0              # the whole run (about 16 s simulated)
+        # Reset after the run: the task again, in the page, from t = 0
+        page.get_by_role("tab", name="Run").click()
+        page.get_by_role("button", name="Reset to start", exact=True).click()
+        _text_in_page(page, "running")
+        page.close()
+    finally:
+        rc, out = _finish(proc, lines, sig=True)
+    assert rc == 0, out                      # the run succeeded; Ctrl-C only closed the page
+    assert "Traceback" not in out
+    import json
+
+    with open(tmp_path / "report.json", encoding="utf-8") as f:
+        assert json.load(f)["success"] is True
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_the_main_jobs_run_writes_the_log_and_an_interrupted_report(tmp_path):
+    import json
+
+    proc, url, lines = _cli(tmp_path, "--speed", "1", "--hold", "0")
+    time.sleep(2.0)                           # the run is under way at 100 % (about 16 s simulated)
+    rc, out = _finish(proc, lines, sig=True)
+    assert rc == 130, out
+    assert "Traceback" not in out
+    said = [line for line in out.splitlines() if line.startswith("interrupted")]
+    assert len(said) == 1 and "report.json" in said[0] and "task.csv" in said[0]
+    with open(tmp_path / "report.json", encoding="utf-8") as f:
+        rep = json.load(f)
+    assert rep["interrupted"] is True and rep["success"] is False
+    assert rep["cycles"][-1]["reason"] == "interrupted (Ctrl-C)"
+    log = cs.SimulationLog.read_csv(tmp_path / "task.csv")
+    assert 0 < log.t[-1] <= rep["simulated_time"] + 1e-9 < 16.0
+
+
+@pytest.mark.slow
+def test_a_failed_cycle_shows_its_step_time_and_reason_in_the_page(browser, views):  # noqa: F811
+    from coopsim.tasks import handover
+
+    res = handover.run(cycles=1, score=False, container_shift=(0.1, 0.0, 0.05), live=dict(speed=4.0, quiet=True))
+    v = res.live
+    views.append(v)
+    c = res.report["cycles"][0]
+    assert not res.success and v.run_state == "failed"
+    import threading
+
+    serving = threading.Thread(target=v.serve, kwargs=dict(seconds=WAIT), daemon=True)
+    serving.start()
+    lp = LivePage(browser, v)
+    try:
+        _text_in_page(lp.page, f"FAILED in {c['failed_step']} at t = {c['failed_at']:.3f} s: {c['reason']}")
+        _text_in_page(lp.page, "failed")
+        assert "(running)" not in lp.page.content()
+    finally:
+        lp.close()
+        v.close()
+        serving.join(timeout=WAIT)
+
+
+def test_a_sequenced_runs_reset_restarts_its_driver_and_serve_runs_it_again(views):
+    """run_to(restart=True) raises Restart on the page's Reset (the simulation back at t = 0); after the run,
+    serve() calls the view's rerun on Reset."""
+    from coopsim.view.live import Restart
+
+    sim = two_scaras()
+    v = make(views, sim, start=False, speed=4.0)
+    v.run_to(0.05, restart=True)
+    v.reset()
+    with pytest.raises(Restart):
+        v.run_to(0.2, restart=True)
+    assert sim.time == 0.0
+    ran = []
+
+    def again():
+        ran.append(sim.time)
+        v.run_to(0.02)
+        v.close()                 # ends serve()
+    v.rerun = again
+    v.finish("done", ok=True)
+    assert v.run_state == "finished" and v.outcome == "done"
+    v.reset()
+    assert v.serve(WAIT) == "closed"
+    assert ran == [0.0] and sim.time >= 0.02 - 1e-12
+
+
+# ---- long runs and downloads ----
+
+def _counting(monkeypatch, cls, name):
+    """Counts the calls of cls.name (a method) from now on; returns the list of calls."""
+    calls = []
+    real = getattr(cls, name)
+
+    def counted(self, *a, **kw):
+        calls.append(name)
+        return real(self, *a, **kw)
+    monkeypatch.setattr(cls, name, counted)
+    return calls
+
+
+def test_the_table_shows_the_newest_rows_reading_only_them(views, monkeypatch):
+    """As the run goes on, the Data table shows the last 8 rows of the chosen robot's log; its update reads
+    those rows alone (a count that a long log cannot change) and never builds the whole log
+    (Simulation.log / log_snapshot, which copy every logged contact point)."""
+    sim = two_scaras(world=cs.World(), log_every=20, log_contacts=True)
+    sim.run(1.0, progress=False)                  # a log already there: 251 rows
+    built = _counting(monkeypatch, cs.Simulation, "log_snapshot")
+    v = make(views, sim, speed=4.0)
+    counts, reads = set(), []
+
+    def progressed():
+        text = v._table.content
+        reads.append(v.table_rows_read)
+        if " rows (" in text:
+            counts.add(int(text.split(" of ")[1].split(" rows")[0]))
+        return len(counts) >= 3
+    until(progressed, "the table updated three times as the run went on")
+    v.pause()
+    until(lambda: v.pacer.paused, "paused")
+    rows = v.call(lambda: sim.log_rows)
+    until(lambda: f"of {rows} rows" in v._table.content, "the table at the paused run's last row")
+    assert built == []                            # the table never built the whole log
+    assert max(reads) == 8 and rows > 251 + 8
+    v._pick_table(1)                              # the second robot's rows
+    until(lambda: v._table.content.startswith(v.labels[1]), "the table of the second robot")
+    log = v.call(lambda: sim.log)
+    text = v._table.content
+    assert f"last 8 of {rows} rows ({len(log.columns())} columns)" in text
+    lines = text.splitlines()[-8:]
+    for line, t, q in zip(lines, log.t[-8:], log[1].q[-8:]):
+        assert line == f"| {t:.4f} | " + " | ".join(f"{x:.3f}" for x in q) + " |"
+    assert v.error is None
+
+
+def test_a_download_asked_while_one_is_prepared_says_so_and_the_first_is_sent(views, monkeypatch):
+    """The log's file is written off the simulation's thread with its progress in the Data panel's line
+    ('preparing CSV… 0 %' ... 'sent: N rows, X MB'); a second request meanwhile is refused with a line
+    saying so; the log is taken without its contact points (the tables do not hold them)."""
+    sim = two_scaras(world=cs.World(), log_every=1, log_contacts=True)
+    sim.run(0.5, progress=False)
+    taken = []
+    real = cs.Simulation.log_snapshot
+    monkeypatch.setattr(cs.Simulation, "log_snapshot",
+                        lambda self, **kw: taken.append(kw) or real(self, **kw))
+    v = make(views, sim, start=False)
+    v.download("csv")
+    v.download("xlsx")
+    assert "one download at a time" in v.download_text
+    until(lambda: v.download_state in ("sent", "failed"), "the CSV sent")
+    rows = sim.log_rows
+    assert v.download_state == "sent" and v.download_text.startswith(f"sent: {rows} rows, ")
+    assert taken == [{"contact_points": False}]   # one log taken, for the CSV alone
+    assert any(line.startswith("preparing CSV… 0 %") for line in v.download_lines)
+    assert not any("Excel…" in line for line in v.download_lines)
+    v.download("xlsx")                            # now one may ask again
+    until(lambda: v.download_state in ("sent", "failed") and "Excel" in v.download_text, "the Excel sent")
+    assert v.download_text.startswith(f"sent: {rows} rows, ")
+    with pytest.raises(ValueError, match="kind must be 'csv' or 'xlsx'"):
+        v.download("pdf")
 
 
 # ---- panels ----
@@ -963,79 +1193,57 @@ def test_the_page_names_a_cooperative_law_and_states_finished_without_nan(browse
         lp.close()
 
 
-# ---- long runs and downloads ----
 
-def _counting(monkeypatch, cls, name):
-    """Counts the calls of cls.name (a method) from now on; returns the list of calls."""
-    calls = []
-    real = getattr(cls, name)
+@pytest.mark.slow
+def test_a_20_mb_log_arrives_complete_with_its_progress_shown(browser, views, tmp_path):  # noqa: F811
+    """A log of about 20 MB (a run at full speed, every step logged) downloads from the page as CSV and as
+    Excel, every row and column read back; the Data panel's line shows 'preparing CSV… N %' while the file
+    is written (the writer waits at its first percent until the page has shown it), then 'sent: N rows'."""
+    import re
+    import threading
 
-    def counted(self, *a, **kw):
-        calls.append(name)
-        return real(self, *a, **kw)
-    monkeypatch.setattr(cls, name, counted)
-    return calls
+    from coopsim.log import SimulationLog
 
+    sim = two_scaras(world=cs.World(), log_every=1)
+    sim.run(2.5, progress=False)                  # 12501 rows x 109 columns: about 20 MB of CSV
+    v = make(views, sim, t_end=sim.time)          # the run over, the page served
+    log = sim.log
+    shown = threading.Event()
+    real_show = v._show_download
 
-def test_the_table_shows_the_newest_rows_reading_only_them(views, monkeypatch):
-    """As the run goes on, the Data table shows the last 8 rows of the chosen robot's log; its update reads
-    those rows alone (a count that a long log cannot change) and never builds the whole log
-    (Simulation.log / log_snapshot, which copy every logged contact point)."""
-    sim = two_scaras(world=cs.World(), log_every=20, log_contacts=True)
-    sim.run(1.0, progress=False)                  # a log already there: 251 rows
-    built = _counting(monkeypatch, cs.Simulation, "log_snapshot")
-    v = make(views, sim, speed=4.0)
-    counts, reads = set(), []
-
-    def progressed():
-        text = v._table.content
-        reads.append(v.table_rows_read)
-        if " rows (" in text:
-            counts.add(int(text.split(" of ")[1].split(" rows")[0]))
-        return len(counts) >= 3
-    until(progressed, "the table updated three times as the run went on")
-    v.pause()
-    until(lambda: v.pacer.paused, "paused")
-    rows = v.call(lambda: sim.log_rows)
-    until(lambda: f"of {rows} rows" in v._table.content, "the table at the paused run's last row")
-    assert built == []                            # the table never built the whole log
-    assert max(reads) == 8 and rows > 251 + 8
-    v._pick_table(1)                              # the second robot's rows
-    until(lambda: v._table.content.startswith(v.labels[1]), "the table of the second robot")
-    log = v.call(lambda: sim.log)
-    text = v._table.content
-    assert f"last 8 of {rows} rows ({len(log.columns())} columns)" in text
-    lines = text.splitlines()[-8:]
-    for line, t, q in zip(lines, log.t[-8:], log[1].q[-8:]):
-        assert line == f"| {t:.4f} | " + " | ".join(f"{x:.3f}" for x in q) + " |"
-    assert v.error is None
-
-
-def test_a_download_asked_while_one_is_prepared_says_so_and_the_first_is_sent(views, monkeypatch):
-    """The log's file is written off the simulation's thread with its progress in the Data panel's line
-    ('preparing CSV… 0 %' ... 'sent: N rows, X MB'); a second request meanwhile is refused with a line
-    saying so; the log is taken without its contact points (the tables do not hold them)."""
-    sim = two_scaras(world=cs.World(), log_every=1, log_contacts=True)
-    sim.run(0.5, progress=False)
-    taken = []
-    real = cs.Simulation.log_snapshot
-    monkeypatch.setattr(cs.Simulation, "log_snapshot",
-                        lambda self, **kw: taken.append(kw) or real(self, **kw))
-    v = make(views, sim, start=False)
-    v.download("csv")
-    v.download("xlsx")
-    assert "one download at a time" in v.download_text
-    until(lambda: v.download_state in ("sent", "failed"), "the CSV sent")
-    rows = sim.log_rows
-    assert v.download_state == "sent" and v.download_text.startswith(f"sent: {rows} rows, ")
-    assert taken == [{"contact_points": False}]   # one log taken, for the CSV alone
-    assert any(line.startswith("preparing CSV… 0 %") for line in v.download_lines)
-    assert not any("Excel…" in line for line in v.download_lines)
-    v.download("xlsx")                            # now one may ask again
-    until(lambda: v.download_state in ("sent", "failed") and "Excel" in v.download_text, "the Excel sent")
-    assert v.download_text.startswith(f"sent: {rows} rows, ")
-    with pytest.raises(ValueError, match="kind must be 'csv' or 'xlsx'"):
-        v.download("pdf")
+    def show(state, text):
+        real_show(state, text)
+        if re.fullmatch(r"preparing CSV… \d+ %", text) and not shown.is_set():
+            shown.wait(WAIT)                      # the writer waits until the page has shown its progress
+    v._show_download = show
+    lp = LivePage(browser, v, keep=tmp_path)
+    try:
+        lp.tab("Data")
+        lp.page.get_by_text(f"last 8 of {len(log.t)} rows").wait_for(timeout=WAIT * 1000)
+        with lp.page.expect_download(timeout=WAIT * 1000) as d:
+            lp.click("Download CSV")
+            lp.page.get_by_text(re.compile(r"preparing CSV… \d+ %")).wait_for(timeout=WAIT * 1000)
+            lp.page.screenshot(path=str(tmp_path / "progress.png"))
+            shown.set()
+        path = tmp_path / "log.csv"
+        d.value.save_as(path)
+        lp.page.get_by_text(f"sent: {len(log.t)} rows").wait_for(timeout=WAIT * 1000)
+        lp.page.screenshot(path=str(tmp_path / "sent.png"))
+        assert path.stat().st_size > 18e6
+        got = SimulationLog.read_csv(path)
+        assert got.columns() == log.columns() and len(got.t) == len(log.t) == 12501
+        np.testing.assert_array_equal(got.to_array(), log.to_array())
+        with lp.page.expect_download(timeout=WAIT * 1000) as d:
+            lp.click("Download Excel")
+        path = tmp_path / "log.xlsx"
+        d.value.save_as(path)
+        until(lambda: v.download_state == "sent" and "Excel" in v.download_text, "the Excel's line")
+        got = SimulationLog.read_excel(path)
+        assert got.columns() == log.columns() and len(got.t) == len(log.t)
+        np.testing.assert_array_equal(got.to_array(), log.to_array())    # %.17g: every value exactly
+        assert v.error is None
+    finally:
+        lp.close()
 
 
 # ---- notebook, remote and rough edges ----

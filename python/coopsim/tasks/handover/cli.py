@@ -32,14 +32,17 @@ def parser() -> argparse.ArgumentParser:
                     help="also run seeds 0 .. N-1 and print a row per seed and the rate")
     ap.add_argument("--threads", type=int, default=2, help="threads for the sweep (>= 1, default 2)")
     ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
-    ap.add_argument("--speed", type=float, default=2.0,
-                    help=f"simulated seconds per video second, > 0 and <= {MAX_SPEED:g} (default 2)")
+    ap.add_argument("--speed", type=float, default=None,
+                    help=f"simulated seconds per wall second, > 0 and <= {MAX_SPEED:g}: the video's (default 2) and, "
+                         f"with --live, the page's, the run starting at once (1 = 100 %%)")
     ap.add_argument("--live", action="store_true",
-                    help="run in a live page in the browser (coopsim.view.live, 127.0.0.1) at 100 %% speed; the page "
-                         "stays after the run until Ctrl-C (--hold s)")
+                    help="run in a live page in the browser (coopsim.view.live, 127.0.0.1): it waits paused at t = 0 "
+                         "for its Start (or starts at once at --speed); after the run it shows the summary and keeps "
+                         "serving (downloads, Reset runs the task again) until Ctrl-C or the page is closed (--hold s)")
     ap.add_argument("--port", type=int, default=0, help="--live: the page's port (default any free one)")
     ap.add_argument("--hold", type=float, default=None,
-                    help="--live: seconds the page stays after the run (default: until Ctrl-C in a terminal, else 0)")
+                    help="--live: seconds the page stays after the run (default: until Ctrl-C or the page closed in a "
+                         "terminal, else 0)")
     return ap
 
 
@@ -64,7 +67,7 @@ def parse_args(argv=None) -> argparse.Namespace:
         ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
     if args.threads < 1:
         ap.error(f"argument --threads: must be >= 1, got {args.threads}")
-    if not (0.0 < args.speed <= MAX_SPEED):   # also NaN
+    if args.speed is not None and not (0.0 < args.speed <= MAX_SPEED):   # also NaN
         ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g} (400 %), got {args.speed:g}")
     check_out_folder(ap, args.out)
     if not 0 <= args.port <= 65535:
@@ -98,23 +101,66 @@ def sweep_table(sw: dict) -> str:
     return "\n".join(lines)
 
 
+INTERRUPTED = 130   # the exit status of a run stopped by Ctrl-C (128 + SIGINT), as a shell reports it
+
+
 def main(argv=None) -> int:
-    """``python -m coopsim.tasks.handover``: runs the task, writes its outputs, prints the summary."""
+    """``python -m coopsim.tasks.handover``: runs the task, writes its outputs, prints the summary. Ctrl-C
+    during the run writes the log and a report marked interrupted (one line, no traceback, exit 130); during
+    the outputs it stops them with one line; while the live page is held it closes the page."""
     args = parse_args(argv)
-    live = dict(port=args.port) if args.live else None
-    res = run(seed=args.seed, live=live) if args.seed is not None else run(cycles=args.cycles, live=live)
+    live = None
+    if args.live:
+        live = dict(port=args.port, speed=args.speed, paused=False) if args.speed is not None else \
+            dict(port=args.port, paused=True)
     try:
-        return _outputs(args, res)
+        res = run(seed=args.seed, live=live, on_interrupt="report") if args.seed is not None else \
+            run(cycles=args.cycles, live=live, on_interrupt="report")
+    except KeyboardInterrupt:      # before the run began (planning, the page's set-up)
+        print("interrupted (Ctrl-C) before the run began: nothing written", flush=True)
+        return INTERRUPTED
+    try:
+        if res.report.get("interrupted"):
+            return _interrupted(args, res)
+        if res.live is not None:
+            res.live.say(f"The run is over: writing its outputs to {args.out} (the page answers when they are "
+                         f"written)")
+        try:
+            return _outputs(args, res)
+        except KeyboardInterrupt:
+            print("interrupted (Ctrl-C) while writing the outputs: the files written so far are in "
+                  f"{args.out}", flush=True)
+            return INTERRUPTED
     finally:
         if res.live is not None:
-            res.live.hold(args.hold)
+            if res.report.get("interrupted"):
+                res.live.close()           # Ctrl-C ends the session
+            else:
+                res.live.say(f"The run is over and its outputs are in {args.out}: the page stays until Ctrl-C in "
+                             f"the terminal or every page is closed")
+                res.live.hold(args.hold)
+
+
+def _interrupted(args, res) -> int:
+    """A run stopped by Ctrl-C: its report (marked interrupted) and its log, in one line."""
+    rep = res.report
+    rep["command_line"] = _command_line(args)
+    paths = [write_report(rep, os.path.join(args.out, "report.json")),
+             res.log.to_csv(os.path.join(args.out, "task.csv"))]
+    step = rep["cycles"][-1]["failed_step"] if rep["cycles"] else "start"
+    print(f"interrupted (Ctrl-C) at t = {rep['simulated_time']:.3f} s in {step}: wrote {', '.join(paths)}", flush=True)
+    return INTERRUPTED
+
+
+def _command_line(args) -> dict:
+    return dict(cycles=args.cycles, seed=args.seed, sweep=args.sweep, threads=args.threads, video=not args.no_video,
+                speed=args.speed, live=args.live, out=args.out)
 
 
 def _outputs(args, res) -> int:
     rep, wall = res.report, res.timing["run"]
     # what was asked for: the run's own inputs are in the report already (seed, cycles_planned, ...)
-    rep["command_line"] = dict(cycles=args.cycles, seed=args.seed, sweep=args.sweep, threads=args.threads,
-                               video=not args.no_video, speed=args.speed, out=args.out)
+    rep["command_line"] = _command_line(args)
     print(summary(rep))
     print(f"simulated {rep['simulated_time']:.2f} s in {wall:.2f} s of wall time: {rep['simulated_time'] / wall:.1f}x "
           f"real time (scoring {res.timing['scoring']:.2f} s more)")
@@ -125,7 +171,7 @@ def _outputs(args, res) -> int:
     if not args.no_video:
         paths.append(view.replay_html(res.sim, os.path.join(args.out, "task_replay.html"),
                                       title="coopsim: the cooperative bar handover", markers=step_markers(rep)))
-        anim = view.animate(res.sim, speed=args.speed, fps=20, path=os.path.join(args.out, "task.mp4"), inset=True)
+        anim = view.animate(res.sim, speed=2.0 if args.speed is None else args.speed, fps=20, path=os.path.join(args.out, "task.mp4"), inset=True)
         paths.append(anim.path)
     if args.sweep:
         t1 = time.perf_counter()

@@ -14,6 +14,7 @@ from ..._core import ComputedTorque, CubicTrajectory, DivergenceError, IKError
 from ...planning import plan_cartesian, rotz
 from ...simulation import Simulation
 from ... import view
+from ...view.live import Restart
 from .. import scene
 from .constants import (BACK_OFF, BEFORE_MOUTH, BESIDE, BRANCH, CLEAR_ABOVE, CLOSE_SPEED, DEG, GRASP_TIMEOUT, GRIP1,
                         INSERT_BRANCH, INSERT_DEPTH, MAX_CYCLES, OMEGA, OPEN, RELEASE_FADE, RETREAT2, SLIDE_BACK, SLIDE_MIN,
@@ -79,6 +80,11 @@ class _Runner(Planner):
         self.q2_home = self._ik(1, self._above(*self.pick_grip(self.bars[0])), OPEN)
         self.sim.add_robot(self.r1, ComputedTorque(OMEGA[0] ** 2, 2.0 * OMEGA[0]), self.q1_wait)
         self.sim.add_robot(self.r2, ComputedTorque(OMEGA[1] ** 2, 2.0 * OMEGA[1]), self.q2_home)
+        self.restart()
+
+    def restart(self) -> None:
+        """The task's own state at its start (the simulation's is its reset's: t = 0, the robots and bars
+        where they began)."""
         self.cycles: List[dict] = []
         self.step = "start"
         self.contact_seen = 0
@@ -142,7 +148,9 @@ class _Runner(Planner):
         # advance, not run: phases end hundreds of times per cycle, and a log of the whole run built at
         # each end would cost more than the steps
         if self.live is not None:
-            self.live.run_to(t_end)        # paced, with the page live (coopsim.view.live)
+            # paced, with the page live (coopsim.view.live); the page's Reset raises view.live.Restart: the
+            # task starts over (run)
+            self.live.run_to(t_end, restart=True)
         else:
             self.sim.advance(t_end)
         self.check_contacts()
@@ -336,7 +344,7 @@ class _Runner(Planner):
 def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, dt: float = 2e-4,
         log_every: int = 25, world_every: int = 5, control_every: int = 5, mouth=None, slope=None,
         handover_yaw=None, t_limit: float = 120.0, score: bool = True, container_shift=None,
-        grip1_turn: float = 0.0, live=None) -> TaskResult:
+        grip1_turn: float = 0.0, live=None, on_interrupt: str = "raise") -> TaskResult:
     """Runs the task and scores it.
 
     bars: list of (4, 4) start poses of the bars on the floor (default: :func:`default_bars` of
@@ -354,7 +362,14 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     #1's clamp about its approach when it comes down on the bar at the handover.
 
     live: run in a live page (:func:`coopsim.view.live`, paced, 100 % by default): True, or a dict of
-    its options (speed, port, host, ...); the view is ``result.live`` (close it when done).
+    its options (speed, port, host, paused=True to wait at t = 0 for the page's Start, ...); the view is
+    ``result.live`` (close it, or :meth:`~coopsim.view.LiveView.hold` it to keep serving the page). The
+    page's Reset starts the task over; after the run the page shows the summary (or the failed cycle's step,
+    time and reason) and its Reset runs the task again in the page (:meth:`~coopsim.view.LiveView.serve`).
+
+    on_interrupt: 'raise' (Ctrl-C propagates as KeyboardInterrupt) or 'report': Ctrl-C ends the run where it
+    is and the result's report says so (``report["interrupted"]``, the cycle cut short with the step and
+    time), its log kept up to there.
 
     The report records every input that changes the run: the seed (None when the bars were given or
     defaulted), the bars' poses and the keywords above.
@@ -379,15 +394,57 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
     if cycles > MAX_CYCLES:
         raise ValueError(f"cycles must be 1 .. {MAX_CYCLES} (the container takes {MAX_CYCLES} bars: the ones that "
                          f"slid out pile up at its lower mouth, the next stays in the tube), got {cycles}")
+    if on_interrupt not in ("raise", "report"):
+        raise ValueError(f"on_interrupt must be 'raise' or 'report', got {on_interrupt!r}")
     runner = _Runner(bars, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                      mouth=mouth, slope=slope, handover_yaw=handover_yaw, t_limit=t_limit,
                      container_shift=container_shift, grip1_turn=grip1_turn)
-    if live:
-        options = dict(speed=1.0, title="coopsim: the cooperative bar handover")
-        options.update(live if isinstance(live, dict) else {})
-        # sequenced from Python phase by phase: the page cannot send the run back to its start
-        runner.live = view.live(runner.sim, start=False, resettable=False, **options)
+    inputs = dict(seed=seed, dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
+                  t_limit=t_limit, container_shift=container_shift, grip1_turn=grip1_turn)
+
+    def once() -> TaskResult:
+        return _run_cycles(runner, cycles, score, on_interrupt, inputs)
+
+    if not live:
+        return once()
+    options = dict(speed=1.0, title="coopsim: the cooperative bar handover")
+    options.update(live if isinstance(live, dict) else {})
+    runner.live = view.live(runner.sim, start=False, resettable=True, **options)
+    while True:
+        try:
+            result = once()
+            break
+        except Restart:      # the page's Reset: the task starts over, in the page
+            runner.restart()
+
+    def rerun() -> None:              # the page's Reset after the run: the task again (LiveView.serve)
+        runner.restart()
+        again = once().report
+        _show_outcome(runner.live, again)
+        if again.get("interrupted"):      # Ctrl-C during it ends the session, as during the first run
+            raise KeyboardInterrupt
+
+    _show_outcome(runner.live, result.report)
+    runner.live.rerun = rerun
+    return result
+
+
+def _show_outcome(v, report: dict) -> None:
+    """The task's summary in its live page: finished, or failed with the cycle's step, time and reason."""
+    from .report import summary
+
+    ok = report["success"]
+    v.finish(summary(report), ok=ok)
+    if not ok:
+        bad = next(c for c in report["cycles"] if not c["success"])
+        v.say(f"Cycle {bad['cycle']} ({bad['bar']}) failed in {bad['failed_step']} at t = {bad['failed_at']:.3f} s: "
+               f"{bad['reason']}")
+
+
+def _run_cycles(runner: _Runner, cycles: int, score: bool, on_interrupt: str, inputs: dict) -> TaskResult:
+    """The task's cycles on the runner's simulation from where it stands, scored; the TaskResult."""
     results = []
+    interrupted = False
     t_wall = time.perf_counter()
     for k in range(cycles):
         t0 = runner.sim.time
@@ -404,14 +461,25 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
             c.update(success=False, t_end=runner.sim.time, failed_step=runner.step, failed_at=runner.sim.time,
                      reason=f"{type(e).__name__}: {e}", bodies=[])
             break
+        except KeyboardInterrupt:
+            if on_interrupt != "report":
+                raise
+            interrupted = True
+            c.update(success=False, t_end=runner.sim.time, failed_step=runner.step, failed_at=runner.sim.time,
+                     reason="interrupted (Ctrl-C)", bodies=[])
+            break
     t_run = time.perf_counter() - t_wall
-    series = score_cycles(runner, results) if score else None
+    series = score_cycles(runner, results) if score and not interrupted else None
     timing = dict(run=t_run, scoring=time.perf_counter() - t_wall - t_run)
+    shift = inputs["container_shift"]
     report = dict(success=len(results) == cycles and all(c["success"] for c in results), cycles_planned=cycles,
                   cycles=results, bars=[np.round(b, 12).tolist() for b in runner.bars[:cycles]],
-                  simulated_time=runner.sim.time, seed=seed, dt=dt, log_every=log_every, world_every=world_every,
-                  control_every=control_every, t_limit=t_limit, mouth=runner.mouth.tolist(), slope=runner.slope,
+                  simulated_time=runner.sim.time, seed=inputs["seed"], dt=inputs["dt"], log_every=inputs["log_every"],
+                  world_every=inputs["world_every"], control_every=inputs["control_every"],
+                  t_limit=inputs["t_limit"], mouth=runner.mouth.tolist(), slope=runner.slope,
                   handover_yaw=runner.handover_yaw,
-                  container_shift=None if container_shift is None else np.asarray(container_shift, float).tolist(),
-                  grip1_turn=float(grip1_turn))
+                  container_shift=None if shift is None else np.asarray(shift, float).tolist(),
+                  grip1_turn=float(inputs["grip1_turn"]))
+    if interrupted:
+        report["interrupted"] = True
     return TaskResult(report, runner.sim, runner.sim.log, series, timing, runner.live)

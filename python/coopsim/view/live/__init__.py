@@ -46,9 +46,9 @@ from typing import Optional
 
 from .common import _HOST, _rotation, quaternions  # noqa: F401  (quaternions, _rotation: checked by the tests)
 from .drawing import Frame
-from .session import LiveView, _in_notebook  # noqa: F401
+from .session import LiveView, Restart, _in_notebook, view_of  # noqa: F401
 
-__all__ = ["Frame", "LiveView", "live"]
+__all__ = ["Frame", "LiveView", "Restart", "live"]
 
 
 def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: float = 40.0, host: str = _HOST,
@@ -56,7 +56,7 @@ def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: 
          ghosts: bool = True, labels: bool = False, holding: str = "shared", history: float = 5.0,
          move_time: float = 1.0, resettable: bool = True, title: Optional[str] = None,
          url_prefix: Optional[str] = None,
-         quiet: bool = False) -> LiveView:
+         quiet: bool = False, paused: bool = False) -> LiveView:
     """A live view of `sim` (any :class:`coopsim.Simulation`: one or several robots, with or without a
     world) in the browser; returns the :class:`LiveView`.
 
@@ -75,11 +75,23 @@ def live(sim, *, t_end: Optional[float] = None, speed: float = 1.0, frame_rate: 
     for the server's port (``'/proxy/{port}/'``: jupyter-server-proxy), a full http(s) URL, or ``'jupyter'``
     (``<JUPYTERHUB_SERVICE_PREFIX or />proxy/{port}/``); None: the environment's COOPSIM_LIVE_URL_PREFIX,
     else ``'jupyter'`` under JupyterHub with jupyter-server-proxy installed, else the server's own address
-    (``''``). title: the page's title (its tab and panel; default "coopsim live view").
+    (``''``). title: the page's title (its tab and panel; default "coopsim live view"). paused: wait at the start,
+    paused, until the page's Start (or :meth:`LiveView.resume`).
+
+    One view per simulation: while `sim` has an open view (a notebook cell run again), this returns that
+    view as it is (the options given here are not applied; :meth:`LiveView.close` it for a new one). One
+    driver per run: the view's thread holds the run, and another thread advancing or changing it meanwhile
+    gets :class:`coopsim.SimulationBusyError` naming the view.
     """
+    existing = view_of(sim)
+    if existing is not None:
+        if not quiet:
+            print(f"coopsim live view: this simulation's page is already at {existing.url} (the same view; "
+                  f"close() it for a new one)", flush=True)
+        return existing
     return LiveView(sim, t_end=t_end, speed=speed, frame_rate=frame_rate, host=host, port=port, start=start,
                     collision_boxes=collision_boxes, contact_lines=contact_lines, ghosts=ghosts, labels=labels,
                     holding=holding, history=history, move_time=move_time, resettable=resettable,
                     url_prefix=url_prefix, title=title,
-                    quiet=quiet)
+                    quiet=quiet, paused=paused)
 

@@ -18,6 +18,7 @@ _TABLE_ROWS = 8
 _WINDOW = 1.0                 # s of wall time over which the supervision's rates are measured
 _ENVIRONMENT = 0.15          # intensity of the environment map's lighting (viser's default 1 washes colours out)
 _FOREVER = 1e7                # s: t_end of a run "until closed"
+_GONE = 10.0                  # s: a held page ends when every page has been closed this long (a reload is shorter)
 
 # a unit cube (side 1, centred) as 8 vertices and 12 outward triangles
 _CUBE_V = np.array([[-.5, -.5, -.5], [.5, -.5, -.5], [.5, .5, -.5], [-.5, .5, -.5],

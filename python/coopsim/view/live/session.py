@@ -2,11 +2,13 @@
 queued to it, the run's start, end, failure and reset, the downloads, showing and closing."""
 from __future__ import annotations
 
+import contextlib
 import math
 import queue
 import sys
 import threading
 import time
+import weakref
 from collections import deque
 from typing import Callable, List, Optional
 
@@ -16,11 +18,28 @@ from ...pacing import Pacer
 from ...simulation import Simulation
 from ..parts import robot_parts
 from ..world import holding_now, robot_labels
-from .common import _FOREVER, _HOST, _number, _robot_colors
+from .common import _FOREVER, _GONE, _HOST, _number, _robot_colors
 from .data import _Data
 from .drawing import Frame, _Drawing
 from .panels import _Panels
 from . import serving
+
+
+_VIEWS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()   # simulation -> its open LiveView
+
+
+def view_of(sim) -> Optional["LiveView"]:
+    """The open live view of `sim`, or None."""
+    try:
+        v = _VIEWS.get(sim)
+    except TypeError:       # not weak-referenceable: not a Simulation
+        return None
+    return v if v is not None and v.server is not None else None
+
+
+class Restart(Exception):
+    """Raised by :meth:`LiveView.run_to` (with ``restart=True``) when the page's Reset sent the run back to
+    its start: the driver of a sequenced run catches it and runs its sequence again."""
 
 
 class LiveView(_Panels, _Data, _Drawing):
@@ -37,7 +56,7 @@ class LiveView(_Panels, _Data, _Drawing):
                  contact_lines: bool = True, ghosts: bool = True, labels: bool = False, holding: str = "shared",
                  history: float = 5.0, move_time: float = 1.0, resettable: bool = True,
                  url_prefix: Optional[str] = None,
-                 title: Optional[str] = None, quiet: bool = False):
+                 title: Optional[str] = None, quiet: bool = False, paused: bool = False):
         if not isinstance(sim, Simulation):
             raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
         if t_end is not None:
@@ -53,6 +72,10 @@ class LiveView(_Panels, _Data, _Drawing):
         if self.history <= 0:
             raise ValueError(f"history must be > 0 s, got {history!r}")
         self._move_time = self._check_move_time(move_time)
+        other = view_of(sim)
+        if other is not None:
+            raise RuntimeError(f"this simulation already has a live view at {other.url}: use it "
+                               f"(coopsim.view.live returns it) or close() it first")
         holding_now(sim, mode=holding)      # checks the mode
         self._holding_mode = holding
         try:
@@ -77,9 +100,15 @@ class LiveView(_Panels, _Data, _Drawing):
         self._reset_pending = False
         self._closing = False
         self._thread: Optional[threading.Thread] = None
-        self._driving = threading.Lock()     # held by the thread that runs the simulation now
+        self._driving = threading.RLock()    # held by the thread that runs the simulation now
         self.error: Optional[BaseException] = None
         self._finished = threading.Event()
+        self._waiting = bool(paused)     # at the start, paused until Start (resume)
+        if self._waiting:
+            self.pacer.pause()
+        self._clients_seen = 0
+        self._outcome: Optional[tuple] = None    # ("finished" | "failed", text) of a run sequenced from Python
+        self.rerun: Optional[Callable[[], None]] = None   # what Reset does after a sequenced run (its task again)
         self.stats: dict = {}
         self.message = ""
         self.frames = 0
@@ -105,12 +134,14 @@ class LiveView(_Panels, _Data, _Drawing):
         self.server = serving.start_server(viser, host, int(port), title or "coopsim live view")
         try:
             self.host, self.port = host, int(self.server.get_port())
+            self.server.on_client_connect(lambda client: self._client_seen())
             self._build_scene()
             self._build_panels()
             self._draw(self._snapshot())
         except BaseException:
             self.server.stop()
             raise
+        _VIEWS[sim] = self
         if not quiet and not _in_notebook():
             print(f"coopsim live view: {self.url}", flush=True)
         if start:
@@ -191,7 +222,45 @@ class LiveView(_Panels, _Data, _Drawing):
         self.submit(self.pacer.pause)
 
     def resume(self) -> None:
-        self.submit(self.pacer.resume)
+        """Resumes the run at the speed set; at the start of a view made paused, starts it."""
+        def go():
+            self._waiting = False
+            self.pacer.resume()
+        self.submit(go)
+
+    @property
+    def run_state(self) -> str:
+        """Where the run stands: 'waiting' (made paused, until Start), 'running', 'paused', 'finished' (its
+        t_end reached, or its task done), 'failed' (an exception stopped it, or its task failed) or 'closed'."""
+        if self.server is None:
+            return "closed"
+        if self.error is not None or (self._outcome is not None and self._outcome[0] == "failed"):
+            return "failed"
+        if self._finished.is_set() or self._outcome is not None:
+            return "finished"
+        if self._waiting:
+            return "waiting"
+        return "paused" if self.pacer.paused else "running"
+
+    @property
+    def outcome(self) -> Optional[str]:
+        """The text the run's driver gave :meth:`finish` (e.g. a task's summary), or None."""
+        return None if self._outcome is None else self._outcome[1]
+
+    def say(self, text: str) -> None:
+        """Shows `text` in the Run panel's message line (e.g. what a script driving the view is doing)."""
+        self._say(str(text), "run")
+
+    def finish(self, text: str, ok: bool = True) -> None:
+        """For a run sequenced from Python (:meth:`run_to`): states that it is over, finished (ok) or failed,
+        and shows `text` (e.g. the task's summary: each cycle's result, a failure's step, time and reason)
+        in the Run panel. The page keeps serving (:meth:`serve`, :meth:`hold`)."""
+        self._outcome = ("finished" if ok else "failed", str(text))
+        md = getattr(self, "_outcome_md", None)
+        if md is not None:
+            head = "**Finished**" if ok else "**Failed**"
+            md.content = f"{head}\n\n```\n{text}\n```"
+        self._changes += 1
 
     def one_step(self) -> None:
         """Pauses and advances one control period (control_every steps)."""
@@ -201,7 +270,9 @@ class LiveView(_Panels, _Data, _Drawing):
         self.submit(go)
 
     def reset(self) -> None:
-        """Back to t = 0, the initial states and the references the simulation had when the view was made."""
+        """Back to t = 0, the initial states and the references the simulation had when the view was made.
+        In a run sequenced from Python: :meth:`run_to` called with ``restart=True`` raises :class:`Restart`
+        for its driver to start over, and after the run :meth:`serve` calls :attr:`rerun`."""
         if not self.resettable:
             self._say("Refused: this run is sequenced from Python and cannot go back to its start")
             return
@@ -218,16 +289,21 @@ class LiveView(_Panels, _Data, _Drawing):
                                         name="coopsim-live", daemon=True)
         self._thread.start()
 
-    def run_to(self, t_end: float) -> None:
+    def run_to(self, t_end: float, *, restart: bool = False) -> None:
         """Runs the simulation paced up to t_end (s) in the calling thread (the simulation's thread), with
         the page live; returns at t_end, or at once if the page closed the view. For a run sequenced from
         Python (e.g. a task that plans phase by phase). An exception of the run shows in the panel and
-        propagates."""
+        propagates. A view made paused waits at its start until the page's Start.
+
+        restart: a Reset from the page sends the simulation back to its start (as :meth:`reset`) and raises
+        :class:`Restart` here, for the driver to run its sequence again from its beginning; without it the
+        run goes on from the start to t_end."""
         self._check_open("run_to()")
         t_end = _number(t_end, "t_end")
         if self._thread is not None and self._thread.is_alive():
             raise RuntimeError("the live view runs its simulation in its own thread (start()); use wait()")
-        with self._driving:
+        with self._drive():
+            self._outcome = None
             while not self._closing and self.sim.time < t_end - 0.5 * self._dt:
                 try:
                     self.pacer.run(self.sim, t_end, on_frame=self._on_frame, keep_clock=True)
@@ -236,6 +312,74 @@ class LiveView(_Panels, _Data, _Drawing):
                     raise
                 if self._reset_pending:
                     self._do_reset()
+                    if restart:
+                        raise Restart("the page sent the run back to its start")
+
+    @contextlib.contextmanager
+    def _drive(self):
+        """The calling thread runs the simulation: the view's lock (the page's requests go to its queue) and
+        the engine's hold of the run (another thread advancing it gets SimulationBusyError naming this view)."""
+        with self._driving:
+            driving = getattr(self.sim, "driving", None)
+            if driving is None:
+                yield
+            else:
+                with driving(f"the live view at {self.url}"):
+                    yield
+
+    def serve(self, seconds: float = math.inf, *, until_closed: Optional[float] = None) -> str:
+        """Serves the page from the calling thread after a run sequenced from Python: the page's requests
+        (gains, teach moves, one step, downloads, Reset: :attr:`rerun` when set, else back to the start) are
+        applied and the scene drawn, for `seconds` s of wall time, until :meth:`close`, or until every page
+        has been gone for `until_closed` s (None: never). Returns why it ended: 'time', 'closed' or
+        'pages gone'."""
+        period = 1.0 / self.pacer.frame_rate
+        end = time.monotonic() + seconds
+        gone_since = None
+        with self._drive():
+            while True:
+                if self._closing or self.server is None:
+                    return "closed"
+                if time.monotonic() >= end:
+                    return "time"
+                if until_closed is not None:
+                    if self.server.get_clients():
+                        gone_since = None
+                    elif self.pages_seen and gone_since is None:
+                        gone_since = time.monotonic()
+                    elif gone_since is not None and time.monotonic() - gone_since >= until_closed:
+                        return "pages gone"
+                if self._reset_pending:
+                    if self.rerun is not None:
+                        self._do_reset()
+                        self._run_again()
+                        continue
+                    self._do_reset()
+                try:
+                    self._on_frame(self.sim, self.pacer)
+                except BaseException as e:
+                    self._failed(e)
+                    raise
+                time.sleep(period)
+
+    def _client_seen(self) -> None:
+        self._clients_seen += 1
+
+    @property
+    def pages_seen(self) -> int:
+        """How many pages (browser connections) have connected to the view so far."""
+        return self._clients_seen
+
+    def _run_again(self) -> None:
+        """Reset after a sequenced run: its driver's :attr:`rerun` (the task again, in this thread); a
+        Reset during it starts it over."""
+        while True:
+            self._outcome = None
+            try:
+                self.rerun()
+                return
+            except Restart:
+                continue
 
     def wait(self, timeout: Optional[float] = None) -> bool:
         """Waits until the view's run reaches its t_end (or timeout s); re-raises the exception that
@@ -251,7 +395,7 @@ class LiveView(_Panels, _Data, _Drawing):
             time.sleep(0.02)
 
     def _loop(self, t_end: float) -> None:
-        with self._driving:
+        with self._drive():
             while not self._closing:
                 if self._reset_pending:
                     self._do_reset()
@@ -272,6 +416,8 @@ class LiveView(_Panels, _Data, _Drawing):
                     time.sleep(1.0 / self.pacer.frame_rate)
 
     def _failed(self, e: BaseException) -> None:
+        if isinstance(e, (Restart, KeyboardInterrupt)):
+            return
         self.error = e
         try:
             self._say(f"Run stopped: {type(e).__name__}: {e}")
@@ -308,21 +454,23 @@ class LiveView(_Panels, _Data, _Drawing):
         self._draw(self._snapshot())
         return None
 
-    def hold(self, seconds: Optional[float] = None) -> None:
-        """Keeps serving the page for `seconds` (None: until Ctrl-C when run from a terminal, else not at all),
-        then closes the view. For a script whose run is over but whose page should stay."""
+    def hold(self, seconds: Optional[float] = None, *, until_closed: Optional[float] = _GONE) -> str:
+        """Keeps serving the page (:meth:`serve`: requests applied, downloads, Reset runs again) for `seconds`
+        (None: until Ctrl-C when run from a terminal, else not at all), or until every page has been closed
+        for `until_closed` s (None: pages may come and go), then closes the view. For a script whose run is
+        over but whose page should stay. Returns why it ended: 'time', 'closed', 'pages gone' or 'Ctrl-C'."""
         if seconds is None:
             seconds = math.inf if sys.stdout.isatty() else 0.0
+        why = "time"
         try:
-            if seconds > 0:
-                print(f"the live page stays at {self.url}: Ctrl-C to stop", flush=True)
-                end = time.monotonic() + seconds
-                while time.monotonic() < end and self.server is not None:
-                    time.sleep(0.2)
+            if seconds > 0 and self.server is not None:
+                print(f"the live page stays at {self.url}: Ctrl-C (or closing the page) to stop", flush=True)
+                why = self.serve(seconds, until_closed=until_closed)
         except KeyboardInterrupt:
-            pass
+            why = "Ctrl-C"
         finally:
             self.close()
+        return why
 
     def close(self) -> None:
         """Stops the run (between chunks) and the server, and frees the port."""
@@ -338,6 +486,8 @@ class LiveView(_Panels, _Data, _Drawing):
         if self.server is not None:
             self.server.stop()
             self.server = None
+        if _VIEWS.get(self.sim) is self:
+            del _VIEWS[self.sim]
 
     def __enter__(self):
         return self
