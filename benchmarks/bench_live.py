@@ -30,6 +30,7 @@ their sizes, while the run goes on.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
 import time
@@ -101,6 +102,7 @@ def long_run(minutes, log_every):
     print(f"long run: {sim.robot_count} robots in the task's world, every contact point logged, log every "
           f"{log_every} steps ({log_every * sim.dt * 1e3:.0f} ms), paced at 100 % for {minutes:g} min of wall time")
     samples = []                    # (wall s, simulated s) of the frames drawn
+    loads = []                      # the machine's load average (1 min) at the end of each minute
     start = time.perf_counter()
     v.start()
     while time.perf_counter() - start < wall_total:
@@ -108,6 +110,8 @@ def long_run(minutes, log_every):
         f = v.frame
         if f is not None:
             samples.append((time.perf_counter() - start, f.t))
+        if time.perf_counter() - start >= 60.0 * (len(loads) + 1):
+            loads.append(os.getloadavg()[0])
     w = np.array(samples)
 
     def speeds(window):
@@ -121,6 +125,8 @@ def long_run(minutes, log_every):
     per30, per60 = speeds(30.0), speeds(60.0)
     print("speed achieved per 30 s:  " + " ".join(f"{x:.1f}" for x in per30) + " %")
     print("speed achieved per min:   " + " ".join(f"{x:.1f}" for x in per60) + " %")
+    print(f"machine's load average:   " + " ".join(f"{x:.1f}" for x in loads) + f" (1 min, at each minute's end; "
+          f"{os.cpu_count()} cores)")
     worst = min(per30) if per30 else float("nan")
     print(f"whole run:                {100 * (w[-1, 1] - w[0, 1]) / (w[-1, 0] - w[0, 0]):.1f} % "
           f"(slowest 30 s {worst:.1f} %: {'within' if abs(worst - 100) <= 5 else 'NOT within'} 5 % of the set 100 %)")

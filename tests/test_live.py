@@ -998,6 +998,58 @@ def test_a_download_asked_while_one_is_prepared_says_so_and_the_first_is_sent(vi
         v.download("pdf")
 
 
+@pytest.mark.slow
+def test_a_20_mb_log_arrives_complete_with_its_progress_shown(browser, views, tmp_path):  # noqa: F811
+    """A log of about 20 MB (a run at full speed, every step logged) downloads from the page as CSV and as
+    Excel, every row and column read back; the Data panel's line shows 'preparing CSV… N %' while the file
+    is written (the writer waits at its first percent until the page has shown it), then 'sent: N rows'."""
+    import re
+    import threading
+
+    from coopsim.log import SimulationLog
+
+    sim = two_scaras(world=cs.World(), log_every=1)
+    sim.run(2.5, progress=False)                  # 12501 rows x 109 columns: about 20 MB of CSV
+    v = make(views, sim, t_end=sim.time)          # the run over, the page served
+    log = sim.log
+    shown = threading.Event()
+    real_show = v._show_download
+
+    def show(state, text):
+        real_show(state, text)
+        if re.fullmatch(r"preparing CSV… \d+ %", text) and not shown.is_set():
+            shown.wait(WAIT)                      # the writer waits until the page has shown its progress
+    v._show_download = show
+    lp = LivePage(browser, v, keep=tmp_path)
+    try:
+        lp.tab("Data")
+        lp.page.get_by_text(f"last 8 of {len(log.t)} rows").wait_for(timeout=WAIT * 1000)
+        with lp.page.expect_download(timeout=WAIT * 1000) as d:
+            lp.click("Download CSV")
+            lp.page.get_by_text(re.compile(r"preparing CSV… \d+ %")).wait_for(timeout=WAIT * 1000)
+            lp.page.screenshot(path=str(tmp_path / "progress.png"))
+            shown.set()
+        path = tmp_path / "log.csv"
+        d.value.save_as(path)
+        lp.page.get_by_text(f"sent: {len(log.t)} rows").wait_for(timeout=WAIT * 1000)
+        lp.page.screenshot(path=str(tmp_path / "sent.png"))
+        assert path.stat().st_size > 18e6
+        got = SimulationLog.read_csv(path)
+        assert got.columns() == log.columns() and len(got.t) == len(log.t) == 12501
+        np.testing.assert_array_equal(got.to_array(), log.to_array())
+        with lp.page.expect_download(timeout=WAIT * 1000) as d:
+            lp.click("Download Excel")
+        path = tmp_path / "log.xlsx"
+        d.value.save_as(path)
+        until(lambda: v.download_state == "sent" and "Excel" in v.download_text, "the Excel's line")
+        got = SimulationLog.read_excel(path)
+        assert got.columns() == log.columns() and len(got.t) == len(log.t)
+        np.testing.assert_array_equal(got.to_array(), log.to_array())    # %.17g: every value exactly
+        assert v.error is None
+    finally:
+        lp.close()
+
+
 # ---- panels ----
 
 class Together(cs.CooperativeController):
@@ -1189,59 +1241,6 @@ def test_the_page_names_a_cooperative_law_and_states_finished_without_nan(browse
         lp.tab("Plots")
         page.get_by_text("squeeze (N)").first.wait_for(timeout=WAIT * 1000)
         page.screenshot(path=str(tmp_path / "plots_coop.png"))
-    finally:
-        lp.close()
-
-
-
-@pytest.mark.slow
-def test_a_20_mb_log_arrives_complete_with_its_progress_shown(browser, views, tmp_path):  # noqa: F811
-    """A log of about 20 MB (a run at full speed, every step logged) downloads from the page as CSV and as
-    Excel, every row and column read back; the Data panel's line shows 'preparing CSV… N %' while the file
-    is written (the writer waits at its first percent until the page has shown it), then 'sent: N rows'."""
-    import re
-    import threading
-
-    from coopsim.log import SimulationLog
-
-    sim = two_scaras(world=cs.World(), log_every=1)
-    sim.run(2.5, progress=False)                  # 12501 rows x 109 columns: about 20 MB of CSV
-    v = make(views, sim, t_end=sim.time)          # the run over, the page served
-    log = sim.log
-    shown = threading.Event()
-    real_show = v._show_download
-
-    def show(state, text):
-        real_show(state, text)
-        if re.fullmatch(r"preparing CSV… \d+ %", text) and not shown.is_set():
-            shown.wait(WAIT)                      # the writer waits until the page has shown its progress
-    v._show_download = show
-    lp = LivePage(browser, v, keep=tmp_path)
-    try:
-        lp.tab("Data")
-        lp.page.get_by_text(f"last 8 of {len(log.t)} rows").wait_for(timeout=WAIT * 1000)
-        with lp.page.expect_download(timeout=WAIT * 1000) as d:
-            lp.click("Download CSV")
-            lp.page.get_by_text(re.compile(r"preparing CSV… \d+ %")).wait_for(timeout=WAIT * 1000)
-            lp.page.screenshot(path=str(tmp_path / "progress.png"))
-            shown.set()
-        path = tmp_path / "log.csv"
-        d.value.save_as(path)
-        lp.page.get_by_text(f"sent: {len(log.t)} rows").wait_for(timeout=WAIT * 1000)
-        lp.page.screenshot(path=str(tmp_path / "sent.png"))
-        assert path.stat().st_size > 18e6
-        got = SimulationLog.read_csv(path)
-        assert got.columns() == log.columns() and len(got.t) == len(log.t) == 12501
-        np.testing.assert_array_equal(got.to_array(), log.to_array())
-        with lp.page.expect_download(timeout=WAIT * 1000) as d:
-            lp.click("Download Excel")
-        path = tmp_path / "log.xlsx"
-        d.value.save_as(path)
-        until(lambda: v.download_state == "sent" and "Excel" in v.download_text, "the Excel's line")
-        got = SimulationLog.read_excel(path)
-        assert got.columns() == log.columns() and len(got.t) == len(log.t)
-        np.testing.assert_array_equal(got.to_array(), log.to_array())    # %.17g: every value exactly
-        assert v.error is None
     finally:
         lp.close()
 
