@@ -1509,3 +1509,31 @@ def test_the_tasks_page_frames_the_robots_the_container_and_the_bar_at_the_start
     finally:
         lp.close()
 
+
+
+# ---- one driver per run ----
+
+def test_live_twice_on_one_simulation_returns_its_view_and_other_threads_are_refused(views):
+    """A notebook cell run again: live() on a simulation whose view is open returns that view (20 times in a
+    row, the task's world stepping meanwhile), a second LiveView is refused in one line, and advancing the
+    simulation from another thread while the view runs it raises SimulationBusyError naming the view."""
+    from coopsim.tasks import scene as task_scene
+
+    sim = two_scaras(world=task_scene.world([task_scene.bar_pose(0.95, 0.30 + 0.07 * k) for k in range(3)]))
+    v = make(views, sim, speed=4.0)
+    until(lambda: sim.time > 0.02, "the view's thread runs the run")
+    for _ in range(20):
+        again = view.live(sim, quiet=True)
+        assert again is v
+        with pytest.raises(cs.SimulationBusyError, match=f"the live view at {v.url}"):
+            sim.advance(sim.time + 0.01)
+    with pytest.raises(RuntimeError, match=f"already has a live view at {v.url}"):
+        view.LiveView(sim, quiet=True, start=False)
+    t1 = sim.time
+    until(lambda: sim.time > t1 + 0.02, "the run goes on, one driver")
+    assert v.error is None and v._thread.is_alive()
+    v.close()
+    fresh = make(views, sim, start=False)            # closed: a new view for the same simulation
+    assert fresh is not v and view.live(sim, quiet=True) is fresh
+    fresh.run_to(sim.time + 0.01)
+    sim.advance(sim.time + 0.01)                     # nobody drives between the view's runs: the caller may

@@ -11,6 +11,7 @@ from ...log import _atomic_write
 from ... import view
 from ...plotting import plot_log
 from .sequence import TaskResult
+from .summary import summary  # noqa: F401  (the summary, here beside the other outputs)
 
 
 def _jsonable(x):
@@ -32,40 +33,6 @@ def write_report(report: dict, path) -> str:
             json.dump(_jsonable(report), f, indent=1)
 
     return _atomic_write(path, ".json", write)
-
-
-def summary(report: dict) -> str:
-    """A few lines per cycle: outcome, duration, tracking, clearances and forces, or the failure; then how many
-    cycles succeeded, and which were not run after a failure."""
-    lines = []
-    for c in report["cycles"]:
-        head = f"cycle {c['cycle']} ({c['bar']}): "
-        if not c["success"]:
-            lines.append(head + f"FAILED in {c['failed_step']} at t = {c['failed_at']:.3f} s: {c['reason']}")
-            continue
-        lines.append(head + f"success in {c['duration']:.2f} s, the bar {c.get('outcome')}")
-        if "tracking" in c:
-            tr = ", ".join(f"{x['robot']} {x['rms_tool'] * 1e3:.2f} / {x['max_tool'] * 1e3:.2f} mm"
-                           for x in c["tracking"])
-            lines.append(f"  tool tracking error RMS / max: {tr}")
-            cr, cc = c["clearance_robots"], c["clearance_container"]
-            lines.append(f"  min clearance robot-robot {cr['min'] * 1e3:.1f} mm ({' - '.join(cr['between'])}, "
-                         f"t = {cr['t']:.2f} s), robot-container {cc['min'] * 1e3:.1f} mm "
-                         f"({' - '.join(cc['between'])})")
-            lines.append(f"  peak weld force #1 {c['peak_weld_force'][0]:.2f} N, #2 {c['peak_weld_force'][1]:.2f} N; "
-                         f"{len(c['grasp_events'])} grasp events, {len(c['contact_events'])} contact events")
-            pe = c["max_relative_pose_error"]
-            lines.append(f"  dual hold {c['dual_hold']:.3f} s: peak squeeze {c['peak_squeeze']:+.3f} N (> 0 pushing the "
-                         f"bar together), internal force {c['peak_internal_force']:.2f} N, internal moment "
-                         f"{c['peak_internal_moment']:.3f} N m; clamps' relative pose error {pe[0] * 1e3:.2f} mm, "
-                         f"{pe[1] * 1e3:.2f} mrad")
-    ok = sum(c["success"] for c in report["cycles"])
-    not_run = report["cycles_planned"] - len(report["cycles"])
-    tail = (f" (cycle {len(report['cycles'])} not run: the run stops at the first failure)" if not_run == 1 else
-            f" (cycles {len(report['cycles'])} .. {report['cycles_planned'] - 1} not run: the run stops at the first "
-            f"failure)" if not_run > 1 else "")
-    lines.append(f"{ok} of {report['cycles_planned']} cycles succeeded" + tail)
-    return "\n".join(lines)
 
 
 def step_markers(report: dict) -> List[tuple]:

@@ -21,6 +21,7 @@ from .constants import (BACK_OFF, BEFORE_MOUTH, BESIDE, BRANCH, CLEAR_ABOVE, CLO
                         SQUEEZE, TIMES)
 from .planning import Planner, _grip_down, _pose, _yaw_pitch, default_bars, random_bar
 from .scoring import score_cycles
+from .summary import summary
 
 
 class TaskError(RuntimeError):
@@ -431,8 +432,6 @@ def run(bars=None, *, cycles: Optional[int] = None, seed: Optional[int] = None, 
 
 def _show_outcome(v, report: dict) -> None:
     """The task's summary in its live page: finished, or failed with the cycle's step, time and reason."""
-    from .report import summary
-
     ok = report["success"]
     v.finish(summary(report), ok=ok)
     if not ok:

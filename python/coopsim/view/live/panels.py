@@ -49,7 +49,7 @@ def _kind(c):
 
 
 def _is_python(c) -> bool:
-    return not type(c).__module__.startswith("coopsim._core")
+    return type(c).__module__ != PID.__module__      # a class of the engine's module, or one written in Python
 
 
 class _Panels:

@@ -4,6 +4,7 @@ the page in a notebook cell."""
 from __future__ import annotations
 
 import html
+import importlib.util
 import ipaddress
 import json
 import os
@@ -29,7 +30,7 @@ _MUTE_LOCK = threading.Lock()
 def _mute_viser() -> None:
     """Wraps rich.print (which viser prints through, in a notebook as cell output) once so that it drops
     what the threads in _MUTED print; every other thread prints as before."""
-    import rich
+    import rich  # viser's own printer (the live extra), loaded with viser
 
     with _MUTE_LOCK:
         if getattr(rich.print, "_coopsim_muted", False):
@@ -125,8 +126,6 @@ def url_prefix(value: Optional[str]) -> str:
 
 
 def _has_server_proxy() -> bool:
-    import importlib.util
-
     return importlib.util.find_spec("jupyter_server_proxy") is not None
 
 
