@@ -259,7 +259,10 @@ class LiveView(_Panels, _Data, _Drawing):
         md = getattr(self, "_outcome_md", None)
         if md is not None:
             head = "**Finished**" if ok else "**Failed**"
-            md.content = f"{head}\n\n```\n{text}\n```"
+            # one line each, wrapped to the panel (a code block would hide their ends); markdown's own marks
+            # in the text (e.g. '*' or '_' in a name) escaped
+            lines = [_escape_markdown(line.strip()) for line in str(text).splitlines() if line.strip()]
+            md.content = head + "\n\n" + "  \n".join(lines)
         self._changes += 1
 
     def one_step(self) -> None:
@@ -497,6 +500,11 @@ class LiveView(_Panels, _Data, _Drawing):
 
     def __repr__(self) -> str:
         return f"<coopsim.view.LiveView {self.url} t={self.sim.time:.4g} s, {self.frames} frames>"
+
+def _escape_markdown(text: str) -> str:
+    """Text shown as itself in markdown (its marks backslash-escaped)."""
+    return "".join("\\" + c if c in "\\`*_{}[]<>()#+-.!|" else c for c in text)
+
 
 def _in_notebook() -> bool:
     ip = sys.modules.get("IPython")
