@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 import coopsim as cs
-from coopsim import _core
 from coopsim.tasks import scene as task_scene
 
 # generous bound on any wait for another thread (s): a condition, never a timing assertion
@@ -91,7 +90,9 @@ def busy_message(label, thread):
 
 
 def test_the_error_is_a_runtime_error_of_the_package():
-    assert cs.SimulationBusyError is _core.SimulationBusyError
+    from coopsim.simulation import SimulationBusyError
+
+    assert cs.SimulationBusyError is SimulationBusyError
     assert issubclass(cs.SimulationBusyError, RuntimeError)
     assert "SimulationBusyError" in cs.__all__
 
@@ -347,17 +348,4 @@ def test_driving_needs_a_label(label):
     with pytest.raises(ValueError, match="label must be a non-empty str"):
         with sim.driving(label):
             pass
-    with pytest.raises((ValueError, TypeError), match="label"):
-        sim._core.hold("" if label is None else label)
     assert sim.driver is None
-
-
-def test_a_hold_is_released_by_its_thread_only():
-    sim = task_sim()
-    hold = sim._core.hold(LIVE)
-    _, e = in_thread(hold.release)
-    assert isinstance(e, RuntimeError) and "thread that took it" in str(e)
-    assert hold.held and sim.driver is not None
-    hold.release()
-    hold.release()  # a second release does nothing
-    assert not hold.held and sim.driver is None
