@@ -82,7 +82,7 @@ def _compare(gen, num, n_states=N_STATES, seed=0):
 CHANGED = dict(
     scara1=dict(L_base=0.5, L1=0.42, L2=0.19, L4=0.07, L5=0.11, quill_length=0.35, jaw_length=0.05,
                 width=0.08, masses=[4.0, 1.5, 1.1, 0.4, 0.3, 0.08], friction=[0.3, 0.2, 1.0, 0.1, 0.0, 0.5]),
-    scara2=dict(L_base=0.35, L1=0.25, L2=0.14, L3=0.2, L5=0.09, quill_length=0.25, jaw_thickness=0.015,
+    scara2=dict(L_base=0.35, L1=0.25, L2=0.14, L3=0.2, L5=0.09, quill_length=0.35, jaw_thickness=0.015,
                 height=0.05, masses=[2.5, 1.0, 0.9, 0.7, 0.2, 0.06], friction=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6]),
 )
 

@@ -480,8 +480,8 @@ class SimulationLog:
         five times faster (a 10 MB table of 4000 rows x 148 columns in about 0.3 s on a 2-core machine).
         progress: called with the fraction written (0 .. 1) after each block (about 1 MB) and at the end."""
         _check_progress(progress)
+        data = self.to_array()      # checks the log first
         cols = self.columns()
-        data = self.to_array()
 
         def write(tmp):
             with open(tmp, "w", encoding="utf-8", newline="") as f:
