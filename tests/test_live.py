@@ -869,8 +869,8 @@ def test_ctrl_c_during_the_main_jobs_run_writes_the_log_and_an_interrupted_repor
         rep = json.load(f)
     assert rep["interrupted"] is True and rep["success"] is False
     assert rep["cycles"][-1]["reason"] == "interrupted (Ctrl-C)"
-    log = cs.SimulationLog.read_csv(tmp_path / "task.csv")
-    assert 0 < log.t[-1] <= rep["simulated_time"] + 1e-9 < 16.0
+    log = cs.SimulationLog.read_csv(tmp_path / "task.csv")      # the log up to where it stopped
+    assert len(log.t) >= 1 and 0 <= log.t[-1] <= rep["simulated_time"] + 1e-9 < 16.0
 
 
 @pytest.mark.slow
