@@ -290,3 +290,100 @@ def test_the_bindings_are_at_most_a_third_of_the_engine():
     binding, engine = _binding_ratio().measure(ROOT)
     b, e = sum(binding.values()), sum(engine.values())
     assert b / e <= 0.33, f"bindings {b} code lines / engine {e} = {b / e:.3f} > 0.33: {binding}"
+
+
+# ---- no module of the package over 600 code lines ----
+
+#: the most code lines a module of the package may have: past it, a module holds more than one job
+MODULE_MAX_CODE_LINES = 600
+
+
+def python_code_lines(text: str) -> int:
+    """Lines of Python source `text` holding a token other than a comment, a docstring (the first statement of
+    a module, class or function when it is a string), a line end or indentation: blank lines, comment lines
+    and docstrings do not count. Every line of another token spread over lines (a string) counts, but for
+    blank ones."""
+    import io
+    import tokenize
+
+    lines = text.splitlines()
+
+    def chars(row: int, col: int) -> tuple:       # ast's columns are UTF-8 bytes, tokenize's are characters
+        return row, len(lines[row - 1].encode("utf-8")[:col].decode("utf-8", "replace"))
+
+    docs = []         # each docstring's (start, end), (row, column) in characters
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) \
+                    and isinstance(first.value.value, str):
+                docs.append((chars(first.lineno, first.col_offset), chars(first.end_lineno, first.end_col_offset)))
+    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT, tokenize.ENCODING,
+            tokenize.ENDMARKER}
+    code = set()
+    for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+        if tok.type in skip:
+            continue
+        if tok.type == tokenize.STRING and any(a <= tok.start and tok.end <= b for a, b in docs):
+            continue
+        code.update(r for r in range(tok.start[0], tok.end[0] + 1) if r == tok.start[0] or lines[r - 1].strip())
+    return len(code)
+
+
+def test_python_code_lines_count_code_not_comments_or_docstrings():
+    text = ('"""The module\'s docstring,\n'
+            '\n'
+            'over three lines."""\n'
+            'import os  # a comment after code\n'           # 1
+            '# a comment alone\n'
+            '\n'
+            'def f(x):\n'                                   # 2
+            '    """f\'s docstring: ü."""\n'
+            '    s = """a string, no docstring: its lines count\n'   # 3
+            '\n'
+            'but for the blank one"""\n'                    # 4
+            '    return (x +\n'                             # 5
+            '            1)\n'                              # 6
+            '\n'
+            '\n'
+            'class A:\n'                                    # 7
+            '    "a docstring" " in two strings"\n'
+            '    y = "ü"; """a string after code"""\n'      # 8
+            '    def g(self): """g\'s docstring"""; return os\n')   # 9
+    assert python_code_lines(text) == 9
+    assert python_code_lines("") == 0 and python_code_lines('"""Only a docstring."""\n# and a comment\n') == 0
+
+
+def package_code_lines() -> dict:
+    """{path in the repository: code lines (:func:`python_code_lines`)} of every module of the package, the
+    compiled module's stubs (_core.pyi) aside."""
+    return {p.relative_to(ROOT).as_posix(): python_code_lines(p.read_text(encoding="utf-8"))
+            for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def modules_over_the_bound() -> dict:
+    """{path: code lines} of the package's modules over MODULE_MAX_CODE_LINES."""
+    return {path: n for path, n in package_code_lines().items() if n > MODULE_MAX_CODE_LINES}
+
+
+def test_no_package_module_is_over_600_code_lines():
+    over = modules_over_the_bound()
+    assert not over, (f"package modules over {MODULE_MAX_CODE_LINES} code lines (split them by job): "
+                      + ", ".join(f"{path} ({n})" for path, n in sorted(over.items())))
+    assert {"python/coopsim/__init__.py", "python/coopsim/view/scene.py",
+            "python/coopsim/view/live/panels.py"} <= set(package_code_lines())
+
+
+def test_the_module_size_rule_names_each_module_over_it(tmp_path, monkeypatch):
+    pkg = tmp_path / "python" / "coopsim"
+    (pkg / "sub").mkdir(parents=True)
+    body = "".join(f"x{k} = {k}\n" for k in range(MODULE_MAX_CODE_LINES))
+    (pkg / "at.py").write_text('"""A docstring\nof two lines."""\n# a comment\n\n' + body)      # 600: allowed
+    (pkg / "sub" / "over.py").write_text(body + "y = 1\n")                                       # 601
+    (pkg / "_core.pyi").write_text(body + body)                                                  # the stubs
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", pkg)
+    assert package_code_lines() == {"python/coopsim/at.py": 600, "python/coopsim/sub/over.py": 601}
+    with pytest.raises(AssertionError, match="code lines") as failed:
+        test_no_package_module_is_over_600_code_lines()
+    assert "python/coopsim/sub/over.py (601)" in str(failed.value) and "at.py" not in str(failed.value)
