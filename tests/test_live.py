@@ -1537,3 +1537,42 @@ def test_live_twice_on_one_simulation_returns_its_view_and_other_threads_are_ref
     assert fresh is not v and view.live(sim, quiet=True) is fresh
     fresh.run_to(sim.time + 0.01)
     sim.advance(sim.time + 0.01)                     # nobody drives between the view's runs: the caller may
+
+
+# ---- plots drawn ----
+
+_CANVAS_HAS = """([r, g, b, tol]) => {
+    // whether the Plots tab's first uPlot canvas (the q plot) holds a pixel of colour (r, g, b) within tol
+    const c = document.querySelector('.uplot canvas');
+    if (!c || c.width === 0 || c.height === 0) return false;
+    const px = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    for (let k = 0; k < px.length; k += 4)
+        if (px[k + 3] > 200 && Math.abs(px[k] - r) <= tol && Math.abs(px[k + 1] - g) <= tol
+            && Math.abs(px[k + 2] - b) <= tol) return true;
+    return false;
+}"""
+
+
+@pytest.mark.slow
+def test_the_plots_tab_draws_the_q_curves_across_the_panel(browser, views):  # noqa: F811
+    """The plot is made while its tab is hidden (width 0 in the page) and sizes itself once the tab shows;
+    a starved page renders few frames, so everything here waits for conditions, never for a time."""
+    from coopsim.view.live.plots_panel import _PALETTE
+
+    sim = two_scaras()
+    v = make(views, sim, speed=1.0)
+    lp = LivePage(browser, v, width=1200, height=800)
+    until(lambda: sim.time > 0.05, "the run started")
+    lp.page.get_by_role("tab", name="Plots").click(timeout=WAIT * 1000)
+
+    def wide():       # the first canvas's box in the page, read without waiting on the (busy) page's frames
+        box = lp.page.evaluate("() => { const c = document.querySelector('.uplot canvas');"
+                               " if (!c) return null; const r = c.getBoundingClientRect();"
+                               " return [r.width, r.height]; }")
+        return box is not None and box[0] > 200 and box[1] > 100
+    until(wide, "the q plot's canvas spread across the panel (over 200 px wide)")
+    rgb = [int(_PALETTE[0][k:k + 2], 16) for k in (1, 3, 5)]       # q1's stroke
+    until(lambda: lp.page.evaluate(_CANVAS_HAS, rgb + [40]), "q1's curve drawn in its colour")
+    assert not lp.page.evaluate(_CANVAS_HAS, [255, 0, 255, 40])    # a colour no series has: the check can fail
+    lp.page.get_by_role("tab", name="Robots").click(timeout=WAIT * 1000)   # the tabs still answer
+    lp.close()
