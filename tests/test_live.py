@@ -285,12 +285,21 @@ def test_the_server_binds_localhost_by_default(views):
 
 # ---- in a browser ----
 
+def live_page(browser, width, height):  # noqa: F811
+    """A new browser page for a live view. Every action of Playwright (a click, a fill, a shot) waits for
+    the page's rendered frames, and on a loaded machine the live page's software WebGL draws a frame every
+    few seconds: each action may take up to WAIT s (a bound load can only approach, never a timing)."""
+    page = browser.new_page(viewport={"width": width, "height": height}, accept_downloads=True)
+    page.set_default_timeout(WAIT * 1000)
+    return page
+
+
 class LivePage:
     """A browser page of a live view; waits for the page's elements, never for a fixed time."""
 
     def __init__(self, browser, v, width=900, height=560, keep=None):   # noqa: F811
         self.v, self.keep = v, keep
-        self.page = browser.new_page(viewport={"width": width, "height": height}, accept_downloads=True)
+        self.page = live_page(browser, width, height)
         self.page.goto(v.url)
         self.page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
         until(lambda: len(v.server.get_clients()) > 0, "the page connected")
@@ -818,7 +827,7 @@ def test_the_main_job_waits_for_start_then_serves_downloads_and_reset_after_the_
     sends the log and runs the task again on Reset; Ctrl-C closes it with no traceback."""
     proc, url, lines = _cli(tmp_path, "--hold", "600")
     try:
-        page = browser.new_page(viewport={"width": 900, "height": 700}, accept_downloads=True)
+        page = live_page(browser, 900, 700)
         page.goto(url)
         page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
         _text_in_page(page, "waiting")
