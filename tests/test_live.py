@@ -533,7 +533,7 @@ def test_the_pages_controls_reach_the_simulation(browser, views):  # noqa: F811
             field.fill(bad)
             page.get_by_role("button", name="Move to joint target").first.click()
             page.get_by_text("Refused:").first.wait_for(timeout=WAIT * 1000)
-            v._say("")
+            v._say("", "robots")
             page.get_by_text("Refused:").first.wait_for(state="detached", timeout=WAIT * 1000)
         # a joint slider moved in the page: a move to the slider's value
         slider = lp.slider("q1 (rad)")
@@ -612,7 +612,7 @@ def test_gains_typed_in_the_page_reach_the_simulation(browser, views):  # noqa: 
             lp.field("kp").fill(bad)
             page.get_by_role("button", name="Set gains").first.click()
             page.get_by_text("Refused:").first.wait_for(timeout=WAIT * 1000)
-            v._say("")
+            v._say("", "robots")
             page.get_by_text("Refused:").first.wait_for(state="detached", timeout=WAIT * 1000)
         assert v.call(lambda: sim.controllers[0]) is c
         t = sim.time
