@@ -1,5 +1,5 @@
 """Two holders of one body: the external and internal wrenches of their welds, the squeeze, the load shares
-and the clamps' relative pose error, computed by the engine per log row (cooperation.hpp), against analytic
+and the clamps' relative pose error, computed by the engine per log row (held_body.hpp), against analytic
 cases and coopsim.grasp's Python reference."""
 from __future__ import annotations
 

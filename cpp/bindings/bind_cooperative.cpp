@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "convert.hpp"
-#include "coopsim/cooperative.hpp"
+#include "coopsim/cooperative_laws.hpp"
 
 namespace py = pybind11;
 using namespace coopsim;

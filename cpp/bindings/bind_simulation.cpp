@@ -10,7 +10,7 @@
 
 #include "convert.hpp"
 #include "coopsim/batch.hpp"
-#include "coopsim/cooperation.hpp"
+#include "coopsim/held_body.hpp"
 #include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/simulation.hpp"
@@ -106,7 +106,7 @@ py::array_t<double> grasp_log(const Simulation& s, int i) {
   return view(s.log(i).grasp, s.log_rows(), true);
 }
 
-// Two holders' quantities (cooperation.hpp) by the names of cooperation_schema(), body and holding aside.
+// Two holders' quantities (held_body.hpp) by the names of cooperation_schema(), body and holding aside.
 py::dict cooperation_dict(const Cooperation& c) {
   py::dict d;
   d["centre"] = to_numpy(c.centre);

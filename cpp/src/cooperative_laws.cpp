@@ -1,6 +1,7 @@
-// Cooperative control (cooperative.hpp): the object-level quantities of two clamps, object-level
-// (symmetric) control with a commanded load share and squeeze, and leader-follower.
-#include "coopsim/cooperative.hpp"
+// Cooperative control laws (cooperative_laws.hpp): object-level (symmetric) control with a commanded
+// load share and squeeze (or an impedance to a push), and leader-follower. The groups they drive in a
+// simulation: cooperative_stage.cpp.
+#include "coopsim/cooperative_laws.hpp"
 
 #include <Eigen/QR>
 

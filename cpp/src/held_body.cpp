@@ -1,7 +1,7 @@
-// Two holders of one body (cooperation.hpp): the grasp matrix, the external and internal wrenches, the
+// Two holders of one body (held_body.hpp): the grasp matrix, the external and internal wrenches, the
 // load shares, the clamps' relative pose error; the log's columns of a pair of robots and the log
 // stage's part that writes them (Simulation::cooperation_row_), and Simulation::cooperation.
-#include "coopsim/cooperation.hpp"
+#include "coopsim/held_body.hpp"
 
 #include <algorithm>
 #include <cmath>

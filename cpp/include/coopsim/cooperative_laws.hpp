@@ -9,14 +9,14 @@
 //   twists and accelerations carried from the TCP to the object's centre as a rigid body's.
 // The clamps' wrenches h_k = [f_k; mu_k] are what each clamp applies to the object at its TCP
 // (the sensor's reading, world axes); the object-level quantities (external wrench about the
-// object's centre, squeeze, load share) are cooperation.hpp's.
+// object's centre, squeeze, load share) are held_body.hpp's.
 #pragma once
 
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "coopsim/cooperation.hpp"
+#include "coopsim/held_body.hpp"
 #include "coopsim/task.hpp"
 
 namespace coopsim {

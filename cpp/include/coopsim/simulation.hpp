@@ -78,9 +78,9 @@
 #include <Eigen/Cholesky>
 
 #include "coopsim/controller.hpp"
-#include "coopsim/cooperation.hpp"
-#include "coopsim/cooperative.hpp"
+#include "coopsim/cooperative_laws.hpp"
 #include "coopsim/grasp.hpp"
+#include "coopsim/held_body.hpp"
 #include "coopsim/integrator.hpp"
 #include "coopsim/log.hpp"
 #include "coopsim/reference.hpp"
@@ -245,7 +245,7 @@ class Simulation {
   // body, with another gravity than the world's, or where the world cannot hold a box at q.
   void set_robot(int i, const Robot& robot);
 
-  // ---- cooperative controllers (cooperative.hpp) ----
+  // ---- cooperative controllers (cooperative_laws.hpp) ----
   // `controller` drives robots `robots` together (their own controllers stand aside) from the next
   // controller update on; it is reset now when the run is under way, else at its start. A robot
   // belongs to one group at most; controller->check() sees the robots. Returns the group's index.
@@ -285,7 +285,7 @@ class Simulation {
   const Vec6& weld_wrench(int i) const { return slot_(i).grasp.weld; }
   // The rule's conditions for robot i and free body `body` in the present state.
   GraspCheck grasp_check(int i, int body);
-  // ---- two holders of one body (cooperation.hpp) ----
+  // ---- two holders of one body (held_body.hpp) ----
   // Robots a < b: their welds' quantities and relative pose error now (the log's row at t_k: the welds'
   // wrenches of the last world step, the body as sampled then, the clamps at q); *holding, when given,
   // tells whether they hold one body (else the values are zeros). Throws std::invalid_argument unless
@@ -498,7 +498,7 @@ class Simulation {
   void welds_(double h);
   void release_(Slot& s, const std::string& why, bool set_twist = true);
   GraspCheck grasp_check_(const Slot& s, const BodyState& st, int body) const;
-  // ---- cooperation (cooperation.cpp) ----
+  // ---- two holders of one body (held_body.cpp) ----
   static Eigen::Isometry3d clamp_frame_(Slot& s);  // the clamp link's orientation at the weld's point
   bool cooperation_(Pair& pair, Cooperation& out);  // false: the pair does not hold one body
   void pairs_attach_(int i);                        // robot i grasped or let go: its pairs' X0
