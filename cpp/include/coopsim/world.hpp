@@ -209,6 +209,7 @@ class World {
   struct Impl;
   int add_(BodySpec spec);
   void build_();
+  void unbuild_();  // drops the Bullet world (world.cpp, where Impl is complete): built again at the next step
   WorldOptions options_;
   std::vector<BodySpec> specs_;
   std::vector<std::vector<int>> exclusions_;  // per body: ids never to collide with
