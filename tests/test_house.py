@@ -387,3 +387,43 @@ def test_the_module_size_rule_names_each_module_over_it(tmp_path, monkeypatch):
     with pytest.raises(AssertionError, match="code lines") as failed:
         test_no_package_module_is_over_600_code_lines()
     assert "python/coopsim/sub/over.py (601)" in str(failed.value) and "at.py" not in str(failed.value)
+
+
+# ---- engine files sized by job ----
+
+ENGINE_MAX_CODE_LINES = 600
+ENGINE_DIRS = ("cpp/src", "cpp/include/coopsim", "cpp/bindings")  # cpp/generated aside
+
+
+def engine_code_lines(root: Path = ROOT) -> dict:
+    """{path in the repository: code lines (scripts/binding_ratio.py's code_lines: comments and blank lines
+    out)} of every C++ file of the engine's sources and headers and of the bindings."""
+    count = _binding_ratio().code_lines
+    return {p.relative_to(root).as_posix(): count(p.read_text(encoding="utf-8"))
+            for d in ENGINE_DIRS for p in sorted((root / d).iterdir()) if p.suffix in (".cpp", ".hpp")}
+
+
+def engine_files_over_the_bound(root: Path = ROOT) -> dict:
+    """{path: code lines} of the engine's files over ENGINE_MAX_CODE_LINES."""
+    return {path: n for path, n in engine_code_lines(root).items() if n > ENGINE_MAX_CODE_LINES}
+
+
+def test_no_engine_file_is_over_600_code_lines():
+    # one file, one job: robot.cpp and world.cpp were split by job to pass it
+    over = engine_files_over_the_bound()
+    assert not over, (f"engine files over {ENGINE_MAX_CODE_LINES} code lines (split them by job): "
+                      + ", ".join(f"{path} ({n})" for path, n in sorted(over.items())))
+    assert {"cpp/src/robot.cpp", "cpp/src/world.cpp", "cpp/include/coopsim/simulation.hpp",
+            "cpp/bindings/bind_simulation.cpp"} <= set(engine_code_lines())
+
+
+def test_the_engine_file_rule_names_each_file_over_it(tmp_path):
+    for d in (*ENGINE_DIRS, "cpp/generated"):
+        (tmp_path / d).mkdir(parents=True)
+    body = "".join(f"int x{k} = {k};\n" for k in range(ENGINE_MAX_CODE_LINES))
+    (tmp_path / "cpp/src/at.cpp").write_text("// a comment\n/* a block\n   comment */\n\n" + body)  # 600: allowed
+    (tmp_path / "cpp/include/coopsim/over.hpp").write_text(body + "int y;\n")                      # 601
+    (tmp_path / "cpp/bindings/notes.txt").write_text(body + body)                                  # not C++
+    (tmp_path / "cpp/generated/big.cpp").write_text(body + body)                                   # generated
+    assert engine_code_lines(tmp_path) == {"cpp/src/at.cpp": 600, "cpp/include/coopsim/over.hpp": 601}
+    assert engine_files_over_the_bound(tmp_path) == {"cpp/include/coopsim/over.hpp": 601}
