@@ -757,8 +757,10 @@ def test_the_tasks_command_line_runs_it_live(tmp_path):
     import subprocess
     import sys
 
-    res = subprocess.run([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--cycles", "1", "--no-video",
-                          "--hold", "0", "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    # --speed: at once at 400 % (without it the page waits at t = 0 for its Start)
+    res = subprocess.run([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--speed", "4", "--cycles", "1",
+                          "--no-video", "--hold", "0", "--out", str(tmp_path)], capture_output=True, text=True,
+                         timeout=600)
     assert res.returncode == 0, res.stdout + res.stderr
     assert "coopsim live view: http://127.0.0.1:" in res.stdout
     with open(tmp_path / "report.json", encoding="utf-8") as f:
