@@ -103,7 +103,8 @@ def test_a_seeded_run_reports_its_seed_and_arguments_and_the_sweep_its_rows(tmp_
     assert code == (0 if rep["success"] else 1)
     assert rep["seed"] == 4 and rep["cycles_planned"] == 1 and len(rep["cycles"]) == 1
     assert rep["bars"] == [H.random_bar(4).round(12).tolist()]
-    assert rep["command_line"] == dict(cycles=1, seed=4, sweep=2, threads=2, video=False, speed=2.0, out=str(out))
+    assert rep["command_line"] == dict(cycles=1, seed=4, sweep=2, threads=2, video=False, speed=2.0, live=False,
+                                       out=str(out))
     for key in ("dt", "log_every", "world_every", "control_every", "t_limit", "mouth", "slope", "handover_yaw",
                 "container_shift", "grip1_turn"):
         assert key in rep, key

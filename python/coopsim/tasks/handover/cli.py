@@ -153,8 +153,9 @@ def _interrupted(args, res) -> int:
 
 
 def _command_line(args) -> dict:
+    # speed: the video's (and with --live the page's) as used, the default 2 when not given
     return dict(cycles=args.cycles, seed=args.seed, sweep=args.sweep, threads=args.threads, video=not args.no_video,
-                speed=args.speed, live=args.live, out=args.out)
+                speed=2.0 if args.speed is None else args.speed, live=args.live, out=args.out)
 
 
 def _outputs(args, res) -> int:

@@ -12,7 +12,10 @@ def summary(report: dict) -> str:
         if not c["success"]:
             lines.append(head + f"FAILED in {c['failed_step']} at t = {c['failed_at']:.3f} s: {c['reason']}")
             continue
-        lines.append(head + f"success in {c['duration']:.2f} s, the bar {c.get('outcome')}")
+        # an unscored report (score=False) has the cycle's times but not its duration
+        duration = c["duration"] if "duration" in c else c["t_end"] - c["t_start"]
+        lines.append(head + f"success in {duration:.2f} s" +
+                     (f", the bar {c['outcome']}" if c.get("outcome") is not None else ""))
         if "tracking" in c:
             tr = ", ".join(f"{x['robot']} {x['rms_tool'] * 1e3:.2f} / {x['max_tool'] * 1e3:.2f} mm"
                            for x in c["tracking"])
