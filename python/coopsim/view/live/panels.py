@@ -5,6 +5,7 @@ dimensions (robots_panel), the teach mode (teach), the plots (plots_panel), the 
 requests are checked there and applied on the simulation's thread."""
 from __future__ import annotations
 
+import threading
 from typing import Callable
 
 import numpy as np
@@ -35,6 +36,8 @@ class _Panels(_RunPanel, _RobotsPanel, _TeachMode, _PlotsPanel):
         names = tuple(f"{i}: {lab}" for i, lab in enumerate(self.labels)) or ("none",)
         self._msgs = {}
         self._syncing = False            # True while the view itself sets a control's value
+        self._speed_pending = 0          # speed requests waiting for the simulation's thread (under _speed_lock)
+        self._speed_lock = threading.Lock()
         self._touched = {}               # robot -> wall time the user last touched its teach controls
         self._dragging = set()           # robots whose gizmo the user is dragging
         self._taught = {}                # robot -> (the reference a teach move set, its target (n,))
@@ -54,7 +57,8 @@ class _Panels(_RunPanel, _RobotsPanel, _TeachMode, _PlotsPanel):
             self._start.on_click(lambda e: self._start_pressed())
             self._speed = gui.add_slider("Speed (%)", min=0, max=400, step=1,
                                          initial_value=round(self.pacer.speed_percent))
-            self._speed.on_update(lambda e: None if self._syncing else self.set_speed_percent(e.target.value))
+            self._speed.on_update(lambda e: None if self._syncing else
+                                  self._set_speed_percent(e.target.value, from_slider=True))
             pause, resume = gui.add_button("Pause"), gui.add_button("Resume")
             pause.on_click(lambda e: self._pause_pressed())
             resume.on_click(lambda e: self._resume_pressed())

@@ -28,9 +28,10 @@ class _RunPanel:
             return "waiting"
         return "paused" if self.pacer.paused else "running"
 
-    def _set_speed_percent(self, value) -> None:
+    def _set_speed_percent(self, value, from_slider: bool = False) -> None:
         """Sets the pacer's speed in percent of real time (0 .. 400; a number or its text), applied on the
-        simulation's thread. Refused in percent with a message in the Run panel: text, NaN, beyond 0 .. 400 %."""
+        simulation's thread. Refused in percent with a message in the Run panel: text, NaN, beyond 0 .. 400 %.
+        from_slider: the page's slider asked (it shows the value already; the view does not set it back)."""
         try:
             if isinstance(value, bool):
                 raise ValueError(f"speed must be a number of percent from 0 to 400, got {value!r}")
@@ -42,10 +43,16 @@ class _RunPanel:
             return
 
         def go():
+            with self._speed_lock:
+                self._speed_pending -= 1
             self.pacer.speed_percent = v
-            self._sync_speed()
+            if not from_slider:
+                self._sync_speed()
             why = " (nothing moves at 0 %)" if v == 0 else " (paused: Resume to go on)" if self.pacer.paused else ""
             self._say(f"Speed {v:g} %{why}", "run")
+        # while a request waits for the simulation's thread, the slider is not set back to the pacer's speed
+        with self._speed_lock:
+            self._speed_pending += 1
         self.submit(go)
 
     def _sync_speed(self) -> None:
@@ -124,7 +131,8 @@ class _RunPanel:
             self._start.visible = state == "waiting"
         self.stats = dict(t=f.t, wall=wall_total, speed_set=self.pacer.speed_percent, speed_achieved=100 * achieved,
                           step_mean=mean, step_max=top, fps=fps, steps=f.steps, state=state)
-        if round(self.pacer.speed_percent) != self._speed.value and not self._syncing:
+        if round(self.pacer.speed_percent) != self._speed.value and not self._syncing and \
+                not self._speed_pending:
             self._sync_speed()
         if now - getattr(self, "_last_drivers", -math.inf) >= _PLOT_EVERY:
             self._last_drivers = now
