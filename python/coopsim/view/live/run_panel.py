@@ -15,19 +15,6 @@ _DASH = "–"            # shown where there is nothing to measure (never "nan")
 class _RunPanel:
     """The Run panel's state, speed and time supervision (a mixin of LiveView)."""
 
-    @property
-    def run_state(self) -> str:
-        """Where the run stands: 'waiting', 'running', 'paused', 'finished' or 'failed' (the session's own
-        run_state, where it has one, comes first: this is its minimal form, from the pacer, the end and the
-        error)."""
-        if self.error is not None:
-            return "failed"
-        if self._finished.is_set():
-            return "finished"
-        if getattr(self, "_waiting", False):
-            return "waiting"
-        return "paused" if self.pacer.paused else "running"
-
     def _set_speed_percent(self, value, from_slider: bool = False) -> None:
         """Sets the pacer's speed in percent of real time (0 .. 400; a number or its text), applied on the
         simulation's thread. Refused in percent with a message in the Run panel: text, NaN, beyond 0 .. 400 %.
