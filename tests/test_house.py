@@ -267,6 +267,84 @@ def _binding_ratio():
     return binding_ratio
 
 
+# ---- one model, many runs (the engine's SimulationModel and SimulationData) ----
+
+class _PD(coopsim.Controller):
+    """A joint PD law written in Python (copied for another run by copy.deepcopy)."""
+
+    def __init__(self, kp, kd):
+        super().__init__()
+        self.kp, self.kd, self.calls = kp, kd, 0
+
+    def compute(self, t, q, qd, q_ref, qd_ref, qdd_ref):
+        self.calls += 1
+        return self.kp * (q_ref - q) + self.kd * (qd_ref - qd)
+
+
+def _model_scene():
+    """Both SCARAs of the task in its world (floor, container, three bars), one on a PID with a noisy,
+    filtered sensor, the other on a PD law written in Python, each moving to a set-point."""
+    import numpy as np
+    from coopsim.tasks import scene as task_scene
+
+    bars = [task_scene.bar_pose(0.95, 0.30 + 0.07 * k) for k in range(3)]
+    sim = coopsim.Simulation(dt=2e-4, world=task_scene.world(bars), log_every=5)
+    q0s = ([0.3, 0.6, 0.1, 0.0, np.pi / 2, 0.03], [0.4, -0.5, -0.5, 0.0, 0.0, 0.02])
+    laws = (coopsim.PID([300.0] * 6, [30.0] * 6, [20.0] * 6), _PD(np.full(6, 300.0), np.full(6, 30.0)))
+    for r, q0, law in zip(task_scene.scaras(), q0s, laws):
+        q0 = np.array(q0)
+        sim.add_robot(r, law, q0 + np.array([0.05, -0.05, 0.02, 0.0, 0.1, 0.0]), q0=q0)
+    sim.set_sensor(0, noise_force=0.2, noise_moment=0.01, time_constant=2e-3, seed=7)
+    return sim
+
+
+def test_one_model_shared_by_n_runs_gives_the_runs_of_n_separate_simulations():
+    """Three runs of one model (Simulation.from_model: one SimulationModel, three SimulationData, the
+    controllers copied, a world each) give what three simulations built separately give, to round-off
+    (here exactly: the same operations in the same order), stepped side by side on threads; the model is
+    one object shared by the runs, and a run that changes its model changes a copy."""
+    import numpy as np
+
+    first = _model_scene()
+    model = first.model()
+    runs = [coopsim.Simulation.from_model(model) for _ in range(3)]
+    alone = [_model_scene() for _ in range(3)]
+    assert all(r.model() is model for r in runs) and model.robot_count == 2 and model.has_world
+    # the data are the runs' own: controllers, worlds, logs
+    laws = [r.controllers[1] for r in [first] + runs]
+    worlds = [r.world for r in [first] + runs]
+    assert len({id(c) for c in laws}) == 4 and all(type(c) is _PD for c in laws)
+    assert len({id(w) for w in worlds}) == 4
+    coopsim.run_batch(runs + alone, t_end=0.04, threads=2)
+    for r, a in zip(runs, alone):
+        assert r.time == a.time > 0.039
+        for i in range(2):
+            for col in ("q", "qd", "tau", "tau_ext", "ft_world"):
+                np.testing.assert_allclose(getattr(r.log[i], col), getattr(a.log[i], col), rtol=0, atol=1e-12)
+        assert np.abs(r.log[0].ft_world).max() > 0  # the noisy sensor read something
+        assert len(r.log.bodies) == 3
+        for name, b in r.log.bodies.items():
+            np.testing.assert_allclose(b.data, a.log.bodies[name].data, rtol=0, atol=1e-12)
+    assert runs[0].controllers[1].calls == alone[0].controllers[1].calls > 0
+    assert first.time == 0.0 and first.controllers[1].calls == 0  # the model's run did not move
+    # a change goes to a copy of the model: the other runs keep the shared one
+    runs[0].set_reference(0, np.zeros(6))
+    assert runs[0].model() is not model and runs[1].model() is model
+    assert np.array_equal(runs[1].references[0].q, first.references[0].q)
+
+
+def test_a_run_of_a_model_refuses_what_it_cannot_copy():
+    import numpy as np
+
+    sim = _model_scene()
+    with pytest.raises(ValueError, match="model must be a coopsim.SimulationModel"):
+        coopsim.Simulation.from_model(sim)
+    reps = sim.replicate(2)
+    assert len(reps) == 2 and all(r.model() is reps[0].model() for r in reps)
+    with pytest.raises(ValueError, match="n must be an int >= 0"):
+        sim.replicate(-1)
+
+
 def test_code_lines_count_code_not_comments():
     # the counting rule of scripts/binding_ratio.py on a known text: comments and blank lines out, the lines
     # of a raw string literal (but for blank ones) and a "//" inside a string in

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "convert.hpp"
+#include "py_clone.hpp"
 #include "coopsim/controller.hpp"
 
 namespace py = pybind11;
@@ -20,6 +21,7 @@ namespace {
 // controller runs its steps in C++ but its updates in Python.
 class PyController : public Controller {
  public:
+  std::shared_ptr<Controller> clone() const override { return python_clone<Controller>(this); }
   void reset(const Robot& robot, double period) override {
     py::gil_scoped_acquire gil;
     py::function f = py::get_override(static_cast<const Controller*>(this), "reset");

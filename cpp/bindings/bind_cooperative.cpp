@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "convert.hpp"
+#include "py_clone.hpp"
 #include "coopsim/cooperative_laws.hpp"
 
 namespace py = pybind11;
@@ -35,6 +36,7 @@ struct Member {
 // A Python law: compute(t, members) -> [tau_0, tau_1, ...]; optionally reset(robots, period).
 class PyCooperative : public CooperativeController {
  public:
+  std::shared_ptr<CooperativeController> clone() const override { return python_clone<CooperativeController>(this); }
   void reset(const std::vector<const Robot*>& robots, double period) override {
     py::gil_scoped_acquire gil;
     py::function f = py::get_override(static_cast<const CooperativeController*>(this), "reset");

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "convert.hpp"
+#include "py_clone.hpp"
 #include "coopsim/task.hpp"
 
 namespace py = pybind11;
@@ -20,6 +21,7 @@ namespace {
 // engine's own reset (the task axes and directions are set up first).
 class PyTaskController : public TaskController {
  public:
+  std::shared_ptr<Controller> clone() const override { return python_clone<Controller>(this); }
   using TaskController::TaskController;
   void reset(const Robot& robot, double period) override {
     TaskController::reset(robot, period);

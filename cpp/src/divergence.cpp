@@ -7,64 +7,71 @@
 
 #include "coopsim/simulation.hpp"
 #include "simulation_internal.hpp"
+#include "stages.hpp"
 
 namespace coopsim {
 
+namespace stages {
+
 using detail::vec_str;
 
-void Simulation::state_diverged_(int i) {
-  const Slot& s = slots_[i];
+void state_diverged(const Model& m, Data& d, int i) {
+  const RobotData& s = d.robots[i];
   const std::string why =
-      divergence_reason(s.state.q, s.state.qd, DivergenceLimits{opt_.max_speed, opt_.max_position});
-  if (!why.empty()) diverge_(i, why, true, true);
+      divergence_reason(s.state.q, s.state.qd, DivergenceLimits{m.options.max_speed, m.options.max_position});
+  if (!why.empty()) diverge(m, d, i, why, true, true);
 }
 
-void Simulation::diverge_(int i, const std::string& why, bool in_step, bool state_is_result) {
-  Slot& bad = slots_[i];
+void diverge(const Model& m, Data& d, int i, const std::string& why, bool in_step, bool state_is_result) {
+  const SimulationOptions& opt = m.options;
+  RobotData& bad = d.robots[i];
+  const Robot& robot = m.robots[i].robot;
   const VecN q_bad = bad.state.q, qd_bad = bad.state.qd;
-  const long step = in_step ? k_ + 1 : k_;
+  const long step = in_step ? d.k + 1 : d.k;
   // a rejected step goes back to the last good state
-  for (Slot& s : slots_) {
+  for (RobotData& s : d.robots) {
     if (in_step) {
       s.state.q = s.state.q_prev;
       s.state.qd = s.state.qd_prev;
     }
     s.state.k1_valid = false;
   }
-  diverged_ = true;
+  d.diverged = true;
   std::ostringstream msg;
-  msg << "simulation diverged at step " << step << " (t = " << step * opt_.dt << " s, dt = " << opt_.dt
-      << " s): robot " << i << " '" << bad.robot.name() << "': " << why << "; "
+  msg << "simulation diverged at step " << step << " (t = " << step * opt.dt << " s, dt = " << opt.dt
+      << " s): robot " << i << " '" << robot.name() << "': " << why << "; "
       << (state_is_result ? "state reached" : "state at the start of the step") << ": q = " << vec_str(q_bad)
       << ", qd = " << vec_str(qd_bad) << ", torque held = " << vec_str(bad.control.tau) << "; the log ends at t = "
-      << (log_t_.rows() ? log_t_.back() : 0.0) << " s";
-  if (opt_.end_stops) {
-    const std::string hint = end_stop_step_warning(bad.robot, opt_.dt);
+      << (d.log_t.rows() ? d.log_t.back() : 0.0) << " s";
+  if (opt.end_stops) {
+    const std::string hint = end_stop_step_warning(robot, opt.dt);
     if (!hint.empty()) msg << "; " << hint;
   }
-  divergence_ = msg.str();
-  throw DivergenceError(divergence_, step, step * opt_.dt, i, q_bad, qd_bad);
+  d.divergence = msg.str();
+  throw DivergenceError(d.divergence, step, step * opt.dt, i, q_bad, qd_bad);
 }
 
-void Simulation::torque_diverged_(const Slot& s, const VecN& u) {
-  const int i = static_cast<int>(&s - slots_.data());
-  const double t = time();
+void torque_diverged(const Model& m, Data& d, int i, const VecN& u) {
+  const RobotData& s = d.robots[i];
+  const double t = d.time(m);
   std::ostringstream msg;
-  msg << "controller of robot " << i << " '" << s.robot.name() << "' returned a non-finite torque at step " << k_
-      << " (t = " << t << " s): tau = " << vec_str(u) << ", q = " << vec_str(s.state.q)
+  msg << "controller of robot " << i << " '" << m.robots[i].robot.name() << "' returned a non-finite torque at step "
+      << d.k << " (t = " << t << " s): tau = " << vec_str(u) << ", q = " << vec_str(s.state.q)
       << ", qd = " << vec_str(s.state.qd);
-  diverged_ = true;
-  divergence_ = msg.str();
-  throw DivergenceError(divergence_, k_, t, i, s.state.q, s.state.qd);
+  d.diverged = true;
+  d.divergence = msg.str();
+  throw DivergenceError(d.divergence, d.k, t, i, s.state.q, s.state.qd);
 }
 
-void Simulation::world_diverged_(const WorldDivergence& e, double h) {
-  diverged_ = true;
+void world_diverged(const Model& m, Data& d, const WorldDivergence& e, double h) {
+  d.diverged = true;
   std::ostringstream msg;
-  msg << "simulation diverged at step " << k_ + 1 << ": " << e.what() << "; the log ends at t = "
-      << (log_t_.rows() ? log_t_.back() : 0.0) << " s";
-  divergence_ = msg.str();
-  throw DivergenceError(divergence_, k_ + 1, time() + h, -1, VecN(), VecN());
+  msg << "simulation diverged at step " << d.k + 1 << ": " << e.what() << "; the log ends at t = "
+      << (d.log_t.rows() ? d.log_t.back() : 0.0) << " s";
+  d.divergence = msg.str();
+  throw DivergenceError(d.divergence, d.k + 1, d.time(m) + h, -1, VecN(), VecN());
 }
+
+}  // namespace stages
 
 }  // namespace coopsim

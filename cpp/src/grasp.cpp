@@ -8,6 +8,7 @@
 #include "coopsim/simulation.hpp"
 #include "internal.hpp"
 #include "simulation_internal.hpp"
+#include "stages.hpp"
 
 namespace coopsim {
 
@@ -42,28 +43,38 @@ void check_grasp_options(const GraspOptions& g) {
   }
 }
 
-// The grasp stage: the rule, then the welds' wrenches on the held bodies over the world step h.
-void Simulation::grasp_(double h) {
-  detail::Stopwatch watch(profiling_, profile_.grasp);
-  if (!opt_.grasp.enabled) return;
-  grasp_rule_(h);
-  welds_(h);
-}
+namespace stages {
+
+namespace {
 
 // The grasp rule's first condition: the jaw commanded closing or closed.
-static bool jaw_closing(double q_ref, double q, double qd_ref) { return q_ref <= q + 1e-9 || qd_ref < 0; }
+bool jaw_closing(double q_ref, double q, double qd_ref) { return q_ref <= q + 1e-9 || qd_ref < 0; }
 
-GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) const {
-  const GraspOptions& g = opt_.grasp;
-  const Robot& r = s.robot;
+void grasp_rule(const Model& m, Data& d, double h);
+void welds(const Model& m, Data& d, double h);
+
+}  // namespace
+
+// The grasp stage: the rule, then the welds' wrenches on the held bodies over the world step h.
+void grasp(const Model& m, Data& d, double h) {
+  detail::Stopwatch watch(d.profiling, d.profile.grasp);
+  if (!m.options.grasp.enabled) return;
+  grasp_rule(m, d, h);
+  welds(m, d, h);
+}
+
+GraspCheck grasp_check(const Model& m, const Data& d, int i, const BodyState& st, int id) {
+  const GraspOptions& g = m.options.grasp;
+  const RobotData& s = d.robots[i];
+  const Robot& r = m.robots[i].robot;
   const Clamp& c = r.clamp();
   const int j = c.moving_joint - 1, l = c.fixed_link;
   const double opening = s.state.q[j];
   GraspCheck out;
   // the jaw commanded closing or closed
   out.closing = jaw_closing(s.control.q_ref[j], opening, s.control.qd_ref[j]);
-  const BodySpec& b = world_->body(id);
-  const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
+  const BodySpec& b = d.world->body(id);
+  const Eigen::Isometry3d link = r.frame(s.ws, l);
   const Eigen::Isometry3d F = link * c.fixed_face;  // x along the jaw, z the jaw axis, origin the pad centre
   const Eigen::Matrix3d A = F.linear().transpose() * st.pose.linear();  // the body's axes in F
   const Eigen::Vector3d p = F.inverse() * st.pose.translation();
@@ -95,32 +106,21 @@ GraspCheck Simulation::grasp_check_(const Slot& s, const BodyState& st, int id) 
   return out;
 }
 
-GraspCheck Simulation::grasp_check(int i, int body) {
-  const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
-  if (!world_) throw std::invalid_argument("the simulation has no world");
-  if (!s.robot.clamp().present()) throw std::invalid_argument("robot '" + s.robot.name() + "' has no clamp");
-  if (world_->body(body).kind != BodyKind::Free) throw std::invalid_argument("only free bodies can be grasped");
-  if (s.control.updated_at != k_) {
-    if (!started_) start_();
-    stages_();
-  }
-  frames_(s);
-  return grasp_check_(s, world_->state(body), body);
-}
+namespace {
 
-void Simulation::grasp_rule_(double h) {
-  World& w = *world_;
-  const GraspOptions& g = opt_.grasp;
+void grasp_rule(const Model& m, Data& d, double h) {
+  World& w = *d.world;
+  const GraspOptions& g = m.options.grasp;
   bool changed = false;
-  for (size_t i = 0; i < slots_.size(); ++i) {
-    Slot& s = slots_[i];
-    Slot::Grasp& hold = s.grasp;
-    const Clamp& c = s.robot.clamp();
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    RobotData& s = d.robots[i];
+    const Robot& r = m.robots[i].robot;
+    RobotData::Grasp& hold = s.grasp;
+    const Clamp& c = r.clamp();
     if (!c.present()) continue;
     const int l = c.fixed_link;
     if (hold.held >= 0) {
-      const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
+      const Eigen::Isometry3d link = r.frame(s.ws, l);
       const Eigen::Vector3d target = link * hold.anchor_link;
       BodyState st = w.state(hold.held);
       if (hold.releasing) {
@@ -130,7 +130,7 @@ void Simulation::grasp_rule_(double h) {
         const double p = hold.release_progress;
         hold.fade = 1.0 - p * p * (3.0 - 2.0 * p);  // smooth at both ends: the load moves over without a jump
         if (p >= 1.0 - 1e-12) {
-          release_(s, "opened", false);
+          release(m, d, static_cast<int>(i), "opened", false);
           changed = true;
         }
       } else if (s.control.qd_ref[c.moving_joint - 1] >= 0.0 &&
@@ -141,7 +141,7 @@ void Simulation::grasp_rule_(double h) {
         hold.fade = 1.0;
         hold.release_progress = 0.0;
       } else if ((target - st.pose * hold.anchor_body).norm() > g.slip) {
-        release_(s, "slipped");
+        release(m, d, static_cast<int>(i), "slipped");
         changed = true;
       }
       continue;
@@ -153,10 +153,10 @@ void Simulation::grasp_rule_(double h) {
       hold.candidate = -1;
       continue;
     }
-    for (size_t b = 0; b < free_ids_.size(); ++b) {
-      const GraspCheck c = grasp_check_(s, body_now_[b], free_ids_[b]);
+    for (size_t b = 0; b < d.free_ids.size(); ++b) {
+      const GraspCheck c = grasp_check(m, d, static_cast<int>(i), d.body_now[b], d.free_ids[b]);
       if (c.ok()) {
-        found = free_ids_[b];
+        found = d.free_ids[b];
         width = c.width;
         break;
       }
@@ -167,11 +167,11 @@ void Simulation::grasp_rule_(double h) {
     }
     if (hold.candidate != found) {
       hold.candidate = found;
-      hold.candidate_since = k_;
+      hold.candidate_since = d.k;
     }
-    if ((k_ - hold.candidate_since) * opt_.dt < g.hold_time - 1e-12) continue;
+    if ((d.k - hold.candidate_since) * m.options.dt < g.hold_time - 1e-12) continue;
     // attach where the body is now: no snapping
-    const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
+    const Eigen::Isometry3d link = r.frame(s.ws, l);
     hold.held = found;
     hold.width = width;
     const Eigen::Isometry3d body = w.state(found).pose;
@@ -182,86 +182,37 @@ void Simulation::grasp_rule_(double h) {
     hold.anchor_link = link.inverse() * anchor;
     hold.anchor_body = body.inverse() * anchor;
     hold.candidate = -1;
-    grasp_events_.push_back(GraspEvent{time(), static_cast<int>(i), found, true, "grasp"});
-    pairs_attach_(static_cast<int>(i));
+    d.grasp_events.push_back(GraspEvent{d.time(m), static_cast<int>(i), found, true, "grasp"});
+    pairs_attach(m, d, static_cast<int>(i));
     changed = true;
   }
-  if (changed) ignore_held_();
-  (void)h;
+  if (changed) ignore_held(m, d);
 }
 
-void Simulation::ignore_held_() {
-  // a held body does not collide with its holder's clamp
-  std::vector<std::pair<int, int>> pairs;
-  for (const Slot& s : slots_) {
-    if (s.grasp.held < 0) continue;
-    const std::vector<LinkBox>& boxes = s.robot.boxes();
-    for (size_t b = 0; b < boxes.size(); ++b)
-      if (boxes[b].link >= s.robot.clamp().fixed_link)
-        pairs.emplace_back(s.grasp.held, s.contact.first_body + static_cast<int>(b));
-  }
-  world_->set_ignored(std::move(pairs));
-}
-
-void Simulation::release_(Slot& s, const std::string& why, bool set_twist) {
-  if (s.grasp.held < 0) return;
-  const int l = s.robot.clamp().fixed_link;
-  frames_(s);
-  const BodyState st = world_->state(s.grasp.held);
-  // the body leaves with the clamp's rigid twist at its centre of mass
-  if (set_twist) world_->set_velocity(s.grasp.held, point_velocity(s, l, st.pose.translation()), s.contact.frame_w[l]);
-  s.grasp.releasing = false;
-  s.grasp.fade = 1.0;
-  grasp_events_.push_back(GraspEvent{time(), static_cast<int>(&s - slots_.data()), s.grasp.held, false, why});
-  s.grasp.held = -1;
-  s.grasp.weld.setZero();
-  pairs_attach_(static_cast<int>(&s - slots_.data()));
-}
-
-void Simulation::release(int i) {
-  const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
-  if (s.grasp.held < 0) return;
-  release_(s, "released");
-  ignore_held_();
-  // its body's state now is the released one; the robots feel the weld no more from the next step
-  for (size_t k = 0; k < free_ids_.size(); ++k) body_now_[k] = world_->state(free_ids_[k]);
-  for (Slot& o : slots_) {
-    frames_(o);
-    o.contact.M_valid = false;
-  }
-  contact_wrenches_(opt_.dt * opt_.world_every);
-  for (Slot& o : slots_) {
-    external_(o);
-    o.state.k1_valid = false;
-    o.external.held = o.external.applied || o.contact.any;
-    if (o.sensor.at == k_) sense_(o);
-  }
-  if (logged_at_ == k_) logged_at_ = -1;
-}
-
-void Simulation::welds_(double h) {
-  World& w = *world_;
-  const double omega = opt_.grasp.weld_omega_dt / h;
-  for (Slot& s : slots_) {
-    Slot::Grasp& hold = s.grasp;
+void welds(const Model& model, Data& d, double h) {
+  World& w = *d.world;
+  const double omega = model.options.grasp.weld_omega_dt / h;
+  for (size_t ri = 0; ri < d.robots.size(); ++ri) {
+    RobotData& s = d.robots[ri];
+    const Robot& rb = model.robots[ri].robot;
+    RobotData::Grasp& hold = s.grasp;
     if (hold.held < 0) continue;
-    const int l = s.robot.clamp().fixed_link;
+    const int l = rb.clamp().fixed_link;
     // the damping is shared among the welds on the body, a fading one counting as much as it holds
     double holders = 0.0;
-    for (const Slot& o : slots_)
+    for (const RobotData& o : d.robots)
       if (o.grasp.held == hold.held) holders += o.grasp.fade;
     const BodySpec& b = w.body(hold.held);
     const BodyState st = w.state(hold.held);
-    const Eigen::Isometry3d link = s.robot.frame(s.ws, l);
+    const Eigen::Isometry3d link = rb.frame(s.ws, l);
     const Eigen::Isometry3d target = link * hold.weld_X;
     const Eigen::Vector3d p_target = link * hold.anchor_link, p_body = st.pose * hold.anchor_body;
     const Eigen::Vector3d r = p_body - st.pose.translation();  // from the body's centre to the weld's point
     // the reduced mass and inertia matrices between body and robot at the weld's point (operational
     // space): every mode of the weld then rings at omega, critically damped
     Mat6N J;
-    s.robot.jacobian(s.ws, l, hold.anchor_link, J);
-    factor_mass_(s);  // once this world step
+    rb.jacobian(s.ws, l, hold.anchor_link, J);
+    factor_mass(rb, s);  // once this world step
     // J M^-1 J^T = Y^T Y with Y = L^-1 J^T (one triangular solve for the six columns)
     Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxDof, 6> Y = J.transpose();
     s.contact.M_llt.matrixL().solveInPlace(Y);
@@ -280,11 +231,86 @@ void Simulation::welds_(double h) {
     hold.weld.head<3>() = hold.fade * (m * (omega * omega * e_p + 2.0 * omega / holders * e_v));
     hold.weld.tail<3>() =
         hold.fade * (i * (omega * omega * e_r.angle() * e_r.axis() + 2.0 * omega / holders * e_w));
-    if (!opt_.grasp.weld_moment) hold.weld.tail<3>().setZero();
+    if (!model.options.grasp.weld_moment) hold.weld.tail<3>().setZero();
     // the force acts at the weld's point: about the body's centre it also turns it
     const Eigen::Vector3d force = hold.weld.head<3>();
     w.apply_wrench(hold.held, force, hold.weld.tail<3>() + r.cross(force));
   }
+}
+
+}  // namespace
+
+void ignore_held(const Model& m, Data& d) {
+  // a held body does not collide with its holder's clamp
+  std::vector<std::pair<int, int>> pairs;
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    const RobotData& s = d.robots[i];
+    const Robot& r = m.robots[i].robot;
+    if (s.grasp.held < 0) continue;
+    const std::vector<LinkBox>& boxes = r.boxes();
+    for (size_t b = 0; b < boxes.size(); ++b)
+      if (boxes[b].link >= r.clamp().fixed_link) pairs.emplace_back(s.grasp.held, s.contact.first_body + static_cast<int>(b));
+  }
+  d.world->set_ignored(std::move(pairs));
+}
+
+void release(const Model& m, Data& d, int i, const std::string& why, bool set_twist) {
+  RobotData& s = d.robots[i];
+  if (s.grasp.held < 0) return;
+  const Robot& r = m.robots[i].robot;
+  const int l = r.clamp().fixed_link;
+  frames(r, s);
+  const BodyState st = d.world->state(s.grasp.held);
+  // the body leaves with the clamp's rigid twist at its centre of mass
+  if (set_twist) d.world->set_velocity(s.grasp.held, point_velocity(s, l, st.pose.translation()), s.contact.frame_w[l]);
+  s.grasp.releasing = false;
+  s.grasp.fade = 1.0;
+  d.grasp_events.push_back(GraspEvent{d.time(m), i, s.grasp.held, false, why});
+  s.grasp.held = -1;
+  s.grasp.weld.setZero();
+  pairs_attach(m, d, i);
+}
+
+}  // namespace stages
+
+GraspCheck Simulation::grasp_check(int i, int body) {
+  const Entry driving = enter_();  // one driver at a time
+  RobotData& s = slot_(i);
+  const Robot& r = robot(i);
+  if (!data_.world) throw std::invalid_argument("the simulation has no world");
+  if (!r.clamp().present()) throw std::invalid_argument("robot '" + r.name() + "' has no clamp");
+  if (data_.world->body(body).kind != BodyKind::Free) throw std::invalid_argument("only free bodies can be grasped");
+  if (s.control.updated_at != data_.k) {
+    if (!data_.started) stages::start(*model_, data_);
+    stages::run(*model_, data_);
+  }
+  stages::frames(r, s);
+  return stages::grasp_check(*model_, data_, i, data_.world->state(body), body);
+}
+
+void Simulation::release(int i) {
+  const Entry driving = enter_();  // one driver at a time
+  RobotData& s = slot_(i);
+  if (s.grasp.held < 0) return;
+  const SimulationModel& m = *model_;
+  SimulationData& d = data_;
+  stages::release(m, d, i, "released");
+  stages::ignore_held(m, d);
+  // its body's state now is the released one; the robots feel the weld no more from the next step
+  for (size_t k = 0; k < d.free_ids.size(); ++k) d.body_now[k] = d.world->state(d.free_ids[k]);
+  for (size_t k = 0; k < d.robots.size(); ++k) {
+    stages::frames(m.robots[k].robot, d.robots[k]);
+    d.robots[k].contact.M_valid = false;
+  }
+  stages::contact_wrenches(m, d, m.options.dt * m.options.world_every);
+  for (size_t k = 0; k < d.robots.size(); ++k) {
+    RobotData& o = d.robots[k];
+    stages::external(m.robots[k], o);
+    o.state.k1_valid = false;
+    o.external.held = o.external.applied || o.contact.any;
+    if (o.sensor.at == d.k) stages::sense_robot(m, d, static_cast<int>(k));
+  }
+  if (d.logged_at == d.k) d.logged_at = -1;
 }
 
 }  // namespace coopsim

@@ -12,6 +12,8 @@
 #include "coopsim/simulation.hpp"
 #include "internal.hpp"
 
+#include "stages.hpp"
+
 namespace coopsim {
 
 namespace {
@@ -125,26 +127,43 @@ void cooperation_row(int body, const Cooperation* c, double* row) {
 
 // ---- the simulation's side ----
 
-// Robot s's clamp frame: the clamp link's orientation at the weld's point (kinematics at its q).
-Eigen::Isometry3d Simulation::clamp_frame_(Slot& s) {
-  const Robot& r = s.robot;
+namespace stages {
+
+namespace {
+
+// Robot i's clamp frame: the clamp link's orientation at the weld's point (kinematics at its q).
+Eigen::Isometry3d clamp_frame(const Robot& r, RobotData& s) {
   r.kinematics(s.state.q.data(), s.ws, false);
   Eigen::Isometry3d T = r.frame(s.ws, r.clamp().fixed_link);
   T.translation() = T * s.grasp.anchor_link;
   return T;
 }
 
-bool Simulation::cooperation_(Pair& pair, Cooperation& out) {
-  Slot& a = slots_[pair.a];
-  Slot& b = slots_[pair.b];
-  if (!world_ || a.grasp.held < 0 || a.grasp.held != b.grasp.held) return false;
+}  // namespace
+
+BodyState body_state(const Model& m, const Data& d, int id) {
+  (void)m;
+  if (!d.world) throw std::invalid_argument("the simulation has no world");
+  const BodySpec& b = d.world->body(id);
+  if (b.kind == BodyKind::Link) throw std::invalid_argument("body '" + b.name + "' is a robot's link: see the robot's state");
+  if (b.kind == BodyKind::Free && d.world_at >= 0) {
+    for (size_t k = 0; k < d.free_ids.size(); ++k)
+      if (d.free_ids[k] == id) return d.body_now[k];
+  }
+  return d.world->state(id);
+}
+
+bool cooperation(const Model& m, Data& d, PairData& pair, Cooperation& out) {
+  RobotData& a = d.robots[pair.a];
+  RobotData& b = d.robots[pair.b];
+  if (!d.world || a.grasp.held < 0 || a.grasp.held != b.grasp.held) return false;
   const int id = a.grasp.held;
-  const BodyState st = body_state(id);
-  const Eigen::Vector3d g = world_->options().gravity;
+  const BodyState st = body_state(m, d, id);
+  const Eigen::Vector3d g = d.world->options().gravity;
   const Eigen::Vector3d up = g.squaredNorm() > 0 ? Eigen::Vector3d(-g.normalized()) : Eigen::Vector3d::UnitZ();
-  out = coopsim::cooperation(st.pose.translation(), st.pose * a.grasp.anchor_body, a.grasp.weld, st.pose * b.grasp.anchor_body,
-                    b.grasp.weld, up);
-  const Eigen::Isometry3d Ta = clamp_frame_(a), Tb = clamp_frame_(b);
+  out = coopsim::cooperation(st.pose.translation(), st.pose * a.grasp.anchor_body, a.grasp.weld,
+                             st.pose * b.grasp.anchor_body, b.grasp.weld, up);
+  const Eigen::Isometry3d Ta = clamp_frame(m.robots[pair.a].robot, a), Tb = clamp_frame(m.robots[pair.b].robot, b);
   if (!pair.attached) {  // a hold that began before this pair was looked at: from now
     pair.X0 = Ta.inverse() * Tb;
     pair.attached = true;
@@ -153,48 +172,43 @@ bool Simulation::cooperation_(Pair& pair, Cooperation& out) {
   return true;
 }
 
-void Simulation::pairs_attach_(int i) {
-  for (Pair& p : pairs_) {
+void pairs_attach(const Model& m, Data& d, int i) {
+  for (PairData& p : d.pairs) {
     if (p.a != i && p.b != i) continue;
-    Slot& a = slots_[p.a];
-    Slot& b = slots_[p.b];
+    RobotData& a = d.robots[p.a];
+    RobotData& b = d.robots[p.b];
     p.attached = false;
     if (a.grasp.held >= 0 && a.grasp.held == b.grasp.held) {
-      p.X0 = clamp_frame_(a).inverse() * clamp_frame_(b);
+      p.X0 = clamp_frame(m.robots[p.a].robot, a).inverse() * clamp_frame(m.robots[p.b].robot, b);
       p.attached = true;
     }
   }
 }
 
-Simulation::Pair& Simulation::pair_(int a, int b) {
-  const int n = robot_count();
+}  // namespace stages
+
+namespace {
+
+PairData& pair_of(SimulationData& d, int n, int a, int b) {
   if (a < 0 || a >= n || b < 0 || b >= n || a >= b)
     throw std::invalid_argument("cooperation: robots a < b in [0, " + std::to_string(n) + ") expected, got a = " +
                                 std::to_string(a) + ", b = " + std::to_string(b));
-  for (Pair& p : pairs_)
+  for (PairData& p : d.pairs)
     if (p.a == a && p.b == b) return p;
-  throw std::logic_error("cooperation: no pair");  // every pair a < b is made by add_robot
+  throw std::logic_error("cooperation: no pair");  // every pair a < b is made with the robots
 }
+
+}  // namespace
 
 Cooperation Simulation::cooperation(int a, int b, bool* holding) {
   const Entry driving = enter_();  // one driver at a time
-  Pair& p = pair_(a, b);
+  PairData& p = pair_of(data_, robot_count(), a, b);
   Cooperation out;
-  const bool both = cooperation_(p, out);
+  const bool both = stages::cooperation(*model_, data_, p, out);
   if (holding) *holding = both;
   return out;
 }
 
-const LogColumn& Simulation::cooperation_log(int a, int b) { return pair_(a, b).log; }
-
-void Simulation::log_pairs_() {
-  double row[kCooperationWidth];
-  Cooperation c;
-  for (Pair& p : pairs_) {
-    const bool both = cooperation_(p, c);
-    cooperation_row(both ? slots_[p.a].grasp.held : -1, both ? &c : nullptr, row);
-    p.log.push(row);
-  }
-}
+const LogColumn& Simulation::cooperation_log(int a, int b) { return pair_of(data_, robot_count(), a, b).log; }
 
 }  // namespace coopsim

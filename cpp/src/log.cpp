@@ -2,6 +2,7 @@
 // metrics, and the log stage of a simulation's step (the row at t_k).
 #include "coopsim/log.hpp"
 #include "coopsim/simulation.hpp"
+#include "stages.hpp"
 
 #include <map>
 #include <mutex>
@@ -107,36 +108,51 @@ void LogColumn::reserve(long rows) {
   cap_ = static_cast<long>(size / width_);
 }
 
-void Simulation::reserve(long steps) {
-  const Entry driving = enter_();  // one driver at a time
-  if (opt_.log_every == 0 || steps <= 0) return;
-  const long rows = log_t_.rows() + steps / opt_.log_every + 2;
-  log_t_.reserve(rows);
-  for (Slot& s : slots_) {
+namespace stages {
+
+void reserve(const Model& m, Data& d, long steps) {
+  if (m.options.log_every == 0 || steps <= 0) return;
+  const long rows = d.log_t.rows() + steps / m.options.log_every + 2;
+  d.log_t.reserve(rows);
+  for (RobotData& s : d.robots) {
     for (LogColumn& c : s.record.log.columns) c.reserve(rows);
     s.record.log.grasp.reserve(rows);
     s.record.log.ft.reserve(rows);
   }
-  for (LogColumn& c : body_log_) c.reserve(rows);
-  for (Pair& p : pairs_) p.log.reserve(rows);
+  for (LogColumn& c : d.body_log) c.reserve(rows);
+  for (PairData& p : d.pairs) p.log.reserve(rows);
 }
+
+namespace {
+
+void log_pairs(const Model& m, Data& d) {
+  double row[kCooperationWidth];
+  Cooperation c;
+  for (PairData& p : d.pairs) {
+    const bool both = cooperation(m, d, p, c);
+    cooperation_row(both ? d.robots[p.a].grasp.held : -1, both ? &c : nullptr, row);
+    p.log.push(row);
+  }
+}
+
+}  // namespace
 
 // The log stage: at every log_every-th step, the row at t_k (once per time, unless the applied
 // inputs changed since). The acceleration logged is the first stage of the next integration.
-void Simulation::log_() {
-  if (opt_.log_every == 0 || k_ % opt_.log_every != 0 || logged_at_ == k_) return;
-  for (size_t i = 0; i < slots_.size(); ++i) {
-    Slot& s = slots_[i];
+void log(const Model& m, Data& d) {
+  if (m.options.log_every == 0 || d.k % m.options.log_every != 0 || d.logged_at == d.k) return;
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    RobotData& s = d.robots[i];
     try {
-      qdd_(s, s.state.k1);
+      qdd(m, d, static_cast<int>(i), s.state.k1);
     } catch (const std::exception& e) {
-      diverge_(static_cast<int>(i), e.what(), false, true);
+      diverge(m, d, static_cast<int>(i), e.what(), false, true);
     }
     s.state.k1_valid = true;
   }
-  const double now = time();
-  log_t_.push(&now);
-  for (Slot& s : slots_) {
+  const double now = d.time(m);
+  d.log_t.push(&now);
+  for (RobotData& s : d.robots) {
     auto& c = s.record.log.columns;
     c[kLogQ].push(s.state.q.data());
     c[kLogQd].push(s.state.qd.data());
@@ -154,8 +170,8 @@ void Simulation::log_() {
     Eigen::Map<Vec6>(ft + 6) = s.sensor.clamp;
     s.record.log.ft.push(ft);
   }
-  for (size_t b = 0; b < body_log_.size(); ++b) {
-    const BodyState& st = body_now_[b];
+  for (size_t b = 0; b < d.body_log.size(); ++b) {
+    const BodyState& st = d.body_now[b];
     const Eigen::Quaterniond quat(st.pose.linear());
     double row[13];
     Eigen::Map<Eigen::Vector3d>(row + 0) = st.pose.translation();
@@ -165,10 +181,17 @@ void Simulation::log_() {
     row[6] = quat.z();
     Eigen::Map<Eigen::Vector3d>(row + 7) = st.velocity;
     Eigen::Map<Eigen::Vector3d>(row + 10) = st.angular_velocity;
-    body_log_[b].push(row);
+    d.body_log[b].push(row);
   }
-  log_pairs_();
-  logged_at_ = k_;
+  log_pairs(m, d);
+  d.logged_at = d.k;
+}
+
+}  // namespace stages
+
+void Simulation::reserve(long steps) {
+  const Entry driving = enter_();  // one driver at a time
+  stages::reserve(*model_, data_, steps);
 }
 
 }  // namespace coopsim

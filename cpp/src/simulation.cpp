@@ -1,7 +1,8 @@
 // The simulation's lifecycle and options (construction, robots, references, applied inputs,
-// reset), the step's stages in order (stages_, advance), and the two stages that are the
-// simulation's own: control (references and controllers) and integrate. The other stages live
-// beside it: the world's side and the contacts in contact_coupling.cpp, the grasp in grasp.cpp,
+// reset), its model shared by other runs, the step's stages in order (stages::run, advance), and
+// the two stages that are the simulation's own: control (references and controllers) and
+// integrate. The other stages live beside it, as free functions over the model and the data
+// (stages.hpp): the world's side and the contacts in contact_coupling.cpp, the grasp in grasp.cpp,
 // the log in log.cpp; divergence checks in divergence.cpp.
 #include "coopsim/simulation.hpp"
 
@@ -10,6 +11,7 @@
 #include <stdexcept>
 
 #include "simulation_internal.hpp"
+#include "stages.hpp"
 
 namespace coopsim {
 
@@ -25,121 +27,94 @@ std::vector<Eigen::Isometry3d> box_poses_at(const Robot& robot, const VecN& q, W
   return poses;
 }
 
+void check_options(const SimulationOptions& o) {
+  check_step_size(o.dt);
+  if (o.world_every < 1) throw std::invalid_argument("world_every must be >= 1, got " + std::to_string(o.world_every));
+  if (!(o.contact_frequency_dt > 0 && o.contact_frequency_dt <= 1))
+    throw std::invalid_argument("contact_frequency_dt must be in (0, 1]");
+  check_grasp_options(o.grasp);
+  if (o.control_every < 1)
+    throw std::invalid_argument("control_every must be >= 1, got " + std::to_string(o.control_every));
+  if (o.log_every < 0)
+    throw std::invalid_argument("log_every must be >= 0 (0: no log), got " + std::to_string(o.log_every));
+  if (!(o.max_speed > 0)) throw std::invalid_argument("max_speed must be > 0, got " + std::to_string(o.max_speed));
+  if (!(o.max_position > 0))
+    throw std::invalid_argument("max_position must be > 0, got " + std::to_string(o.max_position));
+}
+
 }  // namespace
 
-Simulation::Simulation(SimulationOptions options, std::shared_ptr<World> world)
-    : driver_(make_driver_()), opt_(options) {
-  check_step_size(opt_.dt);
-  if (opt_.world_every < 1)
-    throw std::invalid_argument("world_every must be >= 1, got " + std::to_string(opt_.world_every));
-  if (!(opt_.contact_frequency_dt > 0 && opt_.contact_frequency_dt <= 1))
-    throw std::invalid_argument("contact_frequency_dt must be in (0, 1]");
-  check_grasp_options(opt_.grasp);
-  if (opt_.control_every < 1)
-    throw std::invalid_argument("control_every must be >= 1, got " + std::to_string(opt_.control_every));
-  if (opt_.log_every < 0)
-    throw std::invalid_argument("log_every must be >= 0 (0: no log), got " + std::to_string(opt_.log_every));
-  if (!(opt_.max_speed > 0))
-    throw std::invalid_argument("max_speed must be > 0, got " + std::to_string(opt_.max_speed));
-  if (!(opt_.max_position > 0))
-    throw std::invalid_argument("max_position must be > 0, got " + std::to_string(opt_.max_position));
-  if (world) {
-    world->attach();
-    world_ = std::move(world);
-  }
-}
+// ---- the run's data (stages.hpp) ----
 
-Simulation::~Simulation() {
-  if (world_) world_->detach();
-}
+namespace stages {
 
-Simulation::Slot& Simulation::slot_(int i) {
-  if (i < 0 || i >= robot_count())
-    throw std::out_of_range("robot index " + std::to_string(i) + " out of range (" + std::to_string(robot_count()) +
-                            " robots)");
-  return slots_[i];
-}
-
-const Simulation::Slot& Simulation::slot_(int i) const {
-  return const_cast<Simulation*>(this)->slot_(i);
-}
-
-int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> controller,
-                          std::shared_ptr<const Reference> reference, const double* q0, const double* qd0) {
-  const Entry driving = enter_();  // one driver at a time
-  if (started_ || k_ != 0) throw std::invalid_argument("robots can only be added before the first step (call reset())");
-  if (!controller) throw std::invalid_argument("controller must not be None");
-  if (!reference) throw std::invalid_argument("reference must not be None");
-  const int n = robot.dof();
-  if (reference->dof() != n)
-    throw std::invalid_argument("reference has " + std::to_string(reference->dof()) + " joints but robot '" +
-                                robot.name() + "' has " + std::to_string(n));
-  for (const Slot& s : slots_)
-    if (s.control.controller == controller)
-      throw std::invalid_argument("controller is already driving another robot: give each robot its own instance");
-  controller->check(robot);
-  Slot s(robot);
-  s.control.controller = std::move(controller);
-  s.control.reference = std::move(reference);
-  s.state.q0 = VecN::Zero(n);
-  s.state.qd0 = VecN::Zero(n);
-  s.control.reference->evaluate(0.0, s.state.q0.data(), s.state.qd0.data(), nullptr);
-  if (q0) s.state.q0 = Eigen::Map<const VecN>(q0, n);
-  if (qd0) s.state.qd0 = Eigen::Map<const VecN>(qd0, n);
-  if (!s.state.q0.allFinite()) throw std::invalid_argument("q0 must be finite");
-  if (!s.state.qd0.allFinite()) throw std::invalid_argument("qd0 must be finite");
-  if (world_) {  // its boxes at q0 where a world can hold them: refused here rather than at the first step
-    const std::vector<Eigen::Isometry3d> poses = box_poses_at(robot, s.state.q0, s.ws);
-    for (size_t k = 0; k < poses.size(); ++k) {
-      const std::string& box = robot.boxes()[k].name;
-      World::check_pose(poses[k], "the start of robot '" + robot.name() + "' (q0, or its reference at t = 0) puts its box '" +
-                                      (box.empty() ? std::to_string(k) : box) + "'");
-    }
-  }
-  s.state.q = s.state.q0;
-  s.state.qd = s.state.qd0;
+void add_robot_data(const Model& m, Data& d, int i) {
+  const RobotModel& rm = m.robots[i];
+  const int n = rm.robot.dof();
+  d.robots.emplace_back(n);
+  RobotData& s = d.robots.back();
+  s.state.q = rm.q0;
+  s.state.qd = rm.qd0;
   s.control.tau = VecN::Zero(n);
-  s.control.tau_max = robot.tau_max();
   s.control.q_ref = s.control.qd_ref = s.control.qdd_ref = s.state.k1 = s.state.q_prev = s.state.qd_prev = VecN::Zero(n);
   s.external.forces = s.external.tau = s.contact.tau = VecN::Zero(n);
-  if (world_ && (robot.gravity_acceleration() - world_->options().gravity).norm() > 1e-12)
-    throw std::invalid_argument("robot '" + robot.name() + "' has another gravity than the world's");
   s.record.metrics.sum_sq_error = s.record.metrics.max_abs_error = s.record.metrics.max_abs_tau = VecN::Zero(n);
   for (LogColumn& c : s.record.log.columns) c = LogColumn(n);
   s.record.log.grasp = LogColumn(7);
   s.record.log.ft = LogColumn(12);
-  slots_.push_back(std::move(s));
-  for (int a = 0; a + 1 < robot_count(); ++a) {
-    pairs_.emplace_back();
-    pairs_.back().a = a;
-    pairs_.back().b = robot_count() - 1;
+  reset_sensor(rm, s);
+  for (int a = 0; a < i; ++a) {
+    d.pairs.emplace_back();
+    d.pairs.back().a = a;
+    d.pairs.back().b = i;
   }
-  return robot_count() - 1;
 }
 
-void Simulation::reset() {
-  const Entry driving = enter_();  // one driver at a time
-  if (world_) world_->reset();
-  for (LogColumn& c : body_log_) c.clear();
-  contact_log_.clear();
-  grasp_events_.clear();
-  body_wrenches_.clear();
-  world_at_ = -1;
-  profile_ = StepProfile();
-  k_ = 0;
-  logged_at_ = -1;
-  started_ = false;
-  diverged_ = false;
-  divergence_.clear();
-  log_t_.clear();
-  for (Pair& p : pairs_) {
+void init(const Model& m, Data& d, std::shared_ptr<World> world, bool own) {
+  d.world = std::move(world);
+  for (int i = 0; i < m.robot_count(); ++i) {
+    add_robot_data(m, d, i);
+    const RobotModel& rm = m.robots[i];
+    std::shared_ptr<Controller> c = own ? rm.controller : rm.controller->clone();
+    if (!c)
+      throw std::invalid_argument("the controller of robot " + std::to_string(i) + " ('" + rm.robot.name() +
+                                  "') cannot be copied for another run of its model: give that run its own");
+    d.robots.back().control.controller = std::move(c);
+  }
+  for (size_t k = 0; k < m.cooperatives.size(); ++k) {
+    const CooperativeModel& g = m.cooperatives[k];
+    std::shared_ptr<CooperativeController> c = own ? g.controller : g.controller->clone();
+    if (!c)
+      throw std::invalid_argument("the cooperative law of group " + std::to_string(k) +
+                                  " cannot be copied for another run of its model: give that run its own");
+    d.cooperatives.push_back(std::move(c));
+  }
+}
+
+void reset(const Model& m, Data& d) {
+  if (d.world) d.world->reset();
+  for (LogColumn& c : d.body_log) c.clear();
+  d.contact_log.clear();
+  d.grasp_events.clear();
+  d.body_wrenches.clear();
+  d.world_at = -1;
+  d.profile = StepProfile();
+  d.k = 0;
+  d.logged_at = -1;
+  d.started = false;
+  d.diverged = false;
+  d.divergence.clear();
+  d.log_t.clear();
+  for (PairData& p : d.pairs) {
     p.log.clear();
     p.attached = false;
   }
-  for (Slot& s : slots_) {
-    const int n = s.robot.dof();
-    s.state.q = s.state.q0;
-    s.state.qd = s.state.qd0;
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    const RobotModel& rm = m.robots[i];
+    RobotData& s = d.robots[i];
+    const int n = rm.robot.dof();
+    s.state.q = rm.q0;
+    s.state.qd = rm.qd0;
     s.control.tau.setZero(n);
     s.external.forces.setZero(n);
     s.external.tau.setZero(n);
@@ -157,7 +132,7 @@ void Simulation::reset() {
     for (LogColumn& c : s.record.log.columns) c.clear();
     s.record.log.grasp.clear();
     s.record.log.ft.clear();
-    reset_sensor_(s);
+    reset_sensor(rm, s);
     s.record.metrics.steps = 0;
     s.record.metrics.sum_sq_error.setZero(n);
     s.record.metrics.max_abs_error.setZero(n);
@@ -165,26 +140,16 @@ void Simulation::reset() {
   }
 }
 
-long Simulation::steps_until(double t_end) const {
-  if (!std::isfinite(t_end)) throw std::invalid_argument("t_end must be finite");
-  const double span = (t_end - time()) / opt_.dt;
-  if (span < -1e-9)
-    throw std::invalid_argument("t_end = " + std::to_string(t_end) + " s is before the current time " +
-                                std::to_string(time()) + " s");
-  if (span > 4e18) throw std::invalid_argument("t_end is too far ahead for dt");
-  return std::max(0L, static_cast<long>(std::floor(span + 1e-9)));
-}
-
-void Simulation::start_() {
-  if (world_) {
+void start(const Model& m, Data& d) {
+  if (d.world) {
     // robot labels: names, made unique with _<index> when repeated (as the log's)
-    World& w = *world_;
+    World& w = *d.world;
     w.clear_robots();
-    for (size_t i = 0; i < slots_.size(); ++i) {
-      Slot& s = slots_[i];
-      const Robot& r = s.robot;
+    for (size_t i = 0; i < d.robots.size(); ++i) {
+      RobotData& s = d.robots[i];
+      const Robot& r = m.robots[i].robot;
       int same = 0;
-      for (const Slot& o : slots_) same += o.robot.name() == r.name();
+      for (const RobotModel& o : m.robots) same += o.robot.name() == r.name();
       const std::string label = same > 1 ? r.name() + "_" + std::to_string(i) : r.name();
       const std::vector<Eigen::Isometry3d> poses = box_poses_at(r, s.state.q, s.ws);
       std::vector<std::string> names;
@@ -196,59 +161,345 @@ void Simulation::start_() {
         half.push_back(b.half_extents);
       }
       s.contact.first_body = w.body_count();
-      w.add_robot(static_cast<int>(i), label, names, links, half, poses, excluded_pairs(r), 1.0);
+      w.add_robot(static_cast<int>(i), label, names, links, half, poses, Simulation::excluded_pairs(r), 1.0);
     }
-    free_ids_ = w.free_bodies();
-    body_now_.assign(free_ids_.size(), BodyState());
-    if (body_log_.size() != free_ids_.size()) body_log_.assign(free_ids_.size(), LogColumn(13));
+    d.free_ids = w.free_bodies();
+    d.body_now.assign(d.free_ids.size(), BodyState());
+    if (d.body_log.size() != d.free_ids.size()) d.body_log.assign(d.free_ids.size(), LogColumn(13));
   }
-  const double period = opt_.dt * opt_.control_every;
-  for (Coop& g : coops_) {
+  const double period = m.options.dt * m.options.control_every;
+  for (size_t k = 0; k < m.cooperatives.size(); ++k) {
+    const CooperativeModel& g = m.cooperatives[k];
     if (!g.active) continue;
     std::vector<const Robot*> rs;
-    for (int i : g.robots) rs.push_back(&slots_[i].robot);
-    g.controller->reset(rs, period);
+    for (int i : g.robots) rs.push_back(&m.robots[i].robot);
+    d.cooperatives[k]->reset(rs, period);
   }
-  for (Slot& s : slots_) {
-    s.control.controller->reset(s.robot, period);
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    RobotData& s = d.robots[i];
+    s.control.controller->reset(m.robots[i].robot, period);
     s.control.updated_at = -1;
     s.state.k1_valid = false;
   }
-  started_ = true;
+  d.started = true;
 }
 
-void Simulation::qdd_(Slot& s, VecN& out) {
-  s.robot.forward_dynamics(s.state.q.data(), s.state.qd.data(), s.control.tau.data(),
-                           has_ext_(s) ? s.external.tau.data() : nullptr, s.ws, out, opt_.end_stops);
+void qdd(const Model& m, Data& d, int i, VecN& out) {
+  RobotData& s = d.robots[i];
+  m.robots[i].robot.forward_dynamics(s.state.q.data(), s.state.qd.data(), s.control.tau.data(),
+                                     has_ext(s) ? s.external.tau.data() : nullptr, s.ws, out, m.options.end_stops);
+}
+
+void applied_changed(const Model& m, Data& d, int i) {
+  RobotData& s = d.robots[i];
+  // the new inputs hold from now on, over the next step
+  external(m.robots[i], s);
+  s.state.k1_valid = false;
+  if (s.sensor.at == d.k) sense_robot(m, d, i);  // the reading at this time sees them too
+  // a row already logged at this time shows the inputs before the change:
+  // the next advance logs a second row at this time with the new ones
+  if (d.logged_at == d.k) d.logged_at = -1;
+}
+
+void external(const RobotModel& r, RobotData& s) {
+  s.external.tau = s.contact.tau;
+  if (!s.external.applied) return;
+  s.external.tau += s.external.forces;
+  if (!s.external.wrenches.empty()) {
+    VecN t;
+    r.robot.kinematics(s.state.q.data(), s.ws);
+    r.robot.external_torques(s.external.wrenches, s.ws, t);
+    s.external.tau += t;
+  }
+}
+
+// ---- the step ----
+
+// The stages at t_k, in order. What they hold (torques, contacts, welds) acts over [t_k, t_k+1);
+// integrate() then takes every robot there. A stage already done at t_k is not done again.
+void run(const Model& m, Data& d) {
+  const bool fresh = control(m, d);  // control: references and controllers (zero-order hold)
+  if (world_due(m, d)) {
+    const double h = m.options.dt * m.options.world_every;
+    {
+      Stopwatch world(d.profiling, d.profile.world);  // the grasp included
+      links_to_world(m, d);   // world: the links' poses and twists, the free bodies at t_k
+      grasp(m, d, h);         // grasp: the clamp rule, the welds' wrenches on the bodies
+      world_advance(m, d, h); // the world's step (Bullet): free bodies, contacts
+    }
+    {
+      Stopwatch contacts(d.profiling, d.profile.contacts);
+      contacts_to_robots(m, d, h);  // contact and weld wrenches as joint torques, held over the world step
+    }
+    d.world_at = d.k;
+    if (d.profiling) ++d.profile.world_steps;
+  }
+  if (fresh) hold_external(m, d);  // applied inputs and contacts: the external torque over the step
+  sense(m, d);                     // sense: the force/torque sensors at t_k
+  log(m, d);                       // log: the row at t_k
+}
+
+void advance(const Model& m, Data& d, long n) {
+  if (n < 0) throw std::invalid_argument("n must be >= 0, got " + std::to_string(n));
+  if (d.robots.empty() && !d.world)
+    throw std::invalid_argument("the simulation has no robot: add one with add_robot()");
+  if (d.diverged) throw std::runtime_error("the simulation has diverged (" + d.divergence + "); call reset()");
+  if (!d.started) start(m, d);
+  reserve(m, d, n);
+  run(m, d);
+  for (long i = 0; i < n; ++i) {
+    integrate(m, d);  // integrate: t_k -> t_k+1
+    run(m, d);
+  }
+}
+
+// The control stage: every robot not yet updated at t_k samples its reference; at the control
+// steps its controller computes the torque, saturated and held until the next update. The
+// tracking metrics count every step. Returns whether any robot was updated.
+bool control(const Model& m, Data& d) {
+  Stopwatch watch(d.profiling, d.profile.controllers);
+  const double t = d.time(m);
+  const bool control = d.k % m.options.control_every == 0;
+  if (control && !m.cooperatives.empty()) cooperate(m, d);
+  ControlInput in;
+  in.t = t;
+  bool fresh = false;
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    const RobotModel& rm = m.robots[i];
+    RobotData& s = d.robots[i];
+    RobotData::Control& c = s.control;
+    if (c.updated_at == d.k) continue;
+    fresh = true;
+    const int n = rm.robot.dof();
+    rm.reference->evaluate(t, c.q_ref.data(), c.qd_ref.data(), c.qdd_ref.data());
+    if (control && rm.coop < 0) {
+      in.n = n;
+      in.q = s.state.q.data();
+      in.qd = s.state.qd.data();
+      in.q_ref = c.q_ref.data();
+      in.qd_ref = c.qd_ref.data();
+      in.qdd_ref = c.qdd_ref.data();
+      in.wrench = nullptr;
+      in.frames = nullptr;
+      if (c.controller->senses()) {  // the sensor at t_k: the contact and weld wrenches of the last world step
+        rm.robot.kinematics(s.state.q.data(), s.ws, false);  // the frames, for the sensor and the controller
+        sense_robot(m, d, static_cast<int>(i), true, true);
+        in.wrench = s.sensor.world.data();
+        in.frames = &s.ws;
+      }
+      VecN u(n);
+      c.controller->compute(in, u.data());
+      if (!u.allFinite()) torque_diverged(m, d, static_cast<int>(i), u);
+      // actuator limits bind whatever the controller did
+      saturate(n, rm.tau_max.data(), u.data());
+      c.tau = u;
+      s.state.k1_valid = false;
+    }
+    TrackingMetrics& mt = s.record.metrics;
+    for (int j = 0; j < n; ++j) {
+      const double e = c.q_ref[j] - s.state.q[j];
+      mt.sum_sq_error[j] += e * e;
+      mt.max_abs_error[j] = std::max(mt.max_abs_error[j], std::abs(e));
+      mt.max_abs_tau[j] = std::max(mt.max_abs_tau[j], std::abs(c.tau[j]));
+    }
+    ++mt.steps;
+    c.updated_at = d.k;
+  }
+  return fresh;
+}
+
+// The external torque of each robot at t_k: the applied wrenches' J^T changes with q, contacts
+// may have come or gone.
+void hold_external(const Model& m, Data& d) {
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    RobotData& s = d.robots[i];
+    if (s.external.applied || s.contact.any || s.external.held) {
+      external(m.robots[i], s);
+      s.state.k1_valid = false;
+      s.external.held = s.external.applied || s.contact.any;
+    }
+  }
+}
+
+// The integrate stage: every robot from t_k to t_k+1 under its held torques (RK4 or Euler),
+// then the divergence check of its new state.
+void integrate(const Model& m, Data& d) {
+  Stopwatch watch(d.profiling, d.profile.robots);
+  const SimulationOptions& opt = m.options;
+  for (RobotData& s : d.robots) {
+    s.state.q_prev = s.state.q;
+    s.state.qd_prev = s.state.qd;
+  }
+  for (size_t i = 0; i < d.robots.size(); ++i) {
+    RobotData& s = d.robots[i];
+    try {
+      // the first stage was computed for the log row at this state and torque
+      step(m.robots[i].robot, s.ws, opt.integrator, s.state.q, s.state.qd, s.control.tau.data(),
+           has_ext(s) ? s.external.tau.data() : nullptr, opt.dt, opt.end_stops,
+           s.state.k1_valid ? &s.state.k1 : nullptr);
+    } catch (const StageError& e) {
+      diverge(m, d, static_cast<int>(i),
+              stage_failure_reason(e, opt.integrator, DivergenceLimits{opt.max_speed, opt.max_position}), true, false);
+    } catch (const std::exception& e) {
+      diverge(m, d, static_cast<int>(i),
+              std::string("the dynamics failed in a ") + method_name(opt.integrator) + " stage (" + e.what() + ")",
+              true, false);
+    }
+    s.state.k1_valid = false;
+    // the common case without a call: every joint finite and within the limits
+    bool fine = true;
+    for (int j = 0; j < s.state.q.size(); ++j)
+      fine = fine && std::abs(s.state.qd[j]) <= opt.max_speed && std::abs(s.state.q[j]) <= opt.max_position;
+    if (!fine) state_diverged(m, d, static_cast<int>(i));
+  }
+  ++d.k;
+  if (d.profiling) ++d.profile.steps;
+}
+
+}  // namespace stages
+
+// ---- the simulation: one model, one data ----
+
+Simulation::Simulation(SimulationOptions options, std::shared_ptr<World> world)
+    : driver_(make_driver_()), model_(std::make_shared<SimulationModel>()) {
+  check_options(options);
+  model_->options = options;
+  if (world) {
+    world->attach();
+    data_.world = std::move(world);
+  }
+}
+
+Simulation::Simulation(std::shared_ptr<const SimulationModel> model) : driver_(make_driver_()) {
+  if (!model) throw std::invalid_argument("model must not be None");
+  // shared as it is: this run changes a copy (edit_)
+  model_ = std::const_pointer_cast<SimulationModel>(std::move(model));
+  std::shared_ptr<World> world;
+  if (model_->world) {
+    world = std::make_shared<World>(model_->world->options);
+    for (const BodySpec& b : model_->world->bodies) world->add_body(b);
+    world->attach();
+  }
+  stages::init(*model_, data_, std::move(world), false);
+}
+
+Simulation::~Simulation() {
+  if (data_.world) data_.world->detach();
+}
+
+std::shared_ptr<const SimulationModel> Simulation::model() {
+  const Entry driving = enter_();  // one driver at a time (the world's description is written)
+  if (data_.world) {
+    std::optional<WorldDescription> w = WorldDescription{data_.world->options(), data_.world->own_bodies()};
+    if (model_.use_count() > 1) {
+      // already shared: the description it was shared with stays unless the world changed since
+      const std::optional<WorldDescription>& was = model_->world;
+      if (!was || was->bodies.size() != w->bodies.size()) edit_().world = std::move(w);
+    } else {
+      model_->world = std::move(w);
+    }
+  }
+  return model_;
+}
+
+SimulationModel& Simulation::edit_() {
+  if (model_.use_count() > 1) model_ = std::make_shared<SimulationModel>(*model_);
+  return *model_;
+}
+
+int Simulation::check_(int i) const {
+  if (i < 0 || i >= robot_count())
+    throw std::out_of_range("robot index " + std::to_string(i) + " out of range (" + std::to_string(robot_count()) +
+                            " robots)");
+  return i;
+}
+
+int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> controller,
+                          std::shared_ptr<const Reference> reference, const double* q0, const double* qd0) {
+  const Entry driving = enter_();  // one driver at a time
+  if (data_.started || data_.k != 0)
+    throw std::invalid_argument("robots can only be added before the first step (call reset())");
+  if (!controller) throw std::invalid_argument("controller must not be None");
+  if (!reference) throw std::invalid_argument("reference must not be None");
+  const int n = robot.dof();
+  if (reference->dof() != n)
+    throw std::invalid_argument("reference has " + std::to_string(reference->dof()) + " joints but robot '" +
+                                robot.name() + "' has " + std::to_string(n));
+  for (const RobotData& s : data_.robots)
+    if (s.control.controller == controller)
+      throw std::invalid_argument("controller is already driving another robot: give each robot its own instance");
+  controller->check(robot);
+  RobotModel rm{robot, controller, std::move(reference)};
+  rm.q0 = VecN::Zero(n);
+  rm.qd0 = VecN::Zero(n);
+  rm.reference->evaluate(0.0, rm.q0.data(), rm.qd0.data(), nullptr);
+  if (q0) rm.q0 = Eigen::Map<const VecN>(q0, n);
+  if (qd0) rm.qd0 = Eigen::Map<const VecN>(qd0, n);
+  if (!rm.q0.allFinite()) throw std::invalid_argument("q0 must be finite");
+  if (!rm.qd0.allFinite()) throw std::invalid_argument("qd0 must be finite");
+  const std::shared_ptr<World>& world = data_.world;
+  if (world) {  // its boxes at q0 where a world can hold them: refused here rather than at the first step
+    Workspace ws;
+    const std::vector<Eigen::Isometry3d> poses = box_poses_at(robot, rm.q0, ws);
+    for (size_t k = 0; k < poses.size(); ++k) {
+      const std::string& box = robot.boxes()[k].name;
+      World::check_pose(poses[k], "the start of robot '" + robot.name() + "' (q0, or its reference at t = 0) puts its box '" +
+                                      (box.empty() ? std::to_string(k) : box) + "'");
+    }
+    if ((robot.gravity_acceleration() - world->options().gravity).norm() > 1e-12)
+      throw std::invalid_argument("robot '" + robot.name() + "' has another gravity than the world's");
+  }
+  rm.tau_max = robot.tau_max();
+  SimulationModel& m = edit_();
+  m.robots.push_back(std::move(rm));
+  const int i = m.robot_count() - 1;
+  stages::add_robot_data(m, data_, i);
+  data_.robots.back().control.controller = std::move(controller);
+  return i;
+}
+
+void Simulation::reset() {
+  const Entry driving = enter_();  // one driver at a time
+  stages::reset(*model_, data_);
+}
+
+long Simulation::steps_until(double t_end) const {
+  if (!std::isfinite(t_end)) throw std::invalid_argument("t_end must be finite");
+  const double span = (t_end - time()) / model_->options.dt;
+  if (span < -1e-9)
+    throw std::invalid_argument("t_end = " + std::to_string(t_end) + " s is before the current time " +
+                                std::to_string(time()) + " s");
+  if (span > 4e18) throw std::invalid_argument("t_end is too far ahead for dt");
+  return std::max(0L, static_cast<long>(std::floor(span + 1e-9)));
 }
 
 void Simulation::set_reference(int i, std::shared_ptr<const Reference> reference) {
   const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
+  const Robot& r = robot(i);
   if (!reference) throw std::invalid_argument("reference must not be None");
-  if (reference->dof() != s.robot.dof())
+  if (reference->dof() != r.dof())
     throw std::invalid_argument("reference has " + std::to_string(reference->dof()) + " joints but robot '" +
-                                s.robot.name() + "' has " + std::to_string(s.robot.dof()));
-  s.control.reference = std::move(reference);
+                                r.name() + "' has " + std::to_string(r.dof()));
+  edit_().robots[i].reference = std::move(reference);
 }
 
 void Simulation::set_applied_forces(int i, const VecN& forces) {
   const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
-  const int n = s.robot.dof();
+  RobotData& s = slot_(i);
+  const int n = robot(i).dof();
   if (forces.size() != n)
     throw std::invalid_argument("wrong size for applied joint forces: expected " + std::to_string(n) + ", got " +
                                 std::to_string(forces.size()));
   if (!forces.allFinite()) throw std::invalid_argument("applied joint forces must be finite");
   s.external.forces = forces;
   s.external.applied = !s.external.wrenches.empty() || (forces.array() != 0.0).any();
-  applied_changed_(s);
+  stages::applied_changed(*model_, data_, i);
 }
 
 void Simulation::set_applied_wrenches(int i, std::vector<ExternalWrench> wrenches) {
   const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
-  const int n = s.robot.dof();
+  RobotData& s = slot_(i);
+  const int n = robot(i).dof();
   for (size_t k = 0; k < wrenches.size(); ++k) {
     const ExternalWrench& w = wrenches[k];
     if (!w.at_tool && (w.link < -n || w.link > n || w.link == 0))
@@ -259,189 +510,22 @@ void Simulation::set_applied_wrenches(int i, std::vector<ExternalWrench> wrenche
   }
   s.external.wrenches = std::move(wrenches);
   s.external.applied = !s.external.wrenches.empty() || (s.external.forces.array() != 0.0).any();
-  applied_changed_(s);
-}
-
-void Simulation::applied_changed_(Slot& s) {
-  // the new inputs hold from now on, over the next step
-  external_(s);
-  s.state.k1_valid = false;
-  if (s.sensor.at == k_) sense_(s);  // the reading at this time sees them too
-  // a row already logged at this time shows the inputs before the change:
-  // the next advance logs a second row at this time with the new ones
-  if (logged_at_ == k_) logged_at_ = -1;
-}
-
-void Simulation::external_(Slot& s) {
-  s.external.tau = s.contact.tau;
-  if (!s.external.applied) return;
-  s.external.tau += s.external.forces;
-  if (!s.external.wrenches.empty()) {
-    VecN t;
-    s.robot.kinematics(s.state.q.data(), s.ws);
-    s.robot.external_torques(s.external.wrenches, s.ws, t);
-    s.external.tau += t;
-  }
+  stages::applied_changed(*model_, data_, i);
 }
 
 int Simulation::link_body(int i, int box) const {
-  const Slot& s = slot_(i);
+  const RobotData& s = slot_(i);
   if (s.contact.first_body < 0) return -1;
-  if (box < 0 || box >= static_cast<int>(s.robot.boxes().size()))
+  if (box < 0 || box >= static_cast<int>(robot(i).boxes().size()))
     throw std::out_of_range("box index " + std::to_string(box) + " out of range");
   return s.contact.first_body + box;
 }
 
-BodyState Simulation::body_state(int id) const {
-  if (!world_) throw std::invalid_argument("the simulation has no world");
-  const BodySpec& b = world_->body(id);
-  if (b.kind == BodyKind::Link) throw std::invalid_argument("body '" + b.name + "' is a robot's link: see the robot's state");
-  if (b.kind == BodyKind::Free && world_at_ >= 0) {
-    for (size_t k = 0; k < free_ids_.size(); ++k)
-      if (free_ids_[k] == id) return body_now_[k];
-  }
-  return world_->state(id);
-}
-
-// ---- the step ----
-
-// The stages at t_k, in order. What they hold (torques, contacts, welds) acts over [t_k, t_k+1);
-// integrate_() then takes every robot there. A stage already done at t_k is not done again.
-void Simulation::stages_() {
-  const bool fresh = control_();  // control: references and controllers (zero-order hold)
-  if (world_due_()) {
-    const double h = opt_.dt * opt_.world_every;
-    {
-      Stopwatch world(profiling_, profile_.world);  // the grasp included
-      links_to_world_();   // world: the links' poses and twists, the free bodies at t_k
-      grasp_(h);           // grasp: the clamp rule, the welds' wrenches on the bodies
-      world_advance_(h);   // the world's step (Bullet): free bodies, contacts
-    }
-    {
-      Stopwatch contacts(profiling_, profile_.contacts);
-      contacts_to_robots_(h);  // contact and weld wrenches as joint torques, held over the world step
-    }
-    world_at_ = k_;
-    if (profiling_) ++profile_.world_steps;
-  }
-  if (fresh) hold_external_();  // applied inputs and contacts: the external torque over the step
-  sense_();                     // sense: the force/torque sensors at t_k
-  log_();                       // log: the row at t_k
-}
+BodyState Simulation::body_state(int id) const { return stages::body_state(*model_, data_, id); }
 
 void Simulation::advance(long n) {
   const Entry driving = enter_();  // one driver at a time
-  if (n < 0) throw std::invalid_argument("n must be >= 0, got " + std::to_string(n));
-  if (slots_.empty() && !world_)
-    throw std::invalid_argument("the simulation has no robot: add one with add_robot()");
-  if (diverged_) throw std::runtime_error("the simulation has diverged (" + divergence_ + "); call reset()");
-  if (!started_) start_();
-  reserve(n);
-  stages_();
-  for (long i = 0; i < n; ++i) {
-    integrate_();  // integrate: t_k -> t_k+1
-    stages_();
-  }
-}
-
-// The control stage: every robot not yet updated at t_k samples its reference; at the control
-// steps its controller computes the torque, saturated and held until the next update. The
-// tracking metrics count every step. Returns whether any robot was updated.
-bool Simulation::control_() {
-  Stopwatch watch(profiling_, profile_.controllers);
-  const double t = time();
-  const bool control = k_ % opt_.control_every == 0;
-  if (control && !coops_.empty()) cooperate_();
-  ControlInput in;
-  in.t = t;
-  bool fresh = false;
-  for (Slot& s : slots_) {
-    Slot::Control& c = s.control;
-    if (c.updated_at == k_) continue;
-    fresh = true;
-    const int n = s.robot.dof();
-    c.reference->evaluate(t, c.q_ref.data(), c.qd_ref.data(), c.qdd_ref.data());
-    if (control && c.coop < 0) {
-      in.n = n;
-      in.q = s.state.q.data();
-      in.qd = s.state.qd.data();
-      in.q_ref = c.q_ref.data();
-      in.qd_ref = c.qd_ref.data();
-      in.qdd_ref = c.qdd_ref.data();
-      in.wrench = nullptr;
-      in.frames = nullptr;
-      if (c.controller->senses()) {  // the sensor at t_k: the contact and weld wrenches of the last world step
-        s.robot.kinematics(s.state.q.data(), s.ws, false);  // the frames, for the sensor and the controller
-        sense_(s, true, true);
-        in.wrench = s.sensor.world.data();
-        in.frames = &s.ws;
-      }
-      VecN u(n);
-      c.controller->compute(in, u.data());
-      if (!u.allFinite()) torque_diverged_(s, u);
-      // actuator limits bind whatever the controller did
-      saturate(n, c.tau_max.data(), u.data());
-      c.tau = u;
-      s.state.k1_valid = false;
-    }
-    TrackingMetrics& m = s.record.metrics;
-    for (int i = 0; i < n; ++i) {
-      const double e = c.q_ref[i] - s.state.q[i];
-      m.sum_sq_error[i] += e * e;
-      m.max_abs_error[i] = std::max(m.max_abs_error[i], std::abs(e));
-      m.max_abs_tau[i] = std::max(m.max_abs_tau[i], std::abs(c.tau[i]));
-    }
-    ++m.steps;
-    c.updated_at = k_;
-  }
-  return fresh;
-}
-
-// The external torque of each robot at t_k: the applied wrenches' J^T changes with q, contacts
-// may have come or gone.
-void Simulation::hold_external_() {
-  for (Slot& s : slots_) {
-    if (s.external.applied || s.contact.any || s.external.held) {
-      external_(s);
-      s.state.k1_valid = false;
-      s.external.held = s.external.applied || s.contact.any;
-    }
-  }
-}
-
-// The integrate stage: every robot from t_k to t_k+1 under its held torques (RK4 or Euler),
-// then the divergence check of its new state.
-void Simulation::integrate_() {
-  Stopwatch watch(profiling_, profile_.robots);
-  for (Slot& s : slots_) {
-    s.state.q_prev = s.state.q;
-    s.state.qd_prev = s.state.qd;
-  }
-  for (size_t i = 0; i < slots_.size(); ++i) {
-    Slot& s = slots_[i];
-    try {
-      // the first stage was computed for the log row at this state and torque
-      step(s.robot, s.ws, opt_.integrator, s.state.q, s.state.qd, s.control.tau.data(),
-           has_ext_(s) ? s.external.tau.data() : nullptr, opt_.dt, opt_.end_stops,
-           s.state.k1_valid ? &s.state.k1 : nullptr);
-    } catch (const StageError& e) {
-      diverge_(static_cast<int>(i),
-               stage_failure_reason(e, opt_.integrator, DivergenceLimits{opt_.max_speed, opt_.max_position}), true,
-               false);
-    } catch (const std::exception& e) {
-      diverge_(static_cast<int>(i),
-               std::string("the dynamics failed in a ") + method_name(opt_.integrator) + " stage (" + e.what() + ")",
-               true, false);
-    }
-    s.state.k1_valid = false;
-    // the common case without a call: every joint finite and within the limits
-    bool fine = true;
-    for (int j = 0; j < s.state.q.size(); ++j)
-      fine = fine && std::abs(s.state.qd[j]) <= opt_.max_speed && std::abs(s.state.q[j]) <= opt_.max_position;
-    if (!fine) state_diverged_(static_cast<int>(i));
-  }
-  ++k_;
-  if (profiling_) ++profile_.steps;
+  stages::advance(*model_, data_, n);
 }
 
 long Simulation::run(double t_end, long chunk, const std::function<bool(long, long)>& progress) {
@@ -463,25 +547,26 @@ long Simulation::run(double t_end, long chunk, const std::function<bool(long, lo
 
 void Simulation::set_controller(int i, std::shared_ptr<Controller> controller) {
   const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
+  RobotData& s = slot_(i);
   if (!controller) throw std::invalid_argument("controller must not be None");
-  for (size_t k = 0; k < slots_.size(); ++k)
-    if (static_cast<int>(k) != i && slots_[k].control.controller == controller)
+  for (size_t k = 0; k < data_.robots.size(); ++k)
+    if (static_cast<int>(k) != i && data_.robots[k].control.controller == controller)
       throw std::invalid_argument("controller is already driving robot " + std::to_string(k) +
                                   ": give each robot its own instance");
-  controller->check(s.robot);
-  // a run under way: the new controller starts now (start_ resets it otherwise)
-  if (started_) controller->reset(s.robot, opt_.dt * opt_.control_every);
+  const Robot& r = robot(i);
+  controller->check(r);
+  // a run under way: the new controller starts now (start resets it otherwise)
+  if (data_.started) controller->reset(r, model_->options.dt * model_->options.control_every);
+  edit_().robots[i].controller = controller;
   s.control.controller = std::move(controller);
 }
-
 
 // ---- replacing a robot in a run ----
 
 void Simulation::set_robot(int i, const Robot& robot) {
   const Entry driving = enter_();  // one driver at a time
-  Slot& s = slot_(i);
-  const Robot& old = s.robot;
+  RobotData& s = slot_(i);
+  const Robot& old = this->robot(i);
   const int n = old.dof();
   if (robot.dof() != n || robot.joint_types() != old.joint_types())
     throw std::invalid_argument("robot must have the joints of robot '" + old.name() + "' (" + old.joint_types() +
@@ -495,7 +580,8 @@ void Simulation::set_robot(int i, const Robot& robot) {
                                 std::to_string(nb.size()));
   if (s.grasp.held >= 0)
     throw std::invalid_argument("robot " + std::to_string(i) + " holds a body: release it before replacing the robot");
-  if (world_ && (robot.gravity_acceleration() - world_->options().gravity).norm() > 1e-12)
+  const std::shared_ptr<World>& world = data_.world;
+  if (world && (robot.gravity_acceleration() - world->options().gravity).norm() > 1e-12)
     throw std::invalid_argument("robot '" + robot.name() + "' has another gravity than the world's");
   s.control.controller->check(robot);
   // every check before any change: the boxes at q where the world can hold them
@@ -503,8 +589,8 @@ void Simulation::set_robot(int i, const Robot& robot) {
   std::vector<Eigen::Isometry3d> poses;
   std::vector<Eigen::Vector3d> half;
   std::vector<std::pair<int, int>> excluded;
-  const bool in_world = world_ && started_ && s.contact.first_body >= 0;  // its bodies in the world now
-  if (world_) {
+  const bool in_world = world && data_.started && s.contact.first_body >= 0;  // its bodies in the world now
+  if (world) {
     poses = box_poses_at(robot, s.state.q, ws);
     for (size_t k = 0; k < poses.size(); ++k)
       World::check_pose(poses[k], "robot '" + robot.name() + "' at the present q puts its box '" +
@@ -512,14 +598,15 @@ void Simulation::set_robot(int i, const Robot& robot) {
     for (const LinkBox& b : nb) half.push_back(b.half_extents);
     if (in_world) excluded = excluded_pairs(robot);
   }
-  s.robot = robot;
+  RobotModel& rm = edit_().robots[i];
+  rm.robot = robot;
+  rm.tau_max = robot.tau_max();
   s.ws = ws;
-  s.control.tau_max = s.robot.tau_max();
-  saturate(n, s.control.tau_max.data(), s.control.tau.data());
+  saturate(n, rm.tau_max.data(), s.control.tau.data());
   s.state.k1_valid = false;  // the dynamics changed: the next step's first stage anew
   s.contact.M_valid = false;
-  if (started_) s.control.controller->reset(s.robot, opt_.dt * opt_.control_every);
-  if (in_world) world_->replace_robot_boxes(s.contact.first_body, half, poses, excluded);
+  if (data_.started) s.control.controller->reset(rm.robot, model_->options.dt * model_->options.control_every);
+  if (in_world) world->replace_robot_boxes(s.contact.first_body, half, poses, excluded);
 }
 
 }  // namespace coopsim

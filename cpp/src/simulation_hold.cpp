@@ -103,7 +103,7 @@ std::string Simulation::holder(std::thread::id* thread) const {
 
 void Simulation::set_profiling(bool on) {
   const Entry driving = enter_();
-  profiling_ = on;
+  data_.profiling = on;
 }
 
 }  // namespace coopsim

@@ -109,6 +109,44 @@ class Simulation:
                                           grasp_options=grasp_options)
         self.stats: Optional[RunStats] = None
 
+    # ---- model and data ----
+
+    def model(self) -> "_core.SimulationModel":
+        """What this run is, apart from where it is: its options, robots, controllers and references as
+        configured, its cooperative groups and its world's description (a ``coopsim.SimulationModel``,
+        MuJoCo's mjModel to the run's mjData). Runs made from it (:meth:`from_model`) share it; while it is
+        shared, this run's later changes (``set_*``, ``add_*``) go to a copy of it, so the others keep theirs."""
+        return self._core.model()
+
+    @classmethod
+    def from_model(cls, model) -> "Simulation":
+        """A new run of `model` (from :meth:`model`) at t = 0, with data of its own: each controller and
+        cooperative law copied (built-in ones in C++, Python subclasses by ``copy.deepcopy``), a world of its
+        own built from the model's description, its own log. The same model gives the same run to
+        round-off; the runs step independently (e.g. on threads with :func:`coopsim.run_batch`)."""
+        if not isinstance(model, _core.SimulationModel):
+            raise ValueError(f"model must be a coopsim.SimulationModel (from Simulation.model()), "
+                             f"got {type(model).__name__}")
+        sim = cls.__new__(cls)
+        sim._core = _core.SimulationCore(model)
+        sim.stats = None
+        groups = {}
+        for k in range(sim._core.cooperative_count):
+            controller, robots, active = sim._core.cooperative_group(k)
+            if active:
+                groups[k] = (controller, tuple(robots))
+        if groups:
+            sim.__dict__["_groups"] = groups
+        return sim
+
+    def replicate(self, n: int) -> List["Simulation"]:
+        """`n` new runs of this simulation's model (:meth:`model`, :meth:`from_model`), sharing it: for
+        sweeps and batches of one description (seeds, disturbances and inputs set on each run after)."""
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise ValueError(f"n must be an int >= 0, got {n!r}")
+        model = self.model()
+        return [Simulation.from_model(model) for _ in range(n)]
+
     # ---- building ----
 
     def add_robot(self, robot: Robot, controller: Controller, reference, *, q0=None, qd0=None) -> int:

@@ -48,6 +48,9 @@ class Controller {
   virtual void compute(const ControlInput& in, double* tau) = 0;
   // True for a controller that reads the force/torque sensor (ControlInput::wrench).
   virtual bool senses() const { return false; }
+  // A copy with its configuration and state, for another run of the same model
+  // (SimulationModel); null for a controller that cannot be copied (the default).
+  virtual std::shared_ptr<Controller> clone() const { return nullptr; }
 };
 
 // Controller::compute for numbers given as tables: q, qd, q_ref, qd_ref,
@@ -72,6 +75,7 @@ inline void saturate(int n, const double* tau_max, double* tau) {
 
 class PID : public Controller {
  public:
+  std::shared_ptr<Controller> clone() const override { return std::make_shared<PID>(*this); }
   // documentation (Python's too)
   static constexpr char kDoc[] = R"doc(
 Per-joint PID controller (the paper's PID), derivative on measurement.
@@ -124,6 +128,7 @@ kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
 
 class ComputedTorque : public Controller {
  public:
+  std::shared_ptr<Controller> clone() const override { return std::make_shared<ComputedTorque>(*this); }
   // documentation (Python's too)
   static constexpr char kDoc[] = R"doc(
 Computed-torque controller (the paper's nonlinear controller):

@@ -38,11 +38,15 @@ class CooperativeController {
   virtual void reset(const std::vector<const Robot*>& robots, double period) = 0;
   // Writes each member's torques (members[k].in.n values) to tau[k].
   virtual void compute(double t, const std::vector<CoopMember>& members, const std::vector<double*>& tau) = 0;
+  // A copy with its configuration and state, for another run of the same model; null when it
+  // cannot be copied (the default).
+  virtual std::shared_ptr<CooperativeController> clone() const { return nullptr; }
 };
 
 // Object-level control of two arms holding one object (documentation, Python's too).
 class ObjectControl : public CooperativeController {
  public:
+  std::shared_ptr<CooperativeController> clone() const override { return std::make_shared<ObjectControl>(*this); }
   static constexpr char kDoc[] = R"doc(
 Object-level (symmetric) control of two arms holding one object.
 
@@ -121,6 +125,7 @@ reference the same grip on its TCP at its joint reference.)doc";
 // Leader-follower (documentation, Python's too).
 class LeaderFollower : public CooperativeController {
  public:
+  std::shared_ptr<CooperativeController> clone() const override { return std::make_shared<LeaderFollower>(*this); }
   static constexpr char kDoc[] = R"doc(
 Leader-follower control of two arms holding one object (after Luh and Zheng).
 

@@ -1,8 +1,10 @@
 // The simulation loop: one or more robots, each driven by a controller
 // towards a reference, integrated at a fixed step by RK4 (or semi-implicit
 // Euler) through coopsim::step, with a data log (the paper's DataManager)
-// and tracking metrics. The simulation is the one place that holds the
-// state: robots (immutable copies), q, qd, held torques, applied inputs, log.
+// and tracking metrics. A simulation is one model (what the run is: robots, controllers,
+// references, options; SimulationModel) and one data (where it is: q, qd, held torques, applied
+// inputs, world, welds, sensors, log; SimulationData), both in simulation_model.hpp; the step's
+// stages are free functions over them (cpp/src/stages.hpp). Runs of one model share it.
 //
 // Time: step k is at t_k = k dt. The controller of every robot runs at the
 // steps k that are multiples of control_every, with period control_every * dt;
@@ -37,7 +39,7 @@
 // robot and state. A controller that throws leaves the state at t_k with
 // the log complete up to t_k-1; advancing again retries that update.
 //
-// The step's stages, in order (Simulation::stages_ and advance() in simulation.cpp):
+// The step's stages, in order (stages::run and stages::advance in simulation.cpp):
 //   control      references and controllers at t_k                        simulation.cpp
 //   world        (world steps) link poses and twists into the world       contact_coupling.cpp
 //   grasp        the clamp rule, the welds' wrenches                      grasp.cpp
@@ -60,9 +62,8 @@
 // guarded: read from another thread while the holder runs, they may see a step half done.
 #pragma once
 
-#include <algorithm>
 #include <atomic>
-#include <exception>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
@@ -70,79 +71,9 @@
 #include <thread>
 #include <vector>
 
-#include <array>
-#include <cstdint>
-#include <functional>
-#include <random>
-
-#include <Eigen/Cholesky>
-
-#include "coopsim/controller.hpp"
-#include "coopsim/cooperative_laws.hpp"
-#include "coopsim/grasp.hpp"
-#include "coopsim/held_body.hpp"
-#include "coopsim/integrator.hpp"
-#include "coopsim/log.hpp"
-#include "coopsim/reference.hpp"
-#include "coopsim/robot.hpp"
-#include "coopsim/world.hpp"
+#include "coopsim/simulation_model.hpp"
 
 namespace coopsim {
-
-// The defaults written here are the only ones: the bindings and the Python package read them.
-struct SimulationOptions {
-  double dt = 2e-4;           // s, > 0
-  int control_every = 1;      // controller update every k-th step, >= 1
-  int log_every = 1;          // log row every n-th step; 0: no log
-  bool end_stops = true;      // robot's spring-damper end stops beyond q_limits
-  Method integrator = Method::RK4;
-  // with a world:
-  int world_every = 1;         // the world steps every k-th robot step, its contacts held in between
-  bool contact_forces = true;  // contacts push the robots (false: reported only)
-  bool log_contacts = false;   // keep every contact point of every world step (else events only)
-  double contact_frequency_dt = 0.2;  // penalty contacts: omega * (world step) for the stiffness
-  GraspOptions grasp;
-  double max_speed = 1e4;     // rad/s or m/s: faster counts as divergence
-  double max_position = 1e6;  // rad or m: farther counts as divergence
-};
-
-// A robot's force/torque sensor (set_sensor). It sits at the tool centre point (TCP; for a clamp,
-// between the jaws) and measures the wrench the robot's end, links >= L, applies to its
-// environment: L is the clamp's fixed link (the tool's link for a robot without a clamp). That wrench
-// is minus the sum of what acts on those links from outside: the weld's reaction (so a held body
-// reads the weld's wrench on it), every contact on their boxes (with free bodies, scenery, other
-// links) and the applied link wrenches (set_applied_wrenches; applied joint forces are not
-// wrenches and are not sensed). The links' own weight and inertia are not in it (an ideal,
-// gravity-compensated sensor). The true wrench, [force N; moment N m about the TCP], is taken in
-// the sensor frame (the tool frame: the TCP's orientation); Gaussian noise of standard deviation
-// noise_force (each force component) and noise_moment (each moment component) is added in that
-// frame, then a first-order low-pass filter of time constant `time_constant` runs at every step:
-//   y_k = y_{k-1} + a (x_k - y_{k-1}),  a = 1 - exp(-dt / time_constant)  (a = 1 when 0),
-// the exact discretisation of tau dy/dt = x - y for an input held over each step, with the
-// sample of step k included (no delay); it starts at the first sample. The world reading is the
-// sensor-frame reading turned into world axes (the same point). The contact wrenches are those
-// held over the world step, at the links' present pose. The noise is drawn from a generator seeded
-// with `seed` (std::mt19937_64) at set_sensor() and at reset(): a seed gives the same noise.
-struct SensorOptions {
-  double noise_force = 0.0;    // N, standard deviation per force component, >= 0
-  double noise_moment = 0.0;   // N m, standard deviation per moment component, >= 0
-  double time_constant = 0.0;  // s, >= 0 (0: no filter)
-  std::int64_t seed = 0;       // >= 0
-};
-// Throws std::invalid_argument naming the first option that is negative or not finite.
-void check_sensor_options(const SensorOptions& o);
-
-// A contact point of one world step, with the time the step began.
-struct LoggedContact {
-  double t = 0.0;
-  ContactPoint contact;
-};
-
-// Time spent per part of the loop (with SimulationOptions profiling on), s.
-struct StepProfile {
-  double controllers = 0, world = 0, contacts = 0, robots = 0, grasp = 0;  // grasp: the rule and the welds
-  long steps = 0, world_steps = 0;
-};
 
 // Thrown by a call that advances or changes a simulation (see "One driver at a time" above) from
 // another thread than the one holding it. holder(): the holder's label ("another thread" for an
@@ -199,10 +130,19 @@ class Simulation {
   Simulation(const Simulation&) = delete;
   Simulation& operator=(const Simulation&) = delete;
 
-  // Adds a robot (copied) driven by `controller` towards `reference`, from
-  // q0, qd0 (null: the reference's q and qd at t = 0). Only before the first
-  // step (or after reset()). Returns the robot's index. Throws
-  // std::invalid_argument on mismatched sizes, naming the argument.
+  // ---- model and data (simulation_model.hpp) ----
+  // A run of `model` with data of its own, at t = 0: each robot's controller and each cooperative
+  // law copied by clone() (std::invalid_argument naming the robot or the group for one that cannot
+  // be copied), a world of its own built from the model's world description. Runs of one model
+  // share it; a run changing its model (set_*, add_*, remove_cooperative) first takes a copy.
+  explicit Simulation(std::shared_ptr<const SimulationModel> model);
+  // The model of this run, shared: the runs made from it use it as it is now (with the world's
+  // description: its options and bodies as configured). While it is held elsewhere this run's
+  // changes go to a copy of it.
+  std::shared_ptr<const SimulationModel> model();
+  // The data of this run (read-only: the stages write it).
+  const SimulationData& data() const { return data_; }
+
   // ---- one driver at a time (see the header comment) ----
   // Takes the run for the calling thread until the Hold is released: another thread's advance,
   // run, reset or set_* then throws SimulationBusyError naming `label` (non-empty, e.g. "the live
@@ -215,6 +155,10 @@ class Simulation {
   // snapshot: it may change at once.
   std::string holder(std::thread::id* thread = nullptr) const;
 
+  // Adds a robot (copied) driven by `controller` towards `reference`, from
+  // q0, qd0 (null: the reference's q and qd at t = 0). Only before the first
+  // step (or after reset()). Returns the robot's index. Throws
+  // std::invalid_argument on mismatched sizes, naming the argument.
   int add_robot(const Robot& robot, std::shared_ptr<Controller> controller,
                 std::shared_ptr<const Reference> reference, const double* q0 = nullptr,
                 const double* qd0 = nullptr);
@@ -252,17 +196,17 @@ class Simulation {
   int add_cooperative(std::shared_ptr<CooperativeController> controller, std::vector<int> robots);
   // Group k stops driving: its robots' own controllers are reset and drive from the next update.
   void remove_cooperative(int k);
-  int cooperative_count() const { return static_cast<int>(coops_.size()); }
+  int cooperative_count() const { return static_cast<int>(model_->cooperatives.size()); }
   const std::shared_ptr<CooperativeController>& cooperative(int k) const;
   const std::vector<int>& cooperative_robots(int k) const;
   bool cooperative_active(int k) const;
 
-  int robot_count() const { return static_cast<int>(slots_.size()); }
-  const Robot& robot(int i) const { return slot_(i).robot; }
+  int robot_count() const { return model_->robot_count(); }
+  const Robot& robot(int i) const { return model_->robots[check_(i)].robot; }
   const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).control.controller; }
-  const std::shared_ptr<const Reference>& reference(int i) const { return slot_(i).control.reference; }
-  const SimulationOptions& options() const { return opt_; }
-  const std::shared_ptr<World>& world() const { return world_; }
+  const std::shared_ptr<const Reference>& reference(int i) const { return model_->robots[check_(i)].reference; }
+  const SimulationOptions& options() const { return model_->options; }
+  const std::shared_ptr<World>& world() const { return data_.world; }
   // The world body of robot i's box b (-1 without a world or before the first step).
   int link_body(int i, int box) const;
   // Box index pairs of robot i that never collide: boxes of one link, of
@@ -272,14 +216,14 @@ class Simulation {
   // The state of a free or static body at the simulation's time (free bodies
   // as sampled at the last world step).
   BodyState body_state(int id) const;
-  const std::vector<LoggedContact>& contact_log() const { return contact_log_; }
-  const StepProfile& profile() const { return profile_; }
+  const std::vector<LoggedContact>& contact_log() const { return data_.contact_log; }
+  const StepProfile& profile() const { return data_.profile; }
   // ---- grasps ----
   // The free body robot i holds (world id), or -1.
   int holding(int i) const { return slot_(i).grasp.held; }
   // Releases what robot i holds (nothing if it holds nothing), now.
   void release(int i);
-  const std::vector<GraspEvent>& grasp_events() const { return grasp_events_; }
+  const std::vector<GraspEvent>& grasp_events() const { return data_.grasp_events; }
   // The weld's force and moment on the body held by robot i over the last world step, (6).
   // (at the weld's point: midway between the pads' centres when it attached)
   const Vec6& weld_wrench(int i) const { return slot_(i).grasp.weld; }
@@ -298,7 +242,7 @@ class Simulation {
   // Configures robot i's force/torque sensor; the noise generator restarts from the seed, the
   // filter keeps its state. Throws std::invalid_argument naming a bad option.
   void set_sensor(int i, const SensorOptions& options);
-  const SensorOptions& sensor_options(int i) const { return slot_(i).sensor.opt; }
+  const SensorOptions& sensor_options(int i) const { return model_->robots[check_(i)].sensor; }
   // Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
   // TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
   // Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
@@ -311,10 +255,10 @@ class Simulation {
   // The sensor frame: the TCP's pose in the world at the present state.
   Eigen::Isometry3d sensor_pose(int i) const;
   // ---- state ----
-  long step_count() const { return k_; }
-  double time() const { return k_ * opt_.dt; }
-  bool started() const { return started_; }
-  bool diverged() const { return diverged_; }
+  long step_count() const { return data_.k; }
+  double time() const { return data_.time(*model_); }
+  bool started() const { return data_.started; }
+  bool diverged() const { return data_.diverged; }
   const VecN& q(int i) const { return slot_(i).state.q; }
   const VecN& qd(int i) const { return slot_(i).state.qd; }
   const VecN& tau(int i) const { return slot_(i).control.tau; }  // held torque
@@ -334,8 +278,8 @@ class Simulation {
   Vec6 body_wrench(int id) const;
   const VecN& applied_forces(int i) const { return slot_(i).external.forces; }
   const std::vector<ExternalWrench>& applied_wrenches(int i) const { return slot_(i).external.wrenches; }
-  const VecN& initial_q(int i) const { return slot_(i).state.q0; }
-  const VecN& initial_qd(int i) const { return slot_(i).state.qd0; }
+  const VecN& initial_q(int i) const { return model_->robots[check_(i)].q0; }
+  const VecN& initial_qd(int i) const { return model_->robots[check_(i)].qd0; }
 
   // Back to t = 0 and the initial states; clears the log and the metrics;
   // controllers are reset at the next step.
@@ -354,94 +298,21 @@ class Simulation {
   long run(double t_end, long chunk = 4096, const std::function<bool(long, long)>& progress = nullptr);
 
   // ---- log and metrics ----
-  long log_rows() const { return log_t_.rows(); }
-  const LogColumn& log_t() const { return log_t_; }
+  long log_rows() const { return data_.log_t.rows(); }
+  const LogColumn& log_t() const { return data_.log_t; }
   // Free bodies' log, one column each (world.free_bodies() order): 13 values
   // per row, position (3) m, quaternion w x y z (4), velocity (3) m/s,
   // angular velocity (3) rad/s, sampled at the world's steps.
-  const std::vector<LogColumn>& body_log() const { return body_log_; }
+  const std::vector<LogColumn>& body_log() const { return data_.body_log; }
   const RobotLog& log(int i) const { return slot_(i).record.log; }
   const TrackingMetrics& metrics(int i) const { return slot_(i).record.metrics; }
 
  private:
-  // One robot and what the simulation keeps for it, grouped by the stage that uses it.
-  struct Slot {
-    // contact.M_llt starts as the factor of the identity: Eigen leaves a decomposition's info unset
-    // until compute(), and moving a Slot (the vector of slots growing) would copy that unset enum (UB)
-    explicit Slot(const Robot& r) : robot(r) { contact.M_llt.compute(MatN::Identity(r.dof(), r.dof())); }
-    Robot robot;   // immutable copy
-    Workspace ws;  // the robot's kinematics and dynamics scratch, shared by every stage
-    struct Control {  // the control stage: the reference at t_k and the torque held until the next update
-      std::shared_ptr<Controller> controller;
-      std::shared_ptr<const Reference> reference;
-      VecN q_ref, qd_ref, qdd_ref;  // the reference at the last update
-      VecN tau, tau_max;            // held torque (saturated at tau_max)
-      long updated_at = -1;         // step of the last controller / reference update
-      int coop = -1;                // the cooperative group driving it (-1: its own controller)
-    } control;
-    struct State {  // the integration: the state and the first stage of the next step
-      VecN q0, qd0;                 // initial state
-      VecN q, qd;
-      VecN q_prev, qd_prev;         // before the last step: where a rejected step goes back to
-      VecN k1;                      // qdd at (q, qd, tau, tau_ext), valid when k1_valid
-      bool k1_valid = false;
-    } state;
-    struct External {  // applied inputs (kept until changed) and the external torque held over a step
-      VecN forces;                            // applied joint forces
-      std::vector<ExternalWrench> wrenches;   // applied link wrenches
-      bool applied = false;                   // any applied input nonzero
-      VecN tau;                               // applied forces + the wrenches' J^T w + contact.tau, held
-      bool held = false;                      // tau held nonzero from the step before
-    } external;
-    struct Contact {  // the coupling with the world: link bodies, contact wrenches and their torques
-      int first_body = -1;                                        // world body of box 0
-      std::array<Eigen::Vector3d, kMaxDof + 1> frame_w, frame_v;  // frame velocities at the last world step
-      std::vector<ExternalWrench> wrenches;                       // on the links, of the last world step
-      VecN tau;                                                   // their J^T, held over the world step
-      bool any = false;                                           // contact wrenches or a jaw stop act
-      Eigen::LLT<MatN> M_llt;                                     // M = L L^T at the last world step
-      bool M_valid = false;
-    } contact;
-    struct Grasp {  // the clamp's hold on a free body
-      int held = -1, candidate = -1;  // world body ids (-1: none)
-      long candidate_since = -1;      // step from which the candidate met the rule
-      Eigen::Isometry3d weld_X = Eigen::Isometry3d::Identity();  // the body's pose in the clamp link's frame at attach
-      Eigen::Vector3d anchor_link = Eigen::Vector3d::Zero();     // the weld's point: between the pads, in the link frame
-      Eigen::Vector3d anchor_body = Eigen::Vector3d::Zero();     // the same point in the body's frame
-      double width = 0.0;             // m, the body's width between the jaws
-      double fade = 1.0;              // the weld's gain while letting go by opening (1: holding)
-      double release_progress = 0.0;
-      bool releasing = false;
-      Vec6 weld = Vec6::Zero();       // force, moment on the body
-    } grasp;
-    struct Sensor {  // the sense stage: the force/torque sensor at the TCP
-      SensorOptions opt;
-      std::mt19937_64 rng;
-      std::normal_distribution<double> normal;
-      Vec6 noise = Vec6::Zero();                 // drawn for step `at`
-      Vec6 prev = Vec6::Zero();                  // the filter's output before step `at`
-      Vec6 true_clamp = Vec6::Zero(), true_world = Vec6::Zero(), clamp = Vec6::Zero(), world = Vec6::Zero();
-      long at = -1;                              // the step of the last reading (-1: none yet)
-      bool has_prev = false;                     // prev holds a reading of an earlier step
-      bool stale = false;                        // an ideal sensor not read at step `at` (no log row)
-    } sensor;
-    struct Record {  // the log stage
-      RobotLog log;
-      TrackingMetrics metrics;
-    } record;
-  };
-
-  // A pair of robots a < b (made by add_robot): the clamps' relative pose when both began to hold one
-  // body, and the pair's log column.
-  struct Pair {
-    int a = 0, b = 0;
-    bool attached = false;  // X0 holds the relative pose of the present dual hold
-    Eigen::Isometry3d X0 = Eigen::Isometry3d::Identity();
-    LogColumn log{kCooperationWidth};
-  };
-
-  Slot& slot_(int i);
-  const Slot& slot_(int i) const;
+  int check_(int i) const;  // robot index i, checked (std::out_of_range)
+  RobotData& slot_(int i) { return data_.robots[check_(i)]; }
+  const RobotData& slot_(int i) const { return data_.robots[check_(i)]; }
+  // The model to change: copied first when it is shared (model()), so the other runs keep theirs.
+  SimulationModel& edit_();
   // ---- the holder (simulation_hold.cpp) ----
   // The implicit hold of one mutating call: takes the run when nobody holds it, enters it again
   // on the holder's thread, throws SimulationBusyError otherwise. Released at the scope's end.
@@ -457,84 +328,11 @@ class Simulation {
   };
   Entry enter_() { return Entry(*driver_); }
   static std::shared_ptr<Driver> make_driver_();
-  void start_();
-  // ---- the step's stages (see the header comment) ----
-  void stages_();                        // the stages at t_k, in order
-  bool control_();                       // control: true when some robot was updated
-  void cooperate_();                     // control: the cooperative groups' torques at t_k
-  bool world_due_() const { return world_ && world_at_ != k_ && k_ % opt_.world_every == 0; }
-  void links_to_world_();                // world: the links' poses and twists; the free bodies at t_k
-  void grasp_(double h);                 // grasp: the clamp rule, the welds
-  void world_advance_(double h);         // the world's step
-  void contacts_to_robots_(double h);    // its contacts as joint torques, held; its events
-  void hold_external_();                 // every robot's external torque at t_k, held over the step
-  void sense_();                         // sense: the force/torque sensors at t_k
-  // one robot's (now: an ideal one too, off the log's rows; framed: s.ws holds the frames at q already)
-  void sense_(Slot& s, bool now = false, bool framed = false);
-  void reset_sensor_(Slot& s);
-  const Slot::Sensor& fresh_sensor_(int i);  // robot i's sensor, read now if stale
-  void log_();                           // log: the row at t_k
-  void integrate_();                     // integrate: to t_k+1
-  // ---- divergence (divergence.cpp) ----
-  [[noreturn]] void diverge_(int i, const std::string& why, bool in_step, bool state_is_result);
-  [[noreturn]] void torque_diverged_(const Slot& s, const VecN& u);
-  [[noreturn]] void world_diverged_(const WorldDivergence& e, double h);
-  void state_diverged_(int i);  // robot i's state beyond the limits after a step: diverges, naming why
-  // ---- dynamics and external torques ----
-  void qdd_(Slot& s, VecN& out);
-  void external_(Slot& s);
-  void applied_changed_(Slot& s);
-  bool has_ext_(const Slot& s) const { return s.external.applied || s.contact.any; }
-  // ---- contact coupling (contact_coupling.cpp) ----
-  void contact_wrenches_(double h);
-  void link_contacts_(double h);
-  static void frames_(Slot& s);  // s's kinematics and frame velocities at its q, qd
-  static Eigen::Vector3d point_velocity(const Slot& s, int link, const Eigen::Vector3d& p);
-  double inverse_mass_along(Slot& s, const VecN& u);
-  void factor_mass_(Slot& s);  // M(q) of the slot's robot, Cholesky-factored once per world step
-  // ---- grasp (grasp.cpp) ----
-  void grasp_rule_(double h);
-  void ignore_held_();
-  void welds_(double h);
-  void release_(Slot& s, const std::string& why, bool set_twist = true);
-  GraspCheck grasp_check_(const Slot& s, const BodyState& st, int body) const;
-  // ---- two holders of one body (held_body.cpp) ----
-  static Eigen::Isometry3d clamp_frame_(Slot& s);  // the clamp link's orientation at the weld's point
-  bool cooperation_(Pair& pair, Cooperation& out);  // false: the pair does not hold one body
-  void pairs_attach_(int i);                        // robot i grasped or let go: its pairs' X0
-  Pair& pair_(int a, int b);
-  void log_pairs_();
+  const RobotData::Sensor& fresh_sensor_(int i);  // robot i's sensor, read now if stale
 
   std::shared_ptr<Driver> driver_;  // on the heap: a Hold keeps it, a move of the simulation carries it
-  SimulationOptions opt_;
-  std::shared_ptr<World> world_;
-  std::vector<Slot> slots_;
-  std::vector<Pair> pairs_;
-  std::vector<LogColumn> body_log_;
-  std::vector<int> free_ids_;
-  std::vector<BodyState> body_now_;
-  std::vector<Eigen::Isometry3d> box_poses_;  // scratch of world_step_
-  std::vector<LoggedContact> contact_log_;
-  struct Coop {
-    std::shared_ptr<CooperativeController> controller;
-    std::vector<int> robots;
-    bool active = true;
-  };
-  std::vector<Coop> coops_;
-  std::vector<CoopMember> members_;  // scratch of cooperate_
-  std::vector<VecN> coop_tau_;
-  std::vector<double*> coop_out_;     // scratch of cooperate_: the members' torque outputs
-  std::vector<std::pair<int, Vec6>> body_wrenches_;  // set_body_wrench: (world id, wrench), nonzero
-  long world_at_ = -1;
-  bool profiling_ = false;
-  StepProfile profile_;
-  std::vector<GraspEvent> grasp_events_;
-  LogColumn log_t_{1};
-  long k_ = 0;
-  long logged_at_ = -1;
-  bool started_ = false;
-  bool diverged_ = false;
-  std::string divergence_;
+  std::shared_ptr<SimulationModel> model_;  // what the run is (shared with other runs after model())
+  SimulationData data_;                     // where the run is
 };
 
 }  // namespace coopsim

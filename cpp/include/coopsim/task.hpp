@@ -183,6 +183,7 @@ std::array<bool, kTaskAxes> commandable_directions(const Robot& robot, const dou
 // Operational-space impedance (documentation, Python's too).
 class Impedance : public TaskController {
  public:
+  std::shared_ptr<Controller> clone() const override { return std::make_shared<Impedance>(*this); }
   static constexpr char kDoc[] = R"doc(
 Operational-space impedance control of the tool centre point (TCP).
 
@@ -221,6 +222,7 @@ damping / (2 sqrt(stiffness mass)).)doc";
 // Hybrid position/force control (documentation, Python's too).
 class HybridForce : public TaskController {
  public:
+  std::shared_ptr<Controller> clone() const override { return std::make_shared<HybridForce>(*this); }
   static constexpr char kDoc[] = R"doc(
 Hybrid position/force control of the tool centre point (TCP).
 
