@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -1388,6 +1388,11 @@ class SimulationCore:
         """
         Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at every one of `samples` random poses.
         """
+    @staticmethod
+    def from_model(model: SimulationModel) -> SimulationCore:
+        """
+        A run of `model` at t = 0 with data of its own: controllers copied, a world of its own.
+        """
     def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4', world: World = None, world_every: typing.SupportsInt | typing.SupportsIndex = 1, contact_forces: bool = True, log_contacts: bool = False, grasp: bool = True, grasp_options: dict = {}) -> None:
         ...
     def add_cooperative(self, controller: CooperativeController, robots: collections.abc.Sequence[typing.SupportsInt | typing.SupportsIndex]) -> int:
@@ -1436,6 +1441,10 @@ class SimulationCore:
         """
         Robots a < b: one row of cooperation_schema() per log row, (rows, width).
         """
+    def cooperative_group(self, k: typing.SupportsInt | typing.SupportsIndex) -> tuple[CooperativeController, list[int], bool]:
+        """
+        Group k: (its live CooperativeController, its robots' indices, whether it drives).
+        """
     def free_body_names(self) -> list[str]:
         ...
     def grasp_check(self, i: typing.SupportsInt | typing.SupportsIndex, body: str) -> dict:
@@ -1479,6 +1488,10 @@ class SimulationCore:
     def metrics(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
         """
         Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).
+        """
+    def model(self) -> SimulationModel:
+        """
+        The model of this run, shared (this run's later changes go to a copy while it is held).
         """
     def profile(self) -> dict:
         """
@@ -1567,6 +1580,11 @@ class SimulationCore:
     def control_every(self) -> int:
         ...
     @property
+    def cooperative_count(self) -> int:
+        """
+        Number of cooperative groups added (removed ones included).
+        """
+    @property
     def diverged(self) -> bool:
         ...
     @property
@@ -1625,6 +1643,32 @@ class SimulationCore:
     @property
     def world_every(self) -> int:
         ...
+class SimulationModel:
+    """
+    What a simulation is, apart from where it is (simulation_model.hpp): its options, its robots as
+    configured (controller, reference, initial state, sensor) and cooperative groups, and its world's
+    description. Given by coopsim.Simulation.model(); coopsim.Simulation.from_model(model) makes a run of it
+    with data of its own. Runs of one model share it; it does not change while shared.
+    """
+    def robot(self, i: typing.SupportsInt | typing.SupportsIndex) -> Robot:
+        """
+        Robot i as configured (a copy).
+        """
+    @property
+    def dt(self) -> float:
+        """
+        Step size, s.
+        """
+    @property
+    def has_world(self) -> bool:
+        """
+        Whether the model describes a world (its runs each build their own).
+        """
+    @property
+    def robot_count(self) -> int:
+        """
+        Number of robots.
+        """
 def _short_type_errors(arg0: typing.Any, arg1: typing.Any) -> bool:
     """
     Points a compiled function at the dispatcher whose TypeErrors short_type_error shortens (coopsim._arguments).

@@ -128,7 +128,7 @@ class Simulation:
             raise ValueError(f"model must be a coopsim.SimulationModel (from Simulation.model()), "
                              f"got {type(model).__name__}")
         sim = cls.__new__(cls)
-        sim._core = _core.SimulationCore(model)
+        sim._core = _core.SimulationCore.from_model(model)
         sim.stats = None
         groups = {}
         for k in range(sim._core.cooperative_count):
