@@ -541,3 +541,37 @@ def test_python_checks_go_through_the_shared_module(tmp_path):
         "def _colour(c, what: str) -> str:\n    raise ValueError(what)\n\n\n"
         "class A:\n    @staticmethod\n    def _finite(x, what):\n        raise ValueError(what)\n")
     assert local_scalar_checkers(pkg) == ["python/coopsim/view.py:1 _zoom", "python/coopsim/view.py:13 _finite"]
+
+
+def test_the_shared_checks_speak_the_engines_format():
+    # "<argument> must be <rule>, got <value>", one line, a ValueError; the rule as the scanner reads it
+    import math
+
+    import numpy as np
+
+    from coopsim import _checks
+
+    cs_ = _check_sites()
+    for call, said, bound in (
+            (lambda: _checks.positive(-1.0, "tile"), "tile must be finite and > 0, got -1.0", {(">", 0.0)}),
+            (lambda: _checks.positive(-1, "L1", unit="m"), "L1 must be finite and > 0 m, got -1", {(">", 0.0)}),
+            (lambda: _checks.positive(math.nan, "gap", zero=True), "gap must be finite and >= 0, got nan",
+             {(">=", 0.0)}),
+            (lambda: _checks.number(0, "fps", 0.0, 1000.0, lo_open=True), "fps must be in (0, 1000], got 0",
+             {(">", 0.0), ("<=", 1000.0)}),
+            (lambda: _checks.number(10 ** 400, "t_end"), "t_end must be finite, got 1000", set()),
+            (lambda: _checks.number("fast", "kp[0]", text=True), "kp[0] must be a number, got 'fast'", set()),
+            (lambda: _checks.number(True, "zoom"), "zoom must be a number, got True", set()),
+            (lambda: _checks.integer(-1, "threads", 0, 4096), "threads must be an integer in 0 .. 4096, got -1",
+             {(">=", 0.0), ("<=", 4096.0)}),
+            (lambda: _checks.numbers("1, x", 2, "target", text=True), "target[1] must be a number, got 'x'", set()),
+            (lambda: _checks.numbers("1, 2", 3, "target", text=True), "target must be 3 numbers, got 2 ('1, 2')",
+             set())):
+        with pytest.raises(ValueError) as e:
+            call()
+        msg = str(e.value)
+        assert msg.startswith(said) and "\n" not in msg, msg
+        value, rule = cs_.parse_message(msg)
+        assert value == said.split(" must ")[0] and cs_.bound_of(rule) == bound, (msg, value, rule)
+    assert _checks.number("0.5", "move time", 0.0, 60.0, lo_open=True, text=True) == 0.5
+    assert _checks.positive(np.float32(2), "tile") == 2.0 and _checks.integer(np.int64(3), "threads", 0, 9) == 3
