@@ -505,3 +505,151 @@ def test_the_engine_file_rule_names_each_file_over_it(tmp_path):
     (tmp_path / "cpp/generated/big.cpp").write_text(body + body)                                   # generated
     assert engine_code_lines(tmp_path) == {"cpp/src/at.cpp": 600, "cpp/include/coopsim/over.hpp": 601}
     assert engine_files_over_the_bound(tmp_path) == {"cpp/include/coopsim/over.hpp": 601}
+
+
+# ---- one rule per value: the argument checks of the three layers ----
+
+def _check_sites():
+    sys.path.insert(0, str(ROOT / "tests"))
+    try:
+        import check_sites
+    finally:
+        sys.path.pop(0)
+    return check_sites
+
+
+def test_each_value_is_checked_in_one_layer_with_one_rule():
+    # tests/check_sites.py lists every check site of the engine, the bindings and the package with the value
+    # each names and its rule; a value checked with a bound in a layer must share it with a check of that
+    # value in each layer below (a link's mass is finite and >= 0 kg in the engine, so in Python too)
+    cs_ = _check_sites()
+    sites = cs_.scan(ROOT)
+    found = cs_.disagreements(sites)
+    assert not found, "values checked in two layers with two rules (make one rule, in the engine " \
+                      "function that uses the value):\n" + "\n".join(str(d) for d in found)
+    # the scanner sees each layer (about 300 engine, 180 binding and 390 Python sites when written)
+    per_layer = {layer: [s for s in sites if s.layer == layer] for layer in cs_.LAYERS}
+    assert all(len(v) > 100 for v in per_layer.values()), {k: len(v) for k, v in per_layer.items()}
+    assert all(sum(1 for s in v if s.value and s.bound) > 2 for v in per_layer.values())
+
+
+def test_the_check_scanner_finds_a_planted_disagreement(tmp_path, monkeypatch):
+    cs_ = _check_sites()
+    (tmp_path / "cpp" / "src").mkdir(parents=True)
+    (tmp_path / "cpp" / "bindings").mkdir(parents=True)
+    (tmp_path / "python" / "coopsim" / "sub").mkdir(parents=True)
+    (tmp_path / "cpp" / "src" / "a.cpp").write_text(
+        '// require(x, "mass must be > 5") in a comment is no check\n'
+        'void check_finite(double x, const char* name);\n'
+        'void f(double m, double dt, const std::string& who) {\n'
+        '  require(std::isfinite(m) && m >= 0,\n'
+        '          who + ": mass must be finite and >= 0 kg, got " + num(m));\n'
+        '  if (!(dt > 0)) throw std::invalid_argument("dt must be > 0, got " + num(dt));\n'
+        '  check_finite(dt, "dt");\n'
+        '}\n')
+    (tmp_path / "cpp" / "bindings" / "b.cpp").write_text(
+        'double g(const py::handle& o) { return scalar_arg(o, "dt") + index_arg(o, "threads", 0, 4096); }\n')
+    (tmp_path / "python" / "coopsim" / "sub" / "m.py").write_text(
+        "from .. import _checks\n"
+        "LIMIT = 4096\n\n\n"
+        "def f(masses, dt, threads):\n"
+        "    if min(masses) <= 0:\n"
+        "        raise ValueError(f'masses must be finite and > 0 kg, got {masses!r}')\n"
+        "    _checks.positive(dt, 'dt')\n"
+        "    _checks.integer(threads, 'threads', 1, LIMIT)\n")
+    sites = cs_.scan(tmp_path)
+    got = {(s.layer, s.path, s.line, s.value, s.rule) for s in sites}
+    assert got == {
+        ("engine", "cpp/src/a.cpp", 4, "*: mass", "finite and >= 0 kg"),
+        ("engine", "cpp/src/a.cpp", 6, "dt", "> 0"),
+        ("engine", "cpp/src/a.cpp", 7, "dt", "finite"),
+        ("bindings", "cpp/bindings/b.cpp", 1, "dt", "a real number, finite"),
+        ("bindings", "cpp/bindings/b.cpp", 1, "threads", "an integer in 0 .. 4096"),
+        ("python", "python/coopsim/sub/m.py", 7, "masses", "finite and > 0 kg"),
+        ("python", "python/coopsim/sub/m.py", 8, "dt", "finite and > 0"),
+        ("python", "python/coopsim/sub/m.py", 9, "threads", "an integer in 1 .. 4096"),
+    }
+    found = sorted(cs_.disagreements(sites), key=lambda d: d.value)
+    # dt agrees (> 0 in both), the mass and the thread count do not; each names the value, both sites, both rules
+    assert [d.value for d in found] == ["mass", "thread"]
+    said = str(found[0])
+    assert all(w in said for w in ("'mass'", "python/coopsim/sub/m.py:7", "'finite and > 0 kg'",
+                                   "cpp/src/a.cpp:4", "'finite and >= 0 kg'")), said
+    said = str(found[1])
+    assert all(w in said for w in ("python/coopsim/sub/m.py:9", "1 .. 4096", "cpp/bindings/b.cpp:1",
+                                   "0 .. 4096")), said
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    with pytest.raises(AssertionError, match="two layers with two rules") as failed:
+        test_each_value_is_checked_in_one_layer_with_one_rule()
+    assert "python/coopsim/sub/m.py:7" in str(failed.value) and "cpp/src/a.cpp:4" in str(failed.value)
+
+
+# the names of the package's former local checkers of one number, and the parameters naming the argument
+_SCALAR_CHECKER_NAMES = {"_positive", "_finite", "_number", "_numbers", "_real", "_nonnegative", "_integer"}
+
+
+def local_scalar_checkers(package: Path) -> list:
+    """["path:line name"] of every function outside coopsim/_checks.py, at any depth, that checks one
+    number for a caller: it takes the argument's name (a parameter `what`) and returns a float or an int
+    (annotated so, or one of the former checkers' names), and raises."""
+    out = []
+    for p in sorted(package.rglob("*.py")):
+        if p.name == "_checks.py" and p.parent == package:
+            continue
+        for fn in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            params = {a.arg for a in fn.args.args + fn.args.kwonlyargs}
+            returns = ast.unparse(fn.returns) if fn.returns is not None else ""
+            raises = any(isinstance(n, ast.Raise) for n in ast.walk(fn))
+            if raises and "what" in params and (returns in ("float", "int") or fn.name in _SCALAR_CHECKER_NAMES):
+                out.append(f"{p.relative_to(package.parent.parent).as_posix()}:{fn.lineno} {fn.name}")
+    return out
+
+
+def test_python_checks_go_through_the_shared_module(tmp_path):
+    # one rule, one message format: the package's checks of a number are coopsim._checks' functions
+    found = local_scalar_checkers(PACKAGE)
+    assert not found, "local checkers of a number (use coopsim._checks): " + ", ".join(found)
+    pkg = tmp_path / "python" / "coopsim"
+    pkg.mkdir(parents=True)
+    (pkg / "_checks.py").write_text("def number(x, what) -> float:\n    raise ValueError(what)\n")
+    (pkg / "view.py").write_text(
+        "def _zoom(x, what: str) -> float:\n    if x <= 0:\n        raise ValueError(what)\n    return x\n\n\n"
+        "def _colour(c, what: str) -> str:\n    raise ValueError(what)\n\n\n"
+        "class A:\n    @staticmethod\n    def _finite(x, what):\n        raise ValueError(what)\n")
+    assert local_scalar_checkers(pkg) == ["python/coopsim/view.py:1 _zoom", "python/coopsim/view.py:13 _finite"]
+
+
+def test_the_shared_checks_speak_the_engines_format():
+    # "<argument> must be <rule>, got <value>", one line, a ValueError; the rule as the scanner reads it
+    import math
+
+    import numpy as np
+
+    from coopsim import _checks
+
+    cs_ = _check_sites()
+    for call, said, bound in (
+            (lambda: _checks.positive(-1.0, "tile"), "tile must be finite and > 0, got -1.0", {(">", 0.0)}),
+            (lambda: _checks.positive(-1, "L1", unit="m"), "L1 must be finite and > 0 m, got -1", {(">", 0.0)}),
+            (lambda: _checks.positive(math.nan, "gap", zero=True), "gap must be finite and >= 0, got nan",
+             {(">=", 0.0)}),
+            (lambda: _checks.number(0, "fps", 0.0, 1000.0, lo_open=True), "fps must be in (0, 1000], got 0",
+             {(">", 0.0), ("<=", 1000.0)}),
+            (lambda: _checks.number(10 ** 400, "t_end"), "t_end must be finite, got 1000", set()),
+            (lambda: _checks.number("fast", "kp[0]", text=True), "kp[0] must be a number, got 'fast'", set()),
+            (lambda: _checks.number(True, "zoom"), "zoom must be a number, got True", set()),
+            (lambda: _checks.integer(-1, "threads", 0, 4096), "threads must be an integer in 0 .. 4096, got -1",
+             {(">=", 0.0), ("<=", 4096.0)}),
+            (lambda: _checks.numbers("1, x", 2, "target", text=True), "target[1] must be a number, got 'x'", set()),
+            (lambda: _checks.numbers("1, 2", 3, "target", text=True), "target must be 3 numbers, got 2 ('1, 2')",
+             set())):
+        with pytest.raises(ValueError) as e:
+            call()
+        msg = str(e.value)
+        assert msg.startswith(said) and "\n" not in msg, msg
+        value, rule = cs_.parse_message(msg)
+        assert value == said.split(" must ")[0] and cs_.bound_of(rule) == bound, (msg, value, rule)
+    assert _checks.number("0.5", "move time", 0.0, 60.0, lo_open=True, text=True) == 0.5
+    assert _checks.positive(np.float32(2), "tile") == 2.0 and _checks.integer(np.int64(3), "threads", 0, 9) == 3

@@ -128,7 +128,8 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
                             const DivergenceLimits& limits) {
   const int n = robot.dof();
   check_step_size(dt);
-  if (steps < 0) throw std::invalid_argument("steps must be >= 0");
+  if (steps < 0 || steps > 2000000000)
+    throw std::invalid_argument("steps must be in [0, 2e9], got " + std::to_string(steps));
   if (record_every < 1) throw std::invalid_argument("record_every must be >= 1");
   if (tau_rows != 1 && tau_rows != steps)
     throw std::invalid_argument("tau must have one row or one row per step");

@@ -42,7 +42,8 @@ Eigen::Isometry3d dh_transform(double theta, double d, double a, double alpha) {
 }
 
 Eigen::Matrix3d box_inertia(double mass, double lx, double ly, double lz) {
-  require(std::isfinite(mass) && mass > 0, "box_inertia: mass must be finite and > 0");
+  // a link's rule (build_): a box without mass (a frame that carries nothing) has no inertia
+  require(std::isfinite(mass) && mass >= 0, "box_inertia: mass must be finite and >= 0 kg, got " + detail::num(mass));
   require(std::isfinite(lx) && std::isfinite(ly) && std::isfinite(lz) && lx >= 0 && ly >= 0 && lz >= 0,
           "box_inertia: edge lengths must be finite and >= 0");
   Eigen::Matrix3d I = Eigen::Matrix3d::Zero();

@@ -12,6 +12,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from . import _checks
 from .simulation import Simulation
 
 __all__ = ["run_batch", "simulate"]
@@ -25,16 +26,15 @@ def _output(sim: Simulation, output: str):
     return None
 
 
-def _check_output(output):
-    if output not in ("log", "metrics", "none"):
-        raise ValueError(f"output must be 'log', 'metrics' or 'none', got {output!r}")
+#: the most threads a batch runs on (forward_dynamics_batch's bound too); 0 or None: every core
+MAX_THREADS = 4096
 
 
 def run_batch(sims: Sequence[Simulation], t_end: float, *, threads: Optional[int] = None, output: str = "log",
               errors: str = "raise") -> list:
     """Runs many independent simulations up to t_end (s) in one call, on threads.
 
-    The stepping is C++ on a pool of `threads` threads (None: every core)
+    The stepping is C++ on a pool of `threads` threads (None or 0: every core; at most 4096)
     with the GIL released. Results, in the order of `sims`: their logs
     (output='log'), their per-robot metrics ('metrics', see
     Simulation.metrics) or None ('none'). A run that fails (e.g. diverges)
@@ -49,13 +49,12 @@ def run_batch(sims: Sequence[Simulation], t_end: float, *, threads: Optional[int
     for i, s in enumerate(sims):
         if not isinstance(s, Simulation):
             raise ValueError(f"sims[{i}] must be a coopsim.Simulation, got {type(s).__name__}")
-    _check_output(output)
+    _checks.one_of(output, "output", ("log", "metrics", "none"))
     if errors not in ("raise", "return"):
         raise ValueError(f"errors must be 'raise' or 'return', got {errors!r}")
     if threads is None:
         threads = 0
-    if not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 0:
-        raise ValueError(f"threads must be an integer >= 1 (or None for every core), got {threads!r}")
+    _checks.integer(threads, "threads", 0, MAX_THREADS)
     if not isinstance(t_end, (int, float, np.floating, np.integer)) or not math.isfinite(t_end):
         raise ValueError(f"t_end must be a finite number of seconds, got {t_end!r}")
     for i, s in enumerate(sims):
@@ -88,7 +87,7 @@ def simulate(sim: Simulation, t_end: float, output: str = "log"):
     t_end=2.0), sims)`` pickles each simulation's description to a worker
     and its log back.
     """
-    _check_output(output)
+    _checks.one_of(output, "output", ("log", "metrics", "none"))
     if not isinstance(sim, Simulation):
         raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
     sim.run(t_end, progress=False)

@@ -24,6 +24,7 @@ from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from . import _checks
 from ._core import cooperation_schema as _engine_cooperation_schema
 from ._core import log_schema as _engine_log_schema
 from .plotting import plot_log
@@ -239,7 +240,7 @@ class SimulationLog:
         with one n, holding (rows,), weld, ft_world and ft_clamp (rows, 6); per free body (rows, 13) real numbers, and
         with poses=True (the views) finite, positions within 1e6 m and unit quaternions. A
         simulation's log always is; the views and tables check one built or changed by hand."""
-        t = _real(self.t, "log.t")
+        t = _checks.real_array(self.t, "log.t")
         if t.ndim != 1:
             raise ValueError(f"log.t must be (rows,), got shape {t.shape}")
         if not np.all(np.isfinite(t)):
@@ -252,7 +253,7 @@ class SimulationLog:
                 raise ValueError(f"log.robots[{i}] must be a RobotLog, got {type(r).__name__}")
             n = None
             for k in STORED:
-                a = _real(getattr(r, k), f"log[{i}].{k}")
+                a = _checks.real_array(getattr(r, k), f"log[{i}].{k}")
                 if a.ndim != 2 or a.shape[0] != rows or (n is not None and a.shape[1] != n):
                     want = f"({rows}, {'n' if n is None else n})"
                     raise ValueError(f"wrong shape for log[{i}].{k}: expected {want}, one row per log row, "
@@ -261,10 +262,10 @@ class SimulationLog:
             if np.shape(r.holding) != (rows,):
                 raise ValueError(f"wrong shape for log[{i}].holding: expected ({rows},), got {np.shape(r.holding)}")
             for k in ("weld", "ft_world", "ft_clamp"):
-                if _real(getattr(r, k), f"log[{i}].{k}").shape != (rows, 6):
+                if _checks.real_array(getattr(r, k), f"log[{i}].{k}").shape != (rows, 6):
                     raise ValueError(f"wrong shape for log[{i}].{k}: expected ({rows}, 6), got {np.shape(getattr(r, k))}")
         for name, b in self.bodies.items():
-            d = _real(b.data, f"log.bodies[{name!r}]")
+            d = _checks.real_array(b.data, f"log.bodies[{name!r}]")
             if d.shape != (rows, 13):
                 raise ValueError(f"wrong shape for log.bodies[{name!r}]: expected ({rows}, 13), got {d.shape}")
             if poses and not (np.all(np.isfinite(d)) and np.all(np.abs(d[:, :3]) <= _MAX_DISTANCE)
@@ -479,7 +480,7 @@ class SimulationLog:
         float_format="%.17g")``, written a block of rows at a time with Python's number formatting, about
         five times faster (a 10 MB table of 4000 rows x 148 columns in about 0.3 s on a 2-core machine).
         progress: called with the fraction written (0 .. 1) after each block (about 1 MB) and at the end."""
-        _check_progress(progress)
+        _checks.callable_or_none(progress, "progress", "the fraction written (0 .. 1)")
         data = self.to_array()      # checks the log first
         cols = self.columns()
 
@@ -500,7 +501,7 @@ class SimulationLog:
         NaN and inf (a log written by hand) are empty cells.
         progress: called with the fraction of the data rows written (0 .. 1) after each block of rows and
         at the end. Raises ValueError past Excel's row limit."""
-        _check_progress(progress)
+        _checks.callable_or_none(progress, "progress", "the fraction written (0 .. 1)")
         if len(self.t) + 1 > _EXCEL_MAX_ROWS:
             raise ValueError(f"the log has {len(self.t)} rows, more than an Excel sheet holds "
                              f"({_EXCEL_MAX_ROWS - 1}): log less often (log_every) or use to_csv")
@@ -556,11 +557,6 @@ class SimulationLog:
 
 # values per block of rows written at a time (CSV: about 1 MB of text)
 _BLOCK_VALUES = 50_000
-
-
-def _check_progress(progress) -> None:
-    if progress is not None and not callable(progress):
-        raise ValueError(f"progress must be a function of the fraction written (0 .. 1) or None, got {progress!r}")
 
 
 def _write_csv(f, cols: List[str], data: np.ndarray, progress) -> None:
@@ -638,14 +634,6 @@ def _copy_with_rows(book, tmp, sheet, data, fmt, names, block, progress) -> None
                 f.write(("</sheetData>" + tail).encode("utf-8"))
     if progress is not None and rows == 0:
         progress(1.0)
-
-
-def _real(x, what: str) -> np.ndarray:
-    """x as a float array, or ValueError naming `what` when it holds anything but real numbers."""
-    a = np.asarray(x)
-    if a.dtype.kind not in "biuf":
-        raise ValueError(f"{what} must be an array of real numbers, got dtype {a.dtype}")
-    return a.astype(float, copy=False)
 
 
 def _none_str(v):

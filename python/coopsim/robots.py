@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import _checks
 from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, compiled_generated_names, dh_transform
 
 __all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS", "SCARA1_BOUNDS", "SCARA2_BOUNDS", "Bound"]
@@ -139,14 +140,7 @@ def _check_dims(dims: dict, defaults: dict, name: str, bounds: dict) -> dict:
         raise TypeError(f"{name}() got unknown dimension(s) {sorted(unknown)}; known: {sorted(defaults)}")
     out = dict(defaults)
     for key, value in dims.items():
-        try:
-            if isinstance(value, (bool, complex)) or np.iscomplexobj(value):
-                raise TypeError
-            v = float(value)
-        except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"{key} must be a number in metres, got {value!r}") from None
-        if not math.isfinite(v) or v <= 0:
-            raise ValueError(f"{key} must be finite and > 0 m, got {value!r}")
+        v = _checks.positive(value, key, unit="m", text=True)
         b = bounds[key]
         if not b.low <= v <= b.high:
             raise ValueError(f"{key} of {name} must be {b.low:g} .. {b.high:g} m ({b.why}), got {value!r}")
@@ -172,6 +166,15 @@ def _masses(boxes, default_boxes, default_masses, masses, n):
     return default_masses * vol / vol0
 
 
+def _box_inertia(masses, k: int, box) -> np.ndarray:
+    """Link k+1's inertia, a solid box; the engine's rule of a link's mass (finite and >= 0 kg: a link
+    that carries nothing may be massless), its message naming the argument."""
+    try:
+        return box_inertia(masses[k], *box)
+    except ValueError as e:
+        raise ValueError(f"masses[{k}] (link {k + 1}): {e}") from None
+
+
 def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backend) -> Robot:
     """Robot of one of the built-in specs: tables from the dimensions, boxes
     for the mass properties, then the dynamics backend."""
@@ -184,9 +187,7 @@ def _make(spec, dims, masses, friction, base_position, base_yaw, gravity, backen
     boxes0 = spec["geometry"](spec["defaults"])[2]
     n = len(spec["types"])
     m = _masses(boxes, boxes0, spec["masses"], masses, n)
-    if np.any(~np.isfinite(m)) or np.any(m <= 0):
-        raise ValueError("masses must be finite and > 0 kg")
-    inertias = np.array([box_inertia(mi, *b) for mi, b in zip(m, boxes)])
+    inertias = np.array([_box_inertia(m, k, b) for k, b in enumerate(boxes)])
     robot = Robot.from_dh(
         dh=np.array(dh, dtype=float), com=np.array(com, dtype=float), masses=m, inertias=inertias,
         joint_types=spec["types"], friction=spec["friction"] if friction is None else friction,

@@ -18,6 +18,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from .. import _checks
 from ..log import _atomic_write, rows_at
 from .bodies import Body, _array, _is_simulation, _robot_list
 from .geometry import box_corners
@@ -47,12 +48,6 @@ def ffmpeg_path() -> str:
     if matplotlib.rcParams["animation.ffmpeg_path"] == "ffmpeg":
         matplotlib.rcParams["animation.ffmpeg_path"] = exe
     return exe
-
-
-def _number(x, what: str) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not math.isfinite(x):
-        raise ValueError(f"{what} must be a finite number, got {x!r}")
-    return float(x)
 
 
 def _suffix(path) -> str:
@@ -132,7 +127,7 @@ class Animation:
         if suffix == ".gif" and self.fps > 50:
             raise ValueError(f"fps must be <= 50 for a GIF (browsers slow down shorter frame delays), got {self.fps:g}")
         if quality is not None:
-            quality = _number(quality, "quality")
+            quality = _checks.number(quality, "quality")
             if not 0 <= quality <= 10:
                 raise ValueError(f"quality must be in 0 .. 10, got {quality!r}")
 
@@ -340,10 +335,10 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         raise ValueError("robots must be given with a log (the simulated robots in log order), or pass the "
                          "Simulation itself")
     robots = _robot_list(robots, allow_empty=wld is not None)
-    fps = _number(fps, "fps")
+    fps = _checks.number(fps, "fps")
     if not 0 < fps <= 1000:
         raise ValueError(f"fps must be > 0 (and at most 1000) frames per second, got {fps!r}")
-    speed = _number(speed, "speed")
+    speed = _checks.number(speed, "speed")
     if not 0 <= speed <= MAX_SPEED:
         raise ValueError(f"speed must be between 0 (pause) and {MAX_SPEED:g} (400 %), got {speed!r}")
     if path is not None:
@@ -361,15 +356,15 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
     for i, (rl, r) in enumerate(zip(log.robots, robots)):
         if rl.q.shape[1] != r.dof:
             raise ValueError(f"robots[{i}] has {r.dof} joints but the log's robot {i} ({rl.name}) has {rl.q.shape[1]}")
-    t0 = float(t_log[0]) if t_start is None else _number(t_start, "t_start")
-    t1 = float(t_log[-1]) if t_end is None else _number(t_end, "t_end")
+    t0 = float(t_log[0]) if t_start is None else _checks.number(t_start, "t_start")
+    t1 = float(t_log[-1]) if t_end is None else _checks.number(t_end, "t_end")
     eps = 1e-9 * max(1.0, abs(t_log[-1]))
     if not t_log[0] - eps <= t0 <= t_log[-1] + eps:
         raise ValueError(f"t_start must be within the log's times [{t_log[0]:g}, {t_log[-1]:g}] s, got {t0!r}")
     if not t0 <= t1 <= t_log[-1] + eps:
         raise ValueError(f"t_end must be within [t_start, last log time] = [{t0:g}, {t_log[-1]:g}] s, got {t1!r}")
     if duration is not None:
-        duration = _number(duration, "duration")
+        duration = _checks.number(duration, "duration")
         if duration <= 0:
             raise ValueError(f"duration must be > 0 s, got {duration!r}")
         frames = duration * fps
@@ -461,7 +456,7 @@ def animate(log, robots=None, *, fps: float = 30.0, speed: float = 1.0, path=Non
         from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib loads only to draw
         from matplotlib.figure import Figure  # matplotlib loads only to draw
 
-        dpi = _number(dpi, "dpi")
+        dpi = _checks.number(dpi, "dpi")
         w, h = figsize
         fig = Figure(figsize=(w, h), dpi=dpi)
         FigureCanvasAgg(fig)

@@ -70,9 +70,11 @@ class Body:
         h = _array(self.half_extents, f"{what}.half_extents")
         if h.ndim == 1:
             h = h[None, :]
-        if h.ndim != 2 or h.shape[1] != 3 or not np.all(h > 0):
-            raise ValueError(f"{what}.half_extents must be (3,) or (m, 3) lengths > 0 m, got shape "
-                             f"{np.shape(self.half_extents)}")
+        if h.ndim != 2 or h.shape[1] != 3 or not np.all((h >= 1e-4) & (h <= 1e4)):
+            # a world body's rule (World.add_box): the view draws what a world may hold
+            got = f"shape {np.shape(self.half_extents)}" if h.ndim != 2 or h.shape[1] != 3 or not h.size \
+                else f"{h.min():g} .. {h.max():g} m"
+            raise ValueError(f"{what}.half_extents must be (3,) or (m, 3) lengths in 1e-4 .. 1e4 m, got {got}")
         m = h.shape[0]
         p = _array(self.poses, f"{what}.poses")
         fixed = [(m, 4, 4)] + ([(4, 4)] if m == 1 else [])

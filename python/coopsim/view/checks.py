@@ -1,5 +1,5 @@
 """The scene's arguments checked: per robot its joint vector, flag and box mask, contact points and normals,
-bodies, colours, positive and finite numbers; a bad one is a ValueError naming the argument."""
+bodies, colours (numbers: coopsim._checks); a bad one is a ValueError naming the argument."""
 from __future__ import annotations
 
 import numpy as np
@@ -115,19 +115,6 @@ def _rgba(c, what: str) -> np.ndarray:
         return np.array(to_rgba(c))
     except (ValueError, TypeError):
         raise ValueError(f"{what}: not a matplotlib colour: {c!r}") from None
-
-
-def _positive(x, what: str, zero: bool = False) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) \
-            or x < 0 or (x == 0 and not zero):
-        raise ValueError(f"{what} must be {'>= 0' if zero else '> 0'}, got {x!r}")
-    return float(x)
-
-
-def _finite(x, what: str) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x):
-        raise ValueError(f"{what} must be a finite number (degrees), got {x!r}")
-    return float(x)
 
 
 def _is_colour(c) -> bool:

@@ -73,6 +73,7 @@ from typing import List, Optional
 import numpy as np
 import umsgpack  # the msgpack meshcat's Python client uses (a dependency of meshcat)
 
+from .. import _checks
 from .._core import Robot
 from ..log import SimulationLog, _atomic_write, rows_at
 from .bodies import COLORS
@@ -322,16 +323,6 @@ def _safe(name: str) -> str:
 
 # ---- arguments ----
 
-def _number(x, what: str, lo: float, hi: float = math.inf, lo_open: bool = False) -> float:
-    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{what} must be a number, got {type(x).__name__}")
-    v = float(x)
-    if not math.isfinite(v) or (v <= lo if lo_open else v < lo) or v > hi:
-        rng = f"({lo:g}, {hi:g}]" if lo_open else f"[{lo:g}, {hi:g}]"
-        raise ValueError(f"{what} must be in {rng}, got {x!r}")
-    return v
-
-
 def _unpack_sources(log, robots, world):
     """(log, robots, world) from a SimulationLog or a Simulation."""
     if not isinstance(log, SimulationLog) and hasattr(log, "log") and hasattr(log, "robots"):   # a Simulation
@@ -412,7 +403,7 @@ def _markers(markers, log, t0: float, t1: float) -> list:
         except (TypeError, IndexError, KeyError):
             raise ValueError("markers must be (t, label) pairs") from None
         for t, label in pairs:
-            out.append({"t": _number(t, "a marker's t", -math.inf), "label": str(label)})
+            out.append({"t": _checks.number(t, "a marker's t"), "label": str(label)})
     g = log.grasps if log is not None and hasattr(log, "grasps") else None
     if g is not None and len(g):
         names = [rl.name for rl in log.robots]
@@ -473,12 +464,12 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     controls and its ``window.coopsim`` hook.
     """
     log, robots, world = _unpack_sources(log, robots, world)
-    fps = _number(fps, "fps", 0.0, 1000.0, lo_open=True)
-    speed = _number(speed, "speed", 0.0, 4.0)
-    ghost_margin = _number(ghost_margin, "ghost_margin", 0.0, 0.1)
-    elev = _number(elev, "elev", -90.0, 90.0)
-    azim = _number(azim, "azim", -math.inf)
-    zoom = _number(zoom, "zoom", 0.0, 100.0, lo_open=True)
+    fps = _checks.number(fps, "fps", 0.0, 1000.0, lo_open=True)
+    speed = _checks.number(speed, "speed", 0.0, 4.0)
+    ghost_margin = _checks.number(ghost_margin, "ghost_margin", 0.0, 0.1)
+    elev = _checks.number(elev, "elev", -90.0, 90.0)
+    azim = _checks.number(azim, "azim")
+    zoom = _checks.number(zoom, "zoom", 0.0, 100.0, lo_open=True)
     if path is None or not isinstance(path, (str, os.PathLike)):
         raise ValueError(f"path must be a file name, got {path!r}")
     path = os.fspath(path)
@@ -486,8 +477,8 @@ def replay_html(log, path, *, robots=None, world=None, fps: float = 30.0, speed:
     t_log = np.asarray(log.t, dtype=float)
     if t_log.ndim != 1 or len(t_log) == 0:
         raise ValueError("the log has no rows: run the simulation first")
-    t0 = float(t_log[0]) if t_start is None else _number(t_start, "t_start", -math.inf)
-    t1 = float(t_log[-1]) if t_end is None else _number(t_end, "t_end", -math.inf)
+    t0 = float(t_log[0]) if t_start is None else _checks.number(t_start, "t_start")
+    t1 = float(t_log[-1]) if t_end is None else _checks.number(t_end, "t_end")
     if t1 < t0:
         raise ValueError(f"t_end ({t1:g} s) must not be before t_start ({t0:g} s)")
     rows = _frame_rows(t_log, fps, t0, t1)

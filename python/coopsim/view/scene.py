@@ -21,8 +21,8 @@ import numpy as np
 from .annotations import INCLINE_MIN, _Annotations, inclines  # noqa: F401  (INCLINE_MIN: importable from here)
 from .bodies import COLORS, Body, _array, _is_simulation, _robot_list
 from .camera import DEFAULT_AZIM, DEFAULT_ELEV, _Camera
-from .checks import (_bodies, _contacts, _finite, _is_colour, _per_robot_bool, _per_robot_mask, _per_robot_q,
-                     _positive, _rgba)
+from .. import _checks
+from .checks import _bodies, _contacts, _is_colour, _per_robot_bool, _per_robot_mask, _per_robot_q, _rgba
 from .geometry import box_faces, box_normals, light_direction, shade, split_quads, view_direction
 from .inset import INSET_PLACES, _Inset  # noqa: F401  (INSET_PLACES: importable from here)
 from .world import _holding_mode, colliding_from_contacts, contact_lines, holding_now, resolve_world, world_bodies
@@ -59,16 +59,16 @@ class Scene(_Camera, _Annotations, _Inset):
         self.ax = ax
         self.fig = ax.figure
         self.collision_boxes = bool(collision_boxes)
-        self.contact_length = _positive(contact_length, "contact_length")
-        self.tile = _positive(tile, "tile")
-        self.ghost_margin = _positive(ghost_margin, "ghost_margin", zero=True)
+        self.contact_length = _checks.positive(contact_length, "contact_length")
+        self.tile = _checks.positive(tile, "tile")
+        self.ghost_margin = _checks.positive(ghost_margin, "ghost_margin", zero=True)
         # by default as large as the boxes allow: the floor's edges may leave the picture, the boxes may not
         self._zoom_auto = zoom is None and not axis and limits is None
-        self._zoom = (0.9 if axis else 1.6) if zoom is None else _positive(zoom, "zoom")
+        self._zoom = (0.9 if axis else 1.6) if zoom is None else _checks.positive(zoom, "zoom")
         # azim None: DEFAULT_AZIM, turned at the first fit when that hides bodies behind the robots
         self._auto_azim = azim is None
-        elev = DEFAULT_ELEV if elev is None else _finite(elev, "elev")
-        azim = DEFAULT_AZIM if azim is None else _finite(azim, "azim")
+        elev = DEFAULT_ELEV if elev is None else _checks.number(elev, "elev")
+        azim = DEFAULT_AZIM if azim is None else _checks.number(azim, "azim")
         self._edges = bool(edges)
         self.cull = bool(cull)
         self._colors = self._robot_colors(colors)

@@ -11,11 +11,11 @@ time naming the robot and the step.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from ... import _checks
 from ..._core import CubicTrajectory, IKError, Robot
 from ...planning import plan_cartesian, rotz
 from . import scene
@@ -167,7 +167,7 @@ def make_plan(start=START, end=END, *, robots=None, grip_offsets=(0.0, 0.0), clo
         raise ValueError(f"grip_offsets must be two finite offsets of at most 0.02 m, got {grip_offsets!r}")
     if len(close) != 2:
         raise ValueError(f"close must be two flags, one per robot, got {close!r}")
-    mass_factor = _positive(mass_factor, "mass_factor")
+    mass_factor = _checks.positive(mass_factor, "mass_factor")
     robots = scene.scaras() if robots is None else tuple(robots)
     T = TIMES
     # the bar's path: rests on the start stands through the approach and the grasp, lift, carry, place, rests
@@ -245,13 +245,3 @@ def _pose4(x, what) -> Tuple[float, float, float, float]:
     if a.shape != (4,) or not np.all(np.isfinite(a)):
         raise ValueError(f"{what} must be four finite numbers (x, y, z, yaw) in m and rad, got {x!r}")
     return tuple(float(v) for v in a)
-
-
-def _positive(x, what) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a number > 0, got {x!r}") from None
-    if not (v > 0.0 and math.isfinite(v)):
-        raise ValueError(f"{what} must be finite and > 0, got {x!r}")
-    return v

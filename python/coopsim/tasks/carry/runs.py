@@ -6,7 +6,9 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
+from ... import _checks
 from ..._core import IKError
+from ...batch import MAX_THREADS
 from ...sweeps import OptionsRun, sweep as _sweep
 from .controllers import CONTROLLERS
 from .disturbances import DISTURBANCES
@@ -77,8 +79,7 @@ def sweep_table(controllers: Iterable[str] = ("ct",), disturbances: Iterable[Opt
             raise ValueError(f"seeds must be integers >= 0, got {s!r}")
     if not seeds:
         raise ValueError("seeds must hold at least one seed")
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
-        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+    _checks.integer(threads, "threads", 0, MAX_THREADS)
 
     def make(controller, disturbance, seed):
         return CarryRun(controllers=controller, disturbance=disturbance, seed=seed, **options)

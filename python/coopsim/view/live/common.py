@@ -1,7 +1,5 @@
-"""The live page's shared values: constants, number parsing of the page's fields, colours, quaternions."""
+"""The live page's shared values: constants, colours, quaternions (its fields' numbers: coopsim._checks)."""
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -82,26 +80,3 @@ def _robot_colors(robot, i: int) -> np.ndarray:
     return _role_colors([_box_role(robot, b) for b in robot.boxes], i)
 
 
-def _number(text, what: str) -> float:
-    """A finite float from a number or the text of one; ValueError naming `what` otherwise."""
-    try:
-        v = float(text)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a number, got {text!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{what} must be finite, got {text!r}")
-    return v
-
-
-def _items(text) -> list:
-    """The items of a text "a, b, c" (commas, semicolons or spaces between them) or of a sequence."""
-    return [s for s in text.replace(";", ",").replace(" ", ",").split(",") if s] if isinstance(text, str) \
-        else list(np.atleast_1d(text))
-
-
-def _numbers(text, n: int, what: str) -> np.ndarray:
-    """n finite floats from a text "a, b, c" (or a sequence); ValueError naming `what` otherwise."""
-    items = _items(text)
-    if len(items) != n:
-        raise ValueError(f"{what} must be {n} numbers, got {len(items)} ({text!r})")
-    return np.array([_number(s, f"{what}[{j}]") for j, s in enumerate(items)])

@@ -12,7 +12,7 @@ import numpy as np
 from ..._core import (PID, ComputedTorque, CooperativeController, HybridForce, Impedance, ObjectControl,
                       TaskController)
 from ...robots import scara1, scara2
-from .common import _items, _number
+from ... import _checks
 
 # the editable settings of each controller kind: (name, field label, where the constructor takes it: an index
 # into its positional arguments, or None for a keyword)
@@ -175,10 +175,11 @@ class _RobotsPanel:
             for name, text in gains.items():
                 if name not in allowed:
                     raise ValueError(f"gain must be one of {allowed} for {self.labels[i]}, got {name!r}")
-                items = _items(text)
+                items = _checks.items(text)
                 if not items:
                     raise ValueError(f"{name} of {self.labels[i]} must be 1 or {self.robots[i].dof} numbers, got none")
-                values[name] = np.array([_number(t, f"{name}[{j}] of {self.labels[i]}") for j, t in enumerate(items)])
+                values[name] = np.array([_checks.number(t, f"{name}[{j}] of {self.labels[i]}", text=True)
+                                         for j, t in enumerate(items)])
         except ValueError as e:
             self._say(f"Refused: {e}", "robots")
             return
@@ -255,7 +256,7 @@ class _RobotsPanel:
             for key, text in dims.items():
                 if key not in new_dims:
                     raise ValueError(f"dimension must be one of {sorted(new_dims)}, got {key!r}")
-                new_dims[key] = _number(text, f"{key} of {self.labels[i]}")
+                new_dims[key] = _checks.number(text, f"{key} of {self.labels[i]}", text=True)
             keep = dict(base_position=r.base_position, base_yaw=r.base_yaw, friction=r.friction_coefficients,
                         gravity=r.gravity_acceleration, backend=r.backend)
             # the masses as they are (given or the maker's), scaled by each box's volume as the maker scales them

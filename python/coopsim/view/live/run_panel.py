@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import math
 
-from .common import _PLOT_EVERY, _WINDOW, _number
+from ... import _checks
+from .common import _PLOT_EVERY, _WINDOW
 from .drawing import Frame
 
 _DASH = "–"            # shown where there is nothing to measure (never "nan")
@@ -22,7 +23,7 @@ class _RunPanel:
         try:
             if isinstance(value, bool):
                 raise ValueError(f"speed must be a number of percent from 0 to 400, got {value!r}")
-            v = _number(value, "speed (%)")
+            v = _checks.number(value, "speed (%)", text=True)
             if not 0.0 <= v <= 100.0 * self.pacer.MAX_SPEED:
                 raise ValueError(f"speed must be 0 .. {100 * self.pacer.MAX_SPEED:g} %, got {v:g} %")
         except ValueError as e:

@@ -18,7 +18,8 @@ from ...pacing import Pacer
 from ...simulation import Simulation
 from ..parts import robot_parts
 from ..world import holding_now, robot_labels
-from .common import _FOREVER, _GONE, _HOST, _number, _robot_colors
+from ... import _checks
+from .common import _FOREVER, _GONE, _HOST, _robot_colors
 from .data import _Data
 from .drawing import Frame, _Drawing
 from .panels import _Panels
@@ -60,7 +61,7 @@ class LiveView(_Panels, _Data, _Drawing):
         if not isinstance(sim, Simulation):
             raise ValueError(f"sim must be a coopsim.Simulation, got {type(sim).__name__}")
         if t_end is not None:
-            t_end = _number(t_end, "t_end")
+            t_end = _checks.number(t_end, "t_end", text=True)
             if t_end < sim.time:
                 raise ValueError(f"t_end must not be before the simulation's time {sim.time} s, got {t_end}")
         if not isinstance(host, str) or not host:
@@ -68,7 +69,7 @@ class LiveView(_Panels, _Data, _Drawing):
         if not isinstance(port, (int, np.integer)) or isinstance(port, bool) or not 0 <= port <= 65535:
             raise ValueError(f"port must be 0 (any free port) .. 65535, got {port!r}")
         self._prefix = serving.url_prefix(url_prefix)      # checked before the server starts
-        self.history = _number(history, "history")
+        self.history = _checks.number(history, "history", text=True)
         if self.history <= 0:
             raise ValueError(f"history must be > 0 s, got {history!r}")
         self._move_time = self._check_move_time(move_time)
@@ -287,7 +288,7 @@ class LiveView(_Panels, _Data, _Drawing):
         closed), then keeps serving the page (and its requests) until :meth:`close`."""
         if self._thread is not None and self._thread.is_alive():
             raise RuntimeError("the live view is already running its simulation")
-        t_end = self.t_end if t_end is None else _number(t_end, "t_end")
+        t_end = self.t_end if t_end is None else _checks.number(t_end, "t_end", text=True)
         self._thread = threading.Thread(target=self._loop, args=(_FOREVER if t_end is None else t_end,),
                                         name="coopsim-live", daemon=True)
         self._thread.start()
@@ -302,7 +303,7 @@ class LiveView(_Panels, _Data, _Drawing):
         :class:`Restart` here, for the driver to run its sequence again from its beginning; without it the
         run goes on from the start to t_end."""
         self._check_open("run_to()")
-        t_end = _number(t_end, "t_end")
+        t_end = _checks.number(t_end, "t_end", text=True)
         if self._thread is not None and self._thread.is_alive():
             raise RuntimeError("the live view runs its simulation in its own thread (start()); use wait()")
         with self._drive():

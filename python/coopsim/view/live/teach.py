@@ -9,7 +9,8 @@ import time
 import numpy as np
 
 from ..._core import CubicTrajectory
-from .common import _number, _numbers, _rotation, quaternions
+from ... import _checks
+from .common import _rotation, quaternions
 from .drawing import Frame
 
 _HOLD_OFF = 2.0        # s of wall time a robot's teach controls are left alone after the user touched one
@@ -20,7 +21,7 @@ class _TeachMode:
 
     @staticmethod
     def _check_move_time(value) -> float:
-        v = _number(value, "move time")
+        v = _checks.number(value, "move time", text=True)
         if not 0 < v <= 60:
             raise ValueError(f"move time must be in (0, 60] s, got {value!r}")
         return v
@@ -37,7 +38,7 @@ class _TeachMode:
         try:
             i = self._robot_index(i)
             r = self.robots[i]
-            target = _numbers(q, r.dof, f"joint target of {self.labels[i]}")
+            target = _checks.numbers(q, r.dof, f"joint target of {self.labels[i]}", text=True)
             lo, hi = r.q_limits[:, 0], r.q_limits[:, 1]
             bad = np.flatnonzero((target < lo) | (target > hi))
             if len(bad):
