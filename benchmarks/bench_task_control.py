@@ -87,8 +87,8 @@ def press_scene():
     q, _ = sim.state(0)
     Tq = r.fk(q)
     b = sim.body_state("bar")
-    R, Rb = Tq[:3, :3], b["pose"][:3, :3]
-    pay = cs.Payload(BAR_M, R.T @ (b["position"] - Tq[:3, 3]),
+    R, Rb = Tq[:3, :3], b.pose[:3, :3]
+    pay = cs.Payload(BAR_M, R.T @ (b.position - Tq[:3, 3]),
                      R.T @ Rb @ np.asarray(cs.box_inertia(BAR_M, *(2 * BAR_HE))) @ Rb.T @ R)
     T1 = Tq.copy()
     T1[0, 3] -= 0.05
@@ -130,7 +130,7 @@ def timed(build, duration, profile=False):
     t = time.perf_counter()
     sim.run(t1, progress=False)
     w = (time.perf_counter() - t) / steps
-    return sim.profile()["controllers"] / steps if profile else w
+    return sim.profile().controllers / steps if profile else w
 
 
 def main():

@@ -125,7 +125,7 @@ def main():
     p = sim.profile()
     print(f"{'one SCARA holding a box':<28}{wall:9.3f}{t_end / wall:13.1f}{wall / steps * 1e6:9.2f}   "
           + ", ".join(f"{p[k] / steps * 1e6:.2f}" for k in ("controllers", "world", "contacts", "robots"))
-          + f"; of the world's, the grasp (rule and weld) {p['grasp'] / steps * 1e6:.2f}")
+          + f"; of the world's, the grasp (rule and weld) {p.grasp / steps * 1e6:.2f}")
     ok = rows["world every 5th step"] >= TARGET_RTF
     extra = (1 / rows["world every step"] - 1 / rows["robots only"]) / steps * t_end * 1e6
     print(f"target >= {TARGET_RTF:g}x real time with the world every 5th step: "

@@ -43,7 +43,7 @@ def pid_gains(robot, traj, w):
 def overall_rms(sim):
     """RMS tracking error (rad) over the steps and the revolute joints (the prismatic ones, in m, apart)."""
     revolute = [j for j, c in enumerate(sim.robots[0].joint_types) if c == "R"]
-    return float(np.sqrt(np.mean(sim.metrics()[0]["rms_error"][revolute] ** 2)))
+    return float(np.sqrt(np.mean(sim.metrics()[0].rms_error[revolute] ** 2)))
 
 
 def main():
@@ -70,7 +70,7 @@ def main():
         sim.run(3.5)
         m = sim.metrics()[0]
         sims[name] = sim
-        print(f"{name:<32} {overall_rms(sim):>11.2e} {m['max_abs_error'][revolute].max():>13.2e}  "
+        print(f"{name:<32} {overall_rms(sim):>11.2e} {m.max_abs_error[revolute].max():>13.2e}  "
               f"{sim.stats.real_time_factor:>11.0f}")
 
     pid_log = sims["PID + gravity compensation"].log

@@ -111,14 +111,14 @@ def test_the_default_carry_succeeds(default):
     # the bar at rest on the end stands, within the stated tolerance of its planned pose
     bar = default.sim.body_state("bar")
     want = S.bar_pose(*K.END)
-    assert np.linalg.norm(bar["pose"][:3, 3] - want[:3, 3]) < K.PLACE_TOL
-    assert np.linalg.norm(bar["velocity"]) < 1e-6
+    assert np.linalg.norm(bar.pose[:3, 3] - want[:3, 3]) < K.PLACE_TOL
+    assert np.linalg.norm(bar.velocity) < 1e-6
     assert rep["placed"]["angle_error"] < K.PLACE_TOL_ANGLE
     # both robots backed off: every box of each at least BACKED_OFF from the bar, the jaws open
     for i, r in enumerate(default.sim.robots):
         q = default.sim.state(i)[0]
         P_, H_ = r.shapes(q)
-        assert cs.box_distances(P_, H_, bar["pose"][None], S.BAR_HALF_EXTENTS[None]).min() > K.BACKED_OFF
+        assert cs.box_distances(P_, H_, bar.pose[None], S.BAR_HALF_EXTENTS[None]).min() > K.BACKED_OFF
         assert q[5] > K.OPEN - 1e-3
     # grasps and releases through the clamp rule: both grasp in the grasp step, both open in the release step
     g = log.grasps

@@ -38,7 +38,7 @@ def pid_for(robot: cs.Robot, traj: cs.CubicTrajectory, bandwidth: float = 50.0, 
 
 def overall_rms(sim: cs.Simulation) -> float:
     m = sim.metrics()[0]
-    return float(np.sqrt(np.mean(m["rms_error"] ** 2)))
+    return float(np.sqrt(np.mean(m.rms_error ** 2)))
 
 
 def run(robot, controller, traj, t_end=T_END, **kw):
@@ -69,17 +69,17 @@ def test_pid_with_gravity_compensation_tracks_cubic_trajectory(tracking):
     robot, traj, sims = tracking
     sim = sims["pid"]
     m = sim.metrics()[0]
-    assert m["steps"] == round(T_END / 2e-4) + 1
+    assert m.steps == round(T_END / 2e-4) + 1
     assert overall_rms(sim) < PID_RMS_BOUND
-    assert np.all(m["rms_error"] < PID_JOINT_RMS_BOUND), m["rms_error"]
+    assert np.all(m.rms_error < PID_JOINT_RMS_BOUND), m.rms_error
     # the log agrees with the running metrics and the reference is the trajectory
     log = sim.log
-    np.testing.assert_allclose(log.rms_error(), m["rms_error"], rtol=1e-12)
+    np.testing.assert_allclose(log.rms_error(), m.rms_error, rtol=1e-12)
     q_ref, qd_ref, _ = traj.evaluate(log.t)
     np.testing.assert_array_equal(log.q_ref, q_ref)
     np.testing.assert_array_equal(log.qd_ref, qd_ref)
     # gains within what the actuators give: no saturation on this path
-    assert np.all(m["max_abs_tau"] < robot.tau_limits)
+    assert np.all(m.max_abs_tau < robot.tau_limits)
 
 
 def test_pid_without_gravity_compensation_is_worse(tracking):
@@ -210,7 +210,7 @@ def test_logged_torques_never_exceed_actuator_limits(name, make):
     assert np.all(np.abs(log.tau) <= lim)
     # and the limits are reached, so the bound is what held the torque
     assert np.any(np.abs(log.tau) == lim)
-    assert np.all(sim.metrics()[0]["max_abs_tau"] <= lim)
+    assert np.all(sim.metrics()[0].max_abs_tau <= lim)
 
 
 # ---- the formulas ----

@@ -25,10 +25,10 @@ def test_two_pins_holding_a_bar_off_centre_at_rest_carry_no_internal_wrench_and_
         fa, fb = m_g * b / (a + b), m_g * a / (a + b)  # the pins' statics: forces up, no moment about c
         ha, hb = np.r_[0, 0, fa, 0, 0, 0], np.r_[0, 0, fb, 0, 0, 0]
         r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
-        np.testing.assert_allclose(r["external"], [0, 0, m_g, 0, 0, 0], atol=1e-12)  # balances the weight
-        np.testing.assert_allclose(r["internal"], 0, atol=1e-12 * m_g)
-        assert r["squeeze"] == 0 and r["twist"] == 0 and r["shear"] == 0 and np.all(r["bending"] == 0)
-        np.testing.assert_allclose(r["load_share"], [b / (a + b), a / (a + b)], rtol=1e-6)
+        np.testing.assert_allclose(r.external, [0, 0, m_g, 0, 0, 0], atol=1e-12)  # balances the weight
+        np.testing.assert_allclose(r.internal, 0, atol=1e-12 * m_g)
+        assert r.squeeze == 0 and r.twist == 0 and r.shear == 0 and np.all(r.bending == 0)
+        np.testing.assert_allclose(r.load_share, [b / (a + b), a / (a + b)], rtol=1e-6)
         # whereas the Euclidean pseudo-inverse would call part of the weight internal when off-centre
         euclid = grasp.internal_wrenches([ha, hb], [pa, pb], c)
         assert (np.abs(euclid).max() > 0.01 * m_g) == (a != b)
@@ -41,30 +41,30 @@ def test_a_pure_squeeze_reads_as_squeeze_and_a_twist_as_twist():
     for s in (3.0, -2.5, 40.0):  # > 0 pushing together (compression), < 0 pulling apart (tension)
         ha, hb = weight[0] + np.r_[s * e, 0, 0, 0], weight[1] + np.r_[-s * e, 0, 0, 0]
         r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
-        assert r["squeeze"] == pytest.approx(s, rel=1e-2)
-        assert r["squeeze"] == pytest.approx(s, rel=1e-12)  # exactly, in fact
-        np.testing.assert_allclose(r["internal"], np.r_[s * e, 0, 0, 0, -s * e, 0, 0, 0], atol=1e-12)
-        np.testing.assert_allclose(r["external"], [0, 0, G_BAR, 0, 0, 0], atol=1e-12)
-        np.testing.assert_allclose(r["load_share"], [0.75, 0.25], rtol=1e-12)
+        assert r.squeeze == pytest.approx(s, rel=1e-2)
+        assert r.squeeze == pytest.approx(s, rel=1e-12)  # exactly, in fact
+        np.testing.assert_allclose(r.internal, np.r_[s * e, 0, 0, 0, -s * e, 0, 0, 0], atol=1e-12)
+        np.testing.assert_allclose(r.external, [0, 0, G_BAR, 0, 0, 0], atol=1e-12)
+        np.testing.assert_allclose(r.load_share, [0.75, 0.25], rtol=1e-12)
     # a twist about the line: opposite moments along it, which move nothing
     tw = 0.4
     ha, hb = weight[0] + np.r_[0, 0, 0, tw * e], weight[1] + np.r_[0, 0, 0, -tw * e]
     r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
-    assert r["twist"] == pytest.approx(tw, rel=1e-12)
-    assert abs(r["squeeze"]) < 1e-12 and abs(r["shear"]) < 1e-12
-    np.testing.assert_allclose(r["internal"], np.r_[0, 0, 0, tw * e, 0, 0, 0, -tw * e], atol=1e-12)
-    np.testing.assert_allclose(r["bending"], 0, atol=1e-12)
+    assert r.twist == pytest.approx(tw, rel=1e-12)
+    assert abs(r.squeeze) < 1e-12 and abs(r.shear) < 1e-12
+    np.testing.assert_allclose(r.internal, np.r_[0, 0, 0, tw * e, 0, 0, 0, -tw * e], atol=1e-12)
+    np.testing.assert_allclose(r.bending, 0, atol=1e-12)
     # a moment about the line that both apply alike turns the body: external, not internal
     ha, hb = weight[0] + np.r_[0, 0, 0, tw * e], weight[1] + np.r_[0, 0, 0, tw * e]
     r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
-    assert abs(r["twist"]) < 1e-12 and np.abs(r["internal"]).max() < 1e-12
-    np.testing.assert_allclose(r["external"][3:], 2 * tw * e, atol=1e-12)
+    assert abs(r.twist) < 1e-12 and np.abs(r.internal).max() < 1e-12
+    np.testing.assert_allclose(r.external[3:], 2 * tw * e, atol=1e-12)
     # bending: opposite moments across the line
     n = np.array([0.0, 1.0, 0.0])
     ha, hb = weight[0] + np.r_[0, 0, 0, 0.3 * n], weight[1] + np.r_[0, 0, 0, -0.3 * n]
     r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
-    np.testing.assert_allclose(r["bending"], [0.3, 0.3], rtol=1e-12)
-    assert abs(r["twist"]) < 1e-12 and abs(r["squeeze"]) < 1e-12 and abs(r["shear"]) < 1e-12
+    np.testing.assert_allclose(r.bending, [0.3, 0.3], rtol=1e-12)
+    assert abs(r.twist) < 1e-12 and abs(r.squeeze) < 1e-12 and abs(r.shear) < 1e-12
 
 
 def test_random_holds_match_the_python_reference_and_the_weighted_limit():
@@ -74,25 +74,25 @@ def test_random_holds_match_the_python_reference_and_the_weighted_limit():
         ha, hb = rng.normal(size=(2, 6)) * [5, 5, 5, 0.5, 0.5, 0.5]
         r = cs.cooperation_wrenches(c, pa, ha, pb, hb)
         G = grasp.grasp_matrix([pa, pb], c)
-        np.testing.assert_allclose(r["external"], G @ np.r_[ha, hb], atol=1e-12)
+        np.testing.assert_allclose(r.external, G @ np.r_[ha, hb], atol=1e-12)
         ref = grasp.internal_wrenches([ha, hb], [pa, pb], c, metric="forces").reshape(-1)
-        np.testing.assert_allclose(r["internal"], ref, atol=1e-12)
-        np.testing.assert_allclose(G @ r["internal"], 0, atol=1e-12)  # in W's null space
+        np.testing.assert_allclose(r.internal, ref, atol=1e-12)
+        np.testing.assert_allclose(G @ r.internal, 0, atol=1e-12)  # in W's null space
         # the metric's definition: the weighted least norm |f|^2 + lambda^2 |mu|^2 as lambda grows
         lam = 1e4
         Winv = np.diag(np.tile(np.r_[np.ones(3), np.full(3, lam ** -2)], 2))
         h = np.r_[ha, hb]
         weighted = h - Winv @ G.T @ np.linalg.solve(G @ Winv @ G.T, G @ h)
-        np.testing.assert_allclose(r["internal"], weighted, atol=1e-6)
+        np.testing.assert_allclose(r.internal, weighted, atol=1e-6)
         # the squeeze is the internal force along the line
         e = (pb - pa) / np.linalg.norm(pb - pa)
-        assert r["squeeze"] == pytest.approx(r["internal"][:3] @ e, abs=1e-12)
+        assert r.squeeze == pytest.approx(r.internal[:3] @ e, abs=1e-12)
     # both points at one place: the old half difference is the internal part there
     c, p = np.zeros(3), np.array([0.1, 0.2, 0.0])
     ha, hb = rng.normal(size=(2, 6))
     r = cs.cooperation_wrenches(c, p, ha, p, hb)
-    np.testing.assert_allclose(r["internal"], np.r_[(ha - hb) / 2, (hb - ha) / 2], atol=1e-12)
-    assert np.isnan(r["squeeze"])
+    np.testing.assert_allclose(r.internal, np.r_[(ha - hb) / 2, (hb - ha) / 2], atol=1e-12)
+    assert np.isnan(r.squeeze)
     with pytest.raises(ValueError, match="up must be a finite nonzero vector"):
         cs.cooperation_wrenches(c, p, ha, p, hb, up=np.zeros(3))
     with pytest.raises(ValueError, match="wrench_a"):
@@ -148,9 +148,9 @@ def test_two_pin_welds_at_rest_in_a_simulation_share_by_the_lever_rule():
     assert np.abs(co["relative_pose_error"][rest, :3]).max() < 1e-3
     # the present state is the last row
     now = sim.cooperation(0, 1)
-    assert now["holding"] and now["body"] == "bar"
+    assert now.holding and now.body == "bar"
     for k in ("external", "internal", "squeeze", "load_share", "relative_pose_error", "point_a"):
-        np.testing.assert_array_equal(now[k], co[k][-1])
+        np.testing.assert_array_equal(getattr(now, k), co[k][-1])
 
 
 def test_the_engines_rows_equal_the_python_computation_on_the_same_rows():

@@ -109,12 +109,12 @@ def test_object_impedance_gives_the_commanded_second_order_response_to_a_push(re
     sim.run(1.8, progress=False)
     assert np.abs(c.compliant_offset).max() < 1e-6  # at rest, unpushed: on the reference
     y = np.array([-np.sin(YAW), np.cos(YAW), 0.0])  # across the bar, horizontal
-    start = sim.body_state("bar")["position"]
+    start = sim.body_state("bar").position
     sim.set_body_wrench("bar", np.concatenate([y, np.zeros(3)]))
     x = []
     for k in range(1, 801):
         sim.run(1.8 + 0.005 * k, progress=False)
-        x.append((sim.body_state("bar")["position"] - start) @ y)
+        x.append((sim.body_state("bar").position - start) @ y)
     x = np.array(x)
     assert sim.holding(0) == "bar" and sim.holding(1) == "bar"
     assert x[-1] == pytest.approx(1.0 / K, rel=0.02)
@@ -146,7 +146,7 @@ def test_leader_follower_keeps_the_clamps_together_while_the_leader_moves(record
     co = sim.log.cooperation(0, 1)
     k = sim.log.t > t0
     rpe = co["relative_pose_error"][k]
-    np.testing.assert_allclose(sim.body_state("bar")["position"][:2] - CENTRE[:2], [0.04, -0.02], atol=5e-4)
+    np.testing.assert_allclose(sim.body_state("bar").position[:2] - CENTRE[:2], [0.04, -0.02], atol=5e-4)
     record_property("relative position error (mm)", float(np.abs(rpe[:, :3]).max() * 1e3))
     record_property("relative rotation error (mrad)", float(np.abs(rpe[:, 3:]).max() * 1e3))
     assert np.abs(rpe[:, :3]).max() < 5e-5 and np.abs(rpe[:, 3:]).max() < 5e-4

@@ -181,10 +181,10 @@ def check_world_run(sim, log):
     for name in w.body_names:
         if w.body(name)["kind"] in ("static", "free"):
             s = sim.body_state(name)
-            finite(s["pose"], s["velocity"], s["angular_velocity"])
+            finite(s.pose, s.velocity, s.angular_velocity)
     for c in sim.contacts():
-        assert c["kind"] in KINDS and c["a"] in w.body_names and c["b"] in w.body_names
-        finite(c["point_a"], c["point_b"], c["normal"], c["depth"], c["force"])
+        assert c.kind in KINDS and c.a in w.body_names and c.b in w.body_names
+        finite(c.point_a, c.point_b, c.normal, c.depth, c.force)
     for b in log.bodies.values():
         finite(b.data)
     ev = log.contacts
@@ -337,8 +337,8 @@ def test_fuzz_simulation_with_a_world(data):
         elif isinstance(out, str):
             assert out in names
     for c in clear(lambda: sim.contacts()) or []:
-        assert c["kind"] in KINDS
-        check(c["point_a"], c["point_b"], c["normal"], c["depth"], c["force"])
+        assert c.kind in KINDS
+        check(c.point_a, c.point_b, c.normal, c.depth, c.force)
     # applied forces and wrenches, valid or not, then more steps
     if sim.robot_count:
         forces = data.draw(st.one_of(st.none(), vectors(6, -5, 5), anything), label="forces")
@@ -383,11 +383,11 @@ def test_fuzz_grasp_hold_release_and_wrenches(options, data):
             assert sim.holding(0) is None
         elif action == "check":
             c = sim.grasp_check(0, "box")
-            finite(*[v for v in c.values() if not isinstance(v, (bool, np.bool_))])
+            finite(*[v for v in (getattr(c, k) for k in type(c).fields) if not isinstance(v, (bool, np.bool_))])
         elif action == "wrench":
             sim.set_applied(0, wrenches=[cs.Wrench(-1, data.draw(vectors(3, -0.5, 0.5)), data.draw(vectors(6, -5, 5)))])
         assert sim.holding(0) in (None, "box")
-        finite(sim.weld_wrench(0), sim.body_state("box")["pose"], *sim.state(0))
+        finite(sim.weld_wrench(0), sim.body_state("box").pose, *sim.state(0))
     log = sim.log
     g = log.grasps
     assert list(g["t"]) == sorted(g["t"]) and set(g["body"]) <= {"box"}

@@ -83,19 +83,19 @@ def test_the_clamp_rule_as_a_truth_table(case):
     sim = closing(r, w, **sim_kw)
     check = sim.grasp_check(0, "box")
     names = ("closing", "aligned", "touching", "in_pads", "slow")
-    assert {n: check[n] for n in names} == {n: n != broken for n in names}, check
-    assert check["ok"] == (broken is None)
+    assert {n: getattr(check, n) for n in names} == {n: n != broken for n in names}, check
+    assert check.ok == (broken is None)
 
 
 def test_the_grasp_happens_through_the_rule_and_never_snaps():
     r, w = scene(BOX * [1, 2 / 3, 1])  # 2 cm wide against the fixed jaw: the moving jaw closes on it
     sim = closing(r, w)
-    p0 = sim.body_state("box")["pose"]
+    p0 = sim.body_state("box").pose
     sim.run(0.2, progress=False)
     g = sim.log.grasps
     assert sim.holding(0) == "box" and list(g["event"]) == ["grasp"] and 0.02 < g["t"][0] < 0.2
     # attached where it was: the body has not jumped
-    assert np.abs(sim.body_state("box")["pose"] - p0).max() < 2e-3
+    assert np.abs(sim.body_state("box").pose - p0).max() < 2e-3
     # without the rule nothing is held
     r, w = scene(BOX * [1, 2 / 3, 1])
     sim = closing(r, w, grasp=False)
@@ -115,8 +115,8 @@ def test_a_grasp_leaves_resting_contacts_whole():
     for pair in (("floor", "bar"), ("box", "pedestal")):
         e = events[(events["a"] == pair[0]) & (events["b"] == pair[1])]
         assert len(e) == 1 and np.isnan(e["end"].iloc[0]) and e["steps"].iloc[0] == 1501, e
-    bar = [c for c in sim.contacts() if c["b"] == "bar"]
-    assert sum(c["force"] for c in bar)[2] == pytest.approx(-0.15 * 9.81, rel=1e-9)
+    bar = [c for c in sim.contacts() if c.b == "bar"]
+    assert sum(c.force for c in bar)[2] == pytest.approx(-0.15 * 9.81, rel=1e-9)
 
 
 @pytest.mark.parametrize("case", ["one jaw touching", "jaw commanded open", "moving at 0.2 m/s"])
@@ -133,7 +133,7 @@ def test_a_lifted_body_weighs_m_g_on_the_weld_and_loads_the_robot():
     sim = closing(r, w, lift=0.05)
     sim.run(1.5, progress=False)
     assert sim.holding(0) == "box"
-    assert sim.body_state("box")["position"][2] > sim.world.body("box")["pose"][2, 3] + 0.045  # carried up
+    assert sim.body_state("box").position[2] > sim.world.body("box")["pose"][2, 3] + 0.045  # carried up
     F = sim.weld_wrench(0)
     assert F[2] == pytest.approx(0.1 * 9.81, rel=1e-6)
     assert np.abs(F[:2]).max() < 1e-6 * 0.981
@@ -141,7 +141,7 @@ def test_a_lifted_body_weighs_m_g_on_the_weld_and_loads_the_robot():
     # between the pads; the box is gripped about its centre, which stands in for that point here
     q, _ = sim.state(0)
     link = r.clamp.fixed_link
-    c = sim.body_state("box")["position"]
+    c = sim.body_state("box").position
     tau = r.external_torques(q, [cs.Wrench(link, np.linalg.solve(r.frames(q)[link], [*c, 1.0])[:3], -F)])
     tau_ext = sim.applied(0)["tau_ext"]
     np.testing.assert_allclose(tau_ext[:5], tau[:5], rtol=1e-3, atol=1e-4)  # joint 6 also feels the jaw stop
@@ -167,10 +167,10 @@ def test_release_gives_the_body_the_clamps_rigid_twist():
     assert sim.holding(0) is None
     st = sim.body_state("box")
     link = r.clamp.fixed_link
-    p = np.linalg.solve(r.frames(q)[link], [*st["position"], 1.0])[:3]
+    p = np.linalg.solve(r.frames(q)[link], [*st.position, 1.0])[:3]
     twist = r.jacobian(q, link, p) @ qd
-    np.testing.assert_allclose(st["velocity"], twist[:3], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(st["angular_velocity"], twist[3:], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(st.velocity, twist[:3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(st.angular_velocity, twist[3:], rtol=0, atol=1e-9)
     g = sim.log.grasps
     assert list(g["event"]) == ["grasp", "release"] and g["reason"].iloc[-1] == "released"
 
@@ -180,12 +180,12 @@ def test_opening_the_jaw_releases_and_the_body_falls():
     sim = closing(r, w, lift=0.05, open_at=0.8)
     sim.run(0.75, progress=False)
     assert sim.holding(0) == "box"
-    z_held = sim.body_state("box")["position"][2]
+    z_held = sim.body_state("box").position[2]
     sim.run(1.5, progress=False)
     g = sim.log.grasps
     assert sim.holding(0) is None and list(g["event"]) == ["grasp", "release"], g
     assert g["reason"].iloc[-1] == "opened" and 0.9 < g["t"].iloc[-1] < 1.0  # opened at 0.8, let go over 0.1 s
-    assert sim.body_state("box")["position"][2] < z_held - 0.04  # back down on the pedestal
+    assert sim.body_state("box").position[2] < z_held - 0.04  # back down on the pedestal
 
 
 # ---- two holders ----
@@ -312,7 +312,7 @@ def test_holding_still_costs_the_torques_of_the_body_lumped_into_the_clamp_link(
     q, qd = sim.state(0)
     assert np.abs(qd).max() < 1e-4  # at rest
     link = r.clamp.fixed_link
-    X = np.linalg.solve(r.frames(q)[link], sim.body_state("box")["pose"])
+    X = np.linalg.solve(r.frames(q)[link], sim.body_state("box").pose)
     oracle = payload_robot(r, X, 0.1, he)
     # gravity torques of robot + payload = the robot's own, minus what the weld brings in
     tau_ext = sim.applied(0)["tau_ext"]
@@ -401,7 +401,7 @@ def test_the_deprecated_half_difference_is_the_internal_wrench_only_for_welds_at
     np.testing.assert_allclose(iw[-1], (log[0].weld[-1] - log[1].weld[-1]) / 2)
     # it is the grasp module's internal part (either metric) for two welds at one point, here the bar's
     # centre; the welds' own points lie between each gripper's pads (SimulationLog.cooperation has them)
-    c = sim.body_state("bar")["position"]
+    c = sim.body_state("bar").position
     for metric in ("euclidean", "forces"):
         internal = cs.grasp.internal_wrenches(np.array([log[0].weld[-1], log[1].weld[-1]]), [c, c], c, metric=metric)
         np.testing.assert_allclose(internal[0], iw[-1], atol=1e-12)
@@ -421,14 +421,14 @@ def test_pressing_a_held_body_on_scenery_passes_the_scenery_force_to_the_robot()
     sim.add_robot(r, cs.PID(**PID), traj)
     sim.run(1.0, progress=False)
     assert sim.holding(0) == "box"
-    on_box = sum(-c["force"] if c["b"] == "box" else c["force"] for c in sim.contacts()
-                 if "pedestal" in (c["a"], c["b"]) and "box" in (c["a"], c["b"]))
+    on_box = sum(-c.force if c.b == "box" else c.force for c in sim.contacts()
+                 if "pedestal" in (c.a, c.b) and "box" in (c.a, c.b))
     assert on_box[2] > 3.0  # pressed well beyond its weight (0.98 N): measured 4.9 N
     F = sim.weld_wrench(0)
     np.testing.assert_allclose(F[:3], -(on_box + [0, 0, -0.1 * 9.81]), rtol=1e-3, atol=1e-3)  # the box at rest
     q, _ = sim.state(0)
     link = r.clamp.fixed_link
-    c = sim.body_state("box")["position"]
+    c = sim.body_state("box").position
     tau = r.external_torques(q, [cs.Wrench(link, np.linalg.solve(r.frames(q)[link], [*c, 1.0])[:3],
                                            np.r_[on_box + [0, 0, -0.1 * 9.81], -F[3:]])])
     np.testing.assert_allclose(sim.applied(0)["tau_ext"][:5], tau[:5], rtol=1e-2, atol=1e-3)
@@ -468,7 +468,7 @@ def test_a_pick_and_move_with_the_weld_follows_the_payload_oracle_within_the_wel
     grasp_only.add_robot(r, cs.PID(**gains), cs.CubicTrajectory([0, 0.02, 0.12], np.array([Q0, Q0, q1])))
     grasp_only.run(0.15, progress=False)
     q = grasp_only.state(0)[0]
-    X = np.linalg.solve(r.frames(q)[5], grasp_only.body_state("box")["pose"])
+    X = np.linalg.solve(r.frames(q)[5], grasp_only.body_state("box").pose)
     oracle = payload_robot(r, X, 0.1, he)
 
     r, w = scene(he)
@@ -489,7 +489,7 @@ def test_a_pick_and_move_with_the_weld_follows_the_payload_oracle_within_the_wel
     # the bound: the weld's sag at its peak force
     F = np.linalg.norm(lw[0].weld[k][:, :3], axis=1).max()
     link = r.clamp.fixed_link
-    c = np.linalg.solve(r.frames(q_start)[link], [*welded.body_state("box")["position"], 1.0])[:3]
+    c = np.linalg.solve(r.frames(q_start)[link], [*welded.body_state("box").position, 1.0])[:3]
     J = r.jacobian(q_start, link, c)[:3]
     robot_inv = np.linalg.eigvalsh(J @ np.linalg.solve(r.mass_matrix(q_start), J.T)).max()
     m_red = 1.0 / (1.0 / 0.1 + robot_inv)

@@ -653,3 +653,106 @@ def test_the_shared_checks_speak_the_engines_format():
         assert value == said.split(" must ")[0] and cs_.bound_of(rule) == bound, (msg, value, rule)
     assert _checks.number("0.5", "move time", 0.0, 60.0, lo_open=True, text=True) == 0.5
     assert _checks.positive(np.float32(2), "tile") == 2.0 and _checks.integer(np.int64(3), "threads", 0, 9) == 3
+
+
+# ---- the simulation's interface written once ----
+
+# py::dicts the bindings still build key by key, per file, and why each is not an engine struct's copy
+DICT_EXCEPTIONS = {
+    "bind_simulation.cpp": 13,  # simulation_defaults() (12) and grasp_options (weld_moment beside the table of
+                                # numeric options by name): the constructor's keyword arguments by name (**defaults)
+    "bind_task.cpp": 10,        # the task laws' pickling: their constructors' keyword arguments
+    "bind_world.cpp": 10,       # spec_dict (9): World's pickle and World.body(), a BodySpec by name (old pickles
+                                # load); the pickle's keyword sleep_after (1)
+    "bind_ik.cpp": 6,          # Robot.ik(info=True): keys per method (closed form: branch; numeric: iterations)
+    "bind_codegen.cpp": 7,     # generated_info(): what a robot has attached, with in_use beside the library's
+}
+
+
+def _dict_keys_set(text: str) -> int:
+    """Keys a C++ source writes one by one into a dict: d["key"] = ..., "key"_a = ..."""
+    import re
+
+    return len(re.findall(r"\b\w+\[\"\w+\"\]\s*=[^=]", text)) + len(re.findall(r"\"\w+\"_a\s*=", text))
+
+
+def test_the_bindings_build_no_dictionary_of_an_engine_struct():
+    """The quantities a run exposes are engine structs bound once (struct_binding.hpp), not dicts filled key
+    by key; the dicts that stay are listed above with the reason. A new one fails here."""
+    found = {p.name: _dict_keys_set(p.read_text(encoding="utf-8")) for p in sorted((ROOT / "cpp" / "bindings").glob("*.cpp"))}
+    found = {k: v for k, v in found.items() if v}
+    assert found == {k: v for k, v in DICT_EXCEPTIONS.items() if v}, found
+    assert _dict_keys_set('d["force"] = to_numpy(c.force); py::dict("dt"_a = o.dt);') == 2  # the count can fail
+    from coopsim import _core
+
+    for cls in (_core.Contact, _core.GraspCheck, _core.Cooperation, _core.HeldCooperation, _core.TrackingMetrics,
+                _core.SensorOptions, _core.SensorReading, _core.StepProfile, _core.BodyState):
+        assert cls.fields and all(isinstance(getattr(cls, f), property) and getattr(cls, f).__doc__ for f in cls.fields)
+
+
+def test_each_simulation_quantity_is_declared_once():
+    """Each of SimulationCore's names is bound once in bind_simulation.cpp, and coopsim.Simulation re-declares
+    none that only forwards to it: those are FORWARDED, made from the bound class with its docstring."""
+    import re
+    from collections import Counter
+
+    from coopsim import _core
+    from coopsim.simulation import FORWARDED, Simulation
+
+    text = (ROOT / "cpp" / "bindings" / "bind_simulation.cpp").read_text(encoding="utf-8")
+    core = text[text.index('py::class_<Simulation>(m, "SimulationCore"'):text.index('m.def("simulation_defaults"')]
+    bound = Counter(re.findall(r"\.def(?:_property_readonly|_static)?\(\"(\w+)\"", core))
+    assert bound and all(n == 1 for n in bound.values()), {k: n for k, n in bound.items() if n > 1}
+    tree = ast.parse((PACKAGE / "simulation.py").read_text(encoding="utf-8"))
+    cls = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Simulation")
+    declared = {f.name for f in cls.body if isinstance(f, ast.FunctionDef)}
+    only_forwarding = []
+    for f in cls.body:
+        if not isinstance(f, ast.FunctionDef):
+            continue
+        body = [s for s in f.body if not (isinstance(s, ast.Expr) and isinstance(s.value, ast.Constant))]
+        if len(body) != 1 or not isinstance(body[0], (ast.Return, ast.Expr)) or body[0].value is None:
+            continue
+        v = body[0].value
+        target = v.func if isinstance(v, ast.Call) else v
+        params = [a.arg for a in f.args.args[1:]]
+        if (isinstance(target, ast.Attribute) and target.attr == f.name and isinstance(target.value, ast.Attribute)
+                and target.value.attr == "_core"
+                and (not isinstance(v, ast.Call) or [getattr(a, "id", None) for a in v.args] == params)):
+            only_forwarding.append(f.name)
+    assert not only_forwarding, f"Simulation re-declares what it only forwards (add them to FORWARDED): {only_forwarding}"
+    assert not set(FORWARDED) & declared
+    for name in FORWARDED:
+        assert name in bound, name
+        engine, facade = getattr(_core.SimulationCore, name), getattr(Simulation, name)
+        assert facade.__doc__ == engine.__doc__, name
+    assert Simulation.dt.__doc__ == "s, > 0" and "Advances" not in (Simulation.contacts.__doc__ or "")
+    assert Simulation.body_state.__doc__.splitlines()[0].startswith("body_state(self")
+
+
+def test_the_docstrings_come_from_the_headers_and_are_regenerated(tmp_path):
+    """cpp/bindings/generated/docstrings.hpp is what `python3 scripts/header_docs.py` writes from the headers,
+    byte for byte; a header's comment changed without regenerating shows as a difference; the bound module and
+    its stubs carry the header's text."""
+    import importlib.util
+
+    run = subprocess.run([sys.executable, str(ROOT / "scripts" / "header_docs.py"), "--out", str(tmp_path / "d.hpp")],
+                         capture_output=True, text=True, check=True)
+    assert "wrote" in run.stdout
+    committed = ROOT / "cpp" / "bindings" / "generated" / "docstrings.hpp"
+    assert (tmp_path / "d.hpp").read_bytes() == committed.read_bytes(), "run python3 scripts/header_docs.py"
+    spec = importlib.util.spec_from_file_location("header_docs", ROOT / "scripts" / "header_docs.py")
+    docs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(docs)
+    header = (ROOT / "cpp" / "include" / "coopsim" / "grasp.hpp").read_text(encoding="utf-8")
+    changed = tmp_path / "grasp.hpp"
+    changed.write_text(header.replace("// all five conditions", "// all five conditions met"), encoding="utf-8")
+    before = dict(docs.parse(str(ROOT / "cpp" / "include" / "coopsim" / "grasp.hpp")))
+    after = dict(docs.parse(str(changed)))
+    assert before["GraspCheck_ok"] == "all five conditions" and after["GraspCheck_ok"] == "all five conditions met"
+    from coopsim import _core
+
+    text = committed.read_text(encoding="utf-8")
+    assert _core.GraspCheck.ok.__doc__ == before["GraspCheck_ok"] and "doc_Simulation_advance" in text
+    assert before["GraspCheck_ok"] in (PACKAGE / "_core.pyi").read_text(encoding="utf-8")
+    assert "Advances n >= 0 steps" in _core.SimulationCore.advance.__doc__

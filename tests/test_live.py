@@ -422,7 +422,7 @@ def test_the_page_shows_the_robots_and_the_bar_where_the_scene_puts_them(browser
     try:
         from PIL import Image
 
-        bar = np.asarray(sim.body_state("bar")["position"])
+        bar = np.asarray(sim.body_state("bar").position)
         img = lp.shows(bar, is_red, "the bar red where it lies")
         Image.fromarray(img.astype(np.uint8)).save(tmp_path / "scene.png")
         P, _ = r1.shapes(sim.state(0)[0])
@@ -1503,7 +1503,7 @@ def test_the_tasks_page_frames_the_robots_the_container_and_the_bar_at_the_start
         from PIL import Image
 
         assert lp.page.title() == "coopsim: the cooperative bar handover"
-        bar = np.asarray(sim.body_state("bar")["position"])
+        bar = np.asarray(sim.body_state("bar").position)
         box = lp.page.locator("canvas").first.bounding_box()
         shot = []
 

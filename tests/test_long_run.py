@@ -35,7 +35,7 @@ def test_ten_million_steps_with_a_held_bar_keep_memory_flat_and_the_grasp():
                   handover_yaw=None, t_limit=1e9)
     sim, name = R.sim, "bar"
     R.step = "pick"
-    bar, G = R.pick_grip(sim.body_state(name)["pose"])
+    bar, G = R.pick_grip(sim.body_state(name).pose)
     R.run_to(R.move_joints(1, [R._ik(1, R._above(bar, G), H.OPEN)], [1.5]))
     R.run_to(R.move_line(1, [bar @ G], [0.6], H.OPEN))
     R.close(1)
@@ -52,7 +52,7 @@ def test_ten_million_steps_with_a_held_bar_keep_memory_flat_and_the_grasp():
     sim.set_reference(0, swing(q1, q1 + [0.3, -0.3, -0.05, 0.6, -0.3, 0.0], t0, 3.0, int(total / 3) + 2))
     sim.run(t0 + 20.0, progress=False)                 # warm up: every buffer at its working size
     grasps = len(sim.log.grasps)
-    X = np.linalg.solve(R.r2.fk(sim.state(1)[0]), sim.body_state(name)["pose"])   # the bar in #2's tool frame
+    X = np.linalg.solve(R.r2.fk(sim.state(1)[0]), sim.body_state(name).pose)   # the bar in #2's tool frame
     before = rss_bytes()
     sim.step(STEPS - sim.steps)
     after = rss_bytes()
@@ -62,7 +62,7 @@ def test_ten_million_steps_with_a_held_bar_keep_memory_flat_and_the_grasp():
     for i in range(2):
         q, qd = sim.state(i)
         assert np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
-    assert np.all(np.isfinite(sim.body_state(name)["pose"]))
+    assert np.all(np.isfinite(sim.body_state(name).pose))
     # the bar stayed where the weld holds it: within the grasp's slip limit (5 mm) of where it sat in the clamp
-    drift = sim.body_state(name)["pose"][:3, 3] - (R.r2.fk(sim.state(1)[0]) @ X)[:3, 3]
+    drift = sim.body_state(name).pose[:3, 3] - (R.r2.fk(sim.state(1)[0]) @ X)[:3, 3]
     assert np.linalg.norm(drift) < 5e-3

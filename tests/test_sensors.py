@@ -49,20 +49,20 @@ def test_a_held_bar_at_rest_reads_its_weight_and_lever_moment():
     assert sim.holding(0) == "bar"
     s = sim.sensor(0)
     q, _ = sim.state(0)
-    np.testing.assert_allclose(s["pose"], r.fk(q), rtol=0, atol=1e-12)  # the sensor frame is the tool frame
-    c, p = sim.body_state("bar")["position"], s["pose"][:3, 3]
+    np.testing.assert_allclose(s.pose, r.fk(q), rtol=0, atol=1e-12)  # the sensor frame is the tool frame
+    c, p = sim.body_state("bar").position, s.pose[:3, 3]
     assert np.linalg.norm((c - p)[:2]) > 0.045  # the lever: the bar's centre 5 cm from the TCP
     f = np.array([0.0, 0.0, m * G])
     want = np.concatenate([f, np.cross(c - p, f)])
-    np.testing.assert_allclose(s["ft_world"], want, rtol=0, atol=1e-3 * m * G)
-    assert np.linalg.norm(s["ft_world"][3:] - want[3:]) < 1e-3 * np.linalg.norm(want[3:])
-    np.testing.assert_allclose(s["ft_clamp"], to_clamp(s["pose"], want), rtol=0, atol=1e-3 * m * G)
+    np.testing.assert_allclose(s.ft_world, want, rtol=0, atol=1e-3 * m * G)
+    assert np.linalg.norm(s.ft_world[3:] - want[3:]) < 1e-3 * np.linalg.norm(want[3:])
+    np.testing.assert_allclose(s.ft_clamp, to_clamp(s.pose, want), rtol=0, atol=1e-3 * m * G)
     # an ideal sensor: the reading is the truth (turned into the clamp frame and back), and the log's last
     # row is the reading now
-    np.testing.assert_allclose(s["ft_world"], s["ft_true_world"], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(s.ft_world, s.ft_true_world, rtol=0, atol=1e-15)
     log = sim.log[0]
-    np.testing.assert_array_equal(log.ft_world[-1], s["ft_world"])
-    np.testing.assert_array_equal(log.ft_clamp[-1], s["ft_clamp"])
+    np.testing.assert_array_equal(log.ft_world[-1], s.ft_world)
+    np.testing.assert_array_equal(log.ft_clamp[-1], s.ft_clamp)
     # before the grasp, with the jaws open and touching nothing, it read zero
     assert np.all(log.ft_world[0] == 0) and np.all(log.ft_clamp[0] == 0)
 
@@ -95,24 +95,24 @@ def test_contacts_on_the_jaws_are_sensed_without_a_weld(kind):
     sim.run(0.3, progress=False)
     assert sim.holding(0) is None
     s = sim.sensor(0)
-    p = s["pose"][:3, 3]
+    p = s.pose[:3, 3]
     clamp = {f"{r.name}/{b.name}" for b in r.boxes if b.link >= r.clamp.fixed_link}
     h = np.zeros(6)
     pushed = 0.0
     for c in sim.contacts():
-        for name, point, force in ((c["a"], c["point_a"], c["force"]), (c["b"], c["point_b"], -c["force"])):
+        for name, point, force in ((c.a, c.point_a, c.force), (c.b, c.point_b, -c.force)):
             if name in clamp:
                 pushed += np.linalg.norm(force)
                 h -= np.concatenate([force, np.cross(point - p, force)])
     assert pushed > 1.0  # newtons on the jaws
     if kind.startswith("scenery"):
         assert h[2] < -5.0  # pressing down with several newtons
-    np.testing.assert_allclose(s["ft_true_world"], h, rtol=0, atol=1e-9 * pushed)
-    np.testing.assert_allclose(s["ft_world"], s["ft_true_world"], rtol=0, atol=1e-12 * pushed)
+    np.testing.assert_allclose(s.ft_true_world, h, rtol=0, atol=1e-9 * pushed)
+    np.testing.assert_allclose(s.ft_world, s.ft_true_world, rtol=0, atol=1e-12 * pushed)
     q, _ = sim.state(0)
     link = r.clamp.fixed_link
     J = r.jacobian(q, link, np.linalg.solve(r.frames(q)[link], [*p, 1.0])[:3])
-    np.testing.assert_allclose(s["tau_ext"][:link], (J.T @ -s["ft_true_world"])[:link], rtol=0,
+    np.testing.assert_allclose(s.tau_ext[:link], (J.T @ -s.ft_true_world)[:link], rtol=0,
                                atol=1e-9 * pushed)
 
 
@@ -129,18 +129,18 @@ def test_the_joint_torque_reading_is_tau_and_the_jacobian_transpose_of_the_exter
     q, _ = sim.state(0)
     s = sim.sensor(0)
     want = f + r.jacobian(q, 3, w3.point).T @ w3.wrench
-    np.testing.assert_allclose(s["tau_ext"], want, rtol=1e-12, atol=1e-12)
-    np.testing.assert_array_equal(s["tau"], sim.torque(0))
-    assert np.all(s["ft_world"] == 0) and np.all(s["ft_true_clamp"] == 0)
+    np.testing.assert_allclose(s.tau_ext, want, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(s.tau, sim.torque(0))
+    assert np.all(s.ft_world == 0) and np.all(s.ft_true_clamp == 0)
     sim.set_applied(0, wrenches=[w3, w5])
     s = sim.sensor(0)
     want += r.jacobian(q, 5, w5.point).T @ w5.wrench
-    np.testing.assert_allclose(s["tau_ext"], want, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(s.tau_ext, want, rtol=1e-12, atol=1e-12)
     at = (r.frames(q)[5] @ [*w5.point, 1.0])[:3]
-    p = s["pose"][:3, 3]
+    p = s.pose[:3, 3]
     h = -np.concatenate([w5.wrench[:3], w5.wrench[3:] + np.cross(at - p, w5.wrench[:3])])
-    np.testing.assert_allclose(s["ft_world"], h, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(s["ft_clamp"], to_clamp(r.fk(q), h), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(s.ft_world, h, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(s.ft_clamp, to_clamp(r.fk(q), h), rtol=0, atol=1e-12)
     # the log's row at this time holds the same
     sim.step(1)
     log = sim.log[0]
@@ -171,7 +171,7 @@ def test_the_noise_has_its_standard_deviation_and_repeats_with_its_seed():
     corr = np.corrcoef(x.T)
     assert np.abs(corr - np.eye(6)).max() < 5 / np.sqrt(n)
     # the world reading is the same vector in world axes
-    R = sim.sensor(0)["pose"][:3, :3]
+    R = sim.sensor(0).pose[:3, :3]
     np.testing.assert_allclose(log.ft_world[:, :3], x[:, :3] @ R.T, rtol=0, atol=1e-12)
     np.testing.assert_allclose(log.ft_world[:, 3:], x[:, 3:] @ R.T, rtol=0, atol=1e-12)
     # the same seed, the same noise (a new simulation, or after reset); another seed, other noise
@@ -202,7 +202,7 @@ def test_the_filter_follows_its_closed_form_and_reaches_1_minus_1_over_e_at_its_
     a = 1 - np.exp(-DT / tau)
     want = -w[None, :] * (1 - (1 - a) ** (m + 1))[:, None]
     np.testing.assert_allclose(log.ft_world[k0:], want, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(sim.sensor(0)["ft_true_world"], -w, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sim.sensor(0).ft_true_world, -w, rtol=0, atol=1e-12)
     i = int(round(tau / DT))  # the row at t0 + tau
     assert abs(log.ft_world[k0 + i, 0] / -w[0] - (1 - np.exp(-1))) < DT / tau
 
@@ -224,14 +224,16 @@ def test_filtered_noise_has_the_standard_deviation_of_the_filter():
 
 def test_sensor_options_their_defaults_checks_and_pickling():
     _, sim = still_robot()
-    assert sim.sensor_options(0) == cs.Simulation.sensor_defaults() == dict(noise_force=0.0, noise_moment=0.0,
-                                                                          time_constant=0.0, seed=0)
+    o = sim.sensor_options(0)
+    assert o == cs.Simulation.sensor_defaults()
+    assert (o.noise_force, o.noise_moment, o.time_constant, o.seed) == (0.0, 0.0, 0.0, 0)
     s = sim.sensor(0)
-    assert set(s) == {"ft_world", "ft_clamp", "ft_true_world", "ft_true_clamp", "pose", "tau", "tau_ext"}
-    assert all(np.all(s[k] == 0) for k in s if k != "pose") and s["ft_world"].shape == (6,)
+    assert set(type(s).fields) == {"ft_world", "ft_clamp", "ft_true_world", "ft_true_clamp", "pose", "tau", "tau_ext"}
+    assert all(np.all(getattr(s, k) == 0) for k in type(s).fields if k != "pose") and s.ft_world.shape == (6,)
     sim.set_sensor(0, noise_force=0.1, seed=4)
     sim.set_sensor(0, time_constant=0.02)  # the others kept
-    assert sim.sensor_options(0) == dict(noise_force=0.1, noise_moment=0.0, time_constant=0.02, seed=4)
+    o = sim.sensor_options(0)
+    assert (o.noise_force, o.noise_moment, o.time_constant, o.seed) == (0.1, 0.0, 0.02, 4)
     for name, value, msg in [("noise_force", -1.0, r"sensor: noise_force must be finite and >= 0 N, got -1"),
                              ("noise_moment", np.nan, r"sensor: noise_moment must be finite and >= 0 N m, got nan"),
                              ("time_constant", -0.1, r"sensor: time_constant must be finite and >= 0 s, got -0\.1"),
@@ -239,7 +241,7 @@ def test_sensor_options_their_defaults_checks_and_pickling():
                              ("seed", -3, r"sensor: seed must be >= 0, got -3")]:
         with pytest.raises(ValueError, match=msg):
             sim.set_sensor(0, **{name: value})
-    assert sim.sensor_options(0)["noise_force"] == 0.1  # a refused change changes nothing
+    assert sim.sensor_options(0).noise_force == 0.1  # a refused change changes nothing
     with pytest.raises(TypeError):
         sim.set_sensor(0, noise_force="loud")
     with pytest.raises((ValueError, IndexError)):
@@ -261,7 +263,7 @@ def test_an_ideal_sensor_reads_the_same_off_the_log_rows():
         sim.step(10)
         out.append((sim.sensor(0), sim.log[0].ft_world))
     (a, log_a), (b, log_b) = out
-    assert np.any(a["ft_world"] != 0)
-    for k in a:
-        np.testing.assert_array_equal(a[k], b[k])
+    assert np.any(a.ft_world != 0)
+    for k in type(a).fields:
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
     np.testing.assert_array_equal(log_a[::7], log_b)

@@ -111,11 +111,11 @@ def test_log_decimation_keeps_every_nth_row_of_the_same_run():
     for qty in QTY:
         np.testing.assert_array_equal(getattr(dec, qty), getattr(full, qty)[::7], err_msg=qty)
     # metrics still cover every step
-    assert sim.metrics()[0]["steps"] == 1001
+    assert sim.metrics()[0].steps == 1001
     # log_every = 0: no log, metrics only
     sim = make_sim(log_every=0)
     assert len(sim.run(0.2, progress=False)) == 0
-    assert sim.metrics()[0]["steps"] == 1001
+    assert sim.metrics()[0].steps == 1001
 
 
 def test_controller_every_kth_step_holds_its_torque():
@@ -644,7 +644,7 @@ def test_batch_of_16_equals_the_same_16_one_by_one():
         assert_logs_equal(a, sim.run(0.5, progress=False))
     for sim_b, sim_s in zip(batch, singles):
         assert sim_b.time == sim_s.time
-        np.testing.assert_array_equal(sim_b.metrics()[0]["rms_error"], sim_s.metrics()[0]["rms_error"])
+        np.testing.assert_array_equal(sim_b.metrics()[0].rms_error, sim_s.metrics()[0].rms_error)
     # different gains give different runs
     assert not np.array_equal(logs[0].q, logs[15].q)
 
@@ -683,7 +683,7 @@ def test_batch_metrics_errors_and_checks():
     out = cs.run_batch(sims + [bad], 0.2, output="metrics", errors="return")
     assert isinstance(out[3], cs.DivergenceError)
     for m in out[:3]:
-        assert m[0]["name"] == "scara1" and m[0]["rms_error"].shape == (6,) and m[0]["steps"] == 1001
+        assert m[0].name == "scara1" and m[0].rms_error.shape == (6,) and m[0].steps == 1001
     with pytest.raises(RuntimeError, match="has diverged"):
         cs.run_batch([bad], 0.3)  # refused until reset
     with pytest.raises(cs.DivergenceError) as err:
@@ -720,7 +720,7 @@ def test_simulation_description_pickles_and_runs_through_an_executor():
     metrics = cs.simulate(pickle.loads(pickle.dumps(sims[1])), 0.2, output="metrics")
     direct = pickle.loads(pickle.dumps(sims[1]))
     direct.run(0.2, progress=False)
-    np.testing.assert_array_equal(metrics[0]["rms_error"], direct.metrics()[0]["rms_error"])
+    np.testing.assert_array_equal(metrics[0].rms_error, direct.metrics()[0].rms_error)
 
 
 # ---- argument checks ----
@@ -978,23 +978,23 @@ def test_a_robot_replaced_in_a_run_brings_its_new_boxes_into_the_world():
     sim = cs.Simulation(dt=DT, world=world)
     sim.add_robot(r, cs.ComputedTorque(400.0, 40.0), q)
     sim.step(50)
-    assert not any("post" in (c["a"], c["b"]) for c in sim.contacts())
+    assert not any("post" in (c.a, c.b) for c in sim.contacts())
     crate = sim.body_state("crate")
     sim.set_robot(0, longer)
     # the world's bodies of the robot: the new sizes at once, the crate untouched
     for b, name in enumerate(names):
         np.testing.assert_array_equal(world.body(f"scara1/{name}")["half_extents"], longer.boxes[b].half_extents)
     after = sim.body_state("crate")
-    np.testing.assert_array_equal(after["position"], crate["position"])
+    np.testing.assert_array_equal(after.position, crate.position)
     sim.step(1)
     Pn, _ = longer.shapes(sim.state(0)[0])
     for b in range(len(names)):
-        np.testing.assert_allclose(sim.link_state(0, b)["pose"], Pn[b], atol=1e-12)
+        np.testing.assert_allclose(sim.link_state(0, b).pose, Pn[b], atol=1e-12)
     contacts = sim.contacts()
-    assert any({c["a"], c["b"]} == {"post", "scara1/link2"} for c in contacts)
-    assert not any(c["kind"] == "self" for c in contacts)   # its touching boxes excluded anew
+    assert any({c.a, c.b} == {"post", "scara1/link2"} for c in contacts)
+    assert not any(c.kind == "self" for c in contacts)   # its touching boxes excluded anew
     sim.step(200)   # the run goes on
-    assert not sim.diverged and sim.body_state("crate")["position"][0] > crate["position"][0]
+    assert not sim.diverged and sim.body_state("crate").position[0] > crate.position[0]
     # after reset() (the robots' bodies leave the world until the next first step) the robot
     # replaced again comes back with its own boxes
     sim.reset()
@@ -1002,7 +1002,7 @@ def test_a_robot_replaced_in_a_run_brings_its_new_boxes_into_the_world():
     sim.step(1)
     for b, name in enumerate(names):
         np.testing.assert_array_equal(world.body(f"scara1/{name}")["half_extents"], r.boxes[b].half_extents)
-    assert not any("post" in (c["a"], c["b"]) for c in sim.contacts())
+    assert not any("post" in (c.a, c.b) for c in sim.contacts())
 
 
 
@@ -1054,12 +1054,12 @@ def test_contact_events_tau_ext_and_link_states_without_the_log():
     sim.advance(0.4)
     ev = sim.contact_events()
     contacts = sim.log.contacts
-    assert len(contacts) > 0 and list(ev["a"]) == list(contacts["a"]) and list(ev["b"]) == list(contacts["b"])
+    assert len(contacts) > 0 and list(ev["a"]) == list(contacts.a) and list(ev["b"]) == list(contacts.b)
     np.testing.assert_array_equal(ev["begin"], contacts["begin"].to_numpy())
     # each link box where the world holds it: at the robot's kinematics, as of the last world step
     P, _ = r.shapes(sim.state(0)[0])
     for k in range(len(r.boxes)):
-        np.testing.assert_allclose(sim.link_state(0, k)["pose"], P[k], atol=1e-9)
+        np.testing.assert_allclose(sim.link_state(0, k).pose, P[k], atol=1e-9)
     for bad in (len(r.boxes), -1, 1.0, True):
         with pytest.raises(ValueError, match="box"):
             sim.link_state(0, bad)
@@ -1071,7 +1071,8 @@ def test_profiling_splits_the_steps_time():
     sim.set_profiling(True)
     sim.advance(0.05)
     p = sim.profile()
-    assert {"controllers", "robots"} <= set(p) and all(v >= 0.0 for v in p.values()) and p["robots"] > 0.0
+    assert {"controllers", "robots"} <= set(type(p).fields) and all(getattr(p, k) >= 0.0 for k in type(p).fields)
+    assert p.robots > 0.0
     sim.set_profiling(False)
     with pytest.raises(ValueError, match="True or False"):
         sim.set_profiling("yes")

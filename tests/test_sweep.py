@@ -67,9 +67,9 @@ def test_grid_order_columns_and_metrics_equal_one_by_one():
         sim.run(T_END, progress=False)
         m = sim.metrics()[0]
         np.testing.assert_array_equal(df.loc[row.Index, [f"rms_error_0_{j}" for j in range(6)]].to_numpy(float),
-                                      m["rms_error"])
+                                      m.rms_error)
         np.testing.assert_array_equal(df.loc[row.Index, [f"peak_tau_0_{j}" for j in range(6)]].to_numpy(float),
-                                      m["max_abs_tau"])
+                                      m.max_abs_tau)
     # stiffer gains track better
     assert df.rms_error_0_3.iloc[0] > df.rms_error_0_3.iloc[2] > df.rms_error_0_3.iloc[4] > 0
     # a list of simulations with its own grid columns, and the logs kept on request

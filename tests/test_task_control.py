@@ -132,9 +132,9 @@ def held_bar(lift=0.05, table=False, offset=0.05, shift=0.0):
     Tn = r.fk(q)
     R = Tn[:3, :3]
     b = sim.body_state("bar")
-    Rb = b["pose"][:3, :3]
+    Rb = b.pose[:3, :3]
     inertia = R.T @ Rb @ np.asarray(cs.box_inertia(BAR_M, *(2 * BAR_HE))) @ Rb.T @ R
-    return r, sim, cs.Payload(BAR_M, R.T @ (b["position"] - Tn[:3, 3]), inertia)
+    return r, sim, cs.Payload(BAR_M, R.T @ (b.position - Tn[:3, 3]), inertia)
 
 
 def push_held_bar(payload=True, model=None, K=300.0, M=1.0, zeta=0.4, F=1.0):
@@ -237,11 +237,11 @@ def test_hybrid_presses_with_the_setpoint_while_sliding_on_its_path(record_prope
     record_property("force ripple sliding (N)", float(np.abs(fz[slide] + 5.0).max()))
     record_property("path error (mm)", float(np.abs(exy).max() * 1e3))
     # the table's push on the bar, summed over the contact points of the last world step
-    normal = sum(c["force"][2] * (1 if c["a"] == "bar" else -1) for c in sim.contacts()
-                 if {c["a"], c["b"]} == {"bar", "table"})
+    normal = sum(c.force[2] * (1 if c.a == "bar" else -1) for c in sim.contacts()
+                 if {c.a, c.b} == {"bar", "table"})
     assert normal == pytest.approx(5.0, rel=1e-3)
     # the bar is the only thing touching the table
-    assert all({c["a"], c["b"]} == {"bar", "table"} for c in sim.contacts() if "table" in (c["a"], c["b"]))
+    assert all({c.a, c.b} == {"bar", "table"} for c in sim.contacts() if "table" in (c.a, c.b))
 
 
 def test_hybrid_refuses_a_force_along_a_direction_the_arm_cannot_command():

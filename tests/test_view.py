@@ -375,7 +375,7 @@ def test_a_wall_contact_draws_the_touching_box_red_a_free_one_green_and_the_cont
     sim = wall_sim
     robot = sim.robots[0]
     now = sim.contacts()
-    touching = {c["b"].split("/")[1] for c in now if c["a"] == "wall"}
+    touching = {c.b.split("/")[1] for c in now if c.a == "wall"}
     assert "link3" in touching and "link2" not in touching          # the quill is against the wall, the arm free
     scene = view.draw(new_axes(6.4, 4.8, 80), sim, collision_boxes=True)
     # the world's bodies: the wall as scenery, the bar red, the cube in the other bodies' colour
@@ -392,15 +392,15 @@ def test_a_wall_contact_draws_the_touching_box_red_a_free_one_green_and_the_cont
     # every box is red exactly when the world reports a contact of it
     for k, name in enumerate(names):
         c = scene.colors("robot", 0, box=k)[0]
-        assert (c[0] > c[1]) == (name in {n.split("/")[1] for c_ in now for n in (c_["a"], c_["b"])
+        assert (c[0] > c[1]) == (name in {n.split("/")[1] for c_ in now for n in (c_.a, c_.b)
                                           if n.startswith("scara1/")}), name
     # a contact line per contact point, from the point on a along the push on b (out of the wall: -y)
     lines = scene.contact_lines()
     assert len(lines) == len(now)
     for seg, c in zip(lines, now):
-        np.testing.assert_allclose(seg[0], c["point_a"], atol=1e-12)
-        np.testing.assert_allclose(seg[1] - seg[0], -scene.contact_length * c["normal"], atol=1e-12)
-    wall_lines = [seg for seg, c in zip(lines, now) if c["a"] == "wall"]
+        np.testing.assert_allclose(seg[0], c.point_a, atol=1e-12)
+        np.testing.assert_allclose(seg[1] - seg[0], -scene.contact_length * c.normal, atol=1e-12)
+    wall_lines = [seg for seg, c in zip(lines, now) if c.a == "wall"]
     assert wall_lines and all(seg[1, 1] < seg[0, 1] for seg in wall_lines)
     # scenery grey, the bar red, the cube purple: the colours of the faces drawn
     from matplotlib.colors import to_rgb
@@ -412,7 +412,7 @@ def test_a_wall_contact_draws_the_touching_box_red_a_free_one_green_and_the_cont
         base = np.array(to_rgb(colour))
         np.testing.assert_allclose(hue, np.tile(base / base.max(), (len(c), 1)), atol=1e-9)
     # the bar's face towards the camera is red in the picture
-    bar = sim.body_state("bar")["pose"]
+    bar = sim.body_state("bar").pose
     assert is_red(pixel(img, scene, (bar @ [0.0, 0.0, 0.01, 1.0])[:3]))
     # without collision boxes: the robot's own colours, no lines
     plain = view.draw(new_axes(), sim)

@@ -36,8 +36,8 @@ def test_a_bar_resting_on_the_floor_weighs_m_g_and_stays_put():
     w.add_free_box("bar", BAR, BAR_MASS, position=[0.3, 0.2, BAR[2]], friction=0.5)
     sim, log = world_only(w, 2.0, log_every=50)
     contacts = sim.contacts()
-    assert {c["kind"] for c in contacts} == {"body-scenery"} and len(contacts) == 4
-    on_bar = -sum(c["force"] for c in contacts)  # a is the floor, the bar is b
+    assert {c.kind for c in contacts} == {"body-scenery"} and len(contacts) == 4
+    on_bar = -sum(c.force for c in contacts)  # a is the floor, the bar is b
     assert on_bar[2] == pytest.approx(BAR_MASS * G, rel=1e-6)
     assert np.abs(on_bar[:2]).max() < 1e-8 * BAR_MASS * G  # no sideways force on a bar at rest
     bar = log.bodies["bar"]
@@ -109,7 +109,7 @@ def test_a_bar_released_at_the_upper_mouth_of_an_inclined_tube_slides_out_of_the
     s = log.bodies["bar"].position @ axis
     assert s[0] < -length / 2 + BAR[0] + 1e-9
     assert s[-1] - BAR[0] > length / 2  # wholly out of the lower mouth
-    kinds = set(log.contacts["b"]) | set(log.contacts["a"])
+    kinds = set(log.contacts.b) | set(log.contacts.a)
     assert "bottom" in kinds and "top" not in kinds
 
 
@@ -222,7 +222,7 @@ def test_a_scara_driven_into_itself_reports_the_right_links():
     sim = cs.Simulation(dt=DT, world=cs.World(), contact_forces=False)
     sim.add_robot(r, cs.PID(0.0, 0.0, 0.0), q)
     sim.step(1)
-    selfs = {tuple(sorted((c["a"], c["b"]))) for c in sim.contacts() if c["kind"] == "self"}
+    selfs = {tuple(sorted((c.a, c.b))) for c in sim.contacts() if c.kind == "self"}
     assert selfs and all(a == "scara1/link2" and b in {"scara1/link4", "scara1/link5"} for a, b in selfs), selfs
     excluded = set(sim.excluded_pairs(0))
     assert ("link1", "link2") in excluded and ("base", "link1") in excluded and ("link5", "fixed_jaw") in excluded
@@ -242,8 +242,8 @@ def test_two_scaras_driven_into_each_other_report_robot_robot_contacts():
     sim.add_robot(r1, cs.PID(0.0, 0.0, 0.0), q1)
     sim.add_robot(r2, cs.PID(0.0, 0.0, 0.0), q2)
     sim.step(1)
-    rr = [c for c in sim.contacts() if c["kind"] == "robot-robot"]
-    assert rr and all(c["a"].startswith("scara1/") and c["b"].startswith("scara2/") for c in rr)
+    rr = [c for c in sim.contacts() if c.kind == "robot-robot"]
+    assert rr and all(c.a.startswith("scara1/") and c.b.startswith("scara2/") for c in rr)
 
 
 def wall_run(contact_forces=True, t_end=1.0):
@@ -261,8 +261,8 @@ def test_a_robot_driven_into_a_wall_is_stopped_by_it_and_feels_its_force():
     sim, log = wall_run()
     robot = sim.robots[0]
     contacts = sim.contacts()
-    assert contacts and {c["kind"] for c in contacts} == {"robot-scenery"}
-    assert max(c["depth"] for c in contacts) < 1e-3
+    assert contacts and {c.kind for c in contacts} == {"robot-scenery"}
+    assert max(c.depth for c in contacts) < 1e-3
     assert log.contacts["max_depth"].max() < 1e-3  # never more than a millimetre into a 5 mm wall
     # every box stays on the near side of the wall (y < 0.25 - 0.0025 + 1 mm)
     P, H = robot.shapes(log.q[-1])
@@ -275,10 +275,10 @@ def test_a_robot_driven_into_a_wall_is_stopped_by_it_and_feels_its_force():
     tau = np.zeros(6)
     frames = robot.frames(q)
     for c in contacts:
-        link = int(c["b"].split("link")[1]) if "link" in c["b"] else None
-        assert c["a"] == "wall" and link is not None
-        p = np.linalg.solve(frames[link], [*c["point_b"], 1.0])[:3]
-        tau += robot.jacobian(q, link, p)[:3].T @ (-c["force"])
+        link = int(c.b.split("link")[1]) if "link" in c.b else None
+        assert c.a == "wall" and link is not None
+        p = np.linalg.solve(frames[link], [*c.point_b, 1.0])[:3]
+        tau += robot.jacobian(q, link, p)[:3].T @ (-c.force)
     np.testing.assert_allclose(sim.tau_ext(0), tau, rtol=1e-9, atol=1e-9)
     assert np.abs(log.tau_ext[-1]).max() > 1.0
     # without contact forces the arm passes through
@@ -352,8 +352,8 @@ def test_link_bodies_move_with_the_exact_twist():
     P1, _ = r.shapes(q + h * qd)
     fd = (P1[:, :3, 3] - P0[:, :3, 3]) / (2 * h)
     states = [sim.link_state(0, b) for b in range(len(r.boxes))]
-    np.testing.assert_allclose([s["velocity"] for s in states], fd, rtol=1e-7, atol=1e-9)
-    np.testing.assert_allclose([s["pose"] for s in states], r.shapes(q)[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose([s.velocity for s in states], fd, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose([s.pose for s in states], r.shapes(q)[0], rtol=0, atol=1e-12)
 
 
 # ---- bad input ----
@@ -363,11 +363,11 @@ def test_a_box_resting_on_another_reports_a_body_body_contact():
     w.add_free_box("lower", [0.1, 0.1, 0.05], 1.0, position=[0, 0, 0.05])
     w.add_free_box("upper", [0.05, 0.05, 0.05], 0.4, position=[0, 0, 0.15])
     sim, log = world_only(w, 0.5, log_every=50)
-    kinds = {(c["a"], c["b"]): c["kind"] for c in sim.contacts()}
+    kinds = {(c.a, c.b): c.kind for c in sim.contacts()}
     assert kinds == {("floor", "lower"): "body-scenery", ("lower", "upper"): "body-body"}
-    on_upper = -sum(c["force"] for c in sim.contacts() if c["b"] == "upper")
+    on_upper = -sum(c.force for c in sim.contacts() if c.b == "upper")
     assert on_upper[2] == pytest.approx(0.4 * G, rel=1e-6)
-    on_lower_from_floor = -sum(c["force"] for c in sim.contacts() if c["b"] == "lower")
+    on_lower_from_floor = -sum(c.force for c in sim.contacts() if c.b == "lower")
     assert on_lower_from_floor[2] == pytest.approx(1.4 * G, rel=1e-6)
 
 
@@ -393,7 +393,7 @@ def test_bodies_at_rest_are_solved_to_convergence_and_do_not_creep():
         """The total force of each touching pair (N), by pair."""
         out = {}
         for c in s.contacts():
-            out[(c["a"], c["b"])] = out.get((c["a"], c["b"]), 0) + c["force"]
+            out[(c.a, c.b)] = out.get((c.a, c.b), 0) + c.force
         return out
 
     weights = {("floor", "bar"): BAR_MASS * G, ("floor", "lower"): 1.4 * G, ("lower", "upper"): 0.4 * G}
@@ -522,13 +522,13 @@ def test_a_body_at_rest_sleeps_after_sleep_after_and_keeps_its_contacts(sleep_af
     w.add_free_box("box", [0.03, 0.03, 0.03], 0.2, position=[-0.3, -0.2, drop])
     sim = cs.Simulation(dt=DT, world=w, log_every=50)
     sim.run(sleep_after - 0.1, progress=False)
-    assert not sim.body_state("a")["asleep"] and not sim.body_state("b")["asleep"]
+    assert not sim.body_state("a").asleep and not sim.body_state("b").asleep
     sim.run(sleep_after + 0.1, progress=False)
-    assert sim.body_state("a")["asleep"] and sim.body_state("b")["asleep"] and not sim.body_state("box")["asleep"]
-    on_a = -sum(c["force"] for c in sim.contacts() if c["b"] == "a")
+    assert sim.body_state("a").asleep and sim.body_state("b").asleep and not sim.body_state("box").asleep
+    on_a = -sum(c.force for c in sim.contacts() if c.b == "a")
     assert on_a[2] == pytest.approx(BAR_MASS * G, rel=1e-6)
     sim.run(land + 0.05, progress=False)
-    assert sim.body_state("a")["asleep"] and not sim.body_state("b")["asleep"]
+    assert sim.body_state("a").asleep and not sim.body_state("b").asleep
     with pytest.raises(ValueError, match=r"sleep_after must be in 1e-3 .. 1e3 s"):
         cs.World(sleep_after=0.0)
 
@@ -547,18 +547,18 @@ def test_a_bar_standing_on_its_end_comes_to_rest_and_sleeps(drop):
     t_sleep = None
     while sim.time < 2.0 and t_sleep is None:
         sim.advance(sim.time + 0.01)
-        if sim.body_state("bar")["asleep"]:
+        if sim.body_state("bar").asleep:
             t_sleep = sim.time
     assert t_sleep is not None and t_sleep <= (0.6 if drop == 0 else 2.0), t_sleep
     s = sim.body_state("bar")
-    assert s["pose"][2, 3] == pytest.approx(BAR[0], abs=2e-4)          # still standing on its end
-    assert abs(s["pose"][2, 0]) > 1 - 1e-6                               # its axis vertical
-    np.testing.assert_array_equal(s["velocity"], 0.0)
-    np.testing.assert_array_equal(s["angular_velocity"], 0.0)
-    pose = s["pose"]
+    assert s.pose[2, 3] == pytest.approx(BAR[0], abs=2e-4)          # still standing on its end
+    assert abs(s.pose[2, 0]) > 1 - 1e-6                               # its axis vertical
+    np.testing.assert_array_equal(s.velocity, 0.0)
+    np.testing.assert_array_equal(s.angular_velocity, 0.0)
+    pose = s.pose
     sim.advance(sim.time + 1.0)                                          # and stays so, asleep
-    assert sim.body_state("bar")["asleep"]
-    np.testing.assert_array_equal(sim.body_state("bar")["pose"], pose)
+    assert sim.body_state("bar").asleep
+    np.testing.assert_array_equal(sim.body_state("bar").pose, pose)
 
 
 def test_a_pickled_world_is_made_again_with_the_checks_of_making_it():

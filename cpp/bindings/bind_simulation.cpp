@@ -3,12 +3,15 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <functional>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <thread>
 
 #include "convert.hpp"
+#include "generated/docstrings.hpp"
+#include "struct_binding.hpp"
 #include "coopsim/batch.hpp"
 #include "coopsim/held_body.hpp"
 #include "coopsim/grasp.hpp"
@@ -19,6 +22,8 @@
 namespace py = pybind11;
 using namespace coopsim;
 using namespace coopsim::py_convert;
+using namespace coopsim::docs;
+using coopsim::py_struct::Struct;
 
 namespace {
 
@@ -106,45 +111,59 @@ py::array_t<double> grasp_log(const Simulation& s, int i) {
   return view(s.log(i).grasp, s.log_rows(), true);
 }
 
-// Two holders' quantities (held_body.hpp) by the names of cooperation_schema(), body and holding aside.
-py::dict cooperation_dict(const Cooperation& c) {
-  py::dict d;
-  d["centre"] = to_numpy(c.centre);
-  d["point_a"] = to_numpy(c.point_a);
-  d["point_b"] = to_numpy(c.point_b);
-  d["external"] = to_numpy(c.external);
-  d["internal"] = to_numpy(c.internal);
-  d["squeeze"] = c.squeeze;
-  d["twist"] = c.twist;
-  d["bending"] = to_numpy(c.bending);
-  d["shear"] = c.shear;
-  d["load_share"] = to_numpy(c.load_share);
-  d["relative_pose_error"] = to_numpy(c.relative_pose_error);
-  return d;
-}
+// What the bindings return beside the engine's own structs: each one an engine struct with the names
+// Python reads (the world's bodies by name, not id), bound once below.
+struct Contact {  // a ContactPoint of the last world step, its bodies named
+  ContactPoint point;
+  std::string a, b, kind;
+};
+struct HeldCooperation {  // Simulation::cooperation's answer: the Cooperation, whether they hold, the body
+  Cooperation values;
+  bool holding = false;
+  py::object body = py::none();
+};
+struct RobotMetrics {  // a robot's TrackingMetrics with its name
+  std::string name;
+  TrackingMetrics metrics;
+};
+struct SensorReading {  // a robot's force/torque sensor and joint torques now
+  Vec6 ft_world, ft_clamp, ft_true_world, ft_true_clamp;
+  Eigen::Isometry3d pose;
+  VecN tau, tau_ext;
+};
 
-py::dict metrics_dict(const Simulation& s, int i) {
-  const TrackingMetrics& m = s.metrics(i);
-  py::dict d;
-  d["steps"] = m.steps;
-  d["rms_error"] = to_numpy(m.rms_error());
-  d["max_abs_error"] = to_numpy(m.max_abs_error);
-  d["max_abs_tau"] = to_numpy(m.max_abs_tau);
-  return d;
+// The fields of a Cooperation (held_body.hpp) on a class whose `part` gives it.
+#define COOPSIM_FIELD(n) .field(#n, [part](const auto& s) { return part(s).n; }, doc_Cooperation_##n)
+template <class B, class Part>
+void cooperation_fields(B& b, Part part) {
+  b COOPSIM_FIELD(centre) COOPSIM_FIELD(point_a) COOPSIM_FIELD(point_b) COOPSIM_FIELD(external) COOPSIM_FIELD(internal)
+      COOPSIM_FIELD(squeeze) COOPSIM_FIELD(twist) COOPSIM_FIELD(bending) COOPSIM_FIELD(shear) COOPSIM_FIELD(load_share)
+      COOPSIM_FIELD(relative_pose_error);
 }
+#undef COOPSIM_FIELD
 
-py::dict contact_dict(const World& w, const ContactPoint& c) {
-  const BodySpec& a = w.body(c.a);
-  const BodySpec& b = w.body(c.b);
+// A table's columns, one per field of its rows' struct, each written once: its name and its value in a
+// row, a number (a float64 column) or a Python object (a list).
+template <class Row>
+struct ColumnField {
+  const char* name;
+  std::function<double(const Row&)> number;
+  std::function<py::object(const Row&)> object;
+};
+template <class Row>
+py::dict columns(const std::vector<Row>& rows, const std::vector<ColumnField<Row>>& fields) {
   py::dict d;
-  d["a"] = a.name;
-  d["b"] = b.name;
-  d["kind"] = contact_kind(a, b);
-  d["point_a"] = to_numpy(c.point_a);
-  d["point_b"] = to_numpy(c.point_b);
-  d["normal"] = to_numpy(c.normal);
-  d["depth"] = c.depth;
-  d["force"] = to_numpy(c.force);
+  for (const ColumnField<Row>& f : fields) {
+    if (f.number) {
+      py::array_t<double> col(static_cast<py::ssize_t>(rows.size()));
+      for (size_t i = 0; i < rows.size(); ++i) col.mutable_data()[i] = f.number(rows[i]);
+      d[py::str(f.name)] = col;
+    } else {
+      py::list col;
+      for (const Row& r : rows) col.append(f.object(r));
+      d[py::str(f.name)] = col;
+    }
+  }
   return d;
 }
 
@@ -155,33 +174,9 @@ const World& world_of(const Simulation& s) {
 
 int body_id(const Simulation& s, const std::string& name) { return world_of(s).id(name); }
 
-// Columns of a table of n rows, as a dict of arrays: one per field.
-template <class T, class F>
-py::array_t<double> column(const std::vector<T>& rows, F field) {
-  py::array_t<double> out(static_cast<py::ssize_t>(rows.size()));
-  for (size_t i = 0; i < rows.size(); ++i) out.mutable_data()[i] = field(rows[i]);
-  return out;
-}
-
-template <class T, class F>
-py::list names(const World& w, const std::vector<T>& rows, F field) {
-  py::list out;
-  for (const T& r : rows) out.append(w.body(field(r)).name);
-  return out;
-}
-
 // The options a default-constructed SimulationOptions holds: the one source of the defaults.
 const SimulationOptions kDefaults{};
 const SensorOptions kSensorDefaults{};
-
-py::dict sensor_options_dict(const SensorOptions& o) {
-  py::dict d;
-  d["noise_force"] = o.noise_force;
-  d["noise_moment"] = o.noise_moment;
-  d["time_constant"] = o.time_constant;
-  d["seed"] = o.seed;
-  return d;
-}
 
 // Sets grasp option `name` (engine's table; weld_moment a flag) from a Python value.
 void set_grasp_option(GraspOptions& g, const std::string& name, const py::handle& value) {
@@ -198,22 +193,14 @@ py::dict grasp_options_dict(const GraspOptions& g) {
 
 }  // namespace
 
-py::dict body_state_dict(const BodyState& s);  // bind_world.cpp
 
 void bind_simulation(py::module_& m) {
   divergence_type = PyErr_NewExceptionWithDoc(
-      "coopsim._core.DivergenceError",
-      "The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time "
-      "(s), robot (index; -1 when a free body of the world diverged, named in the message), q, qd (the rejected "
-      "state; empty for a free body). The simulation keeps its log up to the last good step.",
+      "coopsim._core.DivergenceError", doc_DivergenceError,
       PyExc_RuntimeError, nullptr);
   m.attr("DivergenceError") = py::reinterpret_borrow<py::object>(divergence_type);
   busy_type = PyErr_NewExceptionWithDoc(
-      "coopsim._core.SimulationBusyError",
-      "Another thread is running this simulation: a call that advances or changes it (advance, run, reset, "
-      "set_*, ...) was made from a thread other than its holder's. One driver at a time: pause or close the "
-      "other driver (e.g. the live view) first. Attributes: holder (str, the holder's label; 'another thread' "
-      "for a call holding it for its own duration), thread (int, the holder's threading.get_ident()).",
+      "coopsim._core.SimulationBusyError", doc_SimulationBusyError,
       PyExc_RuntimeError, nullptr);
   m.attr("SimulationBusyError") = py::reinterpret_borrow<py::object>(busy_type);
   py::register_local_exception_translator([](std::exception_ptr p) {
@@ -228,10 +215,93 @@ void bind_simulation(py::module_& m) {
     }
   });
 
-  py::class_<Simulation::Hold>(m, "SimulationHold", R"doc(
-A hold on a SimulationCore's run (SimulationCore.hold; use coopsim.Simulation.driving): while it is held,
-only the thread that took it may advance or change the simulation. release() gives it back; it must be
-called on that thread.)doc")
+  // ---- the quantities a run exposes: engine structs, each bound once (struct_binding.hpp) ----
+  Struct<Contact>(m, "Contact", doc_ContactPoint)
+      .member("a", &Contact::a, "the name of body a")
+      .member("b", &Contact::b, "the name of body b")
+      .member("kind", &Contact::kind, doc_contact_kind)
+      .field("point_a", [](const Contact& c) { return c.point.point_a; }, doc_ContactPoint_point_a)
+      .field("point_b", [](const Contact& c) { return c.point.point_b; }, doc_ContactPoint_point_b)
+      .field("normal", [](const Contact& c) { return c.point.normal; }, doc_ContactPoint_normal)
+      .field("depth", [](const Contact& c) { return c.point.depth; }, doc_ContactPoint_depth)
+      .field("force", [](const Contact& c) { return c.point.force; }, doc_ContactPoint_force)
+      .finish();
+  Struct<GraspCheck>(m, "GraspCheck", doc_GraspCheck)
+      .member("closing", &GraspCheck::closing, doc_GraspCheck_closing)
+      .member("aligned", &GraspCheck::aligned, doc_GraspCheck_aligned)
+      .member("touching", &GraspCheck::touching, doc_GraspCheck_touching)
+      .member("in_pads", &GraspCheck::in_pads, doc_GraspCheck_in_pads)
+      .member("slow", &GraspCheck::slow, doc_GraspCheck_slow)
+      .field("ok", [](const GraspCheck& c) { return c.ok(); }, doc_GraspCheck_ok)
+      .member("angle", &GraspCheck::angle, doc_GraspCheck_angle)
+      .member("gap_fixed", &GraspCheck::gap_fixed, doc_GraspCheck_gap_fixed)
+      .member("gap_moving", &GraspCheck::gap_moving, doc_GraspCheck_gap_moving)
+      .member("speed", &GraspCheck::speed, doc_GraspCheck_speed)
+      .member("angular_speed", &GraspCheck::angular_speed, doc_GraspCheck_angular_speed)
+      .member("width", &GraspCheck::width, doc_GraspCheck_width)
+      .finish();
+  {
+    Struct<Cooperation> c(m, "Cooperation", doc_Cooperation);
+    cooperation_fields(c, [](const Cooperation& x) -> const Cooperation& { return x; });
+    c.finish();
+    Struct<HeldCooperation> h(m, "HeldCooperation", doc_Simulation_cooperation);
+    h.member("holding", &HeldCooperation::holding, "whether robots a and b hold one body now")
+        .field("body", [](const HeldCooperation& x) { return x.body; }, "the name of the body they hold, or None");
+    cooperation_fields(h, [](const HeldCooperation& x) -> const Cooperation& { return x.values; });
+    h.finish();
+  }
+  Struct<RobotMetrics> metrics(m, "TrackingMetrics", doc_TrackingMetrics);
+  metrics.cls().def(py::pickle(  // results of coopsim.simulate(output="metrics") cross processes
+      [](const RobotMetrics& x) { const TrackingMetrics& t = x.metrics;
+        return py::make_tuple(x.name, t.steps, to_numpy(t.sum_sq_error), to_numpy(t.max_abs_error), to_numpy(t.max_abs_tau)); },
+      [](const py::tuple& t) { auto v = [&t](int k) { return vec(t[k], static_cast<int>(py::len(t[k])), "metrics"); };
+        return RobotMetrics{t[0].cast<std::string>(), TrackingMetrics{t[1].cast<long>(), v(2), v(3), v(4)}}; }));
+  metrics.member("name", &RobotMetrics::name, doc_Robot_name)
+      .field("steps", [](const RobotMetrics& x) { return x.metrics.steps; }, doc_TrackingMetrics_steps)
+      .field("rms_error", [](const RobotMetrics& x) { return x.metrics.rms_error(); }, doc_TrackingMetrics_rms_error)
+      .field("max_abs_error", [](const RobotMetrics& x) { return x.metrics.max_abs_error; },
+             doc_TrackingMetrics_max_abs_error)
+      .field("max_abs_tau", [](const RobotMetrics& x) { return x.metrics.max_abs_tau; },
+             doc_TrackingMetrics_max_abs_tau)
+      .finish();
+  {
+    Struct<SensorOptions> o(m, "SensorOptions", doc_SensorOptions);
+    o.member("noise_force", &SensorOptions::noise_force, doc_SensorOptions_noise_force)
+        .member("noise_moment", &SensorOptions::noise_moment, doc_SensorOptions_noise_moment)
+        .member("time_constant", &SensorOptions::time_constant, doc_SensorOptions_time_constant)
+        .member("seed", &SensorOptions::seed, doc_SensorOptions_seed);
+    o.cls().def(py::pickle(
+        [](const SensorOptions& x) { return py::make_tuple(x.noise_force, x.noise_moment, x.time_constant, x.seed); },
+        [](const py::tuple& t) {
+          SensorOptions x;
+          x.noise_force = t[0].cast<double>();
+          x.noise_moment = t[1].cast<double>();
+          x.time_constant = t[2].cast<double>();
+          x.seed = t[3].cast<std::int64_t>();
+          check_sensor_options(x);
+          return x;
+        }));
+    o.finish();
+  }
+  Struct<SensorReading>(m, "SensorReading", doc_Simulation_ft_clamp)
+      .member("ft_world", &SensorReading::ft_world, doc_Simulation_ft_clamp)
+      .member("ft_clamp", &SensorReading::ft_clamp, doc_Simulation_ft_clamp)
+      .member("ft_true_world", &SensorReading::ft_true_world, doc_Simulation_ft_clamp)
+      .member("ft_true_clamp", &SensorReading::ft_true_clamp, doc_Simulation_ft_clamp)
+      .member("pose", &SensorReading::pose, doc_Simulation_sensor_pose)
+      .member("tau", &SensorReading::tau, doc_Simulation_tau)
+      .member("tau_ext", &SensorReading::tau_ext, doc_Simulation_tau_ext)
+      .finish();
+  Struct<StepProfile>(m, "StepProfile", doc_StepProfile)
+      .member("controllers", &StepProfile::controllers, doc_StepProfile)
+      .member("world", &StepProfile::world, doc_StepProfile)
+      .member("contacts", &StepProfile::contacts, doc_StepProfile)
+      .member("robots", &StepProfile::robots, doc_StepProfile)
+      .member("grasp", &StepProfile::grasp, doc_StepProfile_grasp)
+      .member("world_steps", &StepProfile::world_steps, doc_StepProfile)
+      .finish();
+
+  py::class_<Simulation::Hold>(m, "SimulationHold", doc_Simulation_Hold)
       .def("release", &Simulation::Hold::release,
            "Gives the run back (nothing if already given back); RuntimeError from another thread than the "
            "one that took it.")
@@ -282,29 +352,20 @@ torques between controller updates, the log and tracking metrics.)doc")
            "Adds a robot (copied); returns its index.")
       .def("set_reference", [](Simulation& s, int i, const py::object& reference) {
              s.set_reference(i, reference_arg(reference, s.robot(i).dof()));
-           }, py::arg("i"), py::arg("reference"), py::keep_alive<1, 3>(),
-           "Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller "
-           "update.")
-      .def("set_robot", &Simulation::set_robot, py::arg("i"), py::arg("robot"),
-           "Replaces robot i by a robot of the same joints and boxes (copied); q and qd stay, the controller "
-           "is reset, with a world the robot's link bodies and exclusions follow.")
+           }, py::arg("i"), py::arg("reference"), py::keep_alive<1, 3>(), doc_Simulation_set_reference)
+      .def("set_robot", &Simulation::set_robot, py::arg("i"), py::arg("robot"), doc_Simulation_set_robot)
       .def("add_cooperative", &Simulation::add_cooperative, py::arg("controller"), py::arg("robots"),
-           py::keep_alive<1, 2>())
-      .def("remove_cooperative", &Simulation::remove_cooperative, py::arg("k"))
+           py::keep_alive<1, 2>(), doc_Simulation_add_cooperative)
+      .def("remove_cooperative", &Simulation::remove_cooperative, py::arg("k"), doc_Simulation_remove_cooperative)
       .def("set_controller", &Simulation::set_controller, py::arg("i"), py::arg("controller"),
-           py::keep_alive<1, 3>(),
-           "Replaces robot i's controller (checked as add_robot's); the state stays, the new controller "
-           "is reset now and acts from the next controller update.")
+           py::keep_alive<1, 3>(), doc_Simulation_set_controller)
       .def("hold", [](Simulation& s, const py::object& label) {
              // a py::object, checked here: pybind11's own message for a wrong type here crashes (3.1.0)
              if (!py::isinstance<py::str>(label))
                throw py::type_error("SimulationCore.hold(): label must be a str, got " +
                                     std::string(py::str(py::type::of(label).attr("__name__"))));
              return s.hold(label.cast<std::string>());
-           }, py::arg("label"), py::keep_alive<0, 1>(),
-           "Takes the run for the calling thread until the returned SimulationHold is released: another "
-           "thread's advance, run, reset, set_* ... then raises SimulationBusyError naming `label` (non-empty "
-           "str). Re-entrant on the holding thread. SimulationBusyError when another thread holds it.")
+           }, py::arg("label"), py::keep_alive<0, 1>(), doc_Simulation_hold)
       .def_property_readonly("holder", [](const Simulation& s) -> py::object {
              std::thread::id id;
              const std::string label = s.holder(&id);
@@ -312,13 +373,11 @@ torques between controller updates, the log and tracking metrics.)doc")
              std::ostringstream text;
              text << id;
              return py::make_tuple(label, thread_object(text.str()));
-           },
-           "(label, thread) of the thread holding the run now (thread: its threading.get_ident()), or None. "
-           "A snapshot: it may change at once.")
+           }, doc_Simulation_holder)
       .def("advance", [](Simulation& s, long n) {
              py::gil_scoped_release nogil;
              s.advance(n);
-           }, py::arg("n"), "Advances n steps with the GIL released.")
+           }, py::arg("n"), doc_Simulation_advance)
       .def("run", [](Simulation& s, double t_end, const py::object& callback, long chunk) {
              long total = 0;
              try {
@@ -342,88 +401,73 @@ torques between controller updates, the log and tracking metrics.)doc")
              py::gil_scoped_release nogil;
              return s.run(t_end, chunk, between);
            },
-           py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096,
-           "Advances to time t_end (s) in chunks of `chunk` steps with the GIL released, calling "
-           "callback(done, total) after each chunk. Returns the number of steps.")
-      .def("steps_until", &Simulation::steps_until, py::arg("t_end"),
-           "Steps from now to t_end (s), rounded down.")
-      .def("reset", &Simulation::reset, "Back to t = 0 and the initial states; clears log and metrics.")
+           py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096, doc_Simulation_run)
+      .def("steps_until", &Simulation::steps_until, py::arg("t_end"), doc_Simulation_steps_until)
+      .def("reset", &Simulation::reset, doc_Simulation_reset)
       .def_property_readonly("time", &Simulation::time, "Simulated time, s.")
       .def_property_readonly("steps", &Simulation::step_count, "Steps taken since the start.")
-      .def_property_readonly("dt", [](const Simulation& s) { return s.options().dt; }, "Step size, s.")
-      .def_property_readonly("control_every", [](const Simulation& s) { return s.options().control_every; })
-      .def_property_readonly("log_every", [](const Simulation& s) { return s.options().log_every; })
-      .def_property_readonly("end_stops", [](const Simulation& s) { return s.options().end_stops; })
-      .def_property_readonly("max_speed", [](const Simulation& s) { return s.options().max_speed; })
-      .def_property_readonly("max_position", [](const Simulation& s) { return s.options().max_position; })
+      .def_property_readonly("dt", [](const Simulation& s) { return s.options().dt; }, doc_SimulationOptions_dt)
+      .def_property_readonly("control_every", [](const Simulation& s) { return s.options().control_every; }, doc_SimulationOptions_control_every)
+      .def_property_readonly("log_every", [](const Simulation& s) { return s.options().log_every; }, doc_SimulationOptions_log_every)
+      .def_property_readonly("end_stops", [](const Simulation& s) { return s.options().end_stops; }, doc_SimulationOptions_end_stops)
+      .def_property_readonly("max_speed", [](const Simulation& s) { return s.options().max_speed; }, doc_SimulationOptions_max_speed)
+      .def_property_readonly("max_position", [](const Simulation& s) { return s.options().max_position; }, doc_SimulationOptions_max_position)
       .def_property_readonly("robot_count", &Simulation::robot_count)
       .def_property_readonly("started", &Simulation::started)
       .def_property_readonly("diverged", &Simulation::diverged)
       .def_property_readonly("integrator", [](const Simulation& s) { return method_name(s.options().integrator); })
       .def_property_readonly("world", [](const Simulation& s) { return s.world(); })
-      .def_property_readonly("world_every", [](const Simulation& s) { return s.options().world_every; })
-      .def_property_readonly("contact_forces", [](const Simulation& s) { return s.options().contact_forces; })
-      .def_property_readonly("log_contacts", [](const Simulation& s) { return s.options().log_contacts; })
+      .def_property_readonly("world_every", [](const Simulation& s) { return s.options().world_every; }, doc_SimulationOptions_world_every)
+      .def_property_readonly("contact_forces", [](const Simulation& s) { return s.options().contact_forces; }, doc_SimulationOptions_contact_forces)
+      .def_property_readonly("log_contacts", [](const Simulation& s) { return s.options().log_contacts; }, doc_SimulationOptions_log_contacts)
       .def("contacts", [](const Simulation& s) {
              const World& w = world_of(s);
-             py::list out;
-             for (const ContactPoint& c : w.contacts()) out.append(contact_dict(w, c));
+             std::vector<Contact> out;
+             for (const ContactPoint& c : w.contacts()) {
+               const BodySpec& a = w.body(c.a);
+               const BodySpec& b = w.body(c.b);
+               out.push_back(Contact{c, a.name, b.name, contact_kind(a, b)});
+             }
              return out;
-           }, "Contact points of the last world step: dicts with a, b (names), kind, point_a, point_b (3,) m, "
-              "normal (3,) from b to a, depth m (>= 0 touching), force (3,) N on a (b feels -force).")
+           }, doc_World_contacts)
       .def("set_body_wrench", [](Simulation& s, const std::string& name, const py::object& w) {
              s.set_body_wrench(body_id(s, name), vector_arg<Vec6>(w, 6, "wrench"));
-           }, py::arg("name"), py::arg("wrench"))
+           }, py::arg("name"), py::arg("wrench"), doc_Simulation_set_body_wrench)
       .def("body_wrench", [](const Simulation& s, const std::string& name) {
              return to_numpy(s.body_wrench(body_id(s, name)));
            }, py::arg("name"))
       .def("body_state", [](const Simulation& s, const std::string& name) {
-             return body_state_dict(s.body_state(body_id(s, name)));
-           }, py::arg("name"), "A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) "
-                               "[w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s.")
+             return s.body_state(body_id(s, name));
+           }, py::arg("name"), doc_Simulation_body_state)
       .def("holding", [](const Simulation& s, int i) -> py::object {
              const int id = s.holding(i);
              if (id < 0) return py::none();
              return py::str(world_of(s).body(id).name);
-           }, py::arg("i"), "The name of the free body robot i holds, or None.")
-      .def("release", &Simulation::release, py::arg("i"), "Releases what robot i holds, now.")
+           }, py::arg("i"), doc_Simulation_holding)
+      .def("release", &Simulation::release, py::arg("i"), doc_Simulation_release)
       .def("weld_wrench", [](const Simulation& s, int i) { return to_numpy(s.weld_wrench(i)); }, py::arg("i"),
-           "The weld's force (N) and moment (N m) on the body robot i holds over the last world step, (6,).")
+           doc_Simulation_weld_wrench)
       .def("grasp_check", [](Simulation& s, int i, const std::string& body) {
-             const GraspCheck c = s.grasp_check(i, body_id(s, body));
-             py::dict d;
-             d["closing"] = c.closing; d["aligned"] = c.aligned; d["touching"] = c.touching;
-             d["in_pads"] = c.in_pads; d["slow"] = c.slow; d["ok"] = c.ok();
-             d["angle"] = c.angle; d["gap_fixed"] = c.gap_fixed; d["gap_moving"] = c.gap_moving;
-             d["speed"] = c.speed; d["angular_speed"] = c.angular_speed; d["width"] = c.width;
-             return d;
-           }, py::arg("i"), py::arg("body"),
-           "The clamp rule's conditions for robot i and a free body now: closing, aligned, touching, in_pads, "
-           "slow, ok (all of them), with angle (rad), gap_fixed, gap_moving (m, < 0 penetrating), speed (m/s), "
-           "angular_speed (rad/s) and width (m).")
+             return s.grasp_check(i, body_id(s, body));
+           }, py::arg("i"), py::arg("body"), doc_Simulation_grasp_check)
       .def("grasp_options", [](const Simulation& s) { return grasp_options_dict(s.options().grasp); },
            "The clamp rule's options of this simulation: {name: value} (see simulation_defaults()).")
       .def_property_readonly("grasp", [](const Simulation& s) { return s.options().grasp.enabled; })
       .def("grasp_events", [](const Simulation& s) {
-             py::dict d;
-             py::list t, robot, body, event, reason;
-             for (const GraspEvent& e : s.grasp_events()) {
-               t.append(e.t);
-               robot.append(e.robot);
-               body.append(world_of(s).body(e.body).name);
-               event.append(e.grasp ? "grasp" : "release");
-               reason.append(e.reason);
-             }
-             d["t"] = t; d["robot"] = robot; d["body"] = body; d["event"] = event; d["reason"] = reason;
-             return d;
-           }, "Grasps and releases as columns: t (s), robot (index), body (name), event ('grasp' or 'release'), "
-              "reason ('grasp', 'opened', 'slipped', 'released').")
+             const World* w = s.world().get();
+             auto name = [w](int id) -> py::object { return py::str(w->body(id).name); };
+             return columns<GraspEvent>(s.grasp_events(), {
+                 {"t", [](const GraspEvent& e) { return e.t; }, nullptr},
+                 {"robot", nullptr, [](const GraspEvent& e) { return py::int_(e.robot); }},
+                 {"body", nullptr, [name](const GraspEvent& e) { return name(e.body); }},
+                 {"event", nullptr, [](const GraspEvent& e) { return py::str(e.grasp ? "grasp" : "release"); }},
+                 {"reason", nullptr, [](const GraspEvent& e) { return py::str(e.reason); }}});
+           }, doc_GraspEvent)
       .def("link_body_state", [](const Simulation& s, int i, int box) {
              const int id = s.link_body(i, box);
              if (id < 0) throw py::value_error("the robots' link bodies join the world at the first step");
-             return body_state_dict(world_of(s).state(id));
-           }, py::arg("i"), py::arg("box"),
-           "The pose and twist the world holds for robot i's box (as set at the last world step).")
+             return world_of(s).state(id);
+           }, py::arg("i"), py::arg("box"), doc_Simulation_link_body)
       .def("free_body_names", [](const Simulation& s) {
              return s.world() ? s.world()->names(s.world()->free_bodies()) : std::vector<std::string>();
            })
@@ -431,26 +475,20 @@ torques between controller updates, the log and tracking metrics.)doc")
              py::list out;
              for (const LogColumn& c : s.body_log()) out.append(view(c, s.log_rows(), true));
              return out;
-           }, "Free bodies' logs (free_body_names order), each (rows, 13): position (3), quaternion w x y z (4), "
-              "velocity (3), angular velocity (3).")
+           }, doc_Simulation_body_log)
       .def("contact_events", [](const Simulation& s) {
-             py::dict d;
-             if (!s.world()) return d;
+             if (!s.world()) return py::dict();
              const World& w = *s.world();
-             const auto& ev = w.events();
-             d["a"] = names(w, ev, [](const ContactEvent& e) { return e.a; });
-             d["b"] = names(w, ev, [](const ContactEvent& e) { return e.b; });
-             py::list kinds;
-             for (const ContactEvent& e : ev) kinds.append(contact_kind(w.body(e.a), w.body(e.b)));
-             d["kind"] = kinds;
-             d["begin"] = column(ev, [](const ContactEvent& e) { return e.begin; });
-             d["end"] = column(ev, [](const ContactEvent& e) { return e.end; });
-             d["peak_force"] = column(ev, [](const ContactEvent& e) { return e.peak_force; });
-             d["max_depth"] = column(ev, [](const ContactEvent& e) { return e.max_depth; });
-             d["steps"] = column(ev, [](const ContactEvent& e) { return static_cast<double>(e.steps); });
-             return d;
-           }, "Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force "
-              "(N), max_depth (m), steps.")
+             return columns<ContactEvent>(w.events(), {
+                 {"a", nullptr, [&w](const ContactEvent& e) { return py::str(w.body(e.a).name); }},
+                 {"b", nullptr, [&w](const ContactEvent& e) { return py::str(w.body(e.b).name); }},
+                 {"kind", nullptr, [&w](const ContactEvent& e) { return py::str(contact_kind(w.body(e.a), w.body(e.b))); }},
+                 {"begin", [](const ContactEvent& e) { return e.begin; }, nullptr},
+                 {"end", [](const ContactEvent& e) { return e.end; }, nullptr},
+                 {"peak_force", [](const ContactEvent& e) { return e.peak_force; }, nullptr},
+                 {"max_depth", [](const ContactEvent& e) { return e.max_depth; }, nullptr},
+                 {"steps", [](const ContactEvent& e) { return static_cast<double>(e.steps); }, nullptr}});
+           }, doc_ContactEvent)
       .def("set_sensor", [](Simulation& s, int i, double noise_force, double noise_moment, double time_constant,
                             std::int64_t seed) {
              SensorOptions o;
@@ -463,78 +501,50 @@ torques between controller updates, the log and tracking metrics.)doc")
            py::arg("i"), py::arg("noise_force") = kSensorDefaults.noise_force,
            py::arg("noise_moment") = kSensorDefaults.noise_moment,
            py::arg("time_constant") = kSensorDefaults.time_constant, py::arg("seed") = kSensorDefaults.seed,
-           "Configures robot i's force/torque sensor: noise_force (N) and noise_moment (N m), the standard "
-           "deviations of the Gaussian noise per component in the sensor frame; time_constant (s) of the "
-           "first-order low-pass filter (0: none); seed (>= 0) of the noise generator, which restarts from it.")
-      .def("sensor_options", [](const Simulation& s, int i) { return sensor_options_dict(s.sensor_options(i)); },
-           py::arg("i"), "Robot i's sensor options: noise_force, noise_moment, time_constant, seed.")
+           doc_Simulation_set_sensor)
+      .def("sensor_options", [](const Simulation& s, int i) { return s.sensor_options(i); },
+           py::arg("i"), doc_SensorOptions)
       .def("sensor", [](Simulation& s, int i) {
-             py::dict d;
-             d["ft_world"] = to_numpy(s.ft_world(i));
-             d["ft_clamp"] = to_numpy(s.ft_clamp(i));
-             d["ft_true_world"] = to_numpy(s.ft_true_world(i));
-             d["ft_true_clamp"] = to_numpy(s.ft_true_clamp(i));
-             d["pose"] = to_numpy(s.sensor_pose(i));
-             d["tau"] = to_numpy(s.tau(i));
-             d["tau_ext"] = to_numpy(s.tau_ext(i));
-             return d;
-           }, py::arg("i"),
-           "Robot i's sensors now: ft_world, ft_clamp (6,) the force/torque reading [N; N m about the tool "
-           "centre point] in world axes and in the sensor frame, ft_true_world, ft_true_clamp (6,) the same "
-           "without noise or filter, pose (4, 4) the sensor frame (the TCP) in the world, tau (n,) the motors' "
-           "held torque, tau_ext (n,) the environment's joint torque held over the step.")
+             return SensorReading{s.ft_world(i), s.ft_clamp(i), s.ft_true_world(i), s.ft_true_clamp(i),
+                                  s.sensor_pose(i), s.tau(i), s.tau_ext(i)};
+           }, py::arg("i"), doc_Simulation_ft_clamp)
       .def("sensor_log", [](const Simulation& s, int i) { return view(s.log(i).ft, s.log_rows(), true); },
            py::arg("i"), "Robot i's force/torque reading per log row, (rows, 12): world axes (6), sensor frame (6).")
       .def("cooperation", [](Simulation& s, int a, int b) {
-             bool holding = false;
-             py::dict d = cooperation_dict(s.cooperation(a, b, &holding));
-             d["holding"] = holding;
-             return d;
-           }, py::arg("a"), py::arg("b"),
-           "Robots a < b holding one body now: holding (bool) and the quantities of cooperation_schema() (zeros "
-           "when not holding).")
+             HeldCooperation out;
+             out.values = s.cooperation(a, b, &out.holding);
+             if (out.holding && s.world() && s.holding(a) >= 0) out.body = py::str(s.world()->body(s.holding(a)).name);
+             return out;
+           }, py::arg("a"), py::arg("b"), doc_Simulation_cooperation)
       .def("cooperation_log", [](Simulation& s, int a, int b) {
              return view(s.cooperation_log(a, b), s.log_rows(), true);
-           }, py::arg("a"), py::arg("b"),
-           "Robots a < b: one row of cooperation_schema() per log row, (rows, width).")
+           }, py::arg("a"), py::arg("b"), doc_Simulation_cooperation_log)
       .def("grasp_log", &grasp_log, py::arg("i"),
            "Robot i's grasp per log row, (rows, 7): the world id of the body held (-1: none), the weld's force "
            "(3) N and moment (3) N m on it.")
       .def("contact_log", [](const Simulation& s) {
-             py::dict d;
-             if (!s.world()) return d;
+             if (!s.world()) return py::dict();
              const World& w = *s.world();
-             const auto& rows = s.contact_log();
-             d["t"] = column(rows, [](const LoggedContact& c) { return c.t; });
-             d["a"] = names(w, rows, [](const LoggedContact& c) { return c.contact.a; });
-             d["b"] = names(w, rows, [](const LoggedContact& c) { return c.contact.b; });
-             for (int k = 0; k < 3; ++k) {
-               const char* axis[3] = {"x", "y", "z"};
-               d[py::str(std::string("point_") + axis[k])] = column(rows, [k](const LoggedContact& c) { return c.contact.point_a[k]; });
-               d[py::str(std::string("normal_") + axis[k])] = column(rows, [k](const LoggedContact& c) { return c.contact.normal[k]; });
-               d[py::str(std::string("force_") + axis[k])] = column(rows, [k](const LoggedContact& c) { return c.contact.force[k]; });
-             }
-             d["depth"] = column(rows, [](const LoggedContact& c) { return c.contact.depth; });
-             return d;
-           }, "Every contact point of every world step (with log_contacts=True) as columns: t, a, b, point_x.. "
-              "(on a), normal_x.., force_x.. (on a), depth.")
+             using L = LoggedContact;
+             return columns<L>(s.contact_log(), {
+                 {"t", [](const L& c) { return c.t; }, nullptr},
+                 {"a", nullptr, [&w](const L& c) { return py::str(w.body(c.contact.a).name); }},
+                 {"b", nullptr, [&w](const L& c) { return py::str(w.body(c.contact.b).name); }},
+                 {"point_x", [](const L& c) { return c.contact.point_a.x(); }, nullptr},
+                 {"normal_x", [](const L& c) { return c.contact.normal.x(); }, nullptr},
+                 {"force_x", [](const L& c) { return c.contact.force.x(); }, nullptr},
+                 {"point_y", [](const L& c) { return c.contact.point_a.y(); }, nullptr},
+                 {"normal_y", [](const L& c) { return c.contact.normal.y(); }, nullptr},
+                 {"force_y", [](const L& c) { return c.contact.force.y(); }, nullptr},
+                 {"point_z", [](const L& c) { return c.contact.point_a.z(); }, nullptr},
+                 {"normal_z", [](const L& c) { return c.contact.normal.z(); }, nullptr},
+                 {"force_z", [](const L& c) { return c.contact.force.z(); }, nullptr},
+                 {"depth", [](const L& c) { return c.contact.depth; }, nullptr}});
+           }, doc_ContactPoint)
       .def_static("excluded_pairs", [](const Robot& r, int samples) { return Simulation::excluded_pairs(r, samples); },
-                  py::arg("robot"), py::arg("samples") = 200,
-                  "Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at "
-                  "every one of `samples` random poses.")
+                  py::arg("robot"), py::arg("samples") = 200, doc_Simulation_excluded_pairs)
       .def("set_profiling", &Simulation::set_profiling, py::arg("on"))
-      .def("profile", [](const Simulation& s) {
-             const StepProfile& p = s.profile();
-             py::dict d;
-             d["controllers"] = p.controllers;
-             d["world"] = p.world;
-             d["contacts"] = p.contacts;
-             d["robots"] = p.robots;
-             d["grasp"] = p.grasp;
-             d["world_steps"] = p.world_steps;
-             return d;
-           }, "Seconds spent in the controllers, the world's step (grasp included), the grasp rule and welds, the "
-              "contact mapping and the robots' integration since profiling was switched on (set_profiling).")
+      .def("profile", [](const Simulation& s) { return s.profile(); }, doc_StepProfile)
       .def("robot", [](const Simulation& s, int i) { return s.robot(i); }, py::arg("i"),
            "Robot i as simulated (robots are immutable: this equals the robot added).")
       .def("controller", [](const Simulation& s, int i) { return s.controller(i); }, py::arg("i"))
@@ -544,18 +554,16 @@ torques between controller updates, the log and tracking metrics.)doc")
              const int n = s.robot(i).dof();
              if (!forces.is_none()) s.set_applied_forces(i, vec(forces, n, "forces"));
              if (!wrenches.is_none()) s.set_applied_wrenches(i, wrenches_arg(wrenches, "wrenches"));
-           }, py::arg("i"), py::arg("forces") = py::none(), py::arg("wrenches") = py::none(),
-           "Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench "
-           "at the tool centre point); None keeps that input as it is.")
+           }, py::arg("i"), py::arg("forces") = py::none(), py::arg("wrenches") = py::none(), doc_Simulation_set_applied_forces)
       .def("applied", [](const Simulation& s, int i) {
              return py::make_tuple(to_numpy(s.applied_forces(i)), s.applied_wrenches(i));
            }, py::arg("i"), "(forces (n,), wrenches [Wrench]) applied to robot i now.")
       .def("tau_ext", [](const Simulation& s, int i) { return to_numpy(s.tau_ext(i)); }, py::arg("i"),
-           "The external joint torque of robot i's applied inputs, held over the next step, (n,).")
+           doc_Simulation_tau_ext)
       .def("state", [](const Simulation& s, int i) { return py::make_tuple(to_numpy(s.q(i)), to_numpy(s.qd(i))); },
            py::arg("i"), "(q, qd) of robot i now, each (n,).")
       .def("torque", [](const Simulation& s, int i) { return to_numpy(s.tau(i)); }, py::arg("i"),
-           "The torque held on robot i now (saturated), (n,).")
+           doc_Simulation_tau)
       .def("initial_state", [](const Simulation& s, int i) {
              return py::make_tuple(to_numpy(s.initial_q(i)), to_numpy(s.initial_qd(i)));
            }, py::arg("i"))
@@ -565,8 +573,8 @@ torques between controller updates, the log and tracking metrics.)doc")
       .def("log", &log_dict, py::arg("i"),
            "Robot i's log as a dict of (rows, n) arrays, one per quantity of log_schema(): read-only views "
            "of the rows so far, which later steps and reset() do not change.")
-      .def("metrics", &metrics_dict, py::arg("i"),
-           "Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).");
+      .def("metrics", [](const Simulation& s, int i) { return RobotMetrics{s.robot(i).name(), s.metrics(i)}; },
+           py::arg("i"), doc_TrackingMetrics);
 
   m.def("simulation_defaults", []() {
     using namespace py::literals;
@@ -576,15 +584,9 @@ torques between controller updates, the log and tracking metrics.)doc")
                     "integrator"_a = method_name(o.integrator), "world_every"_a = o.world_every,
                     "contact_forces"_a = o.contact_forces, "log_contacts"_a = o.log_contacts,
                     "grasp"_a = o.grasp.enabled, "grasp_options"_a = grasp_options_dict(o.grasp));
-  }, "The engine's defaults of SimulationCore's options, the only place they are written: a dict with dt "
-     "(s), control_every, log_every, end_stops, max_speed (rad/s or m/s), max_position (rad or m), integrator, "
-     "world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, "
-     "penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, "
-     "release_time s, weld_moment).");
+  }, doc_SimulationOptions);
 
-  m.def("sensor_defaults", []() { return sensor_options_dict(kSensorDefaults); },
-        "The engine's defaults of a robot's force/torque sensor (SimulationCore.set_sensor), the only place they "
-        "are written: noise_force (N), noise_moment (N m), time_constant (s), seed.");
+  m.def("sensor_defaults", []() { return kSensorDefaults; }, doc_SensorOptions);
 
   m.def("log_schema", []() {
     py::list out;
@@ -601,14 +603,12 @@ torques between controller updates, the log and tracking metrics.)doc")
   m.def("cooperation_wrenches", [](const py::object& centre, const py::object& point_a, const py::object& wrench_a,
                                    const py::object& point_b, const py::object& wrench_b, const py::object& up) {
     using V3 = Eigen::Vector3d;
-    return cooperation_dict(cooperation(vector_arg<V3>(centre, 3, "centre"), vector_arg<V3>(point_a, 3, "point_a"),
+    return (cooperation(vector_arg<V3>(centre, 3, "centre"), vector_arg<V3>(point_a, 3, "point_a"),
                                         vector_arg<Vec6>(wrench_a, 6, "wrench_a"), vector_arg<V3>(point_b, 3, "point_b"),
                                         vector_arg<Vec6>(wrench_b, 6, "wrench_b"), vector_arg<V3>(up, 3, "up")));
   }, py::arg("centre"), py::arg("point_a"), py::arg("wrench_a"), py::arg("point_b"), py::arg("wrench_b"),
      py::arg("up") = std::vector<double>{0.0, 0.0, 1.0},
-     "Two holders' wrenches [f; mu] (6,) (N, N m about their points) at point_a, point_b (3,) m on a body "
-     "whose centre of mass is `centre` (3,) m: the engine's external, internal, squeeze, twist, bending, shear "
-     "and load_share (up (3,): against gravity), as the log's cooperation columns (relative_pose_error zero).");
+     doc_cooperation);
 
   m.def("run_batch", [](const py::list& sims, double t_end, int threads) {
          std::vector<Simulation*> ptrs;
@@ -626,8 +626,5 @@ torques between controller updates, the log and tracking metrics.)doc")
            secs.append(seconds[i]);
          }
          return py::make_tuple(out, secs);
-       }, py::arg("sims"), py::arg("t_end"), py::arg("threads") = 0,
-       "Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. "
-       "Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time "
-       "(s) its run took.");
+       }, py::arg("sims"), py::arg("t_end"), py::arg("threads") = 0, doc_run_batch);
 }

@@ -4,12 +4,15 @@
 #include <pybind11/stl.h>
 
 #include "convert.hpp"
+#include "generated/docstrings.hpp"
+#include "struct_binding.hpp"
 #include "coopsim/box_distance.hpp"
 #include "coopsim/world.hpp"
 
 namespace py = pybind11;
 using namespace coopsim;
 using namespace coopsim::py_convert;
+using namespace coopsim::docs;
 
 namespace {
 
@@ -49,19 +52,18 @@ BodySpec spec_from(const py::handle& h) {
 
 }  // namespace
 
-py::dict body_state_dict(const BodyState& s) {
-  py::dict d;
-  const Eigen::Quaterniond q(s.pose.linear());
-  d["pose"] = to_numpy(s.pose);
-  d["position"] = to_numpy(Eigen::Vector3d(s.pose.translation()));
-  d["quaternion"] = to_numpy(Eigen::Vector4d(q.w(), q.x(), q.y(), q.z()));
-  d["velocity"] = to_numpy(s.velocity);
-  d["angular_velocity"] = to_numpy(s.angular_velocity);
-  d["asleep"] = s.asleep;
-  return d;
-}
-
 void bind_world(py::module_& m) {
+  coopsim::py_struct::Struct<BodyState>(m, "BodyState", doc_BodyState)
+      .member("pose", &BodyState::pose, doc_BodyState_pose)
+      .field("position", [](const BodyState& s) { return Eigen::Vector3d(s.pose.translation()); }, doc_BodyState_pose)
+      .field("quaternion", [](const BodyState& s) {
+        const Eigen::Quaterniond q(s.pose.linear());
+        return Eigen::Vector4d(q.w(), q.x(), q.y(), q.z());
+      }, doc_BodyState_pose)
+      .member("velocity", &BodyState::velocity, doc_BodyState_velocity)
+      .member("angular_velocity", &BodyState::angular_velocity, doc_BodyState_angular_velocity)
+      .member("asleep", &BodyState::asleep, doc_BodyState_asleep)
+      .finish();
   m.def("box_distance", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb) {
           return box_distance(table(pa, "pose_a"), table(ha, "half_a"), table(pb, "pose_b"), table(hb, "half_b"));
         }, py::arg("pose_a"), py::arg("half_a"), py::arg("pose_b"), py::arg("half_b"),

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['Clamp', 'ComputedTorque', 'Controller', 'CoopMember', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -1299,6 +1299,56 @@ class LeaderFollower(CooperativeController):
     @property
     def stiffness(self) -> numpy.typing.NDArray[numpy.float64]:
         ...
+class BodyState:
+    """
+    The state of a body now.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('pose', 'position', 'quaternion', 'velocity', 'angular_velocity', 'asleep')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def angular_velocity(self) -> typing.Any:
+        """
+        rad/s (world)
+        """
+    @property
+    def asleep(self) -> typing.Any:
+        """
+        a free body at rest that the world no longer solves (WorldOptions::sleep_after)
+        """
+    @property
+    def pose(self) -> typing.Any:
+        """
+        world pose of the centre, (4, 4) m
+        """
+    @property
+    def position(self) -> typing.Any:
+        """
+        world pose of the centre, (4, 4) m
+        """
+    @property
+    def quaternion(self) -> typing.Any:
+        """
+        world pose of the centre, (4, 4) m
+        """
+    @property
+    def velocity(self) -> typing.Any:
+        """
+        m/s, of the centre (world)
+        """
 class World:
     """
     A Bullet dynamics world: an optional floor (the plane z = 0), static boxes
@@ -1356,17 +1406,561 @@ class World:
         ...
 class DivergenceError(RuntimeError):
     """
-    The simulation diverged (non-finite or runaway state, or a non-finite torque). Attributes: step, time (s), robot (index; -1 when a free body of the world diverged, named in the message), q, qd (the rejected state; empty for a free body). The simulation keeps its log up to the last good step.
+    A run stopped by a diverged state (or a non-finite torque): the step whose
+    result was rejected, its time, the robot, and the rejected state.
     """
 class SimulationBusyError(RuntimeError):
     """
-    Another thread is running this simulation: a call that advances or changes it (advance, run, reset, set_*, ...) was made from a thread other than its holder's. One driver at a time: pause or close the other driver (e.g. the live view) first. Attributes: holder (str, the holder's label; 'another thread' for a call holding it for its own duration), thread (int, the holder's threading.get_ident()).
+    Thrown by a call that advances or changes a simulation (see "One driver at a time" above) from
+    another thread than the one holding it. holder(): the holder's label ("another thread" for an
+    implicit hold); thread(): its thread's id (std::thread::id as printed; on Linux pthread_self(),
+    Python's threading.get_ident()). The message is one line:
+      this simulation is being run by '<label>' (thread <id>); one driver at a time: pause or close it first
     """
+class Contact:
+    """
+    One contact point between bodies a and b of the last world step.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('a', 'b', 'kind', 'point_a', 'point_b', 'normal', 'depth', 'force')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def a(self) -> typing.Any:
+        """
+        the name of body a
+        """
+    @property
+    def b(self) -> typing.Any:
+        """
+        the name of body b
+        """
+    @property
+    def depth(self) -> typing.Any:
+        """
+        m, penetration (>= 0 when touching)
+        """
+    @property
+    def force(self) -> typing.Any:
+        """
+        N, world, on a at point_a over the step (b: -force)
+        """
+    @property
+    def kind(self) -> typing.Any:
+        """
+        The kind of a contact between two bodies: "self" (links of one robot),
+        "robot-robot", "robot-scenery" (a link and the floor or a static box),
+        "robot-body" (a link and a free body), "body-scenery", "body-body".
+        """
+    @property
+    def normal(self) -> typing.Any:
+        """
+        unit, world, from b towards a
+        """
+    @property
+    def point_a(self) -> typing.Any:
+        """
+        m, world: on a's and on b's surface
+        """
+    @property
+    def point_b(self) -> typing.Any:
+        """
+        m, world: on a's and on b's surface
+        """
+class GraspCheck:
+    """
+    The clamp rule's conditions for one robot and one body, and the measures behind them.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('closing', 'aligned', 'touching', 'in_pads', 'slow', 'ok', 'angle', 'gap_fixed', 'gap_moving', 'speed', 'angular_speed', 'width')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def aligned(self) -> typing.Any:
+        """
+        a face of the body normal to the jaw axis within the angle option
+        """
+    @property
+    def angle(self) -> typing.Any:
+        """
+        rad
+        """
+    @property
+    def angular_speed(self) -> typing.Any:
+        """
+        rad/s
+        """
+    @property
+    def closing(self) -> typing.Any:
+        """
+        the jaw commanded closing or closed
+        """
+    @property
+    def gap_fixed(self) -> typing.Any:
+        """
+        m
+        """
+    @property
+    def gap_moving(self) -> typing.Any:
+        """
+        m
+        """
+    @property
+    def in_pads(self) -> typing.Any:
+        """
+        its centre within the pads along the jaw, not into the palm, across their centre line
+        """
+    @property
+    def ok(self) -> typing.Any:
+        """
+        all five conditions
+        """
+    @property
+    def slow(self) -> typing.Any:
+        """
+        moving with the clamp: speed and angular_speed within their options
+        """
+    @property
+    def speed(self) -> typing.Any:
+        """
+        m/s
+        """
+    @property
+    def touching(self) -> typing.Any:
+        """
+        both jaws touch it: each gap within the gap and penetration options
+        """
+    @property
+    def width(self) -> typing.Any:
+        """
+        m, the body's width along the jaw axis
+        """
+class Cooperation:
+    """
+    What two welds do to one body, and how the clamps hold together (see the header comment).
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('centre', 'point_a', 'point_b', 'external', 'internal', 'squeeze', 'twist', 'bending', 'shear', 'load_share', 'relative_pose_error')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def bending(self) -> typing.Any:
+        """
+        N m, at a and at b
+        """
+    @property
+    def centre(self) -> typing.Any:
+        """
+        m, world
+        """
+    @property
+    def external(self) -> typing.Any:
+        """
+        N, N m about the centre
+        """
+    @property
+    def internal(self) -> typing.Any:
+        """
+        [h_a; h_b] internal parts, N, N m about each point
+        """
+    @property
+    def load_share(self) -> typing.Any:
+        """
+        the holders' shares of the body's weight
+        """
+    @property
+    def point_a(self) -> typing.Any:
+        """
+        m, world
+        """
+    @property
+    def point_b(self) -> typing.Any:
+        """
+        m, world
+        """
+    @property
+    def relative_pose_error(self) -> typing.Any:
+        """
+        m, rad
+        """
+    @property
+    def shear(self) -> typing.Any:
+        """
+        N
+        """
+    @property
+    def squeeze(self) -> typing.Any:
+        """
+        N
+        """
+    @property
+    def twist(self) -> typing.Any:
+        """
+        N m
+        """
+class HeldCooperation:
+    """
+    Robots a < b: their welds' quantities and relative pose error now (the log's row at t_k: the welds'
+    wrenches of the last world step, the body as sampled then, the clamps at q); *holding, when given,
+    tells whether they hold one body (else the values are zeros). Throws std::invalid_argument unless
+    0 <= a < b < robot_count().
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('holding', 'body', 'centre', 'point_a', 'point_b', 'external', 'internal', 'squeeze', 'twist', 'bending', 'shear', 'load_share', 'relative_pose_error')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def bending(self) -> typing.Any:
+        """
+        N m, at a and at b
+        """
+    @property
+    def body(self) -> typing.Any:
+        """
+        the name of the body they hold, or None
+        """
+    @property
+    def centre(self) -> typing.Any:
+        """
+        m, world
+        """
+    @property
+    def external(self) -> typing.Any:
+        """
+        N, N m about the centre
+        """
+    @property
+    def holding(self) -> typing.Any:
+        """
+        whether robots a and b hold one body now
+        """
+    @property
+    def internal(self) -> typing.Any:
+        """
+        [h_a; h_b] internal parts, N, N m about each point
+        """
+    @property
+    def load_share(self) -> typing.Any:
+        """
+        the holders' shares of the body's weight
+        """
+    @property
+    def point_a(self) -> typing.Any:
+        """
+        m, world
+        """
+    @property
+    def point_b(self) -> typing.Any:
+        """
+        m, world
+        """
+    @property
+    def relative_pose_error(self) -> typing.Any:
+        """
+        m, rad
+        """
+    @property
+    def shear(self) -> typing.Any:
+        """
+        N
+        """
+    @property
+    def squeeze(self) -> typing.Any:
+        """
+        N
+        """
+    @property
+    def twist(self) -> typing.Any:
+        """
+        N m
+        """
+class TrackingMetrics:
+    """
+    A robot's tracking metrics over every step (whatever log_every): per joint, of e = q_ref - q and tau.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('name', 'steps', 'rms_error', 'max_abs_error', 'max_abs_tau')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __getstate__(self) -> tuple[str, int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
+        ...
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def max_abs_error(self) -> typing.Any:
+        """
+        max |e_i|
+        """
+    @property
+    def max_abs_tau(self) -> typing.Any:
+        """
+        max |tau_i| applied
+        """
+    @property
+    def name(self) -> typing.Any:
+        """
+        the robot's label, e.g. "scara1"
+        """
+    @property
+    def rms_error(self) -> typing.Any:
+        """
+        Root-mean-square tracking error per joint over the samples (zeros before any).
+        """
+    @property
+    def steps(self) -> typing.Any:
+        """
+        samples counted
+        """
+class SensorOptions:
+    """
+    A robot's force/torque sensor (set_sensor). It sits at the tool centre point (TCP; for a clamp,
+    between the jaws) and measures the wrench the robot's end, links >= L, applies to its
+    environment: L is the clamp's fixed link (the tool's link for a robot without a clamp). That wrench
+    is minus the sum of what acts on those links from outside: the weld's reaction (so a held body
+    reads the weld's wrench on it), every contact on their boxes (with free bodies, scenery, other
+    links) and the applied link wrenches (set_applied_wrenches; applied joint forces are not
+    wrenches and are not sensed). The links' own weight and inertia are not in it (an ideal,
+    gravity-compensated sensor). The true wrench, [force N; moment N m about the TCP], is taken in
+    the sensor frame (the tool frame: the TCP's orientation); Gaussian noise of standard deviation
+    noise_force (each force component) and noise_moment (each moment component) is added in that
+    frame, then a first-order low-pass filter of time constant `time_constant` runs at every step:
+      y_k = y_{k-1} + a (x_k - y_{k-1}),  a = 1 - exp(-dt / time_constant)  (a = 1 when 0),
+    the exact discretisation of tau dy/dt = x - y for an input held over each step, with the
+    sample of step k included (no delay); it starts at the first sample. The world reading is the
+    sensor-frame reading turned into world axes (the same point). The contact wrenches are those
+    held over the world step, at the links' present pose. The noise is drawn from a generator seeded
+    with `seed` (std::mt19937_64) at set_sensor() and at reset(): a seed gives the same noise.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('noise_force', 'noise_moment', 'time_constant', 'seed')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __getstate__(self) -> tuple[float, float, float, int]:
+        ...
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def noise_force(self) -> typing.Any:
+        """
+        N, standard deviation per force component, >= 0
+        """
+    @property
+    def noise_moment(self) -> typing.Any:
+        """
+        N m, standard deviation per moment component, >= 0
+        """
+    @property
+    def seed(self) -> typing.Any:
+        """
+        >= 0
+        """
+    @property
+    def time_constant(self) -> typing.Any:
+        """
+        s, >= 0 (0: no filter)
+        """
+class SensorReading:
+    """
+    Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+    TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+    Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+    rows and when asked here: its reading depends on the present state alone.)
+    They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('ft_world', 'ft_clamp', 'ft_true_world', 'ft_true_clamp', 'pose', 'tau', 'tau_ext')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def ft_clamp(self) -> typing.Any:
+        """
+        Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+        TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+        Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+        rows and when asked here: its reading depends on the present state alone.)
+        They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
+        """
+    @property
+    def ft_true_clamp(self) -> typing.Any:
+        """
+        Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+        TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+        Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+        rows and when asked here: its reading depends on the present state alone.)
+        They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
+        """
+    @property
+    def ft_true_world(self) -> typing.Any:
+        """
+        Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+        TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+        Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+        rows and when asked here: its reading depends on the present state alone.)
+        They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
+        """
+    @property
+    def ft_world(self) -> typing.Any:
+        """
+        Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+        TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+        Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+        rows and when asked here: its reading depends on the present state alone.)
+        They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
+        """
+    @property
+    def pose(self) -> typing.Any:
+        """
+        The sensor frame: the TCP's pose in the world at the present state.
+        """
+    @property
+    def tau(self) -> typing.Any:
+        """
+        held torque
+        """
+    @property
+    def tau_ext(self) -> typing.Any:
+        """
+        held external torque of the applied inputs
+        """
+class StepProfile:
+    """
+    Time spent per part of the loop (with SimulationOptions profiling on), s.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('controllers', 'world', 'contacts', 'robots', 'grasp', 'world_steps')
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> collections.abc.Iterator:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def contacts(self) -> typing.Any:
+        """
+        Time spent per part of the loop (with SimulationOptions profiling on), s.
+        """
+    @property
+    def controllers(self) -> typing.Any:
+        """
+        Time spent per part of the loop (with SimulationOptions profiling on), s.
+        """
+    @property
+    def grasp(self) -> typing.Any:
+        """
+        grasp: the rule and the welds
+        """
+    @property
+    def robots(self) -> typing.Any:
+        """
+        Time spent per part of the loop (with SimulationOptions profiling on), s.
+        """
+    @property
+    def world(self) -> typing.Any:
+        """
+        Time spent per part of the loop (with SimulationOptions profiling on), s.
+        """
+    @property
+    def world_steps(self) -> typing.Any:
+        """
+        Time spent per part of the loop (with SimulationOptions profiling on), s.
+        """
 class SimulationHold:
     """
-    A hold on a SimulationCore's run (SimulationCore.hold; use coopsim.Simulation.driving): while it is held,
-    only the thread that took it may advance or change the simulation. release() gives it back; it must be
-    called on that thread.
+    An explicit hold on the run (hold()): while it lives, only its thread may advance or change
+    the simulation. Movable, not copyable; release() (or the destructor) gives it back, and must
+    run on the thread that took it (release() from another thread throws std::logic_error).
     """
     def release(self) -> None:
         """
@@ -1386,7 +1980,9 @@ class SimulationCore:
     @staticmethod
     def excluded_pairs(robot: Robot, samples: typing.SupportsInt | typing.SupportsIndex = 200) -> list[tuple[int, int]]:
         """
-        Box index pairs of a robot that never collide: same or adjacent links, and pairs touching at every one of `samples` random poses.
+        Box index pairs of robot i that never collide: boxes of one link, of
+        adjacent links (the base is link 0), and pairs that overlap at every
+        one of `samples` random poses within the joint limits.
         """
     @staticmethod
     def from_model(model: SimulationModel) -> SimulationCore:
@@ -1396,14 +1992,18 @@ class SimulationCore:
     def __init__(self, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, control_every: typing.SupportsInt | typing.SupportsIndex = 1, log_every: typing.SupportsInt | typing.SupportsIndex = 1, end_stops: bool = True, max_speed: typing.SupportsFloat | typing.SupportsIndex = 10000.0, max_position: typing.SupportsFloat | typing.SupportsIndex = 1000000.0, integrator: str = 'rk4', world: World = None, world_every: typing.SupportsInt | typing.SupportsIndex = 1, contact_forces: bool = True, log_contacts: bool = False, grasp: bool = True, grasp_options: dict = {}) -> None:
         ...
     def add_cooperative(self, controller: CooperativeController, robots: collections.abc.Sequence[typing.SupportsInt | typing.SupportsIndex]) -> int:
-        ...
+        """
+        `controller` drives robots `robots` together (their own controllers stand aside) from the next
+        controller update on; it is reset now when the run is under way, else at its start. A robot
+        belongs to one group at most; controller->check() sees the robots. Returns the group's index.
+        """
     def add_robot(self, robot: Robot, controller: Controller, reference: typing.Any, q0: typing.Any = None, qd0: typing.Any = None) -> int:
         """
         Adds a robot (copied); returns its index.
         """
     def advance(self, n: typing.SupportsInt | typing.SupportsIndex) -> None:
         """
-        Advances n steps with the GIL released.
+        Advances n >= 0 steps (see the header comment for errors).
         """
     def applied(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], list[Wrench]]:
         """
@@ -1411,35 +2011,42 @@ class SimulationCore:
         """
     def body_log(self) -> list:
         """
-        Free bodies' logs (free_body_names order), each (rows, 13): position (3), quaternion w x y z (4), velocity (3), angular velocity (3).
+        Free bodies' log, one column each (world.free_bodies() order): 13 values
+        per row, position (3) m, quaternion w x y z (4), velocity (3) m/s,
+        angular velocity (3) rad/s, sampled at the world's steps.
         """
-    def body_state(self, name: str) -> dict:
+    def body_state(self, name: str) -> BodyState:
         """
-        A free or static body's state now: pose (4, 4), position (3,), quaternion (4,) [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s.
+        The state of a free or static body at the simulation's time (free bodies
+        as sampled at the last world step).
         """
     def body_wrench(self, name: str) -> numpy.typing.NDArray[numpy.float64]:
         ...
     def contact_events(self) -> dict:
         """
-        Contact events of the run as columns: a, b, kind, begin, end (s; NaN while ongoing), peak_force (N), max_depth (m), steps.
+        A contact between two bodies over time: from the first world step where
+        they touch to the first where they no longer do (end NaN while ongoing).
         """
     def contact_log(self) -> dict:
         """
-        Every contact point of every world step (with log_contacts=True) as columns: t, a, b, point_x.. (on a), normal_x.., force_x.. (on a), depth.
+        One contact point between bodies a and b of the last world step.
         """
-    def contacts(self) -> list:
+    def contacts(self) -> list[Contact]:
         """
-        Contact points of the last world step: dicts with a, b (names), kind, point_a, point_b (3,) m, normal (3,) from b to a, depth m (>= 0 touching), force (3,) N on a (b feels -force).
+        The contact points of the last world step: bodies, points, normal, depth and force (ContactPoint).
         """
     def controller(self, i: typing.SupportsInt | typing.SupportsIndex) -> Controller:
         ...
-    def cooperation(self, a: typing.SupportsInt | typing.SupportsIndex, b: typing.SupportsInt | typing.SupportsIndex) -> dict:
+    def cooperation(self, a: typing.SupportsInt | typing.SupportsIndex, b: typing.SupportsInt | typing.SupportsIndex) -> HeldCooperation:
         """
-        Robots a < b holding one body now: holding (bool) and the quantities of cooperation_schema() (zeros when not holding).
+        Robots a < b: their welds' quantities and relative pose error now (the log's row at t_k: the welds'
+        wrenches of the last world step, the body as sampled then, the clamps at q); *holding, when given,
+        tells whether they hold one body (else the values are zeros). Throws std::invalid_argument unless
+        0 <= a < b < robot_count().
         """
     def cooperation_log(self, a: typing.SupportsInt | typing.SupportsIndex, b: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Robots a < b: one row of cooperation_schema() per log row, (rows, width).
+        Their log column: one row of cooperation_schema() per log row.
         """
     def cooperative_group(self, k: typing.SupportsInt | typing.SupportsIndex) -> tuple[CooperativeController, list[int], bool]:
         """
@@ -1447,13 +2054,13 @@ class SimulationCore:
         """
     def free_body_names(self) -> list[str]:
         ...
-    def grasp_check(self, i: typing.SupportsInt | typing.SupportsIndex, body: str) -> dict:
+    def grasp_check(self, i: typing.SupportsInt | typing.SupportsIndex, body: str) -> GraspCheck:
         """
-        The clamp rule's conditions for robot i and a free body now: closing, aligned, touching, in_pads, slow, ok (all of them), with angle (rad), gap_fixed, gap_moving (m, < 0 penetrating), speed (m/s), angular_speed (rad/s) and width (m).
+        The rule's conditions for robot i and free body `body` in the present state.
         """
     def grasp_events(self) -> dict:
         """
-        Grasps and releases as columns: t (s), robot (index), body (name), event ('grasp' or 'release'), reason ('grasp', 'opened', 'slipped', 'released').
+        A grasp or a release.
         """
     def grasp_log(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -1465,17 +2072,21 @@ class SimulationCore:
         """
     def hold(self, label: typing.Any) -> SimulationHold:
         """
-        Takes the run for the calling thread until the returned SimulationHold is released: another thread's advance, run, reset, set_* ... then raises SimulationBusyError naming `label` (non-empty str). Re-entrant on the holding thread. SimulationBusyError when another thread holds it.
+        Takes the run for the calling thread until the Hold is released: another thread's advance,
+        run, reset or set_* then throws SimulationBusyError naming `label` (non-empty, e.g. "the live
+        view at http://127.0.0.1:8080"). Re-entrant: the holding thread may take it again (the label
+        of the outermost hold stays) and may call everything. Throws SimulationBusyError when another
+        thread holds the run, std::invalid_argument for an empty label.
         """
     def holding(self, i: typing.SupportsInt | typing.SupportsIndex) -> typing.Any:
         """
-        The name of the free body robot i holds, or None.
+        The free body robot i holds (world id), or -1.
         """
     def initial_state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         ...
-    def link_body_state(self, i: typing.SupportsInt | typing.SupportsIndex, box: typing.SupportsInt | typing.SupportsIndex) -> dict:
+    def link_body_state(self, i: typing.SupportsInt | typing.SupportsIndex, box: typing.SupportsInt | typing.SupportsIndex) -> BodyState:
         """
-        The pose and twist the world holds for robot i's box (as set at the last world step).
+        The world body of robot i's box b (-1 without a world or before the first step).
         """
     def log(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
         """
@@ -1485,29 +2096,32 @@ class SimulationCore:
         """
         Logged times (rows,), s: a read-only view that later steps do not change.
         """
-    def metrics(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
+    def metrics(self, i: typing.SupportsInt | typing.SupportsIndex) -> TrackingMetrics:
         """
-        Tracking metrics of robot i over every step: steps, rms_error, max_abs_error (n,), max_abs_tau (n,).
+        A robot's tracking metrics over every step (whatever log_every): per joint, of e = q_ref - q and tau.
         """
     def model(self) -> SimulationModel:
         """
         The model of this run, shared (this run's later changes go to a copy while it is held).
         """
-    def profile(self) -> dict:
+    def profile(self) -> StepProfile:
         """
-        Seconds spent in the controllers, the world's step (grasp included), the grasp rule and welds, the contact mapping and the robots' integration since profiling was switched on (set_profiling).
+        Time spent per part of the loop (with SimulationOptions profiling on), s.
         """
     def reference(self, i: typing.SupportsInt | typing.SupportsIndex) -> Reference:
         ...
     def release(self, i: typing.SupportsInt | typing.SupportsIndex) -> None:
         """
-        Releases what robot i holds, now.
+        Releases what robot i holds (nothing if it holds nothing), now.
         """
     def remove_cooperative(self, k: typing.SupportsInt | typing.SupportsIndex) -> None:
-        ...
+        """
+        Group k stops driving: its robots' own controllers are reset and drive from the next update.
+        """
     def reset(self) -> None:
         """
-        Back to t = 0 and the initial states; clears log and metrics.
+        Back to t = 0 and the initial states; clears the log and the metrics;
+        controllers are reset at the next step.
         """
     def robot(self, i: typing.SupportsInt | typing.SupportsIndex) -> Robot:
         """
@@ -1515,43 +2129,91 @@ class SimulationCore:
         """
     def run(self, t_end: typing.SupportsFloat | typing.SupportsIndex, callback: typing.Any = None, chunk: typing.SupportsInt | typing.SupportsIndex = 4096) -> int:
         """
-        Advances to time t_end (s) in chunks of `chunk` steps with the GIL released, calling callback(done, total) after each chunk. Returns the number of steps.
+        Advances to time t_end (steps_until) in chunks of `chunk` steps,
+        calling progress(done, total) after each; progress returning false, or
+        throwing, stops the run there (the state and log stay consistent).
+        Returns the steps taken.
         """
-    def sensor(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
+    def sensor(self, i: typing.SupportsInt | typing.SupportsIndex) -> SensorReading:
         """
-        Robot i's sensors now: ft_world, ft_clamp (6,) the force/torque reading [N; N m about the tool centre point] in world axes and in the sensor frame, ft_true_world, ft_true_clamp (6,) the same without noise or filter, pose (4, 4) the sensor frame (the TCP) in the world, tau (n,) the motors' held torque, tau_ext (n,) the environment's joint torque held over the step.
+        Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
+        TCP] (6): in the sensor frame, in world axes, and the true wrench (no noise, no filter) in each.
+        Zero before the first step. (An ideal sensor, without noise or filter, is read only at the log's
+        rows and when asked here: its reading depends on the present state alone.)
+        They may compute the reading on the simulation's scratch: they take the hold as a mutator does.
         """
     def sensor_log(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
         Robot i's force/torque reading per log row, (rows, 12): world axes (6), sensor frame (6).
         """
-    def sensor_options(self, i: typing.SupportsInt | typing.SupportsIndex) -> dict:
+    def sensor_options(self, i: typing.SupportsInt | typing.SupportsIndex) -> SensorOptions:
         """
-        Robot i's sensor options: noise_force, noise_moment, time_constant, seed.
+        A robot's force/torque sensor (set_sensor). It sits at the tool centre point (TCP; for a clamp,
+        between the jaws) and measures the wrench the robot's end, links >= L, applies to its
+        environment: L is the clamp's fixed link (the tool's link for a robot without a clamp). That wrench
+        is minus the sum of what acts on those links from outside: the weld's reaction (so a held body
+        reads the weld's wrench on it), every contact on their boxes (with free bodies, scenery, other
+        links) and the applied link wrenches (set_applied_wrenches; applied joint forces are not
+        wrenches and are not sensed). The links' own weight and inertia are not in it (an ideal,
+        gravity-compensated sensor). The true wrench, [force N; moment N m about the TCP], is taken in
+        the sensor frame (the tool frame: the TCP's orientation); Gaussian noise of standard deviation
+        noise_force (each force component) and noise_moment (each moment component) is added in that
+        frame, then a first-order low-pass filter of time constant `time_constant` runs at every step:
+          y_k = y_{k-1} + a (x_k - y_{k-1}),  a = 1 - exp(-dt / time_constant)  (a = 1 when 0),
+        the exact discretisation of tau dy/dt = x - y for an input held over each step, with the
+        sample of step k included (no delay); it starts at the first sample. The world reading is the
+        sensor-frame reading turned into world axes (the same point). The contact wrenches are those
+        held over the world step, at the links' present pose. The noise is drawn from a generator seeded
+        with `seed` (std::mt19937_64) at set_sensor() and at reset(): a seed gives the same noise.
         """
     def set_applied(self, i: typing.SupportsInt | typing.SupportsIndex, forces: typing.Any = None, wrenches: typing.Any = None) -> None:
         """
-        Sets robot i's applied joint forces (n,) and/or wrenches (a Wrench, a list of them, or a (6,) wrench at the tool centre point); None keeps that input as it is.
+        Joint forces (n) N m or N, added to the torque; link wrenches, world
+        force and moment at a point of a link (see ExternalWrench). Throws
+        std::invalid_argument on a wrong size, a non-finite value or a link
+        out of range.
         """
     def set_body_wrench(self, name: str, wrench: typing.Any) -> None:
-        ...
+        """
+        A wrench on free body `id` (world axes: force N at its centre of mass, moment N m), applied at
+        every world step from the next one on, kept until changed (zero: removed); cleared by reset().
+        Throws std::invalid_argument without a world, for a body that is not free, or a non-finite value.
+        """
     def set_controller(self, i: typing.SupportsInt | typing.SupportsIndex, controller: Controller) -> None:
         """
-        Replaces robot i's controller (checked as add_robot's); the state stays, the new controller is reset now and acts from the next controller update.
+        Replaces robot i's controller (checked as add_robot's: not null, not driving another robot,
+        controller->check(robot): gains' sizes, a model of the robot's dof). The state stays; the
+        new controller is reset now (a PID's integral restarts at zero, its velocity estimate at the
+        measured velocity) and computes from the next controller update on: before the first step
+        (or after reset()) at once; between runs, the torque already held over the step at the
+        present time stays and the new controller drives the next step on.
         """
     def set_profiling(self, on: bool) -> None:
         ...
     def set_reference(self, i: typing.SupportsInt | typing.SupportsIndex, reference: typing.Any) -> None:
         """
-        Replaces robot i's reference (a Reference or a set-point (n,)); it acts from the next controller update.
+        Replaces robot i's reference (same number of joints). It is evaluated
+        from the next controller update on: a change before the first step (or
+        after reset()) acts at once; between runs, the torque already held over
+        the step at the present time stays (the controller runs once per step),
+        and the new reference acts from the next step. Plan it continuous with
+        the old one at the present time for a smooth hand-over.
         """
     def set_robot(self, i: typing.SupportsInt | typing.SupportsIndex, robot: Robot) -> None:
         """
-        Replaces robot i by a robot of the same joints and boxes (copied); q and qd stay, the controller is reset, with a world the robot's link bodies and exclusions follow.
+        Replaces robot i by `robot` (copied): the same dof and joint types, the same number of boxes on
+        the same links (e.g. the same SCARA with other link lengths). q and qd stay; the held torque
+        stays, saturated at the new robot's limits; the controller is reset now when the run is under
+        way (a PID's integral restarts at zero; a controller without a model of its own takes the new
+        robot as its model, an explicit model stays). With a world, the robot's link bodies take the
+        new sizes and poses at q and its self-collision exclusions are recomputed (excluded_pairs),
+        the other bodies keeping their states. Refused (std::invalid_argument) while the robot holds a
+        body, with another gravity than the world's, or where the world cannot hold a box at q.
         """
     def set_sensor(self, i: typing.SupportsInt | typing.SupportsIndex, noise_force: typing.SupportsFloat | typing.SupportsIndex = 0.0, noise_moment: typing.SupportsFloat | typing.SupportsIndex = 0.0, time_constant: typing.SupportsFloat | typing.SupportsIndex = 0.0, seed: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
         """
-        Configures robot i's force/torque sensor: noise_force (N) and noise_moment (N m), the standard deviations of the Gaussian noise per component in the sensor frame; time_constant (s) of the first-order low-pass filter (0: none); seed (>= 0) of the noise generator, which restarts from it.
+        Configures robot i's force/torque sensor; the noise generator restarts from the seed, the
+        filter keeps its state. Throws std::invalid_argument naming a bad option.
         """
     def state(self, i: typing.SupportsInt | typing.SupportsIndex) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         """
@@ -1559,26 +2221,32 @@ class SimulationCore:
         """
     def steps_until(self, t_end: typing.SupportsFloat | typing.SupportsIndex) -> int:
         """
-        Steps from now to t_end (s), rounded down.
+        Number of steps from now to the time t_end (s), rounding down, with a
+        tolerance of 1e-9 dt; throws if t_end is before now or not finite.
         """
     def tau_ext(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
-        The external joint torque of robot i's applied inputs, held over the next step, (n,).
+        held external torque of the applied inputs
         """
     def torque(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
-        The torque held on robot i now (saturated), (n,).
+        held torque
         """
     def weld_wrench(self, i: typing.SupportsInt | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
         """
-        The weld's force (N) and moment (N m) on the body robot i holds over the last world step, (6,).
+        The weld's force and moment on the body held by robot i over the last world step, (6).
+        (at the weld's point: midway between the pads' centres when it attached)
         """
     @property
     def contact_forces(self) -> bool:
-        ...
+        """
+        contacts push the robots (false: reported only)
+        """
     @property
     def control_every(self) -> int:
-        ...
+        """
+        controller update every k-th step, >= 1
+        """
     @property
     def cooperative_count(self) -> int:
         """
@@ -1590,37 +2258,49 @@ class SimulationCore:
     @property
     def dt(self) -> float:
         """
-        Step size, s.
+        s, > 0
         """
     @property
     def end_stops(self) -> bool:
-        ...
+        """
+        robot's spring-damper end stops beyond q_limits
+        """
     @property
     def grasp(self) -> bool:
         ...
     @property
     def holder(self) -> typing.Any:
         """
-        (label, thread) of the thread holding the run now (thread: its threading.get_ident()), or None. A snapshot: it may change at once.
+        The holder's label now ("" when nobody holds the run; "another thread" for an implicit hold)
+        and, in *thread when given, its thread id (std::thread::id() when none), read together. A
+        snapshot: it may change at once.
         """
     @property
     def integrator(self) -> str:
         ...
     @property
     def log_contacts(self) -> bool:
-        ...
+        """
+        keep every contact point of every world step (else events only)
+        """
     @property
     def log_every(self) -> int:
-        ...
+        """
+        log row every n-th step; 0: no log
+        """
     @property
     def log_rows(self) -> int:
         ...
     @property
     def max_position(self) -> float:
-        ...
+        """
+        rad or m: farther counts as divergence
+        """
     @property
     def max_speed(self) -> float:
-        ...
+        """
+        rad/s or m/s: faster counts as divergence
+        """
     @property
     def robot_count(self) -> int:
         ...
@@ -1642,7 +2322,10 @@ class SimulationCore:
         ...
     @property
     def world_every(self) -> int:
-        ...
+        """
+        with a world:
+        the world steps every k-th robot step, its contacts held in between
+        """
 class SimulationModel:
     """
     What a simulation is, apart from where it is (simulation_model.hpp): its options, its robots as
@@ -1707,9 +2390,10 @@ def cooperation_schema() -> list:
     """
     The log's columns of a pair of robots holding one body, in row order: [(name, width, description)].
     """
-def cooperation_wrenches(centre: typing.Any, point_a: typing.Any, wrench_a: typing.Any, point_b: typing.Any, wrench_b: typing.Any, up: typing.Any = [0.0, 0.0, 1.0]) -> dict:
+def cooperation_wrenches(centre: typing.Any, point_a: typing.Any, wrench_a: typing.Any, point_b: typing.Any, wrench_b: typing.Any, up: typing.Any = [0.0, 0.0, 1.0]) -> Cooperation:
     """
-    Two holders' wrenches [f; mu] (6,) (N, N m about their points) at point_a, point_b (3,) m on a body whose centre of mass is `centre` (3,) m: the engine's external, internal, squeeze, twist, bending, shear and load_share (up (3,): against gravity), as the log's cooperation columns (relative_pose_error zero).
+    The wrenches' quantities of two holders (relative_pose_error left zero). up: the vertical, against
+    gravity (any length; std::invalid_argument when zero or not finite).
     """
 def dh_transform(theta: typing.SupportsFloat | typing.SupportsIndex, d: typing.SupportsFloat | typing.SupportsIndex, a: typing.SupportsFloat | typing.SupportsIndex, alpha: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
@@ -1761,15 +2445,36 @@ def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: t
     """
 def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[list, list]:
     """
-    Runs each SimulationCore up to t_end (s) on `threads` threads (0: all cores) with the GIL released. Returns (errors, seconds): per simulation None or the exception that stopped it, and the wall time (s) its run took.
+    Runs each simulation up to time t_end on a pool of `threads` threads
+    (0: hardware concurrency). Simulations must be distinct and must not share
+    controller instances. Returns one exception per simulation (null when it
+    finished), so that one failed run does not stop the others; `seconds`, when
+    given, receives each run's wall time (s). Throws std::invalid_argument on a
+    null or repeated simulation, a shared controller or a non-finite t_end.
     """
-def sensor_defaults() -> dict:
+def sensor_defaults() -> SensorOptions:
     """
-    The engine's defaults of a robot's force/torque sensor (SimulationCore.set_sensor), the only place they are written: noise_force (N), noise_moment (N m), time_constant (s), seed.
+    A robot's force/torque sensor (set_sensor). It sits at the tool centre point (TCP; for a clamp,
+    between the jaws) and measures the wrench the robot's end, links >= L, applies to its
+    environment: L is the clamp's fixed link (the tool's link for a robot without a clamp). That wrench
+    is minus the sum of what acts on those links from outside: the weld's reaction (so a held body
+    reads the weld's wrench on it), every contact on their boxes (with free bodies, scenery, other
+    links) and the applied link wrenches (set_applied_wrenches; applied joint forces are not
+    wrenches and are not sensed). The links' own weight and inertia are not in it (an ideal,
+    gravity-compensated sensor). The true wrench, [force N; moment N m about the TCP], is taken in
+    the sensor frame (the tool frame: the TCP's orientation); Gaussian noise of standard deviation
+    noise_force (each force component) and noise_moment (each moment component) is added in that
+    frame, then a first-order low-pass filter of time constant `time_constant` runs at every step:
+      y_k = y_{k-1} + a (x_k - y_{k-1}),  a = 1 - exp(-dt / time_constant)  (a = 1 when 0),
+    the exact discretisation of tau dy/dt = x - y for an input held over each step, with the
+    sample of step k included (no delay); it starts at the first sample. The world reading is the
+    sensor-frame reading turned into world axes (the same point). The contact wrenches are those
+    held over the world step, at the links' present pose. The noise is drawn from a generator seeded
+    with `seed` (std::mt19937_64) at set_sensor() and at reset(): a seed gives the same noise.
     """
 def simulation_defaults() -> dict:
     """
-    The engine's defaults of SimulationCore's options, the only place they are written: a dict with dt (s), control_every, log_every, end_stops, max_speed (rad/s or m/s), max_position (rad or m), integrator, world_every, contact_forces, log_contacts, grasp, and grasp_options (a dict: hold_time s, gap m, penetration m, angle rad, speed m/s, angular_speed rad/s, open_margin m, slip m, weld_omega_dt, release_time s, weld_moment).
+    The defaults written here are the only ones: the bindings and the Python package read them.
     """
 def task_axes(tool: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
     """

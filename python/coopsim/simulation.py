@@ -11,6 +11,9 @@ Units: s, rad or m, N m or N. Arrays are float64.
 """
 from __future__ import annotations
 
+import ast
+import inspect
+import re
 import time
 from collections.abc import Mapping
 from contextlib import contextmanager
@@ -193,31 +196,13 @@ class Simulation:
 
     # ---- description ----
 
-    @property
-    def dt(self) -> float:
-        """Step size, s."""
-        return self._core.dt
-
-    @property
-    def integrator(self) -> str:
-        """'rk4' or 'euler'."""
-        return self._core.integrator
-
-    @property
-    def control_every(self) -> int:
-        return self._core.control_every
-
-    @property
-    def log_every(self) -> int:
-        return self._core.log_every
-
     @staticmethod
     def defaults() -> dict:
         """The options' defaults, the engine's: {name: value}, grasp_options a dict of its own."""
         return _core.simulation_defaults()
 
     @staticmethod
-    def sensor_defaults() -> dict:
+    def sensor_defaults() -> "_core.SensorOptions":
         """The engine's defaults of a robot's force/torque sensor (see :meth:`set_sensor`): noise_force (N),
         noise_moment (N m), time_constant (s), seed."""
         return _core.sensor_defaults()
@@ -230,15 +215,6 @@ class Simulation:
                     end_stops=c.end_stops, max_speed=c.max_speed, max_position=c.max_position,
                     world_every=c.world_every, contact_forces=c.contact_forces, log_contacts=c.log_contacts,
                     grasp=c.grasp, grasp_options=c.grasp_options())
-
-    @property
-    def world(self) -> Optional[World]:
-        """The simulation's World, or None."""
-        return self._core.world
-
-    @property
-    def robot_count(self) -> int:
-        return self._core.robot_count
 
     @property
     def robots(self) -> List[Robot]:
@@ -265,7 +241,9 @@ class Simulation:
         self.__init__(world=state.get("world"), **state["options"])
         for robot, controller, reference, q0, qd0 in state["entries"]:
             self.add_robot(robot, controller, reference, q0=q0, qd0=qd0)
-        for i, options in enumerate(state.get("sensors", [])):
+        for i, options in enumerate(state.get("sensors", [])):  # SensorOptions (dicts in older pickles)
+            if not isinstance(options, Mapping):
+                options = {k: getattr(options, k) for k in _core.SensorOptions.fields}
             self.set_sensor(i, **options)
 
     def __repr__(self) -> str:
@@ -304,23 +282,9 @@ class Simulation:
     # ---- state ----
 
     @property
-    def time(self) -> float:
-        """Simulated time now, s."""
-        return self._core.time
-
-    @property
     def t(self) -> float:
         """Simulated time now, s (the same as :attr:`time`)."""
         return self._core.time
-
-    @property
-    def steps(self) -> int:
-        """Steps taken since t = 0."""
-        return self._core.steps
-
-    @property
-    def diverged(self) -> bool:
-        return self._core.diverged
 
     def state(self, robot: int = 0):
         """(q, qd) of a robot now, each (n,)."""
@@ -403,27 +367,12 @@ class Simulation:
         i = _index(robot, self.robot_count)
         self._core.set_applied(i, np.zeros(self._core.robot(i).dof), [])
 
-    def contacts(self) -> List[dict]:
-        """The contact points of the last world step (acting over the step from now): dicts with
-        a, b (body names, e.g. 'scara1/link3', 'bar', 'floor'), kind ('self', 'robot-robot',
-        'robot-scenery', 'robot-body', 'body-scenery', 'body-body'), point_a, point_b (3,) m,
-        normal (3,) unit from b to a, depth m (>= 0 when touching) and force (3,) N on a (b feels
-        -force): Bullet's solver force where a free body is involved, coopsim's penalty force
-        between robots and scenery (contact_forces=True; else zero)."""
-        return self._core.contacts()
-
-    def contact_events(self) -> dict:
-        """The contact events so far as columns (the log's ``contacts`` without building the log): a, b
-        (body names), kind, begin, end (s; NaN while ongoing), peak_force (N), max_depth (m), steps;
-        empty columns without a world."""
-        return self._core.contact_events() if self._core.world is not None else {}
-
     def tau_ext(self, robot: int = 0) -> np.ndarray:
         """The joint torque of a robot's applied inputs (forces and wrenches), held over the next step, (n,)
         N m or N (the same as ``applied(robot)['tau_ext']``)."""
         return self._core.tau_ext(_index(robot, self.robot_count))
 
-    def link_state(self, robot: int, box: int) -> dict:
+    def link_state(self, robot: int, box: int) -> "_core.BodyState":
         """The pose and twist the world holds for a robot's link box (``robot.boxes[box]``), as set at the
         last world step: pose (4, 4), position (3,) m, quaternion (4,) [w, x, y, z], velocity (3,) m/s,
         angular_velocity (3,) rad/s. Needs a world."""
@@ -433,21 +382,6 @@ class Simulation:
             raise ValueError(f"box must be an index in [0, {len(k)}) of robot {i}'s boxes, got {box!r}")
         return self._core.link_body_state(i, int(box))
 
-    def body_state(self, name: str) -> dict:
-        """A free or static body's state now: pose (4, 4), position (3,) m, quaternion (4,)
-        [w, x, y, z], velocity (3,) m/s, angular_velocity (3,) rad/s."""
-        return self._core.body_state(name)
-
-    def set_body_wrench(self, name: str, wrench) -> None:
-        """Pushes free body `name` with wrench (6,) [force N at its centre of mass; moment N m], world
-        axes, at every world step from the next one on, until changed (zeros: removed) or reset().
-        ValueError for a body that is not free, a wrong shape or a non-finite value."""
-        self._core.set_body_wrench(name, wrench)
-
-    def body_wrench(self, name: str) -> np.ndarray:
-        """The wrench (6,) set on free body `name` by set_body_wrench (zeros if none)."""
-        return self._core.body_wrench(name)
-
     def holding(self, robot: int = 0) -> Optional[str]:
         """The name of the free body a robot holds now, or None."""
         return self._core.holding(_index(robot, self.robot_count))
@@ -456,7 +390,7 @@ class Simulation:
         """Releases what a robot holds, now: the body leaves with the clamp's rigid twist."""
         self._core.release(_index(robot, self.robot_count))
 
-    def grasp_check(self, robot: int, body: str) -> dict:
+    def grasp_check(self, robot: int, body: str) -> "_core.GraspCheck":
         """The clamp rule's conditions for a robot and a free body in the present state: closing,
         aligned, touching, in_pads, slow and ok (all of them), with the measures behind them: angle
         (rad), gap_fixed and gap_moving (m, < 0 penetrating), speed (m/s), angular_speed (rad/s),
@@ -467,16 +401,14 @@ class Simulation:
         """The weld's force (N) and moment (N m) on the body a robot holds, (6,), world frame."""
         return self._core.weld_wrench(_index(robot, self.robot_count))
 
-    def cooperation(self, a: int = 0, b: int = 1) -> dict:
+    def cooperation(self, a: int = 0, b: int = 1) -> "_core.HeldCooperation":
         """What robots a and b (a < b) do together to a body both hold, now: the log's row at this time
         (:meth:`SimulationLog.cooperation` for the quantities and units, one row: centre, point_a,
         point_b (3,), external (6,), internal (12,), squeeze, twist, shear (floats), bending,
         load_share (2,), relative_pose_error (6,)), with holding (bool) and body (its name, or None).
         When they do not hold one body: holding False and zeros."""
         n = self.robot_count
-        d = self._core.cooperation(_index(a, n), _index(b, n))
-        d["body"] = self.holding(a) if d["holding"] else None
-        return d
+        return self._core.cooperation(_index(a, n), _index(b, n))
 
     # ---- sensors ----
 
@@ -504,14 +436,13 @@ class Simulation:
         i = _index(robot, self.robot_count)
         o = self._core.sensor_options(i)
         given = dict(noise_force=noise_force, noise_moment=noise_moment, time_constant=time_constant, seed=seed)
-        o.update({k: v for k, v in given.items() if v is not None})
-        self._core.set_sensor(i, **o)
+        self._core.set_sensor(i, **{k: getattr(o, k) if given[k] is None else given[k] for k in given})
 
-    def sensor_options(self, robot: int = 0) -> dict:
+    def sensor_options(self, robot: int = 0) -> "_core.SensorOptions":
         """A robot's sensor options: noise_force (N), noise_moment (N m), time_constant (s), seed."""
         return self._core.sensor_options(_index(robot, self.robot_count))
 
-    def sensor(self, robot: int = 0) -> dict:
+    def sensor(self, robot: int = 0) -> "_core.SensorReading":
         """A robot's sensors at the present time (the log's row at this time), numpy arrays:
 
         ft_world (6,): the force/torque reading [fx, fy, fz, mx, my, mz] (N, N m; moment about the
@@ -613,11 +544,6 @@ class Simulation:
         w = time.perf_counter() - w0
         self.stats = RunStats._make(self.time, self.time - t0, w, w, self.dt, self.steps - s0)
 
-    def steps_until(self, t_end: float) -> int:
-        """The steps from now to time t_end (s), rounded down (0 at or past it); ValueError for a t_end in
-        the past or not finite."""
-        return self._core.steps_until(t_end)
-
     def run_paced(self, t_end: float, *, speed: float = 1.0, frame_rate: float = 60.0,
                   on_frame: Optional[Callable] = None, max_wall_time: Optional[float] = None,
                   pacer: Optional[Pacer] = None) -> RunStats:
@@ -643,11 +569,6 @@ class Simulation:
     def log(self) -> SimulationLog:
         """The log up to now: read-only views, without copying, that later steps do not change."""
         return self.log_snapshot()
-
-    @property
-    def log_rows(self) -> int:
-        """The number of rows logged so far (O(1): no log is built)."""
-        return self._core.log_rows
 
     def log_arrays(self, robot: int = 0) -> dict:
         """Robot `robot`'s log so far without building a :class:`SimulationLog`, in O(1) whatever the run's
@@ -682,15 +603,10 @@ class Simulation:
                              contact_points=c.contact_log() if contact_points and c.log_contacts and c.world is not None
                              else None)
 
-    def metrics(self) -> List[dict]:
+    def metrics(self) -> List["_core.TrackingMetrics"]:
         """Per robot, tracking metrics over every step so far (whatever log_every):
         name, steps, rms_error (n,), max_abs_error (n,), max_abs_tau (n,)."""
-        out = []
-        for i in range(self.robot_count):
-            m = self._core.metrics(i)
-            m["name"] = self._core.robot(i).name
-            out.append(m)
-        return out
+        return [self._core.metrics(i) for i in range(self.robot_count)]
 
 
     def set_profiling(self, on: bool = True) -> None:
@@ -699,11 +615,60 @@ class Simulation:
             raise ValueError(f"on must be True or False, got {on!r}")
         self._core.set_profiling(bool(on))
 
-    def profile(self) -> dict:
-        """Seconds spent since profiling was switched on (:meth:`set_profiling`), per part of the step:
-        controllers, world (its step, the grasp rule included), grasp (the grasp rule and welds), contacts
-        (mapping the contacts' wrenches onto the robots) and robots (their integration)."""
-        return self._core.profile()
+
+#: what Simulation takes from the engine's SimulationCore as it is: same name, same arguments, the engine's
+#: docstring (from its headers); written here once instead of a method that only forwards
+FORWARDED: Tuple[str, ...] = (
+    "dt", "integrator", "control_every", "log_every", "world", "robot_count", "time", "steps", "diverged",
+    "log_rows", "steps_until", "contacts", "contact_events", "body_state", "set_body_wrench", "body_wrench",
+    "profile")
+
+
+def _signature(doc: str) -> Optional[inspect.Signature]:
+    """The signature a pybind11 docstring's first line shows, self first (None if it cannot be read)."""
+    m = re.match(r"^\w+\((.*)\) ->", doc or "")
+    if not m:
+        return None
+    params = [inspect.Parameter("self", inspect.Parameter.POSITIONAL_OR_KEYWORD)]
+    depth, part, parts = 0, "", []
+    for ch in m.group(1):
+        depth += ch in "([" and 1 or ch in ")]" and -1 or 0
+        if ch == "," and depth == 0:
+            parts.append(part)
+            part = ""
+        else:
+            part += ch
+    parts.append(part)
+    for text in parts[1:]:
+        name, _, default = text.strip().partition("=")
+        name = name.split(":")[0].strip()
+        try:
+            value = ast.literal_eval(default.strip()) if default else inspect.Parameter.empty
+        except (ValueError, SyntaxError):
+            value = default.strip()
+        params.append(inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=value))
+    return inspect.Signature(params)
+
+
+def _forward(name: str):
+    """Simulation's attribute `name`: the engine's property or method of that name on self._core."""
+    engine = getattr(_core.SimulationCore, name)
+    if isinstance(engine, property):
+        return property(lambda self: getattr(self._core, name), doc=engine.__doc__)
+
+    def method(self, *args, **kwargs):
+        return getattr(self._core, name)(*args, **kwargs)
+
+    method.__name__, method.__qualname__, method.__doc__ = name, f"Simulation.{name}", engine.__doc__
+    signature = _signature(engine.__doc__)
+    if signature is not None:
+        method.__signature__ = signature
+    return method
+
+
+for _name in FORWARDED:
+    setattr(Simulation, _name, _forward(_name))
+
 
 def _grasp_options(options) -> dict:
     """grasp_options as a dict of option names; the engine checks the values (and the names)."""

@@ -55,7 +55,7 @@ def _sim_metrics(sim: Simulation) -> dict:
     row = {}
     for i, m in enumerate(sim.metrics()):
         for name, key in (("rms_error", "rms_error"), ("max_error", "max_abs_error"), ("peak_tau", "max_abs_tau")):
-            for j, v in enumerate(np.asarray(m[key], dtype=float)):
+            for j, v in enumerate(np.asarray(getattr(m, key), dtype=float)):
                 row[f"{name}_{i}_{j}"] = float(v)
     return row
 

@@ -57,16 +57,20 @@ void check_grasp_options(const GraspOptions& g);
 
 // The clamp rule's conditions for one robot and one body, and the measures behind them.
 struct GraspCheck {
-  bool closing = false, aligned = false, touching = false, in_pads = false, slow = false;
+  bool closing = false;   // the jaw commanded closing or closed
+  bool aligned = false;   // a face of the body normal to the jaw axis within the angle option
+  bool touching = false;  // both jaws touch it: each gap within the gap and penetration options
+  bool in_pads = false;   // its centre within the pads along the jaw, not into the palm, across their centre line
+  bool slow = false;      // moving with the clamp: speed and angular_speed within their options
   double angle = 0, gap_fixed = 0, gap_moving = 0, speed = 0, angular_speed = 0;  // rad, m, m, m/s, rad/s
   double width = 0;  // m, the body's width along the jaw axis
-  bool ok() const { return closing && aligned && touching && in_pads && slow; }
+  bool ok() const { return closing && aligned && touching && in_pads && slow; }  // all five conditions
 };
 
 // A grasp or a release.
 struct GraspEvent {
   double t = 0.0;     // s
-  int robot = -1;
+  int robot = -1;     // robot index
   int body = -1;      // world body id
   bool grasp = true;  // false: a release
   std::string reason; // "grasp", "opened", "slipped", "released"

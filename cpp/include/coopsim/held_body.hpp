@@ -59,7 +59,7 @@ struct Cooperation {
   Vec12 internal = Vec12::Zero();                      // [h_a; h_b] internal parts, N, N m about each point
   double squeeze = 0.0, twist = 0.0, shear = 0.0;      // N, N m, N
   Eigen::Vector2d bending = Eigen::Vector2d::Zero();   // N m, at a and at b
-  Eigen::Vector2d load_share = Eigen::Vector2d::Zero();
+  Eigen::Vector2d load_share = Eigen::Vector2d::Zero();  // the holders' shares of the body's weight
   Vec6 relative_pose_error = Vec6::Zero();             // m, rad
 };
 

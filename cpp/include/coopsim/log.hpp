@@ -79,6 +79,7 @@ struct RobotLog {
   const LogColumn& operator[](int quantity) const { return columns[quantity]; }
 };
 
+// A robot's tracking metrics over every step (whatever log_every): per joint, of e = q_ref - q and tau.
 struct TrackingMetrics {
   long steps = 0;      // samples counted
   VecN sum_sq_error;   // sum of e_i^2

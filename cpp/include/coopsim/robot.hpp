@@ -192,7 +192,7 @@ class Robot {
   RobotTables tables() const;
 
   int dof() const { return n_; }
-  const std::string& name() const { return name_; }
+  const std::string& name() const { return name_; }  // the robot's label, e.g. "scara1"
   std::vector<std::string> joint_names() const;
   std::vector<std::string> link_names() const;
   std::string joint_types() const;

@@ -60,7 +60,7 @@ struct BodySpec {
 
 // The state of a body now.
 struct BodyState {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();       // world pose of the centre, (4, 4) m
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();          // m/s, of the centre (world)
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  // rad/s (world)
   bool asleep = false;  // a free body at rest that the world no longer solves (WorldOptions::sleep_after)
@@ -79,7 +79,7 @@ struct ContactPoint {
 // A contact between two bodies over time: from the first world step where
 // they touch to the first where they no longer do (end NaN while ongoing).
 struct ContactEvent {
-  int a = -1, b = -1;
+  int a = -1, b = -1;  // body ids
   double begin = 0.0, end = std::numeric_limits<double>::quiet_NaN();  // s
   double peak_force = 0.0;  // N, largest magnitude of the pair's total force
   double max_depth = 0.0;   // m, deepest penetration
@@ -190,6 +190,7 @@ class World {
   // Advances the free bodies by dt (s) at simulated time t (the step's
   // start), then gathers the contacts with the solver's forces.
   void step(double dt, double t);
+  // The contact points of the last world step: bodies, points, normal, depth and force (ContactPoint).
   const std::vector<ContactPoint>& contacts() const { return contacts_; }
   std::vector<ContactPoint>& contacts() { return contacts_; }
   // Folds this step's contacts (forces final) into the events at time t.

@@ -108,7 +108,7 @@ def world_bodies(world, log=None, *, rows: Optional[int] = None, scenery: bool =
                 if rows is not None and len(pose) != rows:
                     raise ValueError(f"log.bodies[{name!r}] has {len(pose)} rows, the log {rows}")
             elif sim is not None:
-                pose = np.array(sim.body_state(name)["pose"])
+                pose = np.array(sim.body_state(name).pose)
             else:
                 pose = np.array(d["pose"])
             out.append(Body(name, np.array(d["half_extents"]), pose, _free_color(name), tiled=True))
@@ -180,7 +180,7 @@ def colliding_from_contacts(contacts, robots, labels=None) -> List[np.ndarray]:
     masks = [np.zeros(len(r.boxes), dtype=bool) for r in robots]
     for c in contacts:
         for side in ("a", "b"):
-            ik = index.get(c[side])
+            ik = index.get(getattr(c, side))
             if ik is not None:
                 masks[ik[0]][ik[1]] = True
     return masks
@@ -192,7 +192,7 @@ def contact_lines(contacts) -> np.ndarray:
     """(m, 2, 3) (point, direction) pairs from ``sim.contacts()``: each point on a (the body added first:
     the floor, scenery, a free body before a link) with the direction a pushes b (-normal), so that
     lines stand out of the floor and the walls towards what touches them."""
-    pts = [(c["point_a"], -np.asarray(c["normal"], dtype=float)) for c in contacts]
+    pts = [(c.point_a, -np.asarray(c.normal, dtype=float)) for c in contacts]
     return np.array(pts, dtype=float).reshape(-1, 2, 3)
 
 

@@ -118,7 +118,7 @@ class _Runner:
         r, q = self.robots[i], self.sim.state(i)[0]
         p_link = grip_point(r, q)
         p_world = (r.frames(q)[r.clamp.fixed_link] @ np.append(p_link, 1.0))[:3]
-        bar = self.sim.body_state(scene.BAR)["pose"]
+        bar = self.sim.body_state(scene.BAR).pose
         self.anchors[i] = dict(t=self.sim.time, link=p_link, body=np.linalg.solve(bar, np.append(p_world, 1.0))[:3])
 
     def wait_grasps(self, t_end):
@@ -133,9 +133,9 @@ class _Runner:
         for i in range(2):
             if self.sim.holding(i) != scene.BAR:
                 c = self.sim.grasp_check(i, scene.BAR)
-                failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not c[k]]
-                detail = (f"angle {np.degrees(c['angle']):.1f} deg, gaps {c['gap_fixed'] * 1e3:.1f} and "
-                          f"{c['gap_moving'] * 1e3:.1f} mm, speed {c['speed']:.3f} m/s")
+                failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not getattr(c, k)]
+                detail = (f"angle {np.degrees(c.angle):.1f} deg, gaps {c.gap_fixed * 1e3:.1f} and "
+                          f"{c.gap_moving * 1e3:.1f} mm, speed {c.speed:.3f} m/s")
                 raise CarryError("grasp", self.sim.time, f"{ROBOT_NAMES[i]} did not grasp the bar: the clamp rule's "
                                  f"{', '.join(failed) or 'hold time'} failed ({detail})")
 
@@ -224,9 +224,9 @@ class _Runner:
         """The bar at rest on the end stands within PLACE_TOL and PLACE_TOL_ANGLE of its planned pose."""
         b = self.sim.body_state(scene.BAR)
         want = self.plan.bar.pose(self.plan.t_end)
-        d = float(np.linalg.norm(b["pose"][:3, 3] - want[:3, 3]))
-        ang = _angle(want[:3, :3].T @ b["pose"][:3, :3])
-        speed = float(np.linalg.norm(b["velocity"]))
+        d = float(np.linalg.norm(b.pose[:3, 3] - want[:3, 3]))
+        ang = _angle(want[:3, :3].T @ b.pose[:3, :3])
+        speed = float(np.linalg.norm(b.velocity))
         self.placed = dict(position_error=d, angle_error=ang, speed=speed)
         if d > PLACE_TOL or ang > PLACE_TOL_ANGLE or speed > 1e-3:
             raise CarryError("place", self.sim.time, f"the bar came to {d * 1e3:.1f} mm and {ang * 1e3:.1f} mrad from "
@@ -236,7 +236,7 @@ class _Runner:
     def check_backed_off(self):
         """Every box of both robots at least BACKED_OFF m from the bar."""
         from_bar = []
-        bar = self.sim.body_state(scene.BAR)["pose"][None]
+        bar = self.sim.body_state(scene.BAR).pose[None]
         for i, r in enumerate(self.robots):
             P, H = r.shapes(self.sim.state(i)[0])
             from_bar.append(float(box_distances(P, H, bar, scene.BAR_HALF_EXTENTS[None]).min()))

@@ -131,7 +131,7 @@ class _Runner(Planner):
 
     def bar(self, name) -> np.ndarray:
         """A bar's pose now in the task's frame for it (see pick_grip), (4, 4)."""
-        return self.sim.body_state(name)["pose"] @ self.label.get(name, np.eye(4))
+        return self.sim.body_state(name).pose @ self.label.get(name, np.eye(4))
 
     def close(self, i):
         """Robot i's jaw closes fast to 2 mm over the bar's width, then slowly (CLOSE_SPEED) on to SQUEEZE:
@@ -173,9 +173,9 @@ class _Runner(Planner):
             if e.reason:   # something else went wrong while waiting (a forbidden contact): that is the reason
                 raise
             c = self.sim.grasp_check(i, name)
-            failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not c[k]]
-            detail = (f"angle {c['angle'] / DEG:.1f} deg, gaps {c['gap_fixed'] * 1e3:.1f} and "
-                      f"{c['gap_moving'] * 1e3:.1f} mm, speed {c['speed']:.3f} m/s")
+            failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not getattr(c, k)]
+            detail = (f"angle {c.angle / DEG:.1f} deg, gaps {c.gap_fixed * 1e3:.1f} and "
+                      f"{c.gap_moving * 1e3:.1f} mm, speed {c.speed:.3f} m/s")
             raise TaskError(self.step, self.sim.time, f"SCARA #{i + 1} did not grasp {name}: the clamp rule's "
                             f"{', '.join(failed) or 'hold time'} failed ({detail})") from None
 
@@ -224,8 +224,8 @@ class _Runner(Planner):
         T = TIMES
         # 1. #2 above the bar, down to it, closes: the clamp rule grasps
         mark("pick")
-        bar0, G = self.pick_grip(sim.body_state(name)["pose"])
-        self.label[name] = np.linalg.solve(sim.body_state(name)["pose"], bar0)
+        bar0, G = self.pick_grip(sim.body_state(name).pose)
+        self.label[name] = np.linalg.solve(sim.body_state(name).pose, bar0)
         grip = bar0 @ G
         above = grip.copy()
         above[2, 3] += CLEAR_ABOVE
@@ -269,7 +269,7 @@ class _Runner(Planner):
         up[2, 3] += RETREAT2
         self.run_to(self.move_line(1, [up], [T["retreat"]], OPEN))
         nxt = self.names[k + 1] if k + 1 < len(self.names) else None
-        home = self._above(*self.pick_grip(sim.body_state(nxt)["pose"] if nxt else self.bars[0]))
+        home = self._above(*self.pick_grip(sim.body_state(nxt).pose if nxt else self.bars[0]))
         self.run_to(self.move_joints(1, [self._ik(1, home, OPEN, q_near=self.q_ref(1))], [T["home"]]))
         done()
         # 5. #1 turns the bar onto the container's axis, beside it, then slides onto it

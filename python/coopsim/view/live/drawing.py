@@ -76,7 +76,7 @@ class _Drawing:
             self._label_nodes.append(sc.add_label(f"/labels/robot{i}", self.labels[i], position=p,
                                                   visible=self._show["labels"]))
         for n in self._free_names:
-            self._label_nodes.append(sc.add_label(f"/labels/{n}", n, position=self.sim.body_state(n)["position"],
+            self._label_nodes.append(sc.add_label(f"/labels/{n}", n, position=self.sim.body_state(n).position,
                                                   visible=self._show["labels"]))
 
     def _scenery(self) -> list:
@@ -97,7 +97,7 @@ class _Drawing:
         pts += [part_corners(p, part_poses(r, p, self.sim.state(i)[0])) for i, (r, p) in
                 enumerate(zip(self.robots, self._parts)) if p]
         pts += [self._corners(P[None], H[None]) for _, P, H in self._scenery()]
-        pts += [self._corners(np.array(self.sim.body_state(n)["pose"])[None],
+        pts += [self._corners(np.array(self.sim.body_state(n).pose)[None],
                               np.array(self._world.body(n)["half_extents"])[None]) for n in self._free_names]
         return np.concatenate(pts) if pts else np.zeros((1, 3))
 
@@ -125,7 +125,7 @@ class _Drawing:
         robot at the start), those hidden counted, the free bodies first."""
         targets = []            # the free bodies' top faces' centres
         for n in self._free_names:
-            P = np.asarray(self.sim.body_state(n)["pose"])
+            P = np.asarray(self.sim.body_state(n).pose)
             targets.append(P[:3, 3] + P[:3, :3] @ [0.0, 0.0, self._world.body(n)["half_extents"][2]])
         weights = [10.0] * len(targets)
         for _, P, _ in self._scenery():
@@ -221,7 +221,7 @@ class _Drawing:
         ax = Figure().add_subplot(projection="3d")
         frame = [(True, *r.shapes(self.sim.state(i)[0]), False) for i, r in enumerate(self.robots)]
         frame += [(False, P[None], H[None], True) for _, P, H in scenery]
-        frame += [(False, np.asarray(self.sim.body_state(n)["pose"])[None],
+        frame += [(False, np.asarray(self.sim.body_state(n).pose)[None],
                    np.asarray(self._world.body(n)["half_extents"])[None], False) for n in self._free_names]
         return Scene(ax, self.robots).choose_azimuth([frame])
 
@@ -271,7 +271,7 @@ class _Drawing:
             f.parts.append(part_poses(r, self._parts[i], q))
             f.ghost_parts.append(part_poses(r, self._parts[i], q_ref))
         f.holding = holding_now(sim, mode=self._holding_mode) if self.robots else []
-        f.bodies = {n: np.asarray(sim.body_state(n)["pose"]) for n in self._free_names}
+        f.bodies = {n: np.asarray(sim.body_state(n).pose) for n in self._free_names}
         need = self._world is not None and (self._show["collision_boxes"] or self._show["contact_lines"])
         contacts = sim.contacts() if need else []
         f.colliding = colliding_from_contacts(contacts, self.robots, self.labels)

@@ -28,7 +28,7 @@ class _PlotsPanel:
         law, own, g = self._driver(i)
         o = self.sim.sensor_options(i)
         if self.sim.world is not None or self.sim.applied(i)["wrenches"] or isinstance(law, TaskController) \
-                or g is not None or o["noise_force"] > 0 or o["noise_moment"] > 0 or o["time_constant"] > 0:
+                or g is not None or o.noise_force > 0 or o.noise_moment > 0 or o.time_constant > 0:
             kinds.add("wrench")
         if isinstance(law, (TaskController, ObjectControl)):
             kinds.add("task")
@@ -108,7 +108,7 @@ class _PlotsPanel:
     def _extras(self, i: int):
         """(sensed wrench (6,), task-space error (6,) or None, (squeeze, share of i, share of the other) or
         None) of robot i now, on the simulation's thread."""
-        wrench = np.asarray(self.sim.sensor(i)["ft_world"], dtype=float)
+        wrench = np.asarray(self.sim.sensor(i).ft_world, dtype=float)
         law = self._driver(i)[0]
         task = None
         if isinstance(law, ObjectControl):
@@ -120,8 +120,8 @@ class _PlotsPanel:
         if k is not None:
             a, b = min(i, k), max(i, k)
             c = self.sim.cooperation(a, b)
-            share = np.asarray(c["load_share"], dtype=float)
-            coop = np.array([float(c["squeeze"]), share[0 if i == a else 1], share[1 if i == a else 0]])
+            share = np.asarray(c.load_share, dtype=float)
+            coop = np.array([float(c.squeeze), share[0 if i == a else 1], share[1 if i == a else 0]])
         return wrench, task, coop
 
     def _plots(self, f: Frame, now: float) -> None:
