@@ -691,7 +691,7 @@ def test_the_bindings_build_no_dictionary_of_an_engine_struct():
 
 
 def test_each_simulation_quantity_is_declared_once():
-    """Each of SimulationCore's names is bound once in bind_simulation.cpp, and coopsim.Simulation re-declares
+    """Each of SimulationCore's names is bound once in bind_simulation.cpp (the model's in bind_model.cpp), and coopsim.Simulation re-declares
     none that only forwards to it: those are FORWARDED, made from the bound class with its docstring."""
     import re
     from collections import Counter
@@ -701,6 +701,8 @@ def test_each_simulation_quantity_is_declared_once():
 
     text = (ROOT / "cpp" / "bindings" / "bind_simulation.cpp").read_text(encoding="utf-8")
     core = text[text.index('py::class_<Simulation>(m, "SimulationCore"'):text.index('m.def("simulation_defaults"')]
+    model = (ROOT / "cpp" / "bindings" / "bind_model.cpp").read_text(encoding="utf-8")
+    core += model[model.index('py::class_<Simulation>>(m.attr("SimulationCore"))'):]  # the model's side of it
     bound = Counter(re.findall(r"\.def(?:_property_readonly|_static)?\(\"(\w+)\"", core))
     assert bound and all(n == 1 for n in bound.values()), {k: n for k, n in bound.items() if n > 1}
     tree = ast.parse((PACKAGE / "simulation.py").read_text(encoding="utf-8"))

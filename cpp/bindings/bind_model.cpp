@@ -7,6 +7,7 @@
 #include <string>
 
 #include "coopsim/simulation.hpp"
+#include "generated/docstrings.hpp"
 
 namespace py = pybind11;
 using namespace coopsim;
@@ -30,8 +31,7 @@ with data of its own. Runs of one model share it; it does not change while share
   auto core = py::reinterpret_borrow<py::class_<Simulation>>(m.attr("SimulationCore"));
   core.def_static("from_model", [](std::shared_ptr<SimulationModel> model) { return Simulation(std::move(model)); },
                   py::arg("model"), "A run of `model` at t = 0 with data of its own: controllers copied, a world of its own.")
-      .def("model", [](Simulation& s) { return std::const_pointer_cast<SimulationModel>(s.model()); },
-           "The model of this run, shared (this run's later changes go to a copy while it is held).")
+      .def("model", [](Simulation& s) { return std::const_pointer_cast<SimulationModel>(s.model()); }, docs::doc_Simulation_model)
       .def_property_readonly("cooperative_count", &Simulation::cooperative_count,
                              "Number of cooperative groups added (removed ones included).")
       .def("cooperative_group", [](const Simulation& s, int k) {

@@ -2102,7 +2102,9 @@ class SimulationCore:
         """
     def model(self) -> SimulationModel:
         """
-        The model of this run, shared (this run's later changes go to a copy while it is held).
+        The model of this run, shared: the runs made from it use it as it is now (with the world's
+        description: its options and bodies as configured). While it is held elsewhere this run's
+        changes go to a copy of it.
         """
     def profile(self) -> StepProfile:
         """

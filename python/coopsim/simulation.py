@@ -114,13 +114,6 @@ class Simulation:
 
     # ---- model and data ----
 
-    def model(self) -> "_core.SimulationModel":
-        """What this run is, apart from where it is: its options, robots, controllers and references as
-        configured, its cooperative groups and its world's description (a ``coopsim.SimulationModel``,
-        MuJoCo's mjModel to the run's mjData). Runs made from it (:meth:`from_model`) share it; while it is
-        shared, this run's later changes (``set_*``, ``add_*``) go to a copy of it, so the others keep theirs."""
-        return self._core.model()
-
     @classmethod
     def from_model(cls, model) -> "Simulation":
         """A new run of `model` (from :meth:`model`) at t = 0, with data of its own: each controller and
@@ -621,7 +614,7 @@ class Simulation:
 FORWARDED: Tuple[str, ...] = (
     "dt", "integrator", "control_every", "log_every", "world", "robot_count", "time", "steps", "diverged",
     "log_rows", "steps_until", "contacts", "contact_events", "body_state", "set_body_wrench", "body_wrench",
-    "profile")
+    "profile", "model")
 
 
 def _signature(doc: str) -> Optional[inspect.Signature]:
