@@ -201,11 +201,13 @@ class Simulation {
   const std::vector<int>& cooperative_robots(int k) const;
   bool cooperative_active(int k) const;
 
+  // Number of robots added.
   int robot_count() const { return model_->robot_count(); }
   const Robot& robot(int i) const { return model_->robots[check_(i)].robot; }
   const std::shared_ptr<Controller>& controller(int i) const { return slot_(i).control.controller; }
   const std::shared_ptr<const Reference>& reference(int i) const { return model_->robots[check_(i)].reference; }
   const SimulationOptions& options() const { return model_->options; }
+  // The run's World (null without one): the one given to the constructor, or built for a run of a shared model.
   const std::shared_ptr<World>& world() const { return data_.world; }
   // The world body of robot i's box b (-1 without a world or before the first step).
   int link_body(int i, int box) const;
@@ -255,9 +257,13 @@ class Simulation {
   // The sensor frame: the TCP's pose in the world at the present state.
   Eigen::Isometry3d sensor_pose(int i) const;
   // ---- state ----
+  // Steps taken since the start (t = 0 or the last reset()).
   long step_count() const { return data_.k; }
+  // Simulated time, s: step_count() * dt.
   double time() const { return data_.time(*model_); }
+  // Whether the run has started (its first step taken since the start); robots are added before it.
   bool started() const { return data_.started; }
+  // Whether the run stopped with a DivergenceError (reset() starts it over).
   bool diverged() const { return data_.diverged; }
   const VecN& q(int i) const { return slot_(i).state.q; }
   const VecN& qd(int i) const { return slot_(i).state.qd; }
@@ -298,6 +304,7 @@ class Simulation {
   long run(double t_end, long chunk = 4096, const std::function<bool(long, long)>& progress = nullptr);
 
   // ---- log and metrics ----
+  // Rows in the log (one per log_every-th step, the start included).
   long log_rows() const { return data_.log_t.rows(); }
   const LogColumn& log_t() const { return data_.log_t; }
   // Free bodies' log, one column each (world.free_bodies() order): 13 values

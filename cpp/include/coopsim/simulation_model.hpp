@@ -43,7 +43,7 @@ struct SimulationOptions {
   int control_every = 1;      // controller update every k-th step, >= 1
   int log_every = 1;          // log row every n-th step; 0: no log
   bool end_stops = true;      // robot's spring-damper end stops beyond q_limits
-  Method integrator = Method::RK4;
+  Method integrator = Method::RK4;  // RK4 (default) or semi-implicit Euler ("rk4", "euler")
   // with a world:
   int world_every = 1;         // the world steps every k-th robot step, its contacts held in between
   bool contact_forces = true;  // contacts push the robots (false: reported only)
