@@ -29,6 +29,9 @@ body (its own link) and with the moving jaw when the clamp is closed
 (d6 = 0, faces in contact); the world's collision filter leaves adjacent
 links out (``tests/test_robots.py::test_scara_boxes_overlap_only_where_they_touch``).
 
+The same clamp on any serial arm: ``add_clamp(robot, mount=...)`` (defaults
+CLAMP_DEFAULTS, SCARA #1's clamp).
+
 Units: m, kg, rad, N, N m.
 """
 from __future__ import annotations
@@ -41,7 +44,8 @@ import numpy as np
 from . import _checks
 from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, compiled_generated_names, dh_transform
 
-__all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS", "SCARA1_BOUNDS", "SCARA2_BOUNDS", "Bound"]
+__all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS", "SCARA1_BOUNDS", "SCARA2_BOUNDS", "Bound",
+           "add_clamp", "CLAMP_DEFAULTS"]
 
 DEG = math.pi / 180.0
 
@@ -329,3 +333,163 @@ _SCARA1 = dict(name="scara1", types="RRPRRP", defaults=SCARA1_DEFAULTS, bounds=S
 _SCARA2 = dict(name="scara2", types="RRRPRP", defaults=SCARA2_DEFAULTS, bounds=SCARA2_BOUNDS,
                geometry=_scara2_geometry,
                masses=_SCARA2_MASSES, friction=_SCARA2_K, q_limits=_SCARA2_QLIM, tau_limits=_SCARA2_TAU)
+
+
+# ------------------------------------------------------------------ a clamp on any serial arm
+
+#: add_clamp's defaults: SCARA #1's clamp. Lengths in m, masses in kg, the jaw's force limit in N and its
+#: viscous friction in N s/m.
+CLAMP_DEFAULTS = dict(
+    opening=0.05,        # the jaw's stroke: the opening q of the jaw joint spans 0 .. opening
+    jaw_length=SCARA1_DEFAULTS["jaw_length"],
+    jaw_thickness=SCARA1_DEFAULTS["jaw_thickness"],
+    width=SCARA1_DEFAULTS["width"],       # the pads' width (across the jaws) and the body's
+    height=SCARA1_DEFAULTS["height"],     # the body's size along the jaw axis
+    body_length=SCARA1_DEFAULTS["L5"],    # the clamp body, from the mount to the jaws
+    body_mass=float(_SCARA1_MASSES[4]),
+    jaw_mass=float(_SCARA1_MASSES[5]),    # each jaw plate, the fixed and the moving one
+    jaw_force=float(_SCARA1_TAU[5]),
+    jaw_friction=float(_SCARA1_K[5]),
+)
+
+
+def _common_normal(f, u, theta):
+    """DH row [theta, d, a, alpha] from z of a frame (through its origin) to the line through f along the
+    unit vector u (both in that frame): the common normal's foot on z at d, its length a >= 0 along x at
+    angle theta about z (kept when the lines meet on z's axis), then alpha about x turns z onto u."""
+    z = np.array([0.0, 0.0, 1.0])
+    n = np.cross(z, u)
+    if np.linalg.norm(n) > 1e-9:
+        x = n / np.linalg.norm(n)
+        d, a, _ = np.linalg.solve(np.column_stack([z, x, -u]), f)
+        if a < 0:
+            x, a = -x, -a
+    else:  # parallel axes: the normal from z to the line, any when they coincide
+        r = f - (f @ z) * z
+        a = float(np.linalg.norm(r))
+        x = r / a if a > 1e-12 else np.array([math.cos(theta), math.sin(theta), 0.0])
+        a = a if a > 1e-12 else 0.0
+        d = float(f @ z)
+    y = np.cross(z, x)
+    return np.array([math.atan2(x[1], x[0]), d, a, math.atan2(-(u @ y), u @ z)])
+
+
+def _combine(parts):
+    """One rigid body of [(mass, CoM (3,), inertia about the CoM (3, 3))] in one frame (parallel axes)."""
+    m = sum(p[0] for p in parts)
+    c = sum(p[0] * p[1] for p in parts) / m if m > 0 else parts[0][1]
+    inertia = np.zeros((3, 3))
+    for mk, ck, Ik in parts:
+        r = ck - c
+        inertia += Ik + mk * ((r @ r) * np.eye(3) - np.outer(r, r))
+    return m, c, inertia
+
+
+def _mount(mount) -> np.ndarray:
+    """The mount as a (4, 4) array, checked by the engine's rule of a rigid pose (a Tool's offset)."""
+    try:
+        Tool(-1, mount)
+    except (TypeError, ValueError) as e:
+        raise ValueError(str(e).replace("offset", "mount", 1)) from None
+    return np.asarray(mount, dtype=float)
+
+
+def add_clamp(robot: Robot, *, mount=None, **values) -> Robot:
+    """A copy of `robot` with the paper's parallel-jaw clamp (SCARA #1's) on its last link.
+
+    The clamp frame C is `mount` (4, 4; default identity) in the robot's tool frame (its fk before the
+    clamp: the flange, or the URDF's tip link): z along the approach (out of the flange), y the jaw axis
+    (fixed jaw towards the moving one), origin on the mounting face. The clamp body, a ``width`` x
+    ``height`` x ``body_length`` box along C's x, y, z, spans z = 0 .. body_length; the jaws, plates
+    ``width`` x ``jaw_thickness`` x ``jaw_length``, lie beyond it (z = body_length .. body_length +
+    jaw_length). The fixed jaw's inner face is centred on C's z axis, its plate behind it (y < 0); the
+    moving jaw is a new prismatic joint n + 1 (named ``clamp_jaw``, link ``moving_jaw``) along y, its
+    variable the opening between the inner faces, 0 .. ``opening`` m, force limit ``jaw_force`` N,
+    viscous friction ``jaw_friction`` N s/m. The tool centre point is midway between the faces' centres,
+    with C's axes (z the approach, y the jaw axis), as on the SCARAs.
+
+    Mass: the body (``body_mass``) and the fixed jaw (``jaw_mass``) are fixed to the last link: its mass,
+    centre of mass and inertia become those of the three (parallel axis theorem); the moving jaw
+    (``jaw_mass``) is link n + 1. The last DH row is turned so that z_n is the jaw axis (the frame of link
+    n, its CoM and inertia, its boxes and the tool re-expressed in it; the kinematics of joints 1..n do not
+    change). Boxes: the robot's, plus ``clamp_body`` and ``fixed_jaw`` on link n and ``moving_jaw`` on
+    n + 1; ``robot.clamp`` describes the jaws. The copy uses the numeric dynamics (its structure is new).
+
+    Keywords and defaults (CLAMP_DEFAULTS, SCARA #1's clamp): opening 0.05, jaw_length 0.04,
+    jaw_thickness 0.01, width 0.06, height 0.04, body_length 0.08 (m); body_mass 0.25, jaw_mass 0.05 (kg);
+    jaw_force 15 (N), jaw_friction 2 (N s/m). Each must be finite and > 0 (body_mass and jaw_friction
+    >= 0). A robot with a clamp already, with a tool on another link or between two points, or with
+    kMaxDof joints, and a mount that is not a rigid transform, are refused with a ValueError.
+    """
+    unknown = set(values) - set(CLAMP_DEFAULTS)
+    if unknown:
+        raise TypeError(f"add_clamp() got unknown keyword(s) {sorted(unknown)}; known: mount, "
+                        f"{', '.join(CLAMP_DEFAULTS)}")
+    if not isinstance(robot, Robot):
+        raise ValueError(f"robot must be a coopsim.Robot, got {type(robot).__name__}")
+    v = dict(CLAMP_DEFAULTS)
+    for key, x in values.items():
+        v[key] = _checks.positive(x, key, zero=key in ("body_mass", "jaw_friction"),
+                                  unit="N s/m" if key == "jaw_friction" else "N" if key == "jaw_force"
+                                  else "kg" if key.endswith("mass") else "m")
+    n = robot.dof
+    if robot.clamp is not None:
+        raise ValueError(f"robot {robot.name!r} already has a clamp (on link {robot.clamp.fixed_link}, "
+                         f"jaw joint {robot.clamp.moving_joint}): add_clamp puts one on an arm without one")
+    tool = robot.tool
+    if tool.link not in (-1, n) or tool.second_link not in (-1, n) \
+            or not np.allclose(tool.second_point, tool.offset[:3, 3], rtol=0, atol=1e-12):
+        raise ValueError(f"robot {robot.name!r} must have a fixed tool on its last link for add_clamp (the "
+                         "clamp is mounted on it), got one between two points or on another link")
+    M = _mount(np.eye(4) if mount is None else mount)
+    L5, Lj, tj, w, h = v["body_length"], v["jaw_length"], v["jaw_thickness"], v["width"], v["height"]
+    dh = np.array(robot.dh, dtype=float)
+    A_old = dh_transform(*dh[-1])
+    C = A_old @ tool.offset @ M                       # the clamp frame in DH frame n-1 (q_n = 0)
+    f = C[:3, :3] @ [0.0, 0.0, L5 + Lj / 2] + C[:3, 3]  # the fixed face's centre
+    row = _common_normal(f, C[:3, 1], dh[-1, 0])
+    A_new = dh_transform(*row)
+    stroke = (f - A_new[:3, 3]) @ C[:3, 1]            # from frame n's origin to the face, along z_n
+    X = np.linalg.solve(A_new, A_old)                 # old frame n -> new frame n
+    Cn = np.linalg.solve(A_new, C)                    # the clamp frame in the new frame n
+    Cj = Cn.copy()
+    Cj[2, 3] -= stroke                                # ... in frame n + 1 (frame n moved along z_n)
+    R = Cn[:3, :3]
+
+    def part(mass, centre, size, frame):
+        return mass, frame[:3, :3] @ centre + frame[:3, 3], R @ box_inertia(mass, *size) @ R.T
+
+    body = ([0.0, 0.0, L5 / 2], (w, h, L5))
+    fixed_jaw = ([0.0, -tj / 2, L5 + Lj / 2], (w, tj, Lj))
+    moving_jaw = ([0.0, tj / 2, L5 + Lj / 2], (w, tj, Lj))
+    com, inertias = np.array(robot.com_positions), np.array(robot.link_inertias)
+    last = (robot.masses[-1], X[:3, :3] @ com[-1] + X[:3, 3], X[:3, :3] @ inertias[-1] @ X[:3, :3].T)
+    m_n, c_n, I_n = _combine([last, part(v["body_mass"], *body, Cn), part(v["jaw_mass"], *fixed_jaw, Cn)])
+    m_j, c_j, I_j = part(v["jaw_mass"], *moving_jaw, Cj)
+    face = Cn @ [[0.0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, L5 + Lj / 2], [0, 0, 0, 1]]  # x: approach, z: jaw axis
+    tcp = Cn.copy()
+    tcp[:3, 3] = face[:3, 3]
+    boxes = [b if b.link != n else LinkBox(n, b.half_extents, X @ b.pose, b.name) for b in robot.boxes]
+    for link, (centre, size), frame, name in ((n, body, Cn, "clamp_body"), (n, fixed_jaw, Cn, "fixed_jaw"),
+                                              (n + 1, moving_jaw, Cj, "moving_jaw")):
+        boxes.append(LinkBox(link, np.array(size) / 2, frame @ _translation(centre), name))
+    jn, ln = list(robot.joint_names), list(robot.link_names)
+
+    def fresh(name, taken):
+        return next(x for x in (name, *(f"{name}_{k}" for k in range(2, n + 3))) if x not in taken)
+
+    out = Robot.from_dh(
+        dh=np.vstack([dh[:-1], row, [0.0, stroke, 0.0, 0.0]]), com=np.vstack([com[:-1], c_n, c_j]),
+        masses=np.r_[robot.masses[:-1], m_n, m_j], inertias=np.concatenate([inertias[:-1], [I_n, I_j]]),
+        joint_types=robot.joint_types + "P", friction=np.r_[robot.friction_coefficients, v["jaw_friction"]],
+        armature=np.r_[robot.armature, 0.0], coulomb=np.r_[robot.coulomb, 0.0],
+        coulomb_width=np.r_[robot.coulomb_width, robot.coulomb_width[-1]],
+        q_limits=np.vstack([robot.q_limits, [0.0, v["opening"]]]), tau_limits=np.r_[robot.tau_limits, v["jaw_force"]],
+        gravity=robot.gravity_acceleration, base_position=robot.base_position, base_yaw=robot.base_yaw,
+        base_orientation=robot.base_orientation,
+        tool=Tool(link=n, offset=tcp, second_link=n + 1, second_point=(Cj @ [0.0, 0.0, L5 + Lj / 2, 1.0])[:3]),
+        name=robot.name, end_stop_frequency=robot.end_stop_frequency,
+        end_stop_damping_ratio=robot.end_stop_damping_ratio, boxes=boxes,
+        clamp=Clamp(fixed_link=n, fixed_face=face, moving_joint=n + 1, jaw_length=Lj, pad_width=w),
+        dimensions=robot.dimensions, inertia_check="ignore")
+    return out.with_names(jn + [fresh("clamp_jaw", jn)], ln + [fresh("moving_jaw", ln)])

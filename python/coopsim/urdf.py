@@ -37,7 +37,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ._core import LinkBox, Robot
+from ._core import LinkBox, Robot, dh_transform
+from .robots import add_clamp
 
 __all__ = ["to_urdf", "from_urdf", "rpy_from_matrix", "Visual", "visuals"]
 
@@ -471,7 +472,7 @@ _UNBOUNDED = 1e9
 
 def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None,
               gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn", snap: float = 1e-9,
-              limits: str = "file"):
+              limits: str = "file", clamp=None):
     """A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
 
     Joints: revolute, continuous (unbounded) and prismatic ones make the
@@ -512,6 +513,10 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         files whose limits are placeholders, as CAD exporters write them
         (lower = upper = 0, effort = 0), which 'file' refuses, naming the
         joint and this option.
+    clamp: None or False (default) for the chain as it is; True puts the paper's parallel-jaw clamp on
+        its last link (coopsim.robots.add_clamp with its defaults, mounted on the tip's frame), a dict
+        of add_clamp's keywords (mount, opening, jaw_length, ...) sets them. The tip link's visuals
+        are kept, moved into the turned last frame.
     snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
         read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
         5e-12 rad would make every derived angle general (and generated code
@@ -740,6 +745,15 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
                           coulomb=Fc, coulomb_width=coulomb_width, base_orientation=Rb,
                           inertia_check=inertia_check)
     robot = robot.with_names(chain, [joints[jn].find("child").get("link") for jn in chain])
+    if clamp is not None and clamp is not False:
+        if clamp is not True and not isinstance(clamp, Mapping):
+            raise ValueError(f"clamp must be True, False, None or a dict of add_clamp's keywords, got {clamp!r}")
+        clamped = add_clamp(robot, **({} if clamp is True else dict(clamp)))
+        # the last link's frame turned: its visuals follow (old frame n -> new frame n)
+        X = np.linalg.solve(dh_transform(*clamped.dh[n - 1]), dh_transform(*robot.dh[n - 1]))
+        visual_list = [v if v.link != n else Visual(n, X @ v.pose, v.shape, v.scale, v.path, v.name)
+                       for v in visual_list]
+        robot = clamped
     key = _visual_key(robot)
     _VISUALS.pop(key, None)
     if visual_list:
