@@ -104,6 +104,8 @@ q (links without mass or inertia).)doc");
          }
          return out;
        }, py::arg("robot"), py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("threads") = 0,
-       "Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n); GIL released, split over "
-       "`threads` threads (0: all cores).");
+       "Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n), rad/s^2 or m/s^2; GIL "
+       "released, on `threads` threads (0: all cores), each taking chunks of 256 states as it becomes idle. A "
+       "state whose dynamics fail (its forces overflow, its mass matrix is not positive definite) is a "
+       "ValueError naming its row, the first such row of the batch.");
 }

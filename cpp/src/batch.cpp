@@ -32,6 +32,11 @@ std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, 
   if (seconds) seconds->assign(N, 0.0);
   if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = std::max(1, std::min(threads, N));
+  // Balanced: each thread takes the next simulation from one atomic counter when it is idle (a long run or a
+  // preempted thread does not hold the others back), the calling thread one of them. A run writes its own
+  // data only (its model is read-only, shared between runs of one model); the batch's outputs, errors[i] and
+  // seconds[i], are written once per simulation, never in the stepping loop, and the log's storage is
+  // reserved before each advance (Simulation::advance), so nothing is allocated per step.
   std::atomic<int> next{0};
   auto work = [&]() {
     for (int i = next++; i < N; i = next++) {
@@ -44,13 +49,11 @@ std::vector<std::exception_ptr> run_batch(const std::vector<Simulation*>& sims, 
       if (seconds) (*seconds)[i] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
   };
-  if (threads == 1) {
-    work();
-  } else {
-    std::vector<std::thread> pool;
-    for (int t = 0; t < threads; ++t) pool.emplace_back(work);
-    for (auto& th : pool) th.join();
-  }
+  std::vector<std::thread> pool;
+  pool.reserve(threads - 1);
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (auto& th : pool) th.join();
   return errors;
 }
 

@@ -2407,7 +2407,7 @@ def euler_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt:
     """
 def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float64]:
     """
-    Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n); GIL released, split over `threads` threads (0: all cores).
+    Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n), rad/s^2 or m/s^2; GIL released, on `threads` threads (0: all cores), each taking chunks of 256 states as it becomes idle. A state whose dynamics fail (its forces overflow, its mass matrix is not positive definite) is a ValueError naming its row, the first such row of the batch.
     """
 def generated_cache_dir() -> str:
     """

@@ -5,7 +5,8 @@
 namespace coopsim::docs {
 
 constexpr const char* doc_run_batch = "Runs each simulation up to time t_end on a pool of `threads` threads\n"
-    "(0: hardware concurrency). Simulations must be distinct and must not share\n"
+    "(0: hardware concurrency; the calling thread is one of them), each taking\n"
+    "the next simulation when idle. Simulations must be distinct and must not share\n"
     "controller instances. Returns one exception per simulation (null when it\n"
     "finished), so that one failed run does not stop the others; `seconds`, when\n"
     "given, receives each run's wall time (s). Throws std::invalid_argument on a\n"
@@ -301,8 +302,12 @@ constexpr const char* doc_IntegrationResult = "Integrates `steps` steps from (q0
     "(plus one when steps is not a multiple). Throws DivergenceError when the\n"
     "state stops being finite or leaves `limits`, naming the step, with the\n"
     "state of the step before.";
-constexpr const char* doc_forward_dynamics_batch = "Forward dynamics of N independent states (row-major N x n arrays), split\n"
-    "over `threads` threads (0: hardware concurrency).";
+constexpr const char* doc_forward_dynamics_batch = "Forward dynamics of N independent states (row-major N x n arrays) on\n"
+    "`threads` threads (0: hardware concurrency), the calling thread one of them:\n"
+    "each takes the next chunk of 256 states from an atomic counter when idle and\n"
+    "writes its rows of QDD; nothing is allocated per state. A state whose\n"
+    "dynamics throw stops the batch: the first failing row (as a serial loop\n"
+    "would find it) is rethrown, a std::domain_error naming the row.";
 constexpr const char* doc_LogColumn = "Append-only rows of `width` doubles, row-major in one memory block.\n"
     "Growing moves the rows to a new block and clear() starts a new one, so\n"
     "rows already written never change in a block: whoever shares a block\n"

@@ -111,8 +111,12 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
                             int tau_rows, double dt, int steps, Method method, bool end_stops,
                             int record_every, const DivergenceLimits& limits = DivergenceLimits());
 
-// Forward dynamics of N independent states (row-major N x n arrays), split
-// over `threads` threads (0: hardware concurrency).
+// Forward dynamics of N independent states (row-major N x n arrays) on
+// `threads` threads (0: hardware concurrency), the calling thread one of them:
+// each takes the next chunk of 256 states from an atomic counter when idle and
+// writes its rows of QDD; nothing is allocated per state. A state whose
+// dynamics throw stops the batch: the first failing row (as a serial loop
+// would find it) is rethrown, a std::domain_error naming the row.
 void forward_dynamics_batch(const Robot& robot, const double* Q, const double* QD, const double* TAU, int N,
                             double* QDD, int threads);
 
