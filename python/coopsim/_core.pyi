@@ -183,7 +183,7 @@ class Robot:
         dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
-    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file'):
+    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file', clamp = None):
         """
         A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
         
@@ -225,6 +225,10 @@ class Robot:
                 files whose limits are placeholders, as CAD exporters write them
                 (lower = upper = 0, effort = 0), which 'file' refuses, naming the
                 joint and this option.
+            clamp: None or False (default) for the chain as it is; True puts the paper's parallel-jaw clamp on
+                its last link (coopsim.robots.add_clamp with its defaults, mounted on the tip's frame), a dict
+                of add_clamp's keywords (mount, opening, jaw_length, ...) sets them. The tip link's visuals
+                are kept, moved into the turned last frame.
             snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
                 read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
                 5e-12 rad would make every derived angle general (and generated code
@@ -327,9 +331,10 @@ class Robot:
             theta2 = theta3; where that rule alone stands in the way (reach or a
             joint limit) and no branch is asked for, 'auto' goes on with the
             numeric solver, whose solution has theta2 != theta3.
-        opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
+        opening: jaw opening (m) of a robot with a clamp (the SCARAs' d6, or the
+            jaw joint coopsim.robots.add_clamp adds), which the pose does not
             determine; default q_near's, else 0 clamped into the jaw's limits. The
-            numeric solver holds it fixed.
+            numeric solver holds the jaw joint locked at it.
         branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for
             SCARA #2 theta2 = theta3), +-2 = SCARA #2's folded family near the base;
             None = any (the one nearest q_near when given, else +1 first).
@@ -347,7 +352,8 @@ class Robot:
             orientation_error (rad), iterations and attempts (numeric).
         Every result is checked by forward kinematics and lies within the joint
         limits; otherwise IKError (a ValueError) says why: out of reach, which
-        joint limit, an orientation the structure cannot take, a singular target.
+        joint limit, an orientation the structure cannot take, a singular target;
+        the numeric solver's message ends naming the robot and the target pose.
         """
     def ik_kind_reason(self) -> str:
         """
@@ -2407,7 +2413,7 @@ def euler_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt:
     """
 def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float64]:
     """
-    Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n), rad/s^2 or m/s^2; GIL released, on `threads` threads (0: all cores), each taking chunks of 256 states as it becomes idle. A state whose dynamics fail (its forces overflow, its mass matrix is not positive definite) is a ValueError naming its row, the first such row of the batch.
+    Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n); GIL released, split over `threads` threads (0: all cores).
     """
 def generated_cache_dir() -> str:
     """

@@ -168,9 +168,10 @@ method: 'auto' (closed form for the SCARA structures, see ik_kind, else
     theta2 = theta3; where that rule alone stands in the way (reach or a
     joint limit) and no branch is asked for, 'auto' goes on with the
     numeric solver, whose solution has theta2 != theta3.
-opening: jaw opening d6 (m) for the SCARA clamps, which the pose does not
+opening: jaw opening (m) of a robot with a clamp (the SCARAs' d6, or the
+    jaw joint coopsim.robots.add_clamp adds), which the pose does not
     determine; default q_near's, else 0 clamped into the jaw's limits. The
-    numeric solver holds it fixed.
+    numeric solver holds the jaw joint locked at it.
 branch: closed form only: +1 / -1 = sign of the elbow angle (theta2; for
     SCARA #2 theta2 = theta3), +-2 = SCARA #2's folded family near the base;
     None = any (the one nearest q_near when given, else +1 first).
@@ -188,7 +189,8 @@ info: also return a dict: method ('scara1' or 'scara2' for the closed
     orientation_error (rad), iterations and attempts (numeric).
 Every result is checked by forward kinematics and lies within the joint
 limits; otherwise IKError (a ValueError) says why: out of reach, which
-joint limit, an orientation the structure cannot take, a singular target.)doc";
+joint limit, an orientation the structure cannot take, a singular target;
+the numeric solver's message ends naming the robot and the target pose.)doc";
 IKResult ik(const Robot& robot, const Eigen::Isometry3d& target, const IKOptions& options);
 
 // Every closed-form solution within the limits (analytic_ik_all), with the
