@@ -2454,7 +2454,8 @@ def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: t
 def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, threads: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple[list, list]:
     """
     Runs each simulation up to time t_end on a pool of `threads` threads
-    (0: hardware concurrency). Simulations must be distinct and must not share
+    (0: hardware concurrency; the calling thread is one of them), each taking
+    the next simulation when idle. Simulations must be distinct and must not share
     controller instances. Returns one exception per simulation (null when it
     finished), so that one failed run does not stop the others; `seconds`, when
     given, receives each run's wall time (s). Throws std::invalid_argument on a
