@@ -35,7 +35,11 @@ def run_batch(sims: Sequence[Simulation], t_end: float, *, threads: Optional[int
     """Runs many independent simulations up to t_end (s) in one call, on threads.
 
     The stepping is C++ on a pool of `threads` threads (None or 0: every core; at most 4096)
-    with the GIL released. Results, in the order of `sims`: their logs
+    with the GIL released, each thread taking the next simulation when idle (runs of unequal
+    length keep every thread busy). Runs of one description are best made with
+    ``sim.replicate(n)`` (one model shared, each run its own data); inputs set afterwards
+    with ``set_applied`` keep the model shared, while a new reference, controller or sensor
+    option gives that run a copy of it. Results, in the order of `sims`: their logs
     (output='log'), their per-robot metrics ('metrics', see
     Simulation.metrics) or None ('none'). A run that fails (e.g. diverges)
     does not stop the others: errors='raise' raises the first failure after

@@ -219,7 +219,8 @@ def sweep(runs: Union[Sequence[Any], Callable[..., Any]], t_end: Optional[float]
     :func:`grid`, or a list of dicts; its values become the first columns).
 
     executor: None (this machine's threads: simulations in one :func:`coopsim.run_batch` call, tasks on
-    a thread pool; `threads` of them, None for every core), any concurrent.futures.Executor (each run
+    a thread pool; `threads` of them, None for every core; each idle thread takes the next run, so runs of
+    unequal length keep every thread busy), any concurrent.futures.Executor (each run
     pickled to a worker, see :func:`run_one`), or a Dask distributed.Client (a worker that dies has its
     runs retried on the others by the scheduler).
 
@@ -308,7 +309,10 @@ def _sweep_local(items, t_end, threads, keep_logs, timeout, done):
                 row["log"] = s.log
             done(i, row)
     if tasks:
-        pool = concurrent.futures.ThreadPoolExecutor(max_workers=threads or os.cpu_count() or 1)
+        # balanced: each idle thread takes the next run from the pool's queue (one future per run, in the grid's
+        # order), whatever the runs' lengths; a task sequences its run in Python between the engine's calls,
+        # which release the GIL (benchmarks/bench_scaling.py measures the fraction released)
+        pool = concurrent.futures.ThreadPoolExecutor(max_workers=min(threads or os.cpu_count() or 1, len(tasks)))
         try:
             _collect({pool.submit(run_many, [t], None, keep_logs): [i] for i, t in tasks}, timeout, done)
         finally:
