@@ -102,10 +102,24 @@ class Struct {
       warn_mapping(self, "");
       return py::list(py::cast(*names));
     }, "Deprecated: the fields' names (see `fields`).");
-    cls_.def("__iter__", [names](const py::object& self) {
-      warn_mapping(self, "");
-      return py::iter(py::cast(*names));
+    // not iterable: code that iterated the dict it replaced (pandas.DataFrame({...: x}), for k in x)
+    // would silently get the fields' names; it is told what to use instead
+    cls_.def("__iter__", [](const py::object& self) -> py::object {
+      const std::string type = py::str(py::type::of(self).attr("__name__"));
+      throw py::type_error(type + " is no longer a dict and is not iterable: use .asdict() for {name: value}, or its "
+                           "attributes (" + type + ".fields names them)");
     });
+    cls_.def("__len__", [names](const py::object&) { return names->size(); });
+    cls_.def("__contains__", [names](const py::object&, const py::object& key) {
+      for (const std::string& n : *names)
+        if (py::str(n).equal(key)) return true;
+      return false;
+    });
+    cls_.def("asdict", [names](const py::object& self) {
+      py::dict d;
+      for (const std::string& n : *names) d[py::str(n)] = self.attr(n.c_str());
+      return d;
+    }, "The fields as a dict {name: value} (for tables: pandas.DataFrame of these).");
     return cls_;
   }
 
