@@ -57,6 +57,7 @@ class _Panels(_RunPanel, _RobotsPanel, _TeachMode, _PlotsPanel):
             self._start.on_click(lambda e: self._start_pressed())
             self._speed = gui.add_slider("Speed (%)", min=0, max=400, step=1,
                                          initial_value=round(self.pacer.speed_percent))
+            self._speed_known = self.pacer.speed_percent
             self._speed.on_update(lambda e: None if self._syncing else
                                   self._set_speed_percent(e.target.value, from_slider=True))
             pause, resume = gui.add_button("Pause"), gui.add_button("Resume")

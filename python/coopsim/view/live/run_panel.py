@@ -34,6 +34,7 @@ class _RunPanel:
             with self._speed_lock:
                 self._speed_pending -= 1
             self.pacer.speed_percent = v
+            self._speed_known = v  # what the page shows or has asked for
             if not from_slider:
                 self._sync_speed()
             why = " (nothing moves at 0 %)" if v == 0 else " (paused: Resume to go on)" if self.pacer.paused else ""
@@ -46,6 +47,7 @@ class _RunPanel:
     def _sync_speed(self) -> None:
         self._syncing = True
         try:
+            self._speed_known = self.pacer.speed_percent
             self._speed.value = round(self.pacer.speed_percent)
         finally:
             self._syncing = False
@@ -119,8 +121,11 @@ class _RunPanel:
             self._start.visible = state == "waiting"
         self.stats = dict(t=f.t, wall=wall_total, speed_set=self.pacer.speed_percent, speed_achieved=100 * achieved,
                           step_mean=mean, step_max=top, fps=fps, steps=f.steps, state=state)
-        if round(self.pacer.speed_percent) != self._speed.value and not self._syncing and \
-                not self._speed_pending:
+        # the slider follows the pacer when the pacer's speed changed by another way than the slider; it is
+        # not compared with the slider's value, which the page may be changing now (its request not yet
+        # counted as pending): set back, the page's slider would jump away from where the user put it
+        if self.pacer.speed_percent != getattr(self, "_speed_known", self.pacer.speed_percent) and \
+                not self._syncing and not self._speed_pending:
             self._sync_speed()
         if now - getattr(self, "_last_drivers", -math.inf) >= _PLOT_EVERY:
             self._last_drivers = now
