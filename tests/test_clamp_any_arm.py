@@ -272,3 +272,23 @@ def test_bad_input_is_one_line_naming_what_is_wrong(call, match):
 def test_unknown_keywords_are_named():
     with pytest.raises(TypeError, match=r"unknown keyword\(s\) \['jaw_width'\]"):
         cs.robots.add_clamp(cs.Robot.from_urdf(UR5), jaw_width=0.05)
+
+
+def test_plan_cartesian_takes_an_opening_on_a_clamped_arm():
+    """cs.plan_cartesian(..., opening=...) on a clamped UR5: every knot reached with the jaw at the opening
+    interpolated between the poses'; the arm without a clamp refuses an opening, naming itself."""
+    arm = ARMS["ur5"]()
+    c = cs.robots.add_clamp(arm, mount=MOUNT)
+    q0 = np.r_[0.3, -1.2, 1.5, -1.9, -1.5, 0.2, 0.02]
+    T0 = c.fk(q0)
+    T1 = T0.copy()
+    T1[:3, 3] += [0.05, -0.03, 0.04]
+    traj, info = cs.plan_cartesian(c, [T0, T1], [0.0, 1.0], opening=[0.03, 0.01], q_start=q0, intermediate=4,
+                                   info=True)
+    for t, T in zip(info["times"], info["poses"]):
+        q = traj.evaluate(t)[0]
+        assert np.abs(c.fk(q) - T).max() < 1e-8
+    assert traj.evaluate(0.0)[0][-1] == pytest.approx(0.03, abs=1e-12)
+    assert traj.evaluate(1.0)[0][-1] == pytest.approx(0.01, abs=1e-12)
+    with pytest.raises(ValueError, match=rf"opening applies to a robot with a clamp; robot '{arm.name}' has none"):
+        cs.plan_cartesian(arm, [arm.fk(np.zeros(arm.dof))] * 2, [0.0, 1.0], opening=0.03)

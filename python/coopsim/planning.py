@@ -168,7 +168,7 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
 
     robot: the Robot. poses: (N, 4, 4) TCP poses in the world, N >= 2.
     times: (N,) s, strictly increasing.
-    opening: SCARA jaw opening d6 (m), a scalar or (N,) one per pose
+    opening: the clamp's jaw opening (m; d6 on the SCARAs), a scalar or (N,) one per pose
         (interpolated linearly for intermediate poses); default q_start's,
         else 0.
     q_start: (n,) configuration to start near (picks the first branch and the
@@ -206,8 +206,9 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
     N = len(t)
     mode = "clamp" if robot.ik_kind is not None else "geodesic"
     if opening is not None:
-        if robot.ik_kind is None:
-            raise ValueError("opening applies to the SCARA clamps only")
+        if robot.clamp is None:
+            raise ValueError(f"opening applies to a robot with a clamp; robot '{robot.name}' has none "
+                             f"(cs.robots.add_clamp puts one on)")
         op = np.broadcast_to(np.asarray(opening, dtype=float), (N,)) if np.ndim(opening) == 0 else \
             np.asarray(opening, dtype=float)
         if op.shape != (N,):
