@@ -4,6 +4,7 @@
 namespace py = pybind11;
 
 void bind_robot(py::module_& m);
+void bind_derivatives(py::module_& m);
 void bind_integrator(py::module_& m);
 void bind_codegen(py::module_& m);
 void bind_trajectory(py::module_& m);
@@ -30,6 +31,7 @@ PYBIND11_MODULE(_core, m) {
   m.attr("build_sanitizers") = "";
 #endif
   bind_robot(m);
+  bind_derivatives(m);
   bind_integrator(m);
   bind_codegen(m);
   bind_trajectory(m);

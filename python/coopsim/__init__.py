@@ -26,6 +26,7 @@ from ._core import (
     dh_transform,
     euler_step,
     forward_dynamics_batch,
+    forward_dynamics_derivatives_batch,
     integrate,
     rk4_step,
 )
@@ -93,6 +94,7 @@ __all__ = [
     "dh_transform",
     "euler_step",
     "forward_dynamics_batch",
+    "forward_dynamics_derivatives_batch",
     "integrate",
     "rk4_step",
     "grasp",

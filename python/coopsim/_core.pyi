@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -309,6 +309,14 @@ class Robot:
         """
         Eq. (2): qdd (n,) = M^-1 (tau + J^T F - C - G - friction(qd)), solved by Cholesky (M with the armature); ValueError naming q where M is not positive definite.
         """
+    def forward_dynamics_derivatives(self, q: typing.Any, qd: typing.Any, tau: typing.Any, f_ext: typing.Any = None) -> tuple:
+        """
+        The forward dynamics' derivatives at (q, qd, tau): (dqdd_dq, dqdd_dqd, dqdd_dtau = M^-1), each
+        (n, n), [j, k] = dqdd_j / dq_k (1/s^2, 1/s, 1/(kg m^2) ...), of exactly what forward_dynamics
+        computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,
+        the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).
+        ValueError naming q where M is not positive definite, as forward_dynamics.
+        """
     def frames(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
         World poses (n + 1, 4, 4) of DH frames 0..n.
@@ -366,6 +374,18 @@ class Robot:
     def inverse_dynamics(self, q: typing.Any, qd: typing.Any, qdd: typing.Any, f_ext: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
         Eq. (1): tau (n,) with tau + J^T F = M qdd + C + G + friction(qd) (M with the armature).
+        """
+    def inverse_dynamics_derivatives(self, q: typing.Any, qd: typing.Any, qdd: typing.Any, f_ext: typing.Any = None) -> tuple:
+        """
+        The inverse dynamics' derivatives at (q, qd, qdd): (dtau_dq, dtau_dqd, M), each (n, n), [j, k] =
+        dtau_j / dq_k (N m/rad, N/m, ...), of exactly what inverse_dynamics computes (Eq. (1): tau =
+        M qdd + C + G + friction(qd) - J^T F, armature in M): the recursive Newton-Euler algorithm
+        differentiated analytically (Carpentier & Mansard, RSS 2018), exact to rounding (no finite
+        differences), by the recursive algorithm whatever the backend. f_ext: as in inverse_dynamics, a
+        (6,) wrench [f; m] (world, N and N m) at the tool centre point, or Wrench(s) on links, fixed in
+        the world while the points they act at move with their links. The Coulomb term
+        F_c tanh(qd / v_c) is smooth: its derivative F_c / v_c (1 - tanh^2(qd / v_c)) is in dtau_dqd's
+        diagonal (with the viscous K); it tends to F_c delta(qd) as v_c -> 0.
         """
     def jacobian(self, q: typing.Any, link: typing.SupportsInt | typing.SupportsIndex = -1, point: typing.Any = None) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -2414,6 +2434,14 @@ def euler_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt:
 def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float64]:
     """
     Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n); GIL released, split over `threads` threads (0: all cores).
+    """
+def forward_dynamics_derivatives_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
+    """
+    Robot.forward_dynamics_derivatives of N states in one call: q, qd, tau (N, n), row-major, ->
+    (dqdd_dq, dqdd_dqd, dqdd_dtau), each (N, n, n), row-major, without f_ext (as forward_dynamics_batch);
+    on `threads` threads (0: all cores), the GIL released, each taking chunks of 64 states as it becomes
+    idle. A state whose dynamics fail (its mass matrix not positive definite, its forces overflowing) is a
+    ValueError naming its row, the first such row of the batch.
     """
 def generated_cache_dir() -> str:
     """

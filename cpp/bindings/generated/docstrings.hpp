@@ -471,6 +471,20 @@ constexpr const char* doc_Robot_inverse_dynamics = "Eq. (1): tau = M qdd + C + G
 constexpr const char* doc_Robot_forward_dynamics = "Eq. (2): qdd = M^-1 (tau + tau_ext - C - G - K qd), by LDLT; tau_ext may be null.";
 constexpr const char* doc_Robot_end_stop_torques = "End-stop torques for (q, qd) given the diagonal of M.";
 constexpr const char* doc_Robot_kinetic_energy = "Kinetic and potential energy (J); potential of gravity relative to z = 0.";
+constexpr const char* doc_Robot_inverse_dynamics_derivatives = "The inverse dynamics' derivatives at (q, qd, qdd): (dtau_dq, dtau_dqd, M), each (n, n), [j, k] =\n"
+    "dtau_j / dq_k (N m/rad, N/m, ...), of exactly what inverse_dynamics computes (Eq. (1): tau =\n"
+    "M qdd + C + G + friction(qd) - J^T F, armature in M): the recursive Newton-Euler algorithm\n"
+    "differentiated analytically (Carpentier & Mansard, RSS 2018), exact to rounding (no finite\n"
+    "differences), by the recursive algorithm whatever the backend. f_ext: as in inverse_dynamics, a\n"
+    "(6,) wrench [f; m] (world, N and N m) at the tool centre point, or Wrench(s) on links, fixed in\n"
+    "the world while the points they act at move with their links. The Coulomb term\n"
+    "F_c tanh(qd / v_c) is smooth: its derivative F_c / v_c (1 - tanh^2(qd / v_c)) is in dtau_dqd's\n"
+    "diagonal (with the viscous K); it tends to F_c delta(qd) as v_c -> 0.";
+constexpr const char* doc_Robot_forward_dynamics_derivatives = "The forward dynamics' derivatives at (q, qd, tau): (dqdd_dq, dqdd_dqd, dqdd_dtau = M^-1), each\n"
+    "(n, n), [j, k] = dqdd_j / dq_k (1/s^2, 1/s, 1/(kg m^2) ...), of exactly what forward_dynamics\n"
+    "computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,\n"
+    "the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).\n"
+    "ValueError naming q where M is not positive definite, as forward_dynamics.";
 constexpr const char* doc_RobotTables = "A robot as tables: the arguments of Robot.from_dh, documented here\n"
     "(Python's docstring too); an optional table left empty takes the default.";
 constexpr const char* doc_RobotTables_boxes = "none: the default boxes";
@@ -482,6 +496,11 @@ constexpr const char* doc_box_gap = "The separating-axis gap of two boxes: the l
     "distance from below; *exact is set when it is the distance itself: the axis\n"
     "is a face normal of one box and the other box's nearest vertex along it lies\n"
     "over that face (that vertex and the face are then nearest points).";
+constexpr const char* doc_forward_dynamics_derivatives_batch = "Robot.forward_dynamics_derivatives of N states in one call: q, qd, tau (N, n), row-major, ->\n"
+    "(dqdd_dq, dqdd_dqd, dqdd_dtau), each (N, n, n), row-major, without f_ext (as forward_dynamics_batch);\n"
+    "on `threads` threads (0: all cores), the GIL released, each taking chunks of 64 states as it becomes\n"
+    "idle. A state whose dynamics fail (its mass matrix not positive definite, its forces overflowing) is a\n"
+    "ValueError naming its row, the first such row of the batch.";
 constexpr const char* doc_solve_spd = "Solves A x = b for symmetric positive definite A by Cholesky, overwriting A\n"
     "with its factor; false if A is not positive definite.";
 constexpr const char* doc_box_inertia = "Solid cuboid inertia about its centre, edges lx, ly, lz along x, y, z (kg m^2).";
@@ -551,6 +570,8 @@ constexpr const char* doc_Simulation_add_cooperative = "`controller` drives robo
     "controller update on; it is reset now when the run is under way, else at its start. A robot\n"
     "belongs to one group at most; controller->check() sees the robots. Returns the group's index.";
 constexpr const char* doc_Simulation_remove_cooperative = "Group k stops driving: its robots' own controllers are reset and drive from the next update.";
+constexpr const char* doc_Simulation_robot_count = "Number of robots added.";
+constexpr const char* doc_Simulation_world = "The run's World (null without one): the one given to the constructor, or built for a run of a shared model.";
 constexpr const char* doc_Simulation_link_body = "The world body of robot i's box b (-1 without a world or before the first step).";
 constexpr const char* doc_Simulation_excluded_pairs = "Box index pairs of robot i that never collide: boxes of one link, of\n"
     "adjacent links (the base is link 0), and pairs that overlap at every\n"
@@ -575,6 +596,10 @@ constexpr const char* doc_Simulation_ft_clamp = "Robot i's reading at the presen
     "rows and when asked here: its reading depends on the present state alone.)\n"
     "They may compute the reading on the simulation's scratch: they take the hold as a mutator does.";
 constexpr const char* doc_Simulation_sensor_pose = "The sensor frame: the TCP's pose in the world at the present state.";
+constexpr const char* doc_Simulation_step_count = "Steps taken since the start (t = 0 or the last reset()).";
+constexpr const char* doc_Simulation_time = "Simulated time, s: step_count() * dt.";
+constexpr const char* doc_Simulation_started = "Whether the run has started (its first step taken since the start); robots are added before it.";
+constexpr const char* doc_Simulation_diverged = "Whether the run stopped with a DivergenceError (reset() starts it over).";
 constexpr const char* doc_Simulation_tau = "held torque";
 constexpr const char* doc_Simulation_tau_ext = "held external torque of the applied inputs";
 constexpr const char* doc_Simulation_set_applied_forces = "Joint forces (n) N m or N, added to the torque; link wrenches, world\n"
@@ -594,6 +619,7 @@ constexpr const char* doc_Simulation_run = "Advances to time t_end (steps_until)
     "calling progress(done, total) after each; progress returning false, or\n"
     "throwing, stops the run there (the state and log stay consistent).\n"
     "Returns the steps taken.";
+constexpr const char* doc_Simulation_log_rows = "Rows in the log (one per log_every-th step, the start included).";
 constexpr const char* doc_Simulation_body_log = "Free bodies' log, one column each (world.free_bodies() order): 13 values\n"
     "per row, position (3) m, quaternion w x y z (4), velocity (3) m/s,\n"
     "angular velocity (3) rad/s, sampled at the world's steps.";
@@ -602,6 +628,7 @@ constexpr const char* doc_SimulationOptions_dt = "s, > 0";
 constexpr const char* doc_SimulationOptions_control_every = "controller update every k-th step, >= 1";
 constexpr const char* doc_SimulationOptions_log_every = "log row every n-th step; 0: no log";
 constexpr const char* doc_SimulationOptions_end_stops = "robot's spring-damper end stops beyond q_limits";
+constexpr const char* doc_SimulationOptions_integrator = "RK4 (default) or semi-implicit Euler (\"rk4\", \"euler\")";
 constexpr const char* doc_SimulationOptions_world_every = "with a world:\n"
     "the world steps every k-th robot step, its contacts held in between";
 constexpr const char* doc_SimulationOptions_contact_forces = "contacts push the robots (false: reported only)";

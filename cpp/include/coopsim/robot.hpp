@@ -333,6 +333,28 @@ to the base frame's origin.)doc";
   double kinetic_energy(const double* q, const double* qd, Workspace& ws) const;
   double potential_energy(const double* q, Workspace& ws) const;
 
+  // ---- derivatives of the dynamics (robot_derivatives.cpp) ----
+  // The inverse dynamics' derivatives at (q, qd, qdd): (dtau_dq, dtau_dqd, M), each (n, n), [j, k] =
+  // dtau_j / dq_k (N m/rad, N/m, ...), of exactly what inverse_dynamics computes (Eq. (1): tau =
+  // M qdd + C + G + friction(qd) - J^T F, armature in M): the recursive Newton-Euler algorithm
+  // differentiated analytically (Carpentier & Mansard, RSS 2018), exact to rounding (no finite
+  // differences), by the recursive algorithm whatever the backend. f_ext: as in inverse_dynamics, a
+  // (6,) wrench [f; m] (world, N and N m) at the tool centre point, or Wrench(s) on links, fixed in
+  // the world while the points they act at move with their links. The Coulomb term
+  // F_c tanh(qd / v_c) is smooth: its derivative F_c / v_c (1 - tanh^2(qd / v_c)) is in dtau_dqd's
+  // diagonal (with the viscous K); it tends to F_c delta(qd) as v_c -> 0.
+  void inverse_dynamics_derivatives(const double* q, const double* qd, const double* qdd,
+                                    const std::vector<ExternalWrench>& wrenches, Workspace& ws, MatN& dtau_dq,
+                                    MatN& dtau_dqd, MatN& M) const;
+  // The forward dynamics' derivatives at (q, qd, tau): (dqdd_dq, dqdd_dqd, dqdd_dtau = M^-1), each
+  // (n, n), [j, k] = dqdd_j / dq_k (1/s^2, 1/s, 1/(kg m^2) ...), of exactly what forward_dynamics
+  // computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,
+  // the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).
+  // ValueError naming q where M is not positive definite, as forward_dynamics.
+  void forward_dynamics_derivatives(const double* q, const double* qd, const double* tau,
+                                    const std::vector<ExternalWrench>& wrenches, Workspace& ws, MatN& dqdd_dq,
+                                    MatN& dqdd_dqd, MatN& Minv, VecN* qdd = nullptr) const;
+
 
  private:
   void build_();
@@ -345,6 +367,12 @@ to the base frame's origin.)doc";
   void rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,
                  bool with_friction) const;
   int link_index_(int link, const char* what) const;
+  // the derivatives of rnea with friction (at qdd, or 0 if null) and M, for the kinematics in ws
+  void rnea_derivatives_kin_(const double* qd, const double* qdd, const Workspace& ws, MatN& dtau_dq,
+                             MatN& dtau_dqd, MatN& M) const;
+  // d += d(J^T w)/dq of the wrenches, for the kinematics in ws
+  void external_torque_derivatives_(const std::vector<ExternalWrench>& wrenches, const Workspace& ws,
+                                    MatN& d) const;
 
   std::vector<Link> links_;
   int n_ = 0;
@@ -448,6 +476,14 @@ double box_penetration(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a
 // over that face (that vertex and the face are then nearest points).
 double box_gap(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
                const Eigen::Vector3d& half_b, bool* exact = nullptr);
+
+// Robot.forward_dynamics_derivatives of N states in one call: q, qd, tau (N, n), row-major, ->
+// (dqdd_dq, dqdd_dqd, dqdd_dtau), each (N, n, n), row-major, without f_ext (as forward_dynamics_batch);
+// on `threads` threads (0: all cores), the GIL released, each taking chunks of 64 states as it becomes
+// idle. A state whose dynamics fail (its mass matrix not positive definite, its forces overflowing) is a
+// ValueError naming its row, the first such row of the batch.
+void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, const double* QD, const double* TAU,
+                                        int N, double* dqdd_dq, double* dqdd_dqd, double* dqdd_dtau, int threads);
 
 // Solves A x = b for symmetric positive definite A by Cholesky, overwriting A
 // with its factor; false if A is not positive definite.
