@@ -74,10 +74,18 @@ def main(argv=None) -> int:
     ap.add_argument("notebooks", nargs="*", help="instructor notebooks (default: notebooks/*.ipynb)")
     args = ap.parse_args(argv)
     paths = args.notebooks or sorted(glob.glob(os.path.join(ROOT, "notebooks", "*.ipynb")))
+    for path in paths:  # every input checked before anything is written: one line each, no traceback
+        if not os.path.isfile(path):
+            ap.error(f"notebook not found: {path}")
+        if not path.endswith(".ipynb"):
+            ap.error(f"not a notebook (.ipynb): {path}")
     os.makedirs(args.out_dir, exist_ok=True)
     for path in paths:
-        nb = nbformat.read(path, as_version=4)
-        student = student_version(nb, os.path.basename(path))
+        try:
+            nb = nbformat.read(path, as_version=4)
+            student = student_version(nb, os.path.basename(path))
+        except (ValueError, nbformat.reader.NotJSONError) as e:
+            raise SystemExit(f"student_labs: {path}: {e}") from None
         dest = os.path.join(args.out_dir, os.path.basename(path))
         if os.path.abspath(dest) == os.path.abspath(path):
             raise SystemExit(f"student_labs: {dest} would overwrite the instructor's version")

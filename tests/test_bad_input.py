@@ -728,3 +728,54 @@ def test_every_compiled_class_and_function_answers_with_short_type_errors():
             "integrate"} <= labels
     with pytest.raises(TypeError, match=r"^Impedance\(\): force_feedback must be a bool"):
         cs.Impedance(1.0, 1.0, 1.0, force_feedback="yes")
+
+
+# ---- the input gaps a researcher found: each one line naming the argument ----
+
+def _carry():
+    from coopsim.tasks import carry
+
+    return carry
+
+
+@pytest.mark.parametrize("call, error, message", [
+    (lambda: cs.ObjectControl(0.15, -np.eye(3)), ValueError,
+     r"^inertia \(the object's, in the controller's model\) must be positive semi-definite \(principal moments >= 0 "
+     r"kg m\^2\), got principal moments \[-1, -1, -1\]$"),
+    (lambda: cs.ObjectControl(0.15, np.diag([1e-3, 1e-3, 1e-3]) + np.triu(np.ones((3, 3)), 1) * 1e-4), ValueError,
+     r"^inertia \(the object's, in the controller's model\) must be symmetric$"),
+    (lambda: cs.Payload(0.1, inertia=np.diag([1.0, -1.0, 1.0])), ValueError,
+     r"^payload inertia must be positive semi-definite"),
+    (lambda: _carry().run(controllers="ct", controller_options=dict(kp=1)), ValueError,
+     r"^unknown option\(s\) of controller 'ct': kp \(it takes none\)$"),
+    (lambda: _carry().run(controllers=_carry().cooperative(5)), ValueError,
+     r"^make_law must be callable \(robots, plan, \*\*options\) -> a CooperativeController, got 5$"),
+    (lambda: _carry().run(controllers=_carry().cooperative(lambda robots, plan, kp=1.0: None),
+                          controller_options=dict(kd=2)), ValueError,
+     r"^unknown option\(s\) of the cooperative law '<lambda>': kd \(choose from kp\)$"),
+    (lambda: _carry().Disturbances(push=np.nan), ValueError,
+     r"^push must be \(force \(3,\) N finite, the middle as a fraction 0 \.\. 1 of the carry, a duration > 0 s\), "
+     r"got nan$"),
+    (lambda: _carry().Disturbances(names=np.nan), ValueError,
+     r"^names must be a tuple of the disturbances' names \(non-empty strings\), got nan$"),
+])
+def test_the_input_gaps_are_one_line_naming_the_argument(call, error, message):
+    with pytest.raises(error, match=message) as e:
+        call()
+    assert "\n" not in str(e.value)
+
+
+def test_student_labs_names_a_missing_or_broken_notebook_in_one_line(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "scripts" / "student_labs.py"
+    bad = tmp_path / "bad.ipynb"
+    bad.write_text("{")
+    for arg, rc, line in ((str(tmp_path / "missing.ipynb"), 2, "student_labs.py: error: notebook not found: "),
+                          (str(bad), 1, f"student_labs: {bad}: Notebook does not appear to be JSON")):
+        r = subprocess.run([sys.executable, str(script), str(tmp_path / "out"), arg], capture_output=True, text=True)
+        err = r.stderr.strip().splitlines()
+        assert r.returncode == rc and line in err[-1] and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

@@ -1,5 +1,8 @@
 #include "coopsim/checks.hpp"
 
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -88,6 +91,21 @@ std::vector<Eigen::Isometry3d> rigid_poses(const Array& a, const char* name) {
 Eigen::Isometry3d rigid_pose(const Array& a, const char* name) {
   check_shape(a, {4, 4}, name);
   return rigid_pose(a.values.data(), name);
+}
+
+void check_inertia(const Eigen::Matrix3d& I, const std::string& name) {
+  if (!I.allFinite()) throw std::invalid_argument(name + " must be finite");
+  const double tol = 1e-9 * std::max(I.cwiseAbs().maxCoeff(), 1e-300);
+  if ((I - I.transpose()).cwiseAbs().maxCoeff() > tol) throw std::invalid_argument(name + " must be symmetric");
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(I, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d ev = es.eigenvalues();  // ascending
+  if (ev(0) < -tol) {
+    std::ostringstream s;
+    s.precision(6);
+    s << name << " must be positive semi-definite (principal moments >= 0 kg m^2), got principal moments [" << ev(0)
+      << ", " << ev(1) << ", " << ev(2) << "]";
+    throw std::invalid_argument(s.str());
+  }
 }
 
 }  // namespace coopsim

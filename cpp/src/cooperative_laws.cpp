@@ -84,10 +84,7 @@ ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains 
   if (!std::isfinite(mass_) || !(mass_ > 0))
     throw std::invalid_argument("mass (the object's, in the controller's model) must be finite and > 0 kg, got " +
                                 detail::num(mass_));
-  Payload p;
-  p.mass = mass_;
-  p.inertia = inertia_;
-  TaskController::check_payload(p);
+  check_inertia(inertia_, "inertia (the object's, in the controller's model)");
   checked_vec6(gains_.kp, "kp", false);
   checked_vec6(gains_.kd, "kd", false);
   detail::require_nonnegative(gains_.kp_force, "kp_force");

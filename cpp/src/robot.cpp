@@ -239,14 +239,10 @@ void Robot::build_() {
     require(finite_dh(L.dh), who + ": DH parameters must be finite");
     require(finite_dh(L.com), who + ": centre-of-mass parameters must be finite");
     require(std::isfinite(L.mass) && L.mass >= 0, who + ": mass must be finite and >= 0 kg");
-    require(L.inertia.allFinite(), who + ": inertia tensor must be finite");
-    const double scale = L.inertia.cwiseAbs().maxCoeff();
-    const double tol = 1e-9 * std::max(scale, 1e-300);
-    require((L.inertia - L.inertia.transpose()).cwiseAbs().maxCoeff() <= tol,
-            who + ": inertia tensor must be symmetric");
+    check_inertia(L.inertia, who + ": inertia tensor");
+    const double tol = 1e-9 * std::max(L.inertia.cwiseAbs().maxCoeff(), 1e-300);
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(L.inertia, Eigen::EigenvaluesOnly);
     const Eigen::Vector3d ev = es.eigenvalues();  // ascending
-    require(ev(0) >= -tol, who + ": inertia tensor must be positive semi-definite");
     if (ev(0) + ev(1) < ev(2) - tol) {
       std::ostringstream w;
       w << who << ": inertia tensor breaks the triangle inequality of its principal moments (I1 + I2 >= I3): "

@@ -429,7 +429,7 @@ int Simulation::add_robot(const Robot& robot, std::shared_ptr<Controller> contro
     if (s.control.controller == controller)
       throw std::invalid_argument("controller is already driving another robot: give each robot its own instance");
   controller->check(robot);
-  RobotModel rm{robot, controller, std::move(reference)};
+  RobotModel rm{robot, controller, std::move(reference), VecN(), VecN(), VecN(), SensorOptions(), -1};
   rm.q0 = VecN::Zero(n);
   rm.qd0 = VecN::Zero(n);
   rm.reference->evaluate(0.0, rm.q0.data(), rm.qd0.data(), nullptr);

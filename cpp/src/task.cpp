@@ -177,9 +177,7 @@ TaskController::TaskController(std::vector<std::string> directions, double jaw_k
 void TaskController::check_payload(const Payload& p) {
   detail::require_nonnegative(p.mass, "payload mass");
   if (!p.com.allFinite()) throw std::invalid_argument("payload com must be finite");
-  if (!p.inertia.allFinite()) throw std::invalid_argument("payload inertia must be finite");
-  if ((p.inertia - p.inertia.transpose()).cwiseAbs().maxCoeff() > 1e-9 * (1.0 + p.inertia.cwiseAbs().maxCoeff()))
-    throw std::invalid_argument("payload inertia must be symmetric");
+  check_inertia(p.inertia, "payload inertia");
 }
 
 void TaskController::check(const Robot& robot) const {

@@ -54,5 +54,9 @@ Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name);
 std::vector<Eigen::Isometry3d> rigid_poses(const Array& a, const char* name);
 // The rigid transform of a (4, 4) table.
 Eigen::Isometry3d rigid_pose(const Array& a, const char* name);
+// Unless I (kg m^2) is a rigid body's inertia tensor: "NAME must be finite", "NAME must be symmetric",
+// "NAME must be positive semi-definite (principal moments >= 0 kg m^2), got principal moments [a, b, c]"
+// (symmetry and the moments to 1e-9 of its largest entry).
+void check_inertia(const Eigen::Matrix3d& I, const std::string& name);
 
 }  // namespace coopsim

@@ -54,6 +54,7 @@ returning the law.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
@@ -149,6 +150,22 @@ def computed_torque_payload(robots: Sequence[Robot], plan) -> Phased:
     return Phased(free=computed_torque(robots, plan), held=held)
 
 
+def check_options(fn: Callable, options: dict, what: str, skip: int = 2) -> None:
+    """Unless `fn` takes every keyword of `options` (after its first `skip` parameters, robots and plan): a
+    ValueError naming the unknown ones and those it takes (``fn(**options)`` would be a bare TypeError)."""
+    try:
+        params = list(inspect.signature(fn).parameters.values())
+    except (TypeError, ValueError):  # no signature to read (a builtin): the call says what is wrong
+        return
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return
+    taken = [p.name for p in params[skip:] if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    unknown = sorted(set(options) - set(taken))
+    if unknown:
+        raise ValueError(f"unknown option(s) of {what}: {', '.join(unknown)} "
+                         f"({'choose from ' + ', '.join(taken) if taken else 'it takes none'})")
+
+
 def cooperative(make_law: Callable[..., CooperativeController], load_share: Optional[Callable[..., float]] = None
                 ) -> Callable[..., Cooperative]:
     """A factory of :class:`Cooperative` controllers from ``make_law(robots, plan, **options)`` -> a
@@ -157,7 +174,14 @@ def cooperative(make_law: Callable[..., CooperativeController], load_share: Opti
     ``load_share(**options)`` -> SCARA #1's commanded part of the bar's vertical load
     (:attr:`Cooperative.load_share`), for a law that commands one without showing it."""
 
+    if not callable(make_law):
+        raise ValueError(f"make_law must be callable (robots, plan, **options) -> a CooperativeController, "
+                         f"got {make_law!r}")
+    if load_share is not None and not callable(load_share):
+        raise ValueError(f"load_share must be callable (**options) -> SCARA #1's share, or None, got {load_share!r}")
+
     def factory(robots: Sequence[Robot], plan, **options) -> Cooperative:
+        check_options(make_law, options, f"the cooperative law {getattr(make_law, '__name__', '')!r}")
         law = make_law(robots, plan, **options)
         share = None if load_share is None else float(load_share(**options))
         return Cooperative(free=computed_torque(robots, plan), law=law, load_share=share)

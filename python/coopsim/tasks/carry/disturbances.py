@@ -55,11 +55,19 @@ class Disturbances:
         if g.shape != (2,) or not np.all(np.isfinite(g)) or np.any(np.abs(g) > 0.02):
             raise ValueError(f"grip_offset must be two finite offsets of at most 0.02 m, got {self.grip_offset!r}")
         if self.push is not None:
-            f, at, T = self.push
-            f = np.asarray(f, float)
+            bad = ValueError(f"push must be (force (3,) N finite, the middle as a fraction 0 .. 1 of the carry, "
+                             f"a duration > 0 s), got {self.push!r}")
+            try:
+                f, at, T = self.push
+                f, at, T = np.asarray(f, float), float(at), float(T)
+            except (TypeError, ValueError):
+                raise bad from None
             if f.shape != (3,) or not np.all(np.isfinite(f)) or not (0.0 <= at <= 1.0) or not (T > 0 and math.isfinite(T)):
-                raise ValueError(f"push must be (force (3,) N finite, the middle as a fraction 0 .. 1 of the carry, "
-                                 f"a duration > 0 s), got {self.push!r}")
+                raise bad
+        names = self.names
+        if isinstance(names, str) or not isinstance(names, (tuple, list)) or \
+                not all(isinstance(n, str) and n for n in names):
+            raise ValueError(f"names must be a tuple of the disturbances' names (non-empty strings), got {names!r}")
         if self.sensor_noise is not None:
             s = np.asarray(self.sensor_noise, float)
             if s.shape != (2,) or not np.all(np.isfinite(s)) or np.any(s < 0):

@@ -12,7 +12,7 @@ from ..._core import CooperativeController, DivergenceError, IKError, box_distan
 from ...simulation import Simulation
 from . import scene
 from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
-from .controllers import CONTROLLERS, Cooperative, Phased, computed_torque, grip_point
+from .controllers import CONTROLLERS, Cooperative, Phased, check_options, computed_torque, grip_point
 from .disturbances import Disturbances, disturbances
 from .planning import ROBOT_NAMES, STEPS, Plan, make_plan, random_start
 from .scoring import score
@@ -296,6 +296,7 @@ def _factory(controllers, name, options):
         return controllers, name
     if not isinstance(options, dict) or not all(isinstance(k, str) for k in options):
         raise ValueError(f"controller_options must be a dict of keywords for the controllers' factory, got {options!r}")
+    check_options(controllers, options, f"controller {name!r}")
     return (lambda robots, plan: controllers(robots, plan, **options)), name
 
 
