@@ -35,8 +35,9 @@ namespace coopsim {
 
 namespace {
 
-using Mat6 = Eigen::Matrix<double, 6, 6>;
 using detail::require;
+using V3 = Eigen::Vector3d;
+using M3 = Eigen::Matrix3d;
 
 // a x b of two motions
 inline Vec6 cross_m(const Vec6& a, const Vec6& b) {
@@ -54,90 +55,151 @@ inline Vec6 cross_f(const Vec6& a, const Vec6& f) {
   return r;
 }
 
-// (v x*) I - I (v x) for a symmetric I: B x = I (x x v) + v x* (I x)
-inline Mat6 inertia_variation(const Vec6& v, const Mat6& I) {
-  const Eigen::Matrix3d W = detail::skew(v.head<3>()), U = detail::skew(v.tail<3>());
-  Mat6 X;  // the motion cross product v x
-  X.topLeftCorner<3, 3>() = W;
-  X.topRightCorner<3, 3>().setZero();
-  X.bottomLeftCorner<3, 3>() = U;
-  X.bottomRightCorner<3, 3>() = W;
-  const Mat6 IX = I * X;
-  return -IX.transpose() - IX;  // (v x*) = -(v x)^T, so (v x*) I = -(I (v x))^T
-}
+// A spatial inertia about the world origin, [[J, skew(h)], [-skew(h), m 1]] (J the inertia about the origin,
+// h = m c), and its variation with a velocity v = [w; u], B = (v x*) I - I (v x) = [[T, skew(p)], [-skew(p), 0]]
+// with T = K + K^T - h u^T - u h^T + 2 (u . h) 1 (K = skew(w) J) and p = w x h + m u: B is symmetric
+// (so beta_k uses B). Sums of these (composite bodies) keep the form: each is 1 + 3 + 3 + 9 + 9 numbers and
+// applies to a spatial vector in 3-vector operations.
+struct Body {
+  double m;
+  V3 h, p;
+  M3 J, T;
+  inline Vec6 inertia(const Vec6& x) const {  // I x
+    Vec6 r;
+    r.head<3>() = J * x.head<3>() + h.cross(x.tail<3>());
+    r.tail<3>() = m * x.tail<3>() - h.cross(x.head<3>());
+    return r;
+  }
+  inline Vec6 variation(const Vec6& x) const {  // B x
+    Vec6 r;
+    r.head<3>() = T * x.head<3>() + p.cross(x.tail<3>());
+    r.tail<3>() = -p.cross(x.head<3>());
+    return r;
+  }
+  void add(const Body& o) {
+    m += o.m;
+    h += o.h;
+    p += o.p;
+    J += o.J;
+    T += o.T;
+  }
+};
 
 }  // namespace
 
-void Robot::rnea_derivatives_kin_(const double* qd, const double* qdd, const Workspace& ws, MatN& dtau_dq,
-                                  MatN& dtau_dqd, MatN& M) const {
+bool Robot::rnea_derivatives_kin_(const double* qd, const double* qdd, const double* tau, const double* tau_ext,
+                                  const Workspace& ws, MatN& dtau_dq, MatN& dtau_dqd, MatN& M, VecN& qdd_out) const {
   const int n = n_;
-  std::array<Vec6, kMaxDof> S, Sd, Psi, alpha, beta, u, w;
-  std::array<Mat6, kMaxDof> I, B;
-  std::array<Vec6, kMaxDof> f, h;
+  std::array<Vec6, kMaxDof> S, Sd, Psi, f, mom, da, F, alpha;
+  std::array<Body, kMaxDof> body;
+  std::array<double, kMaxDof> own_m;  // each link's own inertia, before the composites are summed
+  std::array<V3, kMaxDof> own_h;
+  std::array<M3, kMaxDof> own_J;
+  // forward: velocities, the accelerations without qdd (gravity as a base acceleration), each link's
+  // inertia and variation, momentum and force at qdd = 0
   Vec6 v = Vec6::Zero(), a = Vec6::Zero();
   a.tail<3>() = -gravity_;
   for (int k = 0; k < n; ++k) {
-    const Eigen::Vector3d z = ws.R[k].col(2);
-    if (links_[k].type == JointType::Revolute) {
-      S[k] << z, ws.o[k].cross(z);
-    } else {
-      S[k] << Eigen::Vector3d::Zero(), z;
-    }
+    const V3 z = ws.R[k].col(2);
+    if (links_[k].type == JointType::Revolute) S[k] << z, ws.o[k].cross(z);
+    else S[k] << V3::Zero(), z;
     Sd[k] = cross_m(v, S[k]);
     Psi[k] = cross_m(a, S[k]) + cross_m(v, Sd[k]);
     v += S[k] * qd[k];
     a += Sd[k] * qd[k];
-    if (qdd) a += S[k] * qdd[k];
-    // the link's spatial inertia about the world origin
-    const double m = links_[k].mass;
-    const Eigen::Matrix3d C = detail::skew(ws.c[k]);
-    Mat6& Ik = I[k];
-    Ik.topLeftCorner<3, 3>() = ws.Iw[k] - m * C * C;
-    Ik.topRightCorner<3, 3>() = m * C;
-    Ik.bottomLeftCorner<3, 3>() = -m * C;
-    Ik.bottomRightCorner<3, 3>() = m * Eigen::Matrix3d::Identity();
-    h[k] = Ik * v;
-    f[k] = Ik * a + cross_f(v, h[k]);
-    B[k] = inertia_variation(v, Ik);
+    Body& b = body[k];
+    b.m = links_[k].mass;
+    const V3& c = ws.c[k];
+    b.h = b.m * c;
+    // J = I_c + m (|c|^2 1 - c c^T)
+    b.J = ws.Iw[k] - b.h * c.transpose();
+    b.J.diagonal().array() += b.h.dot(c);
+    const V3 w = v.head<3>(), u = v.tail<3>();
+    M3 K;
+    for (int col = 0; col < 3; ++col) K.col(col) = w.cross(b.J.col(col));
+    b.T = K + K.transpose() - b.h * u.transpose() - u * b.h.transpose();
+    b.T.diagonal().array() += 2.0 * u.dot(b.h);
+    b.p = w.cross(b.h) + b.m * u;
+    own_m[k] = b.m;
+    own_h[k] = b.h;
+    own_J[k] = b.J;
+    mom[k] = b.inertia(v);
+    f[k] = b.inertia(a) + cross_f(v, mom[k]);
   }
-  // composites, from the tip: I[k], B[k], f[k], h[k] become the sums over links i >= k
+  // backward: composites from the tip; alpha_k = Ic_k S_k gives M; the bias at qdd = 0
   for (int k = n - 1; k >= 0; --k) {
     if (k < n - 1) {
-      I[k] += I[k + 1];
-      B[k] += B[k + 1];
+      body[k].add(body[k + 1]);
+      mom[k] += mom[k + 1];
       f[k] += f[k + 1];
-      h[k] += h[k + 1];
     }
-    alpha[k] = I[k] * S[k];
-    beta[k] = B[k].transpose() * S[k] - cross_f(S[k], h[k]);
-    u[k] = cross_f(S[k], f[k]) + I[k] * Psi[k] + cross_f(Sd[k], h[k]) + B[k] * Sd[k];
-    w[k] = 2.0 * (I[k] * Sd[k]) + B[k] * S[k] + cross_f(S[k], h[k]);
+    alpha[k] = body[k].inertia(S[k]);
+  }
+  M.resize(n, n);
+  for (int k = 0; k < n; ++k) {
+    for (int j = 0; j <= k; ++j) M(j, k) = S[j].dot(alpha[k]);
+    for (int j = k + 1; j < n; ++j) M(j, k) = S[k].dot(alpha[j]);
+    M(k, k) += links_[k].armature;
+  }
+  VecN acc(n);
+  if (tau) {
+    // forward dynamics: M qdd = tau + tau_ext - bias (Cholesky, forward_dynamics' pivot rule)
+    VecN rhs(n);
+    for (int k = 0; k < n; ++k) {
+      const Link& L = links_[k];
+      double bias = S[k].dot(f[k]) + L.friction * qd[k];
+      if (L.coulomb > 0) bias += L.coulomb * std::tanh(qd[k] / L.coulomb_width);
+      rhs[k] = tau[k] - bias + (tau_ext ? tau_ext[k] : 0.0);
+    }
+    MatN L = M;
+    if (!solve_spd(L, rhs, acc)) return false;
+  } else {
+    acc = qdd ? VecN(Eigen::Map<const VecN>(qdd, n)) : VecN(VecN::Zero(n));
+  }
+  qdd_out = acc;
+  // the accelerations' part of qdd: da_k = sum_{j <= k} S_j qdd_j, into Psi and (through the links'
+  // inertias I_i da_i, summed from the tip) into the forces F_k
+  Vec6 d = Vec6::Zero();
+  for (int k = 0; k < n; ++k) {
+    Psi[k] += cross_m(d, S[k]);
+    d += S[k] * acc[k];
+    da[k] = d;
+  }
+  Vec6 sum = Vec6::Zero();
+  for (int k = n - 1; k >= 0; --k) {
+    const Vec6& x = da[k];
+    sum.head<3>() += own_J[k] * x.head<3>() + own_h[k].cross(x.tail<3>());
+    sum.tail<3>() += own_m[k] * x.tail<3>() - own_h[k].cross(x.head<3>());
+    F[k] = f[k] + sum;
   }
   dtau_dq.resize(n, n);
   dtau_dqd.resize(n, n);
-  M.resize(n, n);
   for (int k = 0; k < n; ++k) {
+    const Body& b = body[k];
+    const Vec6 alpha_k = alpha[k];
+    const Vec6 beta_k = b.variation(S[k]) - cross_f(S[k], mom[k]);
+    const Vec6 u = cross_f(S[k], F[k]) + b.inertia(Psi[k]) + cross_f(Sd[k], mom[k]) + b.variation(Sd[k]);
+    const Vec6 w = 2.0 * b.inertia(Sd[k]) + b.variation(S[k]) + cross_f(S[k], mom[k]);
+    // column k on and above the diagonal; row k left of it
     for (int j = 0; j <= k; ++j) {
-      dtau_dq(j, k) = S[j].dot(u[k]);
-      dtau_dqd(j, k) = S[j].dot(w[k]);
-      M(j, k) = S[j].dot(alpha[k]);
+      dtau_dq(j, k) = S[j].dot(u);
+      dtau_dqd(j, k) = S[j].dot(w);
     }
-    for (int j = k + 1; j < n; ++j) {
-      dtau_dq(j, k) = Psi[k].dot(alpha[j]) + Sd[k].dot(beta[j]);
-      dtau_dqd(j, k) = 2.0 * Sd[k].dot(alpha[j]) + S[k].dot(beta[j]);
-      M(j, k) = S[k].dot(alpha[j]);
+    for (int j = 0; j < k; ++j) {
+      dtau_dq(k, j) = Psi[j].dot(alpha_k) + Sd[j].dot(beta_k);
+      dtau_dqd(k, j) = 2.0 * Sd[j].dot(alpha_k) + S[j].dot(beta_k);
     }
   }
   for (int k = 0; k < n; ++k) {
     const Link& L = links_[k];
-    M(k, k) += L.armature;
-    double d = L.friction;
+    double dd = L.friction;
     if (L.coulomb > 0) {
       const double t = std::tanh(qd[k] / L.coulomb_width);
-      d += L.coulomb / L.coulomb_width * (1.0 - t * t);
+      dd += L.coulomb / L.coulomb_width * (1.0 - t * t);
     }
-    dtau_dqd(k, k) += d;
+    dtau_dqd(k, k) += dd;
   }
+  return true;
 }
 
 void Robot::external_torque_derivatives_(const std::vector<ExternalWrench>& wrenches, const Workspace& ws,
@@ -184,7 +246,8 @@ void Robot::inverse_dynamics_derivatives(const double* q, const double* qd, cons
                                          const std::vector<ExternalWrench>& wrenches, Workspace& ws,
                                          MatN& dtau_dq, MatN& dtau_dqd, MatN& M) const {
   kinematics(q, ws);
-  rnea_derivatives_kin_(qd, qdd, ws, dtau_dq, dtau_dqd, M);
+  VecN acc;
+  rnea_derivatives_kin_(qd, qdd, nullptr, nullptr, ws, dtau_dq, dtau_dqd, M, acc);
   if (!wrenches.empty()) {
     MatN d = MatN::Zero(n_, n_);
     external_torque_derivatives_(wrenches, ws, d);
@@ -195,19 +258,19 @@ void Robot::inverse_dynamics_derivatives(const double* q, const double* qd, cons
 void Robot::forward_dynamics_derivatives(const double* q, const double* qd, const double* tau,
                                          const std::vector<ExternalWrench>& wrenches, Workspace& ws,
                                          MatN& dqdd_dq, MatN& dqdd_dqd, MatN& Minv, VecN* qdd_out) const {
+  kinematics(q, ws);
   VecN te, qdd;
   const double* tep = nullptr;
   if (!wrenches.empty()) {
-    kinematics(q, ws);
     external_torques(wrenches, ws, te);
     tep = te.data();
   }
-  // qdd as forward_dynamics gives it (the same backend, its check of M), then the derivatives there
-  forward_dynamics(q, qd, tau, tep, ws, qdd, false);
-  // the numeric path left the kinematics of q in ws; generated code computes none
-  if (uses_generated()) kinematics(q, ws);
+  // one pass for M, the bias and qdd = M^-1 (tau + tau_ext - bias), the derivatives at that qdd
   MatN dq, dqd, M;
-  rnea_derivatives_kin_(qd, qdd.data(), ws, dq, dqd, M);
+  if (!rnea_derivatives_kin_(qd, nullptr, tau, tep, ws, dq, dqd, M, qdd)) {
+    forward_dynamics(q, qd, tau, tep, ws, qdd, false);  // raises forward_dynamics' own error
+    throw std::domain_error("forward_dynamics_derivatives: the mass matrix is not positive definite");
+  }
   if (!wrenches.empty()) {
     MatN d = MatN::Zero(n_, n_);
     external_torque_derivatives_(wrenches, ws, d);

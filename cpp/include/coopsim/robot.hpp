@@ -367,9 +367,10 @@ to the base frame's origin.)doc";
   void rnea_kin_(const double* qd, const double* qdd, Workspace& ws, VecN& tau, double gravity_scale,
                  bool with_friction) const;
   int link_index_(int link, const char* what) const;
-  // the derivatives of rnea with friction (at qdd, or 0 if null) and M, for the kinematics in ws
-  void rnea_derivatives_kin_(const double* qd, const double* qdd, const Workspace& ws, MatN& dtau_dq,
-                             MatN& dtau_dqd, MatN& M) const;
+  // the derivatives of rnea with friction and M, for the kinematics in ws, at qdd (0 if null) or, given
+  // tau, at qdd = FD(q, qd, tau, tau_ext) (false: M is not positive definite); the qdd used into qdd_out
+  bool rnea_derivatives_kin_(const double* qd, const double* qdd, const double* tau, const double* tau_ext,
+                             const Workspace& ws, MatN& dtau_dq, MatN& dtau_dqd, MatN& M, VecN& qdd_out) const;
   // d += d(J^T w)/dq of the wrenches, for the kinematics in ws
   void external_torque_derivatives_(const std::vector<ExternalWrench>& wrenches, const Workspace& ws,
                                     MatN& d) const;
