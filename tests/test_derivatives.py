@@ -114,8 +114,8 @@ def test_coulomb_derivative_is_the_smooth_models_at_and_away_from_zero_velocity(
 
 @pytest.mark.parametrize("which", ["scara1", "scara2"])
 def test_every_backend_has_the_same_derivatives(which):
-    """The generated SCARA (closed-form dynamics) gives the recursive algorithm's derivatives to 1e-12:
-    forward_dynamics_derivatives takes qdd from the robot's own forward dynamics."""
+    """The generated SCARA (closed-form dynamics) and the numeric one give the same derivatives to 1e-12:
+    the recursive algorithm's, whatever the backend."""
     gen = getattr(cs.robots, which)()
     num = gen.with_backend("numeric")
     for q, qd, qdd, tau in _states(gen, 2, 4):
