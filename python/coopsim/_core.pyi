@@ -1331,16 +1331,24 @@ class BodyState:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('pose', 'position', 'quaternion', 'velocity', 'angular_velocity', 'asleep')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1449,16 +1457,24 @@ class Contact:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('a', 'b', 'kind', 'point_a', 'point_b', 'normal', 'depth', 'force')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1511,16 +1527,24 @@ class GraspCheck:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('closing', 'aligned', 'touching', 'in_pads', 'slow', 'ok', 'angle', 'gap_fixed', 'gap_moving', 'speed', 'angular_speed', 'width')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1591,16 +1615,24 @@ class Cooperation:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('centre', 'point_a', 'point_b', 'external', 'internal', 'squeeze', 'twist', 'bending', 'shear', 'load_share', 'relative_pose_error')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1669,16 +1701,24 @@ class HeldCooperation:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('holding', 'body', 'centre', 'point_a', 'point_b', 'external', 'internal', 'squeeze', 'twist', 'bending', 'shear', 'load_share', 'relative_pose_error')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1754,6 +1794,8 @@ class TrackingMetrics:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('name', 'steps', 'rms_error', 'max_abs_error', 'max_abs_tau')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
@@ -1762,12 +1804,18 @@ class TrackingMetrics:
         """
     def __getstate__(self) -> tuple[str, int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
         ...
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
     def __setstate__(self, arg0: tuple) -> None:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1819,6 +1867,8 @@ class SensorOptions:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('noise_force', 'noise_moment', 'time_constant', 'seed')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
@@ -1827,12 +1877,18 @@ class SensorOptions:
         """
     def __getstate__(self) -> tuple[float, float, float, int]:
         ...
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
     def __setstate__(self, arg0: tuple) -> None:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1867,16 +1923,24 @@ class SensorReading:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('ft_world', 'ft_clamp', 'ft_true_world', 'ft_true_clamp', 'pose', 'tau', 'tau_ext')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -1938,16 +2002,24 @@ class StepProfile:
     """
     __hash__: typing.ClassVar[None] = None
     fields: typing.ClassVar[tuple] = ('controllers', 'world', 'contacts', 'robots', 'grasp', 'world_steps')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
     def __eq__(self, other: typing.Any) -> typing.Any:
         ...
     def __getitem__(self, key: str) -> ...:
         """
         Deprecated: the field `key` (use the attribute).
         """
-    def __iter__(self) -> collections.abc.Iterator:
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
         ...
     def __repr__(self) -> str:
         ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
     def keys(self) -> list:
         """
         Deprecated: the fields' names (see `fields`).
@@ -2282,7 +2354,9 @@ class SimulationCore:
         """
     @property
     def diverged(self) -> bool:
-        ...
+        """
+        Whether the run stopped with a DivergenceError (reset() starts it over).
+        """
     @property
     def dt(self) -> float:
         """
@@ -2305,7 +2379,9 @@ class SimulationCore:
         """
     @property
     def integrator(self) -> str:
-        ...
+        """
+        RK4 (default) or semi-implicit Euler ("rk4", "euler")
+        """
     @property
     def log_contacts(self) -> bool:
         """
@@ -2318,7 +2394,9 @@ class SimulationCore:
         """
     @property
     def log_rows(self) -> int:
-        ...
+        """
+        Rows in the log (one per log_every-th step, the start included).
+        """
     @property
     def max_position(self) -> float:
         """
@@ -2331,23 +2409,29 @@ class SimulationCore:
         """
     @property
     def robot_count(self) -> int:
-        ...
+        """
+        Number of robots added.
+        """
     @property
     def started(self) -> bool:
-        ...
+        """
+        Whether the run has started (its first step taken since the start); robots are added before it.
+        """
     @property
     def steps(self) -> int:
         """
-        Steps taken since the start.
+        Steps taken since the start (t = 0 or the last reset()).
         """
     @property
     def time(self) -> float:
         """
-        Simulated time, s.
+        Simulated time, s: step_count() * dt.
         """
     @property
     def world(self) -> World:
-        ...
+        """
+        The run's World (null without one): the one given to the constructor, or built for a run of a shared model.
+        """
     @property
     def world_every(self) -> int:
         """
@@ -2433,7 +2517,7 @@ def euler_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt:
     """
 def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> numpy.typing.NDArray[numpy.float64]:
     """
-    Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n); GIL released, split over `threads` threads (0: all cores).
+    Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n), rad/s^2 or m/s^2; GIL released, on `threads` threads (0: all cores), each taking chunks of 256 states as it becomes idle. A state whose dynamics fail (its forces overflow, its mass matrix is not positive definite) is a ValueError naming its row, the first such row of the batch.
     """
 def forward_dynamics_derivatives_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
     """

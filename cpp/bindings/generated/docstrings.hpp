@@ -39,6 +39,9 @@ constexpr const char* doc_check_rigid = "Unless T is a finite rigid transform (a
     "\"NAME must be a rigid transform (orthonormal rotation)\".";
 constexpr const char* doc_rigid_pose = "The rigid transform of 16 row-major numbers (checked by check_rigid).";
 constexpr const char* doc_rigid_poses = "The rigid transforms of a (N, 4, 4) table of finite numbers, the k-th named \"NAME[k]\".";
+constexpr const char* doc_check_inertia = "Unless I (kg m^2) is a rigid body's inertia tensor: \"NAME must be finite\", \"NAME must be symmetric\",\n"
+    "\"NAME must be positive semi-definite (principal moments >= 0 kg m^2), got principal moments [a, b, c]\"\n"
+    "(symmetry and the moments to 1e-9 of its largest entry).";
 constexpr const char* doc_ControlInput = "What a controller sees at one update; every pointer holds n values.";
 constexpr const char* doc_ControlInput_t = "s";
 constexpr const char* doc_ControlInput_q = "measured position (rad or m)";
