@@ -1,4 +1,5 @@
 #include "coopsim/integrator.hpp"
+#include "batch_rows.hpp"
 #include "internal.hpp"
 
 #include <algorithm>
@@ -180,63 +181,18 @@ IntegrationResult integrate(const Robot& robot, const double* q0, const double* 
 
 void forward_dynamics_batch(const Robot& robot, const double* Q, const double* QD, const double* TAU, int N,
                             double* QDD, int threads) {
-  if (N <= 0) return;
   const int n = robot.dof();
-  // Chunks of kChunk consecutive states, taken by whichever thread is idle from one atomic counter (a slow
-  // core or a preempted thread does not hold the others back). Each thread has its own workspace on its
-  // stack and writes its chunks' rows of QDD: disjoint rows, kChunk * n * 8 bytes each (a multiple of 64),
-  // so two threads share at most the cache line at a chunk's edge. Nothing is allocated per state.
-  constexpr int kChunk = 256;
-  const int chunks = (N + kChunk - 1) / kChunk;
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads = std::max(1, std::min(threads, chunks));
-  std::atomic<int> next{0};
-  std::atomic<bool> failed{false};
-  std::mutex error_mutex;
-  int error_row = N;
-  std::exception_ptr error;
-  auto work = [&]() {
+  // chunks of 256 states (batch_rows.hpp): each thread writes its chunks' rows of QDD, disjoint rows of
+  // 256 * n * 8 bytes (a multiple of 64), so two threads share at most the cache line at a chunk's edge
+  struct State {
     Workspace ws;
     VecN qdd;
-    for (int c = next++; c < chunks && !failed.load(std::memory_order_relaxed); c = next++) {
-      const int end = std::min(N, (c + 1) * kChunk);
-      for (int i = c * kChunk; i < end; ++i) {
-        const size_t o = static_cast<size_t>(i) * n;
-        try {
-          robot.forward_dynamics(Q + o, QD + o, TAU + o, nullptr, ws, qdd, false);
-        } catch (...) {
-          // the first failing state of the batch, as a serial loop would report it: every chunk before this
-          // one was taken before it and runs to its own end or its own first failure
-          std::lock_guard<std::mutex> lock(error_mutex);
-          if (i < error_row) {
-            error_row = i;
-            error = std::current_exception();
-          }
-          failed = true;
-          break;
-        }
-        std::copy(qdd.data(), qdd.data() + n, QDD + o);
-      }
-    }
   };
-  if (threads == 1) {
-    work();
-  } else {
-    std::vector<std::thread> pool;
-    pool.reserve(threads - 1);
-    for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();  // the calling thread is one of the pool
-    for (auto& th : pool) th.join();
-  }
-  if (error) {
-    try {
-      std::rethrow_exception(error);
-    } catch (const std::domain_error& e) {
-      throw std::domain_error("state " + std::to_string(error_row) + " (row of q, qd, tau): " + e.what());
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument("state " + std::to_string(error_row) + " (row of q, qd, tau): " + e.what());
-    }
-  }
+  detail::batch_rows(N, 256, threads, [] { return State(); }, [&](State& st, int i) {
+    const size_t o = static_cast<size_t>(i) * n;
+    robot.forward_dynamics(Q + o, QD + o, TAU + o, nullptr, st.ws, st.qdd, false);
+    std::copy(st.qdd.data(), st.qdd.data() + n, QDD + o);
+  });
 }
 
 }  // namespace coopsim

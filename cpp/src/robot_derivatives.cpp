@@ -29,6 +29,7 @@
 #include <string>
 #include <thread>
 
+#include "batch_rows.hpp"
 #include "internal.hpp"
 
 namespace coopsim {
@@ -285,64 +286,21 @@ void Robot::forward_dynamics_derivatives(const double* q, const double* qd, cons
 
 void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, const double* QD, const double* TAU,
                                         int N, double* dqdd_dq, double* dqdd_dqd, double* dqdd_dtau, int threads) {
-  if (N <= 0) return;
   const int n = robot.dof();
-  // as forward_dynamics_batch: chunks of consecutive states taken by whichever thread is idle from one atomic
-  // counter, the calling thread one of the pool, each with its workspace; the first failing row rethrown
-  constexpr int kChunk = 64;
-  const int chunks = (N + kChunk - 1) / kChunk;
-  if (threads <= 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads = std::max(1, std::min(threads, chunks));
-  std::atomic<int> next{0};
-  std::atomic<bool> failed{false};
-  std::mutex error_mutex;
-  int error_row = N;
-  std::exception_ptr error;
   const std::vector<ExternalWrench> none;
-  auto work = [&]() {
+  struct State {
     Workspace ws;
     MatN A, B, C;
-    using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-    for (int c = next++; c < chunks && !failed.load(std::memory_order_relaxed); c = next++) {
-      const int end = std::min(N, (c + 1) * kChunk);
-      for (int i = c * kChunk; i < end; ++i) {
-        const size_t o = static_cast<size_t>(i) * n, oo = o * n;
-        try {
-          robot.forward_dynamics_derivatives(Q + o, QD + o, TAU + o, none, ws, A, B, C);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(error_mutex);
-          if (i < error_row) {
-            error_row = i;
-            error = std::current_exception();
-          }
-          failed = true;
-          break;
-        }
-        RowMap(dqdd_dq + oo, n, n) = A;
-        RowMap(dqdd_dqd + oo, n, n) = B;
-        RowMap(dqdd_dtau + oo, n, n) = C;
-      }
-    }
   };
-  if (threads == 1) {
-    work();
-  } else {
-    std::vector<std::thread> pool;
-    pool.reserve(threads - 1);
-    for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-    for (auto& th : pool) th.join();
-  }
-  if (error) {
-    const std::string row = "state " + std::to_string(error_row) + " (row of q, qd, tau): ";
-    try {
-      std::rethrow_exception(error);
-    } catch (const std::domain_error& e) {
-      throw std::domain_error(row + e.what());
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(row + e.what());
-    }
-  }
+  using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  // as forward_dynamics_batch (batch_rows.hpp), in chunks of 64 states
+  detail::batch_rows(N, 64, threads, [] { return State(); }, [&](State& st, int i) {
+    const size_t o = static_cast<size_t>(i) * n, oo = o * n;
+    robot.forward_dynamics_derivatives(Q + o, QD + o, TAU + o, none, st.ws, st.A, st.B, st.C);
+    RowMap(dqdd_dq + oo, n, n) = st.A;
+    RowMap(dqdd_dqd + oo, n, n) = st.B;
+    RowMap(dqdd_dtau + oo, n, n) = st.C;
+  });
 }
 
 }  // namespace coopsim
