@@ -76,7 +76,7 @@ def mutated_urdfs(draw):
             key = draw(st.sampled_from(sorted(el.attrib) or ATTRIBUTES))
             el.set(key, draw(attribute_values))
         elif kind == "rename":  # joints re-wired into loops, branches, self-loops; links renamed or duplicated
-            names = [e.get("name") for e in root.findall("link")] + ["nowhere", ""]
+            names = [e.get("name", "") for e in root.findall("link")] + ["nowhere", ""]  # a dropped name reads ""
             target = draw(st.sampled_from([e for e in elements if e.tag in ("parent", "child", "link")] or [el]))
             target.set("link" if target.tag != "link" else "name", draw(st.sampled_from(names)))
         elif kind == "type":
