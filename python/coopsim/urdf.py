@@ -438,6 +438,63 @@ def _dh_from_axes(points, axes):
     return np.array(rows), o[0], R0
 
 
+@dataclass(frozen=True)
+class _Frames:
+    """A chain's standard DH rows (n, 4), its base (position (3,) m, yaw rad, orientation (3, 3) or
+    None) and its DH frames 0..n at q = 0 (n + 1 4x4 poses in the root's coordinates)."""
+    dh: np.ndarray
+    base_position: np.ndarray
+    base_yaw: float
+    base_orientation: Optional[np.ndarray]
+    F: list
+
+
+def _chain_frames(points, axes) -> _Frames:
+    """The DH frames of joint axes through points[i] along axes[i] ((3,) each, root coordinates, at
+    q = 0); the base a yaw when z0 is the root's z, else a base orientation."""
+    dh, o0, R0 = _dh_from_axes([np.asarray(p, dtype=float) for p in points],
+                               [np.asarray(a, dtype=float) for a in axes])
+    if np.linalg.norm(R0[:, 2] - [0, 0, 1]) < 1e-12:
+        yaw, Rb = math.atan2(R0[1, 0], R0[0, 0]), None
+        R0 = _dh(yaw, 0, 0, 0)[:3, :3]
+    else:
+        yaw, Rb = 0.0, R0
+    F = [np.eye(4)]
+    F[0][:3, :3], F[0][:3, 3] = R0, o0
+    for row in dh:
+        F.append(F[-1] @ _dh(*row))  # DH frames at q = 0, rebuilt from the rows
+    return _Frames(dh, o0, yaw, Rb, F)
+
+
+def _moved(X, m, c, I):
+    """(mass, CoM, inertia about the CoM) given in a frame at pose X (4x4) of another frame, in that
+    other frame."""
+    R = X[:3, :3]
+    return m, R @ c + X[:3, 3], R @ I @ R.T
+
+
+def _chain_robot(frames: _Frames, types: str, parts, tool, *, joint_names, link_names, boxes, name, **kw):
+    """The Robot of a chain whose importer has read the file: `parts[b]` the (mass, CoM, inertia
+    about the CoM) of every piece of body b (0 the base, i the link joint i moves) in DH frame b,
+    combined into one link each; `tool` (4x4) in DH frame n; `boxes` LinkBoxes (None or empty:
+    the default ones); `kw` from_dh's friction, coulomb, armature, limits, gravity, ... ."""
+    bodies = [_combine(p) for p in parts[1:]]
+    robot = Robot.from_dh(frames.dh, np.array([b[1] for b in bodies]), np.array([b[0] for b in bodies]),
+                          np.array([b[2] for b in bodies]), types, base_position=frames.base_position,
+                          base_yaw=frames.base_yaw, base_orientation=frames.base_orientation, tool=tool,
+                          name=name, boxes=boxes or None, **kw)
+    return robot.with_names(list(joint_names), list(link_names))
+
+
+def _with_clamp(robot, clamp):
+    """The importers' clamp= (None/False: the robot; True: add_clamp's defaults; a dict: its keywords)."""
+    if clamp is None or clamp is False:
+        return robot
+    if clamp is not True and not isinstance(clamp, Mapping):
+        raise ValueError(f"clamp must be True, False, None or a dict of add_clamp's keywords, got {clamp!r}")
+    return add_clamp(robot, **({} if clamp is True else dict(clamp)))
+
+
 def _read(source):
     """(root element, the file's directory or None for text)."""
     base_dir = None
@@ -666,27 +723,15 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         jn = child_of[ln]
         body_of[ln] = chain.index(jn) + 1 if jn in chain else body_of[joints[jn].find("parent").get("link")]
     n = len(chain)
-    axes_dir = [np.asarray(a) for a in axes]
-    dh, o0, R0 = _dh_from_axes([np.asarray(p) for p in points], axes_dir)
+    frames = _chain_frames(points, axes)
+    F = frames.F
     types = "".join(_MOVABLE[joints[jn].get("type")] for jn in chain)
-    # base placement: a yaw when z0 is the root's z, else a base orientation
-    if np.linalg.norm(R0[:, 2] - [0, 0, 1]) < 1e-12:
-        yaw, Rb = math.atan2(R0[1, 0], R0[0, 0]), None
-        R0 = _dh(yaw, 0, 0, 0)[:3, :3]
-    else:
-        yaw, Rb = 0.0, R0
-    F = [np.eye(4)]
-    F[0][:3, :3], F[0][:3, 3] = R0, o0
-    for i in range(n):
-        F.append(F[-1] @ _dh(*dh[i]))  # DH frames at q = 0, rebuilt from the rows
     parts = [[] for _ in range(n + 1)]
     box_list, visual_list = [], []
     for ln in order:
         b = body_of[ln]
         X = np.linalg.inv(F[b]) @ pose[ln]  # link frame in the body's DH frame (frame 0 for the base)
-        m, c, I = _inertial(links[ln], snap)
-        R = X[:3, :3]
-        parts[b].append((m, R @ c + X[:3, 3], R @ I @ R.T))
+        parts[b].append(_moved(X, *_inertial(links[ln], snap)))
         shapes = links[ln].findall("collision") or links[ln].findall("visual")
         for k, sh in enumerate(shapes):
             box = sh.find("geometry/box")
@@ -701,10 +746,6 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
             v = _visual(sh, ln, b, X, base_dir, snap)
             if v is not None:
                 visual_list.append(v)
-    bodies = [_combine(p) for p in parts[1:]]
-    masses = np.array([b[0] for b in bodies])
-    com = np.array([b[1] for b in bodies])
-    inertias = np.array([b[2] for b in bodies])
     qlim = np.tile([-np.inf, np.inf], (n, 1))
     tau, K, Fc, Ia = np.full(n, np.inf), np.zeros(n), np.zeros(n), np.zeros(n)
     for i, jn in enumerate(chain):
@@ -739,16 +780,13 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
                     if jn in chain:
                         Ia[chain.index(jn)] += Jm * G * G
     tool = np.linalg.inv(F[n]) @ pose[tip] if tip not in cut else np.eye(4)
-    robot = Robot.from_dh(dh, com, masses, inertias, types, friction=K, q_limits=qlim, tau_limits=tau,
-                          gravity=gravity, base_position=o0, base_yaw=yaw, tool=tool,
-                          name=name or root.get("name") or "robot", boxes=box_list or None, armature=Ia,
-                          coulomb=Fc, coulomb_width=coulomb_width, base_orientation=Rb,
-                          inertia_check=inertia_check)
-    robot = robot.with_names(chain, [joints[jn].find("child").get("link") for jn in chain])
-    if clamp is not None and clamp is not False:
-        if clamp is not True and not isinstance(clamp, Mapping):
-            raise ValueError(f"clamp must be True, False, None or a dict of add_clamp's keywords, got {clamp!r}")
-        clamped = add_clamp(robot, **({} if clamp is True else dict(clamp)))
+    robot = _chain_robot(frames, types, parts, tool, joint_names=chain,
+                         link_names=[joints[jn].find("child").get("link") for jn in chain],
+                         friction=K, coulomb=Fc, armature=Ia, q_limits=qlim, tau_limits=tau, boxes=box_list,
+                         name=name or root.get("name") or "robot", gravity=gravity, coulomb_width=coulomb_width,
+                         inertia_check=inertia_check)
+    clamped = _with_clamp(robot, clamp)
+    if clamped is not robot:
         # the last link's frame turned: its visuals follow (old frame n -> new frame n)
         X = np.linalg.solve(dh_transform(*clamped.dh[n - 1]), dh_transform(*robot.dh[n - 1]))
         visual_list = [v if v.link != n else Visual(n, X @ v.pose, v.shape, v.scale, v.path, v.name)
