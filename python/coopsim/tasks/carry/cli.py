@@ -6,17 +6,18 @@ report (JSON and text), figures and animation, and prints the summary and the re
 from __future__ import annotations
 
 import argparse
+import ast
 import math
 import os
 import time
 
 from ...view.animation import MAX_SPEED
 from ..handover.cli import check_out_folder
-from .controllers import CONTROLLERS
+from .controllers import CONTROLLERS, controller_factory
 from .disturbances import DISTURBANCES, disturbances
 from .report import summary, write_outputs, write_report
 from .runs import sweep_table
-from .sequence import run
+from .sequence import check_controllers, run
 
 
 def parser() -> argparse.ArgumentParser:
@@ -27,8 +28,15 @@ def parser() -> argparse.ArgumentParser:
                     help="shift and turn the start stands by a seeded draw (>= 0; default: the planned start)")
     ap.add_argument("--disturbance", action="append", default=None, metavar="NAME",
                     help=f"one of {', '.join(DISTURBANCES)}; repeat it or join names with commas to combine them")
-    ap.add_argument("--controller", default="ct", help=f"one of {', '.join(CONTROLLERS)} (default ct, the baseline: "
-                                                       f"independent computed torque)")
+    ap.add_argument("--controller", default="ct",
+                    help=f"one of {', '.join(CONTROLLERS)} (default ct, the baseline: independent computed torque), "
+                         f"or a factory of one's own as module:factory (a module on sys.path) or "
+                         f"path/to/file.py:factory, called as the named ones: factory(robots, plan, **options)")
+    ap.add_argument("--controller-option", action="append", default=None, metavar="KEY=VALUE",
+                    help="a keyword for the controllers' factories (repeat it): the value a Python literal (0.3, "
+                         "(5000.0, 20.0), True, None) or else a string; CONTROLLER:KEY=VALUE gives it to that "
+                         "controller only (of --controller or --sweep-controllers), KEY=VALUE to every one; each "
+                         "checked against the factory's options before anything runs")
     ap.add_argument("--mass-factor", type=float, default=None, metavar="F",
                     help="the bar's mass in the controllers' models over the world's (> 0; as the mass disturbances, "
                          "which it excludes)")
@@ -67,16 +75,21 @@ def parse_args(argv=None) -> argparse.Namespace:
             ap.error(f"argument --mass-factor: must be finite and > 0, got {args.mass_factor:g}")
         if any(n.startswith("mass") for n in names):
             ap.error("argument --mass-factor: not with a mass disturbance (both set the bar's mass in the models)")
-    if args.controller not in CONTROLLERS:
-        ap.error(f"argument --controller: unknown controller {args.controller!r}: choose from {', '.join(CONTROLLERS)}")
+    try:
+        controller_factory(args.controller)      # loads it (made with its options below)
+    except ValueError as e:
+        ap.error(f"argument --controller: {e}")
     if args.sweep < 0:
         ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
     if args.threads < 1:
         ap.error(f"argument --threads: must be >= 1, got {args.threads}")
     args.sweep_controllers = _list(args.sweep_controllers) or [args.controller]
     for c in args.sweep_controllers:
-        if c not in CONTROLLERS:
-            ap.error(f"argument --sweep-controllers: unknown controller {c!r}: choose from {', '.join(CONTROLLERS)}")
+        try:
+            controller_factory(c)
+        except ValueError as e:
+            ap.error(f"argument --sweep-controllers: {e}")
+    _controller_options(ap, args)
     args.sweep_disturbances = _list(args.sweep_disturbances) or [",".join(names) or "none"]
     for d in args.sweep_disturbances:
         if d not in DISTURBANCES and d != ",".join(names):
@@ -93,6 +106,45 @@ def _list(text):
     return [x.strip() for x in (text or "").split(",") if x.strip()]
 
 
+def option_value(text: str):
+    """A --controller-option's value: a Python literal (numbers, strings in quotes, tuples and lists, True,
+    False, None) when it reads as one, else the text itself (a string)."""
+    try:
+        return ast.literal_eval(text.strip())
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        return text
+
+
+def _controller_options(ap, args) -> None:
+    """--controller-option into args.controller_options (every controller's: {key: value}) and
+    args.options_by_controller ({controller: {key: value}}), each controller checked with its options."""
+    common, scoped = {}, {}
+    used = [args.controller] + [c for c in args.sweep_controllers if c != args.controller]
+    for item in args.controller_option or []:
+        key, eq, value = item.partition("=")
+        who, _, key = key.strip().rpartition(":")
+        if not eq or not key.isidentifier():
+            ap.error(f"argument --controller-option: must be KEY=VALUE or CONTROLLER:KEY=VALUE with KEY a keyword "
+                     f"(a Python name), got {item!r}")
+        if who and who not in used:
+            ap.error(f"argument --controller-option: {item!r} names controller {who!r}, which does not run (the "
+                     f"controllers: {', '.join(used)})")
+        (scoped.setdefault(who, {}) if who else common)[key] = option_value(value)
+    for c in used:
+        try:
+            check_controllers(c, {**common, **scoped.get(c, {})})
+        except ValueError as e:
+            ap.error(f"argument --controller-option: {e}")
+    args.controller_options = common
+    args.options_by_controller = scoped
+
+
+def run_options(args, controller: str) -> dict:
+    """The controller options a controller of the command line runs with (the common ones, its own over
+    them)."""
+    return {**args.controller_options, **args.options_by_controller.get(controller, {})}
+
+
 #: the sweep table's columns printed, as their means per controller and disturbance
 SWEEP_SUMMARY = ("success", "bar_error_rms_mm", "bar_error_max_mm", "squeeze_rms_N", "internal_force_max_N",
                  "load_share_deviation", "relative_position_max_mm", "wall_time")
@@ -103,10 +155,11 @@ def main(argv=None) -> int:
     success, 1 on a failed carry."""
     args = parse_args(argv)
     res = run(seed=args.seed, disturbance=args.disturbance, controllers=args.controller,
-              mass_factor=args.mass_factor)
+              controller_options=run_options(args, args.controller), mass_factor=args.mass_factor)
     rep, wall = res.report, res.timing["run"]
     rep["command_line"] = dict(seed=args.seed, disturbance=args.disturbance, controller=args.controller,
-                               mass_factor=args.mass_factor,
+                               controller_options=args.controller_options,
+                               options_by_controller=args.options_by_controller, mass_factor=args.mass_factor,
                                sweep=args.sweep, sweep_controllers=args.sweep_controllers,
                                sweep_disturbances=args.sweep_disturbances, threads=args.threads, video=args.video,
                                speed=args.speed, out=args.out)
@@ -117,7 +170,9 @@ def main(argv=None) -> int:
     if args.sweep:
         t1 = time.perf_counter()
         table = sweep_table(args.sweep_controllers, args.sweep_disturbances, range(args.sweep), threads=args.threads,
-                            mass_factor=args.mass_factor)
+                            mass_factor=args.mass_factor, controller_options=args.controller_options or None,
+                            options_by_controller={c: o for c, o in args.options_by_controller.items()
+                                                   if c in args.sweep_controllers})
         n = len(table)
         print(f"sweep of {n} runs ({len(args.sweep_controllers)} controllers x {len(args.sweep_disturbances)} "
               f"disturbances x {args.sweep} seeds) on {args.threads} threads in {time.perf_counter() - t1:.1f} s: "

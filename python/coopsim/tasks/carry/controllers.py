@@ -19,7 +19,9 @@ scale it). Factories may take keyword options after (robots, plan) (``functools.
 :func:`run`'s ``controller_options`` set them).
 
 The choices by name are :data:`CONTROLLERS` (the command line's ``--controller``, :func:`~.sequence.run`'s
-``controllers="object"``, the sweeps'); :func:`register_controller` adds one. A cooperative law from the
+``controllers="object"``, the sweeps'); :func:`register_controller` adds one. A factory of one's own is also
+named as ``"module:factory"`` (a module on sys.path) or ``"path/to/file.py:factory"`` wherever a name is taken
+(:func:`controller_factory`): it is imported where the run runs, so it reaches a sweep's worker processes. A cooperative law from the
 engine plugs in as ``register_controller(name, cooperative(make_law))``, ``make_law(robots, plan, **options)``
 returning the law.
 
@@ -54,7 +56,13 @@ returning the law.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import importlib
+import importlib.util
 import inspect
+import os
+import sys
+import threading
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
@@ -64,7 +72,8 @@ from ..._core import (ComputedTorque, Controller, CooperativeController, LeaderF
 from . import scene
 from .constants import LEADER_FOLLOWER, OBJECT_GAINS, OBJECT_IMPEDANCE, OMEGA
 
-__all__ = ["CONTROLLERS", "Cooperative", "Phased", "computed_torque", "computed_torque_payload", "cooperative",
+__all__ = ["CONTROLLERS", "Cooperative", "Phased", "computed_torque", "computed_torque_payload", "controller_factory",
+           "cooperative",
            "leader_follower", "object_control", "object_impedance", "register_controller", "with_point_mass"]
 
 
@@ -281,3 +290,62 @@ def register_controller(name: str, factory: Callable) -> None:
     if not callable(factory):
         raise ValueError(f"factory must be callable (robots, plan, **options) -> controllers, got {factory!r}")
     CONTROLLERS[name] = factory
+
+
+def controller_factory(spec: str) -> Callable:
+    """The factory a controller's name stands for: a name of :data:`CONTROLLERS`, or ``"module:factory"``
+    (``module`` imported from sys.path, ``factory`` an attribute of it, dotted for one inside a class or
+    object) or ``"path/to/file.py:factory"`` (the file imported as a module of its own, once per path). The
+    factory is called as the named ones are: ``factory(robots, plan, **options)``. ValueError, one line, for an
+    unknown name, a module that does not import (with its error), or a factory it lacks or that is not
+    callable."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise ValueError(f"controllers must be a name ({', '.join(CONTROLLERS)}) or 'module:factory', got {spec!r}")
+    if spec in CONTROLLERS:
+        return CONTROLLERS[spec]
+    if ":" not in spec:
+        raise ValueError(f"unknown controller {spec!r}: choose from {', '.join(CONTROLLERS)} (or name a factory of "
+                         f"your own as module:factory or path/to/file.py:factory)")
+    where, attr = (x.strip() for x in spec.rsplit(":", 1))
+    if not where or not attr:
+        raise ValueError(f"controller {spec!r}: give it as module:factory or path/to/file.py:factory")
+    try:
+        module = _load_file(where) if where.endswith(".py") or os.sep in where or "/" in where \
+            else importlib.import_module(where)
+    except Exception as e:  # noqa: BLE001 - the module's own error, in one line
+        raise ValueError(f"controller {spec!r}: cannot import {where!r}: {type(e).__name__}: "
+                         f"{str(e).splitlines()[0] if str(e) else ''}") from None
+    obj = module
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ValueError(f"controller {spec!r}: {where!r} has no {attr!r}")
+        obj = getattr(obj, part)
+    if not callable(obj):
+        raise ValueError(f"controller {spec!r}: {attr!r} is not callable (robots, plan, **options) -> controllers, "
+                         f"it is {type(obj).__name__}")
+    return obj
+
+
+def _load_file(path: str):
+    """The module of a Python file (imported once per absolute path, kept in sys.modules under a name made
+    from the path, so that what it defines pickles within this process)."""
+    full = os.path.abspath(path)
+    if not os.path.isfile(full):
+        raise FileNotFoundError(f"no file {path!r}")
+    name = "coopsim_user_" + os.path.splitext(os.path.basename(full))[0].replace("-", "_") + "_" + \
+        hashlib.sha1(full.encode()).hexdigest()[:8]
+    with _LOADING:            # a sweep's threads load it once
+        if name in sys.modules:
+            return sys.modules[name]
+        spec = importlib.util.spec_from_file_location(name, full)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[name]
+            raise
+        return module
+
+
+_LOADING = threading.Lock()

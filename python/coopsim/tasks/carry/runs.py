@@ -10,7 +10,7 @@ from ... import _checks
 from ..._core import IKError
 from ...batch import MAX_THREADS
 from ...sweeps import OptionsRun, sweep as _sweep
-from .controllers import CONTROLLERS
+from .controllers import controller_factory
 from .disturbances import DISTURBANCES
 from .planning import random_start
 from .scoring import score_row
@@ -21,7 +21,8 @@ __all__ = ["CarryRun", "sweep", "sweep_table"]
 
 class CarryRun(OptionsRun):
     """One carry as an item of :func:`coopsim.sweep`: `options` are the keywords of :func:`~.sequence.run`
-    (seed=, disturbance=, controllers= a name of :data:`~.controllers.CONTROLLERS`, controller_options=, ...;
+    (seed=, disturbance=, controllers= a name of :data:`~.controllers.CONTROLLERS` or 'module:factory',
+    controller_options=, ...;
     score_run=True unless given). Plain values only, so it pickles anywhere."""
 
     #: the sweep's first columns for these runs (:func:`~.scoring.score_row`'s)
@@ -55,23 +56,35 @@ def _names(values, what, choices) -> list:
     return values
 
 
+def _controllers(values) -> list:
+    values = [values] if isinstance(values, str) else list(values)
+    if not values:
+        raise ValueError("controllers must name at least one, got none")
+    for v in values:
+        controller_factory(v)         # a name of CONTROLLERS or a module:factory that loads, else its ValueError
+    return values
+
+
 def sweep_table(controllers: Iterable[str] = ("ct",), disturbances: Iterable[Optional[str]] = ("none",),
-                seeds: Iterable[int] = (0,), *, threads: int = 2, executor=None, **options):
+                seeds: Iterable[int] = (0,), *, threads: int = 2, executor=None,
+                options_by_controller: Optional[dict] = None, **options):
     """The carry for every controller x disturbance x seed (the grid's order: controllers slowest, seeds
     fastest) through :func:`coopsim.sweep`, on `threads` threads (the engine releases the GIL while it
     steps) or through `executor` (a concurrent.futures executor or a Dask distributed.Client).
 
-    controllers: names of :data:`~.controllers.CONTROLLERS`. disturbances: names of
+    controllers: names of :data:`~.controllers.CONTROLLERS` or factories of one's own as 'module:factory' or
+    'path/to/file.py:factory' (:func:`~.controllers.controller_factory`; imported by each worker). disturbances: names of
     :data:`~.disturbances.DISTURBANCES` (one per run; 'a,b' combines two). seeds: integers >= 0 (each shifts
     and turns the start stands). options: more keywords of :func:`~.sequence.run` for every run
-    (controller_options=, dt=, ...).
+    (controller_options=, dt=, ...). options_by_controller: {controller: its controller_options} for the
+    controllers named, over `controller_options` (the options one controller takes and another does not).
 
     Returns a pandas DataFrame, one row per run: controller, disturbance, seed, then
     :attr:`CarryRun.sweep_columns` (:func:`~.scoring.score_row`: success, the failure's step and reason, the
     bar's path error, squeeze, internal force, load share deviation, relative pose error, slips, torques),
     error, wall_time, simulated_time, steps, worker and the sweep's per-joint metrics. ValueError names an
     unknown controller or disturbance, or a bad seed, before anything runs."""
-    controllers = _names(controllers, "controllers", list(CONTROLLERS))
+    controllers = _controllers(controllers)
     disturbances = _names(disturbances, "disturbances", list(DISTURBANCES))
     seeds = list(seeds)
     for s in seeds:
@@ -80,9 +93,16 @@ def sweep_table(controllers: Iterable[str] = ("ct",), disturbances: Iterable[Opt
     if not seeds:
         raise ValueError("seeds must hold at least one seed")
     _checks.integer(threads, "threads", 0, MAX_THREADS)
+    by = dict(options_by_controller or {})
+    if not all(isinstance(v, dict) for v in by.values()) or not set(by) <= set(controllers):
+        raise ValueError(f"options_by_controller must map controllers of the sweep ({', '.join(controllers)}) to "
+                         f"dicts of options, got {options_by_controller!r}")
 
     def make(controller, disturbance, seed):
-        return CarryRun(controllers=controller, disturbance=disturbance, seed=seed, **options)
+        o = dict(options)
+        if controller in by:
+            o["controller_options"] = {**(o.get("controller_options") or {}), **by[controller]}
+        return CarryRun(controllers=controller, disturbance=disturbance, seed=seed, **o)
 
     grid = dict(controller=controllers, disturbance=[d or "none" for d in disturbances], seed=seeds)
     return _sweep(make, grid=grid, executor=executor, threads=None if executor is not None else threads)

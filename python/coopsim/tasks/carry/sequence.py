@@ -12,7 +12,7 @@ from ..._core import CooperativeController, DivergenceError, IKError, box_distan
 from ...simulation import Simulation
 from . import scene
 from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
-from .controllers import CONTROLLERS, Cooperative, Phased, check_options, computed_torque, grip_point
+from .controllers import CONTROLLERS, Cooperative, Phased, check_options, computed_torque, controller_factory, grip_point
 from .disturbances import Disturbances, disturbances
 from .planning import ROBOT_NAMES, STEPS, Plan, make_plan, random_start
 from .scoring import score
@@ -280,12 +280,10 @@ def _angle(R) -> float:
 
 
 def _factory(controllers, name, options):
-    """(the factory, its name in the report) of run's `controllers` (a name of CONTROLLERS or a factory) with
-    `options` (keywords for the factory, or None)."""
+    """(the factory, its name in the report) of run's `controllers` (a name of CONTROLLERS, 'module:factory' or
+    a factory) with `options` (keywords for the factory, or None)."""
     if isinstance(controllers, str):
-        if controllers not in CONTROLLERS:
-            raise ValueError(f"unknown controller {controllers!r}: choose from {', '.join(CONTROLLERS)}")
-        name, controllers = name or controllers, CONTROLLERS[controllers]
+        name, controllers = name or controllers, controller_factory(controllers)
     if not callable(controllers):
         raise ValueError(f"controllers must be a name ({', '.join(CONTROLLERS)}) or a factory (robots, plan) -> "
                          f"controllers, got {controllers!r}")
@@ -300,6 +298,21 @@ def _factory(controllers, name, options):
     return (lambda robots, plan: controllers(robots, plan, **options)), name
 
 
+def check_controllers(controllers, options: Optional[dict] = None) -> None:
+    """Makes the controllers of `controllers` (as :func:`run` takes it) with `options` for the planned carry,
+    and drops them: the ValueError (one line) :func:`run` would raise for an unknown controller, a factory that
+    does not load, an option the factory does not take or a value it refuses, without running anything (the
+    command line checks its arguments so; about 10 ms)."""
+    factory, _ = _factory(controllers, None, options)
+    plan = make_plan(START, END)
+    try:
+        made = factory(scene.scaras(), plan)
+    except TypeError as e:        # a factory of one's own called with keywords it does not take
+        raise ValueError(f"controller {controllers!r}: {e}") from None
+    if made is None:
+        raise ValueError(f"controller {controllers!r}: its factory returned None, not the robots' controllers")
+
+
 def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, controllers=computed_torque,
         controller_name: Optional[str] = None, controller_options: Optional[dict] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
         dt: float = 2e-4, log_every: int = 25, world_every: int = 5, control_every: int = 5,
@@ -311,7 +324,8 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     and END; start and seed exclude each other). disturbance: None, a name of
     :data:`~.disturbances.DISTURBANCES`, several (a list, or names joined by commas) or a
     :class:`~.disturbances.Disturbances`. controllers: a name of :data:`~.controllers.CONTROLLERS` ('ct',
-    'ct-payload', 'object', 'leader-follower', 'object-impedance') or a factory (robots, plan) -> one controller
+    'ct-payload', 'object', 'leader-follower', 'object-impedance'), a factory of one's own named 'module:factory' or
+    'path/to/file.py:factory' (:func:`~.controllers.controller_factory`), or a factory (robots, plan) -> one controller
     per robot, :class:`~.controllers.Phased` or :class:`~.controllers.Cooperative` ones (default the baseline,
     :func:`~.controllers.computed_torque`); controller_options: keywords for the factory (e.g. ``squeeze``,
     ``load_share`` and gains for 'object', ``stiffness`` for 'leader-follower' and 'object-impedance');
