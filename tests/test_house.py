@@ -130,7 +130,7 @@ def test_the_package_imports_without_cycles():
 #: standard library's importlib.metadata, ...) or optional (dask's distributed), and ``import coopsim``
 #: loads none of them
 LOCAL_IMPORTS = {"matplotlib", "mpl_toolkits", "pandas", "PIL", "imageio_ffmpeg", "tqdm", "xlsxwriter", "distributed",
-                 "importlib.metadata", "viser", "rich", "IPython", "trimesh"}
+                 "importlib.metadata", "viser", "rich", "IPython", "trimesh", "mujoco"}
 
 
 def _heavy(name: str) -> bool:

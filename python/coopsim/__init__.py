@@ -32,6 +32,7 @@ from ._core import (
 )
 from . import grasp, robots
 from .urdf import from_urdf, to_urdf
+from .mjcf import from_mjcf
 from .planning import clamp_pose, plan_cartesian
 from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation, SimulationBusyError
 from ._core import (
@@ -58,6 +59,7 @@ from . import view
 
 Robot.to_urdf = to_urdf
 Robot.from_urdf = staticmethod(from_urdf)
+Robot.from_mjcf = staticmethod(from_mjcf)
 # a wrong argument type in any compiled call: one short TypeError naming the argument (coopsim._arguments)
 _install_short_type_errors(_core)
 
@@ -100,6 +102,7 @@ __all__ = [
     "grasp",
     "robots",
     "from_urdf",
+    "from_mjcf",
     "to_urdf",
     "view",
     "CooperativeController", "CoopMember", "LeaderFollower", "ObjectControl",

@@ -183,6 +183,49 @@ class Robot:
         dimensions: {name: metres} the robot was built from, kept for reference.
         """
     @staticmethod
+    def from_mjcf(source, *, body: str | None = None, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = None, coulomb_width = 0.01, inertia_check: str = 'warn', limits: str = 'file', clamp = None):
+        """
+        A coopsim.Robot from a fixed-base serial chain of an MJCF model.
+        
+            source: the path of an MJCF file, MJCF text, a ``mujoco.MjSpec`` or a compiled ``mujoco.MjModel``
+            (MuJoCo parses and compiles it: the ``mujoco`` package, in the test extra).
+        
+            The chain: the bodies from ``body`` (its base, fixed to the world: no joint on its path from the
+            world) down to ``tip`` (its last body), each body's hinge (R) and slide (P) joints in the file's
+            order, so q[i] is MuJoCo's qpos of ``robot.joint_names[i]`` (same zero, sign and units: rad, m;
+            a joint's ``ref`` is MuJoCo's qpos0, not coopsim's zero) and ``robot.link_names[i]`` the body it
+            moves (``body:joint`` for all but the last of a body's several joints, a link without mass).
+            Bodies without joints merge into their parent (mass, centre of mass, inertia, box geoms). The
+            robot is placed in the world's coordinates: DH frame 0 on the first axis is its base (position,
+            yaw, and a base_orientation for a first axis that is not the world's z); the tip body's frame is
+            the tool. Bodies of the base's subtree that are off the path and move (fingers, objects) are cut
+            with their subtrees; ``locked`` keeps them, or joints on the path, fixed at a position.
+        
+            Read from the compiled model: masses, centres of mass and principal inertias in their frames,
+            joint anchors and axes; ``dof_damping`` as the viscous K, ``dof_frictionloss`` as Coulomb F_c
+            (smooth, v_c = ``coulomb_width`` rad/s or m/s; MuJoCo's is a constraint), ``dof_armature`` as the
+            armature; ``jnt_range`` of limited joints as q_limits; tau_limits from the joint's
+            ``actuatorfrcrange`` or else a single joint actuator's ``forcerange`` times its gear (the larger
+            bound's magnitude); box geoms that collide (contype or conaffinity not 0) as the robot's boxes
+            (other shapes are left out; a robot without boxes gets the default ones). Not read: actuator
+            dynamics and gains, tendons, equality constraints, contacts, fluid forces, sites.
+        
+            body: the base body (default the world body). tip: the last body (default the end of the only
+            chain of moving bodies under ``body``, followed down single children without joints).
+            locked: {joint name: position (rad or m)} hinge or slide joints held fixed.
+            name: the robot's name (default the model's). gravity: (3,) m/s^2 in the world (default the
+            file's ``<option gravity>``). coulomb_width, inertia_check: as Robot.from_dh.
+            limits: 'file' (default) takes joint ranges and force ranges; 'ignore' none.
+            clamp: as from_urdf: True or a dict of coopsim.robots.add_clamp's keywords puts the paper's
+            clamp on the last link, mounted on the tip body's frame.
+        
+            Raises ValueError naming what is not supported: a free joint (a floating base), a ball joint,
+            a tree (a body with two moving branches under ``body``, when ``tip`` is not given), a base that
+            moves, joint springs (``stiffness``) or gravity compensation (``gravcomp``) in the chain; and
+            for unknown bodies or joints, or a file MuJoCo cannot read (its message, on one line).
+            
+        """
+    @staticmethod
     def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file', clamp = None):
         """
         A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
