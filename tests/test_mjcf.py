@@ -3,7 +3,8 @@
 The robot's forward dynamics equal MuJoCo's on the same file to 1e-10 relative (|qdd - qacc|_inf <=
 1e-10 max(1, |qacc|_inf)): ``mj_forward`` with contacts off (mjDSBL_CONTACT) and MuJoCo's frictionloss, a
 constraint, off (mjDSBL_FRICTIONLOSS; coopsim's smooth Coulomb term F_c tanh(qd / v_c) is added back to
-the applied torque so that both sides have none), the model's gravity set to the robot's, at states
+the applied torque so that both sides have none), actuators off (mjDSBL_ACTUATION: the torque is
+qfrc_applied; a servo's bias would push), the model's gravity set to the robot's, at states
 inside the joint ranges (MuJoCo's limits stay on and inactive), with damping and armature, for the numeric
 dynamics and for generated code. The files: the project's URDF exports (SCARA #1 and #2, the UR5 and
 Panda of example-robot-data) compiled by MjSpec and saved as MJCF with armature and frictionloss
@@ -142,7 +143,8 @@ HAND_SMALL_3 = _HAND_SMALL.format(finger="")  # without the finger: MuJoCo's mod
 
 def _mujoco(text, gravity):
     model = mujoco.MjSpec.from_string(text).compile()
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_FRICTIONLOSS | off.mjDSBL_ACTUATION
     model.opt.gravity[:] = gravity
     return model, mujoco.MjData(model)
 
