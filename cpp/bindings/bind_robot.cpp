@@ -197,19 +197,81 @@ void bind_robot(py::module_& m) {
            }),
            py::arg("link"), py::arg("half_extents"), py::arg("pose") = py::module_::import("numpy").attr("eye")(4),
            py::arg("name") = "")
+      .def_static("sphere", [](int link, double radius, const py::object& pose_obj, const std::string& name) {
+             return LinkBox::sphere(link, radius, pose(pose_obj, "pose"), name);
+           }, py::arg("link"), py::arg("radius"), py::arg("pose") = py::module_::import("numpy").attr("eye")(4),
+           py::arg("name") = "",
+           "A sphere of `radius` (m, > 0) on `link` (0 .. n), centred at `pose`'s origin ((4, 4) in the link's "
+           "DH frame); the world collides it as Bullet's btSphereShape.")
+      .def_static("cylinder", [](int link, double radius, double length, const py::object& pose_obj,
+                                 const std::string& name) {
+             return LinkBox::cylinder(link, radius, length, pose(pose_obj, "pose"), name);
+           }, py::arg("link"), py::arg("radius"), py::arg("length"),
+           py::arg("pose") = py::module_::import("numpy").attr("eye")(4), py::arg("name") = "",
+           "A cylinder of `radius` and `length` (m, > 0) on `link` (0 .. n), centred at `pose`'s origin ((4, 4) "
+           "in the link's DH frame) with its axis along `pose`'s z (URDF's convention); the world collides it as "
+           "Bullet's btCylinderShapeZ.")
+      .def_static("hull", [](int link, const py::object& points, const py::object& pose_obj, const std::string& name) {
+             const Arr a = array(points, {-1, 3}, "points", false);
+             std::vector<Eigen::Vector3d> pts;
+             for (py::ssize_t i = 0; i < a.shape(0); ++i) pts.emplace_back(a.at(i, 0), a.at(i, 1), a.at(i, 2));
+             return LinkBox::hull(link, pts, pose(pose_obj, "pose"), name);
+           }, py::arg("link"), py::arg("points"), py::arg("pose") = py::module_::import("numpy").attr("eye")(4),
+           py::arg("name") = "",
+           "The convex hull of `points` (k, 3) m (4 <= k <= 4096, not on one plane) given in the frame `pose` "
+           "((4, 4) in the DH frame of `link`, 0 .. n; the identity: points in the link's frame). Kept about the "
+           "centre of the points' bounding box: `pose` moves there and `points` are given back less it, so "
+           "that half_extents is the points' bounding box. The world collides it as Bullet's btConvexHullShape "
+           "(reduced to the hull's vertices); its cost grows with k: coopsim.Robot.from_urdf keeps 64 points of "
+           "a mesh's hull by default.")
       .def_readonly("link", &LinkBox::link)
+      .def_property_readonly("kind", [](const LinkBox& b) { return shape_kind_name(b.type); },
+                             "\"box\", \"sphere\", \"cylinder\" or \"hull\".")
       .def_property_readonly("half_extents", [](const LinkBox& b) { return to_numpy(b.half_extents); })
+      .def_property_readonly("radius", [](const LinkBox& b) { return b.radius; },
+                             "A sphere's or a cylinder's radius, m (0 for the other kinds).")
+      .def_property_readonly("length", [](const LinkBox& b) { return 2.0 * b.half_length; },
+                             "A cylinder's length along its z, m (0 for the other kinds).")
+      .def_property_readonly("points", [](const LinkBox& b) {
+         py::array_t<double> out({static_cast<py::ssize_t>(b.points.size()), py::ssize_t(3)});
+         for (size_t i = 0; i < b.points.size(); ++i)
+           for (int k = 0; k < 3; ++k) out.mutable_at(i, k) = b.points[i][k];
+         return out;
+       }, "A hull's points (k, 3) m in its frame (pose); (0, 3) for the other kinds.")
       .def_property_readonly("pose", [](const LinkBox& b) { return to_numpy(b.pose); })
       .def_readonly("name", &LinkBox::name)
       .def("__repr__", [](const LinkBox& b) {
          std::ostringstream s;
-         s << "LinkBox(link=" << b.link << ", half_extents=[" << b.half_extents.transpose() << "], name='" << b.name
-           << "')";
+         s << "LinkBox";
+         switch (b.type) {
+           case ShapeKind::Sphere: s << ".sphere(link=" << b.link << ", radius=" << b.radius; break;
+           case ShapeKind::Cylinder:
+             s << ".cylinder(link=" << b.link << ", radius=" << b.radius << ", length=" << 2.0 * b.half_length;
+             break;
+           case ShapeKind::Hull: s << ".hull(link=" << b.link << ", points=<" << b.points.size() << " points>"; break;
+           default: s << "(link=" << b.link << ", half_extents=[" << b.half_extents.transpose() << "]";
+         }
+         s << ", name='" << b.name << "')";
          return s.str();
        })
-      .def(pickle_by_call<LinkBox>([](const LinkBox& b) {
-        return py::make_tuple(py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name), py::dict());
-      }));
+      .def(py::pickle(
+          [](const LinkBox& b) {
+            py::array_t<double> pts({static_cast<py::ssize_t>(b.points.size()), py::ssize_t(3)});
+            for (size_t i = 0; i < b.points.size(); ++i)
+              for (int k = 0; k < 3; ++k) pts.mutable_at(i, k) = b.points[i][k];
+            return py::make_tuple(b.link, to_numpy(b.half_extents), to_numpy(b.pose), b.name, shape_kind_name(b.type),
+                                  b.radius, 2.0 * b.half_length, pts);
+          },
+          [](const py::tuple& t) {  // made again as it was made, checked
+            const py::object L = py::type::of<LinkBox>();
+            const std::string kind = t.size() > 4 ? t[4].cast<std::string>() : "box";
+            py::object b;
+            if (kind == "sphere") b = L.attr("sphere")(t[0], t[5], t[2], t[3]);
+            else if (kind == "cylinder") b = L.attr("cylinder")(t[0], t[5], t[6], t[2], t[3]);
+            else if (kind == "hull") b = L.attr("hull")(t[0], t[7], t[2], t[3]);
+            else b = L(t[0], t[1], t[2], t[3]);
+            return b.cast<LinkBox>();
+          }));
 
   py::class_<Clamp>(m, "Clamp", kClampDoc)
       .def(py::init([](int fixed_link, const py::object& fixed_face, int moving_joint, double jaw_length,

@@ -7,6 +7,7 @@
 #include "generated/docstrings.hpp"
 #include "struct_binding.hpp"
 #include "coopsim/box_distance.hpp"
+#include "coopsim/robot.hpp"
 #include "coopsim/world.hpp"
 
 namespace py = pybind11;
@@ -90,6 +91,35 @@ void bind_world(py::module_& m) {
         "same minimum as box_distances on every pair, with far fewer GJK calls (each row starts from the "
         "previous row's nearest pair; an earlier row's bound less the boxes' motion since, bounding spheres "
         "and separating axes rule the others out): rows in time order are fastest. GIL released.");
+  m.def("shape_distance", [](const LinkBox& a, const py::object& pa, const LinkBox& b, const py::object& pb) {
+          const Eigen::Isometry3d A = rigid_pose(table(pa, "pose_a"), "pose_a"), B = rigid_pose(table(pb, "pose_b"), "pose_b");
+          py::gil_scoped_release nogil;
+          return shape_distance(a, A, b, B);
+        }, py::arg("shape_a"), py::arg("pose_a"), py::arg("shape_b"), py::arg("pose_b"),
+        "Distance between two convex shapes of any kind (LinkBox: box, sphere, cylinder, hull), m: the gap "
+        "between their nearest points (> 0; Bullet's GJK, no collision margin), or minus the depth of their "
+        "overlap (<= 0: two boxes by their separating axes, exactly; any other pair by Bullet's EPA).\n\n"
+        "shape_a, shape_b: LinkBox (their link and pose are not used); pose_a, pose_b: (4, 4) world poses of the "
+        "shapes' frames (for a robot's shapes, Robot.shapes(q)'s poses). Two boxes give box_distance.");
+  m.def("shape_clearances", [](const py::object& pa, const std::vector<LinkBox>& sa, const py::object& pb,
+                               const std::vector<LinkBox>& sb) {
+          const Array A = table(pa, "poses_a"), B = table(pb, "poses_b");
+          const std::vector<Shape> x(sa.begin(), sa.end()), y(sb.begin(), sb.end());
+          BoxClearances c;
+          {
+            py::gil_scoped_release nogil;
+            c = shape_clearances(A, x, B, y);
+          }
+          const auto n = static_cast<py::ssize_t>(c.d.size());
+          return py::make_tuple(py::array_t<double>(n, c.d.data()), py::array_t<long>(n, c.ia.data()),
+                                py::array_t<long>(n, c.ib.data()));
+        }, py::arg("poses_a"), py::arg("shapes_a"), py::arg("poses_b"), py::arg("shapes_b"),
+        "box_clearances of convex shapes of any kind: the smallest shape_distance (m) in each of N "
+        "configurations over every pair of a shape of one set and a shape of the other, and the pair.\n\n"
+        "poses_a: (N, ka, 4, 4) world poses of shapes_a's ka shapes (a list of LinkBox, e.g. Robot.boxes) per "
+        "row (Robot.shapes(Q)[0]); poses_b: (N, kb, 4, 4), or (kb, 4, 4) for shapes that do not move; shapes_b: "
+        "kb LinkBox. Returns (d (N,), ia (N,), ib (N,)). The same lower bounds as box_clearances (each shape lies "
+        "in its half_extents' box); boxes alone give box_clearances' values. GIL released.");
   m.def("box_distances", [](const py::object& pa, const py::object& ha, const py::object& pb, const py::object& hb,
                             bool pairwise) {
           const Array A = table(pa, "poses_a"), x = table(ha, "half_a"), B = table(pb, "poses_b"), y = table(hb, "half_b");

@@ -1,10 +1,14 @@
-// Distances between boxes, free of any world: Bullet's GJK (margins zero, double precision) for
-// separated boxes, the separating-axis overlap of geometry.cpp (box_gap) for overlapping ones, and
-// the clearance of two moving sets of boxes over many configurations with few GJK calls.
+// Distances between convex shapes, free of any world: Bullet's GJK (margins zero, double precision) for
+// separated shapes; for overlapping boxes the separating-axis overlap of geometry.cpp (box_gap), for
+// any other overlapping pair (spheres, cylinders, convex hulls) Bullet's EPA; and the clearance of two
+// moving sets of shapes over many configurations with few GJK calls.
 #include "coopsim/box_distance.hpp"
 #include "coopsim/robot.hpp"
 
 #include <BulletCollision/CollisionShapes/btBoxShape.h>
+#include <BulletCollision/CollisionShapes/btConvexHullShape.h>
+#include <BulletCollision/CollisionShapes/btCylinderShape.h>
+#include <BulletCollision/CollisionShapes/btSphereShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -13,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -69,7 +74,89 @@ btBoxShape zero_margin_box(const Eigen::Vector3d& h) {
   return box;
 }
 
+// Bullet's shape of a Shape for GJK, margins zero as the world's (a sphere's margin is its radius).
+std::unique_ptr<btConvexShape> gjk_shape(const Shape& s) {
+  switch (s.type) {
+    case ShapeKind::Sphere:
+      return std::make_unique<btSphereShape>(s.radius);
+    case ShapeKind::Cylinder: {
+      auto c = std::make_unique<btCylinderShapeZ>(btVector3(s.radius, s.radius, s.half_length));
+      c->setMargin(0.0);
+      return c;
+    }
+    case ShapeKind::Hull: {
+      auto h = std::make_unique<btConvexHullShape>();
+      for (const Eigen::Vector3d& p : s.points) h->addPoint(btVector3(p.x(), p.y(), p.z()), false);
+      h->setMargin(0.0);
+      h->recalcLocalAabb();
+      return h;
+    }
+    default: {
+      auto b = std::make_unique<btBoxShape>(btVector3(s.half_extents.x(), s.half_extents.y(), s.half_extents.z()));
+      b->setMargin(0.0);
+      return b;
+    }
+  }
+}
+
+// The distance of two shapes of which one at least is not a box: GJK (separated), EPA (overlapping);
+// `lower`, a lower bound of it (the gap of their bounds), where GJK finds no result.
+double convex_distance(const btConvexShape& a, const btTransform& ta, const btConvexShape& b, const btTransform& tb,
+                       double lower) {
+  btVoronoiSimplexSolver simplex;
+  btGjkEpaPenetrationDepthSolver epa;
+  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
+  btDiscreteCollisionDetectorInterface::ClosestPointInput in;
+  in.m_transformA = ta;
+  in.m_transformB = tb;
+  btPointCollector out;
+  gjk.getClosestPoints(in, out, nullptr);
+  if (!out.m_hasResult) return lower;
+  return std::max<double>(out.m_distance, lower);
+}
+
+// A set of shapes ready for the distance of any pair: the shapes checked (their bounds set), Bullet's
+// shapes, bounding radii.
+struct ShapeSet {
+  std::vector<Shape> shape;
+  std::vector<std::unique_ptr<btConvexShape>> bt;
+  std::vector<double> radius;  // of the sphere about the frame's origin that holds the shape
+  explicit ShapeSet(const std::vector<Shape>& shapes, const char* what) {
+    shape = shapes;
+    for (Shape& s : shape) {
+      if (s.is_box()) check_half(s.half_extents, what);
+      else finish_shape(s, what);
+      bt.push_back(gjk_shape(s));
+      double r = s.half_extents.norm();
+      if (s.type == ShapeKind::Sphere) r = s.radius;
+      if (s.type == ShapeKind::Hull) {
+        r = 0.0;
+        for (const Eigen::Vector3d& p : s.points) r = std::max(r, p.norm());
+      }
+      radius.push_back(r);
+    }
+  }
+};
+
+// The distance of shapes i of A and j of B at their poses; `gap`, `certain`: box_gap of their bounds.
+double pair_distance(const ShapeSet& A, size_t i, const Eigen::Isometry3d& ea, const ShapeSet& B, size_t j,
+                     const Eigen::Isometry3d& eb, double gap, bool certain) {
+  const Shape &a = A.shape[i], &b = B.shape[j];
+  if (a.is_box() && b.is_box())
+    return gjk_distance(static_cast<const btBoxShape&>(*A.bt[i]), bt_pose(ea), static_cast<const btBoxShape&>(*B.bt[j]),
+                        bt_pose(eb), ea, a.half_extents, eb, b.half_extents, gap, certain);
+  return convex_distance(*A.bt[i], bt_pose(ea), *B.bt[j], bt_pose(eb), gap);
+}
+
 }  // namespace
+
+double shape_distance(const Shape& a, const Eigen::Isometry3d& pose_a, const Shape& b, const Eigen::Isometry3d& pose_b) {
+  const std::vector<Shape> va{a}, vb{b};
+  const ShapeSet A(va, "shape_a"), B(vb, "shape_b");
+  bool certain = false;
+  const double gap = box_gap(pose_a, A.shape[0].half_extents, pose_b, B.shape[0].half_extents, &certain);
+  return pair_distance(A, 0, pose_a, B, 0, pose_b, gap, certain);
+}
 
 double box_distance(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const Eigen::Isometry3d& b,
                     const Eigen::Vector3d& half_b) {
@@ -102,26 +189,19 @@ void box_distances(const std::vector<Eigen::Isometry3d>& a, const std::vector<Ei
     for (size_t j = 0; j < b.size(); ++j) out[i * b.size() + j] = exact_distance(sa[i], ta[i], sb[j], tb[j], a[i], half_a[i], b[j], half_b[j]);
 }
 
-void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
-                    const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
-                    bool b_static, double* d, long* ia, long* ib) {
-  const size_t na = half_a.size(), nb = half_b.size(), n = static_cast<size_t>(std::max(rows, 0));
+void shape_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Shape>& shapes_a,
+                      const std::vector<Eigen::Isometry3d>& b, const std::vector<Shape>& shapes_b, bool b_static,
+                      double* d, long* ia, long* ib) {
+  const size_t na = shapes_a.size(), nb = shapes_b.size(), n = static_cast<size_t>(std::max(rows, 0));
   if (rows < 0) throw std::invalid_argument("box_clearances: rows must be >= 0");
   if (na == 0 || nb == 0) throw std::invalid_argument("box_clearances: both sets need at least one box");
   if (a.size() != n * na || b.size() != (b_static ? nb : n * nb))
     throw std::invalid_argument("box_clearances: as many poses as rows times boxes are needed");
-  std::vector<btBoxShape> sa, sb;
-  std::vector<double> ra, rb;
-  for (const auto& h : half_a) {
-    check_half(h, "half_a");
-    sa.push_back(zero_margin_box(h));
-    ra.push_back(h.norm());
-  }
-  for (const auto& h : half_b) {
-    check_half(h, "half_b");
-    sb.push_back(zero_margin_box(h));
-    rb.push_back(h.norm());
-  }
+  const ShapeSet SA(shapes_a, "half_a"), SB(shapes_b, "half_b");
+  const std::vector<double>&ra = SA.radius, &rb = SB.radius;
+  std::vector<Eigen::Vector3d> half_a, half_b;  // the bounds
+  for (const Shape& s : SA.shape) half_a.push_back(s.half_extents);
+  for (const Shape& s : SB.shape) half_b.push_back(s.half_extents);
   // Lower bounds of each pair's distance carried from row to row: a bound at one row, less how far
   // any point of either box can have moved since (its centre's displacement plus its radius times
   // the change of its rotation matrix, Frobenius norm), still bounds the distance. Most pairs are
@@ -145,8 +225,7 @@ void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std
     long bi = -1, bj = -1;
     // a pair's distance, exact; remembered as its bound
     auto exact = [&](size_t i, size_t j, double gap, bool certain) {
-      const double e = gjk_distance(sa[i], bt_pose(A[i]), sb[j], bt_pose(B[j]), A[i], half_a[i], B[j], half_b[j], gap,
-                                    certain);
+      const double e = pair_distance(SA, i, A[i], SB, j, B[j], gap, certain);
       bound[i * nb + j] = e;
       at[i * nb + j] = moved_a[i] + moved_b[j];
       if (e < best) {
@@ -167,7 +246,7 @@ void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std
         // three lower bounds of the distance, the cheapest first
         double lb = bound[k] - (moved_a[i] + moved_b[j] - at[k]);
         if (lb - slack >= best) continue;
-        const double sphere = (A[i].translation() - B[j].translation()).norm() - ra[i] - rb[j];
+        const double sphere = (A[i].translation() - B[j].translation()).norm() - ra[i] - rb[j];  // (a lower bound)
         if (sphere > lb) {
           lb = bound[k] = sphere;
           at[k] = moved_a[i] + moved_b[j];
@@ -186,6 +265,15 @@ void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std
     ia[r] = pi = bi;
     ib[r] = pj = bj;
   }
+}
+
+void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Eigen::Vector3d>& half_a,
+                    const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
+                    bool b_static, double* d, long* ia, long* ib) {
+  std::vector<Shape> sa(half_a.size()), sb(half_b.size());
+  for (size_t i = 0; i < sa.size(); ++i) sa[i].half_extents = half_a[i];
+  for (size_t j = 0; j < sb.size(); ++j) sb[j].half_extents = half_b[j];
+  shape_clearances(rows, a, sa, b, sb, b_static, d, ia, ib);
 }
 
 namespace {
@@ -245,6 +333,25 @@ BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Ar
   for (std::ptrdiff_t k = 0; k < (fixed ? nb : rows * nb); ++k) b.push_back(pose_at(poses_b, k, fixed ? 0 : nb, "poses_b"));
   BoxClearances out{std::vector<double>(rows), std::vector<long>(rows), std::vector<long>(rows)};
   box_clearances(static_cast<int>(rows), a, x, b, y, fixed, out.d.data(), out.ia.data(), out.ib.data());
+  return out;
+}
+
+BoxClearances shape_clearances(const Array& poses_a, const std::vector<Shape>& shapes_a, const Array& poses_b,
+                               const std::vector<Shape>& shapes_b) {
+  const std::ptrdiff_t na = static_cast<std::ptrdiff_t>(shapes_a.size()), nb = static_cast<std::ptrdiff_t>(shapes_b.size());
+  if (na == 0 || nb == 0) throw std::invalid_argument("shapes_a and shapes_b need at least one shape each");
+  check_shape(poses_a, {-1, na, 4, 4}, "poses_a");
+  check_finite(poses_a, "poses_a");
+  const std::ptrdiff_t rows = poses_a.shape[0];
+  const bool fixed = poses_b.ndim() == 3;  // shapes that do not move
+  if (fixed) check_shape(poses_b, {nb, 4, 4}, "poses_b");
+  else check_shape(poses_b, {rows, nb, 4, 4}, "poses_b");
+  check_finite(poses_b, "poses_b");
+  std::vector<Eigen::Isometry3d> a, b;
+  for (std::ptrdiff_t k = 0; k < rows * na; ++k) a.push_back(pose_at(poses_a, k, na, "poses_a"));
+  for (std::ptrdiff_t k = 0; k < (fixed ? nb : rows * nb); ++k) b.push_back(pose_at(poses_b, k, fixed ? 0 : nb, "poses_b"));
+  BoxClearances out{std::vector<double>(rows), std::vector<long>(rows), std::vector<long>(rows)};
+  shape_clearances(static_cast<int>(rows), a, shapes_a, b, shapes_b, fixed, out.d.data(), out.ia.data(), out.ib.data());
   return out;
 }
 

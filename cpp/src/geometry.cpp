@@ -1,4 +1,8 @@
-// Link geometry: the boxes fixed to a robot's links and its clamp.
+// Link geometry: the shapes fixed to a robot's links (boxes, spheres, cylinders, convex hulls: their
+// checks and bounds) and its clamp; separating-axis box bounds.
+#include <Eigen/SVD>
+
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -42,6 +46,101 @@ LinkBox segment_box(int link, const Eigen::Vector3d& a, const Eigen::Vector3d& b
 
 }  // namespace
 
+const char* shape_kind_name(ShapeKind k) {
+  switch (k) {
+    case ShapeKind::Sphere: return "sphere";
+    case ShapeKind::Cylinder: return "cylinder";
+    case ShapeKind::Hull: return "hull";
+    default: return "box";
+  }
+}
+
+void finish_shape(Shape& s, const std::string& who) {
+  const auto positive = [](double v) { return std::isfinite(v) && v > 0; };
+  switch (s.type) {
+    case ShapeKind::Box:
+      require(s.half_extents.allFinite() && s.half_extents.minCoeff() > 0, who + ": half extents must be finite and > 0 m");
+      return;
+    case ShapeKind::Sphere:
+      require(positive(s.radius), who + ": radius must be finite and > 0 m, got " + detail::num(s.radius));
+      s.half_extents.setConstant(s.radius);
+      return;
+    case ShapeKind::Cylinder:
+      require(positive(s.radius), who + ": radius must be finite and > 0 m, got " + detail::num(s.radius));
+      require(positive(s.half_length),
+              who + ": length must be finite and > 0 m, got " + detail::num(2.0 * s.half_length));
+      s.half_extents = Eigen::Vector3d(s.radius, s.radius, s.half_length);
+      return;
+    case ShapeKind::Hull: {
+      const int k = static_cast<int>(s.points.size());
+      require(k >= 4 && k <= kMaxHullPoints, who + ": a hull needs 4 .. " + std::to_string(kMaxHullPoints) +
+                                                 " points, got " + std::to_string(k));
+      Eigen::Vector3d lo = s.points[0], hi = s.points[0], mean = Eigen::Vector3d::Zero();
+      for (const Eigen::Vector3d& p : s.points) {
+        require(p.allFinite(), who + ": hull points must be finite");
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+        mean += p / k;
+      }
+      // a volume: the points' spread along their thinnest direction is not nil
+      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+      for (const Eigen::Vector3d& p : s.points) C += (p - mean) * (p - mean).transpose();
+      const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(C).singularValues();
+      require(sv[2] > 1e-18 * std::max(sv[0], 1e-300) && std::sqrt(sv[2] / k) > 1e-9,
+              who + ": hull points must span a volume (they lie on one plane or line)");
+      s.half_extents = lo.cwiseAbs().cwiseMax(hi.cwiseAbs());
+      return;
+    }
+  }
+}
+
+LinkBox LinkBox::sphere(int link, double radius, const Eigen::Isometry3d& pose, std::string name) {
+  LinkBox b;
+  b.type = ShapeKind::Sphere;
+  b.link = link;
+  b.radius = radius;
+  b.pose = pose;
+  b.name = std::move(name);
+  finish_shape(b, "sphere" + (b.name.empty() ? std::string() : " '" + b.name + "'"));
+  return b;
+}
+
+LinkBox LinkBox::cylinder(int link, double radius, double length, const Eigen::Isometry3d& pose, std::string name) {
+  LinkBox b;
+  b.type = ShapeKind::Cylinder;
+  b.link = link;
+  b.radius = radius;
+  b.half_length = 0.5 * length;
+  b.pose = pose;
+  b.name = std::move(name);
+  finish_shape(b, "cylinder" + (b.name.empty() ? std::string() : " '" + b.name + "'"));
+  return b;
+}
+
+LinkBox LinkBox::hull(int link, const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose,
+                      std::string name) {
+  LinkBox b;
+  b.type = ShapeKind::Hull;
+  b.link = link;
+  b.points = points;
+  b.pose = pose;
+  b.name = std::move(name);
+  finish_shape(b, "hull" + (b.name.empty() ? std::string() : " '" + b.name + "'"));
+  // about the centre of the points' bounding box: the bound is then tight
+  Eigen::Vector3d lo = points[0], hi = points[0];
+  for (const Eigen::Vector3d& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d c = 0.5 * (lo + hi);
+  if (c.cwiseAbs().maxCoeff() > 1e-12 * (hi - lo).cwiseAbs().maxCoeff()) {  // (about its centre already: kept as it is)
+    for (Eigen::Vector3d& p : b.points) p -= c;
+    b.pose.translation() += b.pose.linear() * c;
+    finish_shape(b, "hull");
+  }
+  return b;
+}
+
 std::vector<LinkBox> Robot::default_boxes() const {
   const double t = kDefaultLinkThickness;
   std::vector<LinkBox> out;
@@ -72,8 +171,7 @@ void Robot::build_geometry_() {
     const std::string who = "box " + std::to_string(b) + (box.name.empty() ? "" : " '" + box.name + "'");
     require(box.link >= 0 && box.link <= n_,
             who + ": link must be 0 (the base) .. " + std::to_string(n_) + ", got " + std::to_string(box.link));
-    require(box.half_extents.allFinite() && box.half_extents.minCoeff() > 0,
-            who + ": half extents must be finite and > 0 m");
+    finish_shape(boxes_[b], who);
     require(rigid(box.pose), who + ": pose must be a finite rigid transform");
   }
   if (!clamp_.present()) {

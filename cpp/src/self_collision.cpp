@@ -1,8 +1,10 @@
-// The self-collision exclusion list of a robot: the pairs of its link boxes that the world never
-// tests against each other (Simulation::excluded_pairs).
+// The self-collision exclusion list of a robot: the pairs of its link shapes that the world never
+// tests against each other (Simulation::excluded_pairs). Boxes by their separating axes, any other
+// pair of convex shapes (spheres, cylinders, hulls) by GJK where their bounds overlap.
 #include <cmath>
 #include <random>
 
+#include "coopsim/box_distance.hpp"
 #include "coopsim/simulation.hpp"
 
 namespace coopsim {
@@ -33,7 +35,10 @@ std::vector<std::pair<int, int>> Simulation::excluded_pairs(const Robot& r, int 
     r.box_poses(ws, poses);
     for (size_t c = 0; c < candidates.size(); ++c) {
       const auto [i, j] = candidates[c];
-      if (always[c] && box_penetration(poses[i], boxes[i].half_extents, poses[j], boxes[j].half_extents) <= -1e-9)
+      if (!always[c]) continue;
+      // apart: their bounds are (for boxes, the boxes themselves), or GJK says so
+      if (box_penetration(poses[i], boxes[i].half_extents, poses[j], boxes[j].half_extents) <= -1e-9 ||
+          (!(boxes[i].is_box() && boxes[j].is_box()) && shape_distance(boxes[i], poses[i], boxes[j], poses[j]) >= 1e-9))
         always[c] = 0;
     }
   }

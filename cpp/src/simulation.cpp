@@ -154,14 +154,14 @@ void start(const Model& m, Data& d) {
       const std::vector<Eigen::Isometry3d> poses = box_poses_at(r, s.state.q, s.ws);
       std::vector<std::string> names;
       std::vector<int> links;
-      std::vector<Eigen::Vector3d> half;
+      std::vector<Shape> shapes;
       for (const LinkBox& b : r.boxes()) {
         names.push_back(b.name.empty() ? "box" + std::to_string(names.size()) : b.name);
         links.push_back(b.link);
-        half.push_back(b.half_extents);
+        shapes.push_back(b);
       }
       s.contact.first_body = w.body_count();
-      w.add_robot(static_cast<int>(i), label, names, links, half, poses, Simulation::excluded_pairs(r), 1.0);
+      w.add_robot(static_cast<int>(i), label, names, links, shapes, poses, Simulation::excluded_pairs(r), 1.0);
     }
     d.free_ids = w.free_bodies();
     d.body_now.assign(d.free_ids.size(), BodyState());
@@ -587,7 +587,7 @@ void Simulation::set_robot(int i, const Robot& robot) {
   // every check before any change: the boxes at q where the world can hold them
   Workspace ws;
   std::vector<Eigen::Isometry3d> poses;
-  std::vector<Eigen::Vector3d> half;
+  std::vector<Shape> shapes;
   std::vector<std::pair<int, int>> excluded;
   const bool in_world = world && data_.started && s.contact.first_body >= 0;  // its bodies in the world now
   if (world) {
@@ -595,7 +595,7 @@ void Simulation::set_robot(int i, const Robot& robot) {
     for (size_t k = 0; k < poses.size(); ++k)
       World::check_pose(poses[k], "robot '" + robot.name() + "' at the present q puts its box '" +
                                       (nb[k].name.empty() ? std::to_string(k) : nb[k].name) + "'");
-    for (const LinkBox& b : nb) half.push_back(b.half_extents);
+    for (const LinkBox& b : nb) shapes.push_back(b);
     if (in_world) excluded = excluded_pairs(robot);
   }
   RobotModel& rm = edit_().robots[i];
@@ -606,7 +606,7 @@ void Simulation::set_robot(int i, const Robot& robot) {
   s.state.k1_valid = false;  // the dynamics changed: the next step's first stage anew
   s.contact.M_valid = false;
   if (data_.started) s.control.controller->reset(rm.robot, model_->options.dt * model_->options.control_every);
-  if (in_world) world->replace_robot_boxes(s.contact.first_body, half, poses, excluded);
+  if (in_world) world->replace_robot_boxes(s.contact.first_body, shapes, poses, excluded);
 }
 
 }  // namespace coopsim

@@ -1,7 +1,7 @@
 // The world on Bullet (world.hpp): the Bullet world built from the bodies (world_bodies.cpp holds
 // their description and checks), their collision filtering (exclusions, ignored pairs), sleeping, the
 // state of a body and the pushes on it, its step and its contacts and contact events, a robot's link
-// boxes replaced in place. With box_distance.cpp (which uses Bullet's GJK alone, without a world) the
+// shapes (boxes, spheres, cylinders, convex hulls as Bullet's own shapes) replaced in place. With box_distance.cpp (which uses Bullet's GJK alone, without a world) the
 // only engine file that includes Bullet.
 #include "coopsim/world.hpp"
 #include "coopsim/robot.hpp"
@@ -46,6 +46,38 @@ Eigen::Isometry3d eig(const btTransform& t) {
 }
 
 bool static_like(BodyKind k) { return k == BodyKind::Floor || k == BodyKind::Static; }
+
+// Bullet's own shape for a body's shape, its margin zero as the boxes' (the shape is exactly its size):
+// btBoxShape, btSphereShape (its radius is its margin), btCylinderShapeZ, btConvexHullShape (reduced
+// to its hull's vertices). With `polyhedra` a box's or a hull's faces and edges are computed
+// (initializePolyhedralFeatures) for Bullet's polyhedral contact clipping, which gives a hull the
+// patch of points a box gets from the box-box detector.
+std::unique_ptr<btCollisionShape> make_shape(const Shape& s, bool polyhedra) {
+  switch (s.type) {
+    case ShapeKind::Sphere:
+      return std::make_unique<btSphereShape>(s.radius);
+    case ShapeKind::Cylinder: {
+      auto c = std::make_unique<btCylinderShapeZ>(btVector3(s.radius, s.radius, s.half_length));
+      c->setMargin(0.0);  // keeps the outer size: the cylinder is exact, its rims sharp
+      return c;
+    }
+    case ShapeKind::Hull: {
+      auto h = std::make_unique<btConvexHullShape>();
+      for (const Eigen::Vector3d& p : s.points) h->addPoint(bt(p), false);
+      h->setMargin(0.0);
+      h->optimizeConvexHull();  // the hull's vertices only
+      h->recalcLocalAabb();
+      if (polyhedra) h->initializePolyhedralFeatures();
+      return h;
+    }
+    default: {
+      auto b = std::make_unique<btBoxShape>(bt(s.half_extents));
+      b->setMargin(0.0);  // the box is exactly its size
+      if (polyhedra) b->initializePolyhedralFeatures();
+      return b;
+    }
+  }
+}
 
 // A body's own bounding box in the world, without Bullet's contact margin
 // (kept by KinematicWorld::updateAabbs, reached through the body's user pointer).
@@ -266,6 +298,7 @@ struct World::Impl {
   std::vector<btTransform> anchor;
   std::vector<double> still;
   std::vector<char> pushed;
+  bool polyhedra = false;  // a hull among the bodies: boxes and hulls with their faces (make_shape)
 
   ~Impl() {
     for (auto& b : bodies) world.removeRigidBody(b.get());
@@ -347,17 +380,21 @@ void World::build_() {
   // the solver's sweeps stop once one changes no velocity by more than 1e-10 m/s
   // (converged; Bullet's default 0 always runs every iteration)
   info.m_leastSquaresResidualThreshold = 1e-20;
+  // a world with a hull gives its boxes and hulls their faces (the polyhedral contacts, exact by
+  // separating axes); a world of boxes alone keeps Bullet's box-box detector and nothing else
+  I.polyhedra = std::any_of(specs_.begin(), specs_.end(), [](const BodySpec& s) { return s.type == ShapeKind::Hull; });
+  if (I.polyhedra) I.world.getDispatchInfo().m_enableSatConvex = true;
   for (size_t id = 0; id < specs_.size(); ++id) {
     const BodySpec& s = specs_[id];
     std::unique_ptr<btCollisionShape> shape;
     if (s.kind == BodyKind::Floor) {
       // a slab under z = 0 rather than a plane: a plane's bounding box is
       // infinite, so every link box would be tested against it every step
-      shape = std::make_unique<btBoxShape>(btVector3(kFloorHalf, kFloorHalf, kFloorHalf));
-      shape->setMargin(0.0);
+      Shape slab;
+      slab.half_extents.setConstant(kFloorHalf);
+      shape = make_shape(slab, I.polyhedra);
     } else {
-      shape = std::make_unique<btBoxShape>(bt(s.half_extents));
-      shape->setMargin(0.0);  // the box is exactly its size
+      shape = make_shape(s, I.polyhedra);
     }
     btVector3 inertia(0, 0, 0);
     const double mass = s.kind == BodyKind::Free ? s.mass : 0.0;
@@ -599,10 +636,10 @@ void World::reset() {
 
 // ---- a robot's link bodies replaced in place ----
 
-void World::replace_robot_boxes(int first, const std::vector<Eigen::Vector3d>& half_extents,
+void World::replace_robot_boxes(int first, const std::vector<Shape>& shapes,
                                 const std::vector<Eigen::Isometry3d>& poses,
                                 const std::vector<std::pair<int, int>>& excluded) {
-  const int k = static_cast<int>(half_extents.size());
+  const int k = static_cast<int>(shapes.size());
   require(first >= 0 && first + k <= body_count() && static_cast<int>(poses.size()) == k,
           "replace_robot_boxes: bodies out of range");
   const int robot = k ? specs_[first].robot : -1;
@@ -610,7 +647,7 @@ void World::replace_robot_boxes(int first, const std::vector<Eigen::Vector3d>& h
     require(specs_[first + b].kind == BodyKind::Link && specs_[first + b].robot == robot,
             "replace_robot_boxes: not the bodies of one robot");
   for (int b = 0; b < k; ++b) {
-    specs_[first + b].half_extents = half_extents[b];
+    static_cast<Shape&>(specs_[first + b]) = shapes[b];
     specs_[first + b].pose = poses[b];
     exclusions_[first + b].clear();  // a robot's exclusions are among its own bodies
   }
@@ -619,13 +656,19 @@ void World::replace_robot_boxes(int first, const std::vector<Eigen::Vector3d>& h
     exclusions_[first + j].push_back(first + i);
   }
   if (!impl_) return;  // built with these at the next step
+  const bool hulls = std::any_of(shapes.begin(), shapes.end(), [](const Shape& s) { return s.type == ShapeKind::Hull; });
   Impl& I = *impl_;
+  if (hulls && !I.polyhedra) {  // the boxes get their faces now (make_shape with polyhedra)
+    I.polyhedra = true;
+    I.world.getDispatchInfo().m_enableSatConvex = true;
+    for (auto& shape : I.shapes)
+      if (shape->getShapeType() == BOX_SHAPE_PROXYTYPE) static_cast<btBoxShape&>(*shape).initializePolyhedralFeatures();
+  }
   for (int b = 0; b < k; ++b) {
     const int id = first + b;
     btRigidBody& body = *I.bodies[id];
     I.world.removeRigidBody(&body);  // its pairs and contact manifolds go with it
-    auto shape = std::make_unique<btBoxShape>(bt(half_extents[b]));
-    shape->setMargin(0.0);
+    std::unique_ptr<btCollisionShape> shape = make_shape(shapes[b], I.polyhedra);
     body.setCollisionShape(shape.get());
     body.setWorldTransform(bt(poses[b]));
     body.setInterpolationWorldTransform(body.getWorldTransform());

@@ -166,15 +166,15 @@ void World::check_pose(const Eigen::Isometry3d& T, const std::string& who) {
 }
 
 void World::add_robot(int robot, const std::string& label, const std::vector<std::string>& box_names,
-                      const std::vector<int>& box_links, const std::vector<Eigen::Vector3d>& half_extents,
+                      const std::vector<int>& box_links, const std::vector<Shape>& shapes,
                       const std::vector<Eigen::Isometry3d>& poses, const std::vector<std::pair<int, int>>& excluded,
                       double friction) {
   const int first = body_count();
   for (size_t k = 0; k < box_names.size(); ++k) {
     BodySpec s;
+    static_cast<Shape&>(s) = shapes[k];
     s.name = label + "/" + box_names[k];
     s.kind = BodyKind::Link;
-    s.half_extents = half_extents[k];
     s.pose = poses[k];
     s.friction = friction;
     s.robot = robot;

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 import xml.etree.ElementTree as ET
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -37,6 +38,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from . import _checks
 from ._core import LinkBox, Robot, dh_transform
 from .robots import add_clamp
 
@@ -302,6 +304,79 @@ def _visual(sh, ln, body, X, base_dir, snap):
 _MAX_NUMBER = 1e12
 
 
+def _hull_vertices(points: np.ndarray, count: int) -> np.ndarray:
+    """At most `count` of a convex hull's vertices (k, 3), by farthest-point sampling: first the vertex
+    farthest from their centroid, then each time the vertex farthest from those chosen (ties: the first
+    in order). Deterministic; the hull of the points kept lies inside the full one and keeps its extremes."""
+    if len(points) <= count:
+        return points
+    d = np.linalg.norm(points - points.mean(axis=0), axis=1)
+    chosen = [int(np.argmax(d))]
+    dist = np.linalg.norm(points - points[chosen[0]], axis=1)
+    for _ in range(count - 1):
+        k = int(np.argmax(dist))
+        chosen.append(k)
+        dist = np.minimum(dist, np.linalg.norm(points - points[k], axis=1))
+    return points[np.sort(chosen)]
+
+
+def _mesh_hull(path: str, scale, count: int) -> np.ndarray:
+    """The convex hull's vertices (k, 3) m of the mesh file at `path` scaled by `scale` (3,), at most
+    `count` of them (_hull_vertices); read with trimesh. Raises on a file trimesh cannot read or a mesh
+    without volume."""
+    import trimesh
+
+    mesh = trimesh.load(path, force="mesh")
+    v = np.asarray(mesh.vertices, dtype=float) * np.asarray(scale, dtype=float)
+    if len(v) < 4:
+        raise ValueError("fewer than 4 vertices")
+    hull = trimesh.convex.convex_hull(v)
+    return _hull_vertices(np.asarray(hull.vertices, dtype=float), count)
+
+
+def _collision_shapes(link, ln, body, X, base_dir, snap, hull_points):
+    """The LinkBoxes of URDF link `link` (name ln) on robot link `body`, X (4, 4) its frame in the body's DH
+    frame: its <collision> shapes (or its <visual> ones when it has no collision): boxes, spheres and
+    cylinders as such, meshes as the convex hull of their (scaled) vertices, at most `hull_points` of them
+    (farthest-point sampling of the hull's vertices, _hull_vertices). A mesh file not found or that trimesh
+    cannot read: a RuntimeWarning naming it, and the link keeps its other shapes (a robot left without any
+    gets the default boxes)."""
+    out = []
+    shapes = link.findall("collision") or link.findall("visual")
+    for k, sh in enumerate(shapes):
+        what = f"link {ln!r} {sh.tag}"
+        label = sh.get("name") or f"{ln}_{k}"
+        g = sh.find("geometry")
+        if g is None:
+            continue
+        T = X @ _pose(sh, what, snap)
+        box, sphere, cyl, mesh = g.find("box"), g.find("sphere"), g.find("cylinder"), g.find("mesh")
+        if box is not None:
+            size = _floats(box.get("size"), 3, f"link {ln!r} box size")
+            if min(size) <= 0:
+                raise ValueError(f"link {ln!r}: box sizes must be > 0, got {size}")
+            out.append(LinkBox(body, 0.5 * np.array(size), T, label))
+        elif sphere is not None:
+            out.append(LinkBox.sphere(body, _attr(sphere, "radius", f"{what} sphere"), T, label))
+        elif cyl is not None:
+            out.append(LinkBox.cylinder(body, _attr(cyl, "radius", f"{what} cylinder"),
+                                        _attr(cyl, "length", f"{what} cylinder"), T, label))
+        elif mesh is not None and sh.tag == "collision":
+            fn = mesh.get("filename") or ""
+            scale = _floats(mesh.get("scale", "1 1 1"), 3, f"{what} mesh scale")
+            path = _mesh_path(fn, base_dir) if fn else None
+            try:
+                if path is None:
+                    raise FileNotFoundError("file not found")
+                points = _mesh_hull(path, scale, hull_points)
+                out.append(LinkBox.hull(body, points, T, label))
+            except Exception as e:  # noqa: BLE001 - any reader's failure: the shape is left out, said so
+                warnings.warn(f"{what}: collision mesh {fn!r} could not be read ({type(e).__name__}: {e}); "
+                              "left out: the link keeps its other shapes (a robot without any gets the default "
+                              "boxes)", RuntimeWarning, stacklevel=4)
+    return out
+
+
 def _floats(text, count, what):
     try:
         v = [float(x) for x in (text or "").split()]
@@ -529,7 +604,7 @@ _UNBOUNDED = 1e9
 
 def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None,
               gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn", snap: float = 1e-9,
-              limits: str = "file", clamp=None):
+              limits: str = "file", clamp=None, hull_points: int = 64):
     """A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
 
     Joints: revolute, continuous (unbounded) and prismatic ones make the
@@ -549,9 +624,16 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     which to_urdf writes for none, too); dynamics damping as the viscous K,
     friction as Coulomb F_c (with `coulomb_width` v_c, rad/s or m/s); a
     ``<transmission>`` actuator's ``drake:rotor_inertia`` times
-    ``drake:gear_ratio`` squared as the armature. ``<collision>`` boxes (or
+    ``drake:gear_ratio`` squared as the armature. ``<collision>`` shapes (or
     ``<visual>`` ones when a link has no collision) become the robot's
-    boxes; meshes are left out (a robot without boxes gets the default ones).
+    shapes (``Robot.boxes``, LinkBox): boxes, spheres and cylinders as such
+    (Bullet's own shapes in the world), collision meshes (read with trimesh,
+    their scale applied) as the convex hull of at most `hull_points` of their
+    hull's vertices (trimesh's convex hull, then farthest-point sampling:
+    the vertex farthest from the centroid first, then each time the one
+    farthest from those kept); a mesh that cannot be read is left out with a
+    RuntimeWarning naming its file (a robot without any shape gets the
+    default boxes).
     The ``<visual>`` meshes (files found: ``package://`` through
     ROS_PACKAGE_PATH or the URDF file's parent directories), boxes and
     cylinders are kept in Python for the views (:func:`visuals`; the live
@@ -574,6 +656,8 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         its last link (coopsim.robots.add_clamp with its defaults, mounted on the tip's frame), a dict
         of add_clamp's keywords (mount, opening, jaw_length, ...) sets them. The tip link's visuals
         are kept, moved into the turned last frame.
+    hull_points: the most points (4 .. 4096, default 64) a collision mesh's convex hull keeps (see
+        above): a hull's cost in the world's contacts grows with it.
     snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
         read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
         5e-12 rad would make every derived angle general (and generated code
@@ -589,6 +673,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
     if not _is_real(snap) or not 0.0 <= snap < 0.1:
         raise ValueError(f"snap must be in [0, 0.1) rad, got {snap!r}")
     snap = float(snap)
+    hull_points = _checks.integer(hull_points, "hull_points", 4, 4096)
     if tip is not None and not isinstance(tip, str):
         raise ValueError(f"tip must be the name of a link (str) or None, got {type(tip).__name__}")
     if locked is not None and not isinstance(locked, Mapping):
@@ -732,16 +817,7 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         b = body_of[ln]
         X = np.linalg.inv(F[b]) @ pose[ln]  # link frame in the body's DH frame (frame 0 for the base)
         parts[b].append(_moved(X, *_inertial(links[ln], snap)))
-        shapes = links[ln].findall("collision") or links[ln].findall("visual")
-        for k, sh in enumerate(shapes):
-            box = sh.find("geometry/box")
-            if box is None:
-                continue
-            size = _floats(box.get("size"), 3, f"link {ln!r} box size")
-            if min(size) <= 0:
-                raise ValueError(f"link {ln!r}: box sizes must be > 0, got {size}")
-            box_list.append(LinkBox(b, 0.5 * np.array(size), X @ _pose(sh, f"link {ln!r} {sh.tag}", snap),
-                                    sh.get("name") or f"{ln}_{k}"))
+        box_list += _collision_shapes(links[ln], ln, b, X, base_dir, snap, hull_points)
         for sh in links[ln].findall("visual"):
             v = _visual(sh, ln, b, X, base_dir, snap)
             if v is not None:

@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "coopsim/checks.hpp"
+#include "coopsim/shape.hpp"
 
 namespace coopsim {
 
@@ -32,6 +33,18 @@ void box_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std
                     const std::vector<Eigen::Isometry3d>& b, const std::vector<Eigen::Vector3d>& half_b,
                     bool b_static, double* d, long* ia, long* ib);
 
+// Distance between two convex shapes of any kind (Shape: box, sphere, cylinder, hull) at the world poses
+// of their frames, m: > 0 the gap between their nearest points (Bullet's GJK, margins zero), <= 0 minus
+// the depth of their overlap (two boxes: the separating-axis depth, exact; any other pair: Bullet's
+// EPA). Two boxes give box_distance's value.
+double shape_distance(const Shape& a, const Eigen::Isometry3d& pose_a, const Shape& b, const Eigen::Isometry3d& pose_b);
+// box_clearances of shapes of any kind (the world poses of their frames): shape_distance's minimum
+// over every pair, with the same lower bounds (their bounds' spheres and separating axes: a shape lies
+// in its bound); for boxes alone box_clearances itself.
+void shape_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const std::vector<Shape>& shapes_a,
+                      const std::vector<Eigen::Isometry3d>& b, const std::vector<Shape>& shapes_b, bool b_static,
+                      double* d, long* ia, long* ib);
+
 // The same from tables, with the checks of their shapes (throwing std::invalid_argument naming
 // the argument): box_distance of pose_a (4, 4), half_a (3,), pose_b, half_b; box_distances of
 // poses_a (Na, 4, 4), half_a (Na, 3), poses_b (Nb, 4, 4), half_b (Nb, 3): (Na, Nb), or with
@@ -46,5 +59,9 @@ struct BoxClearances {
   std::vector<long> ia, ib;
 };
 BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b);
+// The same of shapes of any kind: poses_a (N, ka, 4, 4) of shapes_a's ka shapes, poses_b (N, kb, 4, 4)
+// or (kb, 4, 4) of shapes_b's kb.
+BoxClearances shape_clearances(const Array& poses_a, const std::vector<Shape>& shapes_a, const Array& poses_b,
+                               const std::vector<Shape>& shapes_b);
 
 }  // namespace coopsim

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "coopsim/checks.hpp"
+#include "coopsim/shape.hpp"
 
 namespace coopsim {
 
@@ -119,18 +120,36 @@ struct EndStop {
 
 struct GeneratedDynamics;  // see generated.hpp
 
-// A box fixed to a link; documentation (Python's too):
-inline constexpr char kLinkBoxDoc[] = R"doc(A box fixed to a link: the shape the world collides and the views draw.
+// A shape fixed to a link; documentation (Python's too):
+inline constexpr char kLinkBoxDoc[] = R"doc(A shape fixed to a link: what the world collides and the views draw.
 
-link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
-and axes in the DH frame of `link` (frame i for link i; frame 0, the base
-frame, for link 0). half_extents: (3,) m, > 0: the box spans +-half_extents
-along its own x, y, z. name: a label (e.g. "link1", "base", "fixed_jaw").)doc";
-struct LinkBox {
+A box (LinkBox(link, half_extents, pose, name)), or made by LinkBox.sphere,
+LinkBox.cylinder or LinkBox.hull: kind is "box", "sphere", "cylinder" or
+"hull". link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the
+shape's frame in the DH frame of `link` (frame i for link i; frame 0, the
+base frame, for link 0): a box's centre and axes, a sphere's centre, a
+cylinder's centre with its axis along z, the frame of a hull's points.
+half_extents: (3,) m, > 0: a box spans +-half_extents along its own x, y,
+z; for the other kinds the box centred at the frame's origin that holds
+the shape (its bound, which the box views draw). radius (m): a sphere's or
+a cylinder's; length (m): a cylinder's, along its z; points (k, 3) m: a
+hull's points in its frame. name: a label (e.g. "link1", "base",
+"fixed_jaw").)doc";
+struct LinkBox : Shape {
   int link = 0;                                               // 0..n
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();     // in the DH frame of `link`
-  Eigen::Vector3d half_extents = Eigen::Vector3d::Zero();     // m, each > 0
   std::string name;                                           // e.g. "link1", "base", "fixed_jaw"
+  // (half_extents, from Shape: m, each > 0: the box's, or the bound of another kind)
+
+  // A sphere of `radius` (m, > 0) centred at `pose`'s origin.
+  static LinkBox sphere(int link, double radius, const Eigen::Isometry3d& pose, std::string name);
+  // A cylinder of `radius` and `length` (m, > 0) centred at `pose`'s origin, its axis `pose`'s z.
+  static LinkBox cylinder(int link, double radius, double length, const Eigen::Isometry3d& pose, std::string name);
+  // The convex hull of `points` (k >= 4, not on one plane, m) given in the frame `pose` (in the DH frame
+  // of `link`): stored about the centre of their bounding box (pose moved there, points less it), so
+  // that its bound is tight.
+  static LinkBox hull(int link, const std::vector<Eigen::Vector3d>& points, const Eigen::Isometry3d& pose,
+                      std::string name);
 };
 
 // A parallel-jaw clamp; documentation (Python's too):

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "coopsim/checks.hpp"
+#include "coopsim/shape.hpp"
 
 namespace coopsim {
 
@@ -44,11 +45,12 @@ const char* contact_kind(const BodySpec& a, const BodySpec& b);
 
 // A body of the world: the floor (the plane z = 0 within 100 m of the
 // origin: the top face of a static 200 m cube), a static box, a free box
-// (mass > 0), or a link box of a robot (kinematic; added by a simulation).
-struct BodySpec {
+// (mass > 0), or a link shape of a robot (kinematic; added by a simulation):
+// a box, or for a link any Shape (sphere, cylinder, convex hull). Its shape's
+// fields (Shape): kind, half_extents (m: a box's, or the bound of another kind).
+struct BodySpec : Shape {
   std::string name;
   BodyKind kind = BodyKind::Static;
-  Eigen::Vector3d half_extents = Eigen::Vector3d::Zero();   // m (boxes)
   double mass = 0.0;                                         // kg, > 0 for free bodies
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();    // initial world pose of the centre
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();        // initial, m/s, of the centre
@@ -135,12 +137,13 @@ class World {
                    const Eigen::Isometry3d& pose, double friction = 0.5, double restitution = 0.0,
                    const Eigen::Vector3d& velocity = Eigen::Vector3d::Zero(),
                    const Eigen::Vector3d& angular_velocity = Eigen::Vector3d::Zero());
-  // Link bodies of one robot (its boxes at their first poses), named
+  // Link bodies of one robot (its shapes at their first poses: boxes, spheres,
+  // cylinders, convex hulls, finished by finish_shape), named
   // "<label>/<box name>"; `excluded` lists pairs of box indices that never
   // collide (the robot's adjacent, same-link and always-touching boxes).
   // Called by the simulation that owns the world.
   void add_robot(int robot, const std::string& label, const std::vector<std::string>& box_names,
-                 const std::vector<int>& box_links, const std::vector<Eigen::Vector3d>& half_extents,
+                 const std::vector<int>& box_links, const std::vector<Shape>& shapes,
                  const std::vector<Eigen::Isometry3d>& poses, const std::vector<std::pair<int, int>>& excluded,
                  double friction);
   // A static or free body as add_static_box or add_free_box adds it (spec's fields; the kind
@@ -148,10 +151,10 @@ class World {
   int add_body(const BodySpec& spec);
   // Removes the robots' link bodies (the world keeps its own).
   void clear_robots();
-  // New sizes, first poses and exclusions of one robot's link bodies, ids first .. first + k - 1 (the
+  // New shapes, first poses and exclusions of one robot's link bodies, ids first .. first + k - 1 (the
   // same count, the same links), in place: the other bodies keep their states. Called by the
   // simulation that owns the world when it replaces a robot.
-  void replace_robot_boxes(int first, const std::vector<Eigen::Vector3d>& half_extents,
+  void replace_robot_boxes(int first, const std::vector<Shape>& shapes,
                            const std::vector<Eigen::Isometry3d>& poses,
                            const std::vector<std::pair<int, int>>& excluded);
 
