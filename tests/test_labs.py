@@ -106,9 +106,97 @@ def test_the_student_version_has_stubs_for_answers_keeps_checks_and_drops_hidden
                                          flags=re.S)
         else:
             assert stud.source == inst.source
+        # locked as nbgrader locks them: a check read-only and undeletable, an answer undeletable; each with
+        # the checksum of what the student sees
+        if g.get("grade"):
+            assert stud.metadata["editable"] is False and stud.metadata["deletable"] is False
+        elif g.get("solution"):
+            assert stud.metadata["deletable"] is False and "editable" not in stud.metadata
+        else:
+            assert stud.metadata == inst.metadata
+        if g:
+            assert _grader(stud) == dict(g, checksum=sl.checksum(stud), cell_type=stud.cell_type)
     assert nb == _read(path), "the instructor's notebook is not changed"
     if path.endswith("01_robots_and_dynamics.ipynb"):
         assert hidden == 1
+
+
+def test_the_checksums_are_nbgraders():
+    """scripts/student_labs.py writes the checksums without nbgrader, by nbgrader's rule: the same digests as
+    nbgrader.utils.compute_checksum for every cell nbgrader grades, in the instructor's and the student's
+    versions, and for the kinds of cell the labs do not have yet (a locked text cell, a manually graded
+    answer, other points)."""
+    utils = pytest.importorskip("nbgrader.utils", reason="nbgrader is installed by the teaching extra (scripts/setup.sh)")
+    import nbformat
+
+    sl = _student_labs()
+    cells = []
+    for path in NOTEBOOKS:
+        nb = _read(path)
+        cells += [c for c in nb.cells + sl.student_version(nb).cells if _grader(c)]
+    meta = dict(grade=False, solution=False, locked=False, schema_version=3, task=False)
+    cells += [nbformat.v4.new_markdown_cell("Read me: ünïcode", metadata={"nbgrader": dict(meta, locked=True, grade_id="md")}),
+              nbformat.v4.new_markdown_cell("Why?", metadata={"nbgrader": dict(meta, grade=True, solution=True,
+                                                                                   grade_id="why", points=2)}),
+              nbformat.v4.new_code_cell("assert x", metadata={"nbgrader": dict(meta, grade=True, grade_id="c", points=0.5)})]
+    assert len(cells) > 100
+    for c in cells:
+        assert sl.checksum(c) == utils.compute_checksum(c), _grader(c)["grade_id"]
+    with pytest.raises(ValueError, match="no nbgrader.grade_id"):
+        sl.checksum(nbformat.v4.new_code_cell("x = 1"))
+
+
+def test_a_rewritten_or_deleted_check_is_found_in_a_submission(tmp_path):
+    import nbformat
+
+    sl = _student_labs()
+    path = os.path.join(ROOT, "notebooks", "01_robots_and_dynamics.ipynb")
+    instructor = _read(path)
+    submission = sl.student_version(instructor)
+    for c in submission.cells:  # answered: answer cells may change, and ordinary cells be added
+        if _grader(c).get("solution"):
+            c.source = "M11_formula = 0.0  # my answer"
+    submission.cells.insert(3, nbformat.v4.new_code_cell("print('a cell of my own')"))
+    assert sl.tampered(submission, instructor) == []
+
+    def changed(edit):
+        sub = sl.student_version(instructor)
+        cell = next(c for c in sub.cells if _grader(c).get("grade_id") == "lab01-ex2-check")
+        edit(sub, cell)
+        return sl.tampered(sub, instructor)
+
+    def rewrite_and_its_checksum(sub, cell):
+        cell.source = "assert True"
+        cell.metadata.nbgrader.checksum = sl.checksum(cell)   # the checksum it carries is not believed
+
+    def to_a_plain_cell(sub, cell):
+        del cell.metadata["nbgrader"]
+
+    assert changed(lambda sub, cell: setattr(cell, "source", "assert True")) == ["lab01-ex2-check: changed"]
+    assert changed(rewrite_and_its_checksum) == ["lab01-ex2-check: changed"]
+    assert changed(lambda sub, cell: cell.metadata.nbgrader.update(points=5)) == ["lab01-ex2-check: changed"]
+    assert changed(lambda sub, cell: cell.metadata.nbgrader.update(grade=False)) == ["lab01-ex2-check: changed"]
+    assert changed(lambda sub, cell: sub.cells.remove(cell)) == ["lab01-ex2-check: deleted"]
+    assert changed(to_a_plain_cell) == ["lab01-ex2-check: deleted"]
+    assert changed(lambda sub, cell: sub.cells.append(nbformat.from_dict(dict(cell)))) == ["lab01-ex2-check: changed"]
+    # the command line: a line per submission, exit status 1 when a check was changed
+    for name, sub in (("ok", submission), ("bad", sl.student_version(instructor))):
+        (tmp_path / name).mkdir()
+        if name == "bad":
+            sub.cells[[_grader(c).get("grade_id") for c in sub.cells].index("lab01-ex4-check")].source = "assert 8 < 10 < 32"
+        nbformat.write(sub, tmp_path / name / os.path.basename(path))
+    script = os.path.join(ROOT, "scripts", "student_labs.py")
+    res = subprocess.run([sys.executable, script, "--verify", str(tmp_path / "ok" / os.path.basename(path))],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and res.stdout.strip().endswith("01_robots_and_dynamics.ipynb: checks as released"), \
+        res.stdout + res.stderr
+    res = subprocess.run([sys.executable, script, "--verify", str(tmp_path / "ok" / os.path.basename(path)),
+                          str(tmp_path / "bad" / os.path.basename(path))], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 1 and res.stdout.splitlines()[-1].endswith(
+        "01_robots_and_dynamics.ipynb: TAMPERED lab01-ex4-check: changed"), res.stdout + res.stderr
+    res = subprocess.run([sys.executable, script, "--verify", str(tmp_path / "none.ipynb")], capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 2 and "submission not found" in res.stderr.splitlines()[-1]
 
 
 def test_student_stub_keeps_the_indentation_of_its_markers_and_bad_markers_are_errors():
