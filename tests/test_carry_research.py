@@ -6,6 +6,7 @@ import json
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
 from coopsim.tasks import carry as C
@@ -141,3 +142,97 @@ def test_a_sweep_table_of_a_law_of_one_s_own_with_options_per_controller(law_fil
         C.sweep_table(["object"], options_by_controller={"ct": {}})
     with pytest.raises(ValueError, match="cannot import 'nope'"):
         C.sweep_table(["nope:make"])
+
+
+# ---- series and stamps in the outputs ----
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    """The command line's outputs of one carry with a sweep of two runs, series as npz, figures as SVG."""
+    out = tmp_path_factory.mktemp("carry") / "out"
+    code = cli.main(["--out", str(out), "--no-video", "--controller", "object", "--format", "svg", "--series", "npz",
+                     "--sweep", "2", "--sweep-controllers", "ct,object", "--seed", "1"])
+    return code, out
+
+
+def test_the_carry_writes_its_series_as_csv_and_excel_and_one_npz_table(outputs):
+    import pandas as pd
+
+    import coopsim as cs
+
+    code, out = outputs
+    assert code == 0
+    log = cs.SimulationLog.read_csv(out / "carry.csv")             # the log, as the handover writes it
+    again = C.run(controllers="object", seed=1)
+    np.testing.assert_array_equal(log.t, again.log.t)
+    np.testing.assert_array_equal(log[1].tau, again.log[1].tau)
+    assert (out / "carry.xlsx").stat().st_size > 100_000
+    co = pd.read_csv(out / "cooperation.csv")
+    table = C.report.series_table(again)
+    assert list(co.columns) == ["t"] + list(table.columns[len(again.log.columns()):])
+    assert {"squeeze", "load_share.a", "internal.fx_b", "relative_pose_error.rz", "bar.position_error",
+            "weld_stretch.b", "airborne"} <= set(co.columns)
+    want = again.log.cooperation(0, 1)
+    np.testing.assert_array_equal(co["squeeze"].to_numpy(), want["squeeze"])             # NaN where not held
+    np.testing.assert_array_equal(co["load_share.b"].to_numpy(), want["load_share"][:, 1])
+    x = pd.read_excel(out / "cooperation.xlsx", sheet_name="cooperation", engine="openpyxl")
+    assert list(x.columns) == list(co.columns) and len(x) == len(co)
+    np.testing.assert_allclose(x["squeeze"].to_numpy(), co["squeeze"].to_numpy(), rtol=1e-15, equal_nan=True)
+    # one table with everything, read back column for column
+    npz = pd.DataFrame(dict(np.load(out / "series.npz")))
+    assert list(npz.columns) == list(table.columns)
+    for c in ("t", "scara1.q1", "bar.x", "squeeze", "bar.angle_error"):
+        np.testing.assert_array_equal(npz[c].to_numpy(), table[c].to_numpy())
+
+
+def test_the_sweep_writes_every_run_s_series_in_one_table(outputs):
+    import pandas as pd
+
+    _, out = outputs
+    s = pd.DataFrame(dict(np.load(out / "sweep_series.npz")))
+    assert list(s.columns[:5]) == ["controller", "disturbance", "seed", "t", "scara1.q1"] and "squeeze" in s
+    runs = s.groupby(["controller", "seed"], sort=False).size()
+    assert list(runs.index) == [("ct", 0), ("ct", 1), ("object", 0), ("object", 1)]
+    one = C.run(controllers="object", seed=1, score_run=False)
+    rows = s[(s.controller == "object") & (s.seed == 1)]
+    np.testing.assert_array_equal(rows["squeeze"].to_numpy(), one.log.cooperation()["squeeze"])
+    np.testing.assert_array_equal(rows["scara2.q4"].to_numpy(), one.log[1].q[:, 3])
+    assert "log" not in pd.read_csv(out / "sweep.csv")
+
+
+def test_every_report_of_the_carry_is_stamped_with_its_arguments(outputs):
+    _, out = outputs
+    rep = json.loads((out / "report.json").read_text())
+    st = rep["stamp"]
+    assert st["seed"] == 1 and st["arguments"]["controller"] == "object" and st["arguments"]["series"] == "npz"
+    assert st["arguments"]["sweep_controllers"] == ["ct", "object"] and st["build"]["compiler"]
+    sw = json.loads((out / "sweep.json").read_text())
+    assert sw["stamp"]["seed"] == [0, 1] and sw["stamp"]["arguments"] == st["arguments"]
+
+
+def test_the_figures_come_in_the_format_asked_for(outputs):
+    _, out = outputs
+    for name in ("bar_path", "weld_forces", "joint_torques", "frames"):
+        assert (out / f"{name}.svg").read_text()[:200].lstrip().startswith("<?xml")
+        assert not (out / f"{name}.png").exists()
+
+
+def test_parquet_is_written_with_pyarrow_or_refused_in_one_line_naming_what_to_install(capsys, tmp_path):
+    import importlib.util
+
+    if importlib.util.find_spec("pyarrow") is None:
+        line = _parse_error(capsys, ["--series", "parquet"], tmp_path)
+        assert line.endswith("argument --series: Parquet needs pyarrow, which is not installed: pip install pyarrow "
+                             "(or use npz, which needs nothing)")
+        with pytest.raises(ValueError, match="Parquet needs pyarrow"):
+            C.report.write_table(None, tmp_path / "x.parquet", "parquet")
+    else:
+        import pandas as pd
+
+        res = C.run(score_run=True)
+        p = C.report.write_table(C.report.series_table(res), tmp_path / "s.parquet", "parquet")
+        back = pd.read_parquet(p)
+        np.testing.assert_array_equal(back["squeeze"].to_numpy(), res.log.cooperation()["squeeze"])
+    for argv, says in ((["--series", "csv"], "argument --series: invalid choice: 'csv'"),
+                       (["--format", "jpg"], "argument --format: invalid choice: 'jpg'")):
+        assert says in _parse_error(capsys, argv, tmp_path)

@@ -666,6 +666,7 @@ DICT_EXCEPTIONS = {
                                 # load); the pickle's keyword sleep_after (1)
     "bind_ik.cpp": 6,          # Robot.ik(info=True): keys per method (closed form: branch; numeric: iterations)
     "bind_codegen.cpp": 7,     # generated_info(): what a robot has attached, with in_use beside the library's
+    "bind_build_info.cpp": 7,  # build_toolchain(): the compiler, flags and versions the build knows (no struct)
 }
 
 

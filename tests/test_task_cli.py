@@ -32,6 +32,7 @@ def _error(capsys, argv):
     (["--sweep", "-3"], "argument --sweep: must be >= 0"),
     (["--threads", "0"], "argument --threads: must be >= 1"),
     (["--cycles", "two"], "argument --cycles: invalid int value"),
+    (["--format", "jpg"], "argument --format: invalid choice: 'jpg' (choose from"),
 ])
 def test_a_bad_argument_is_a_one_line_error_before_the_run(capsys, tmp_path, argv, says):
     code, line = _error(capsys, argv + ["--out", str(tmp_path / "out")])
@@ -56,6 +57,7 @@ def test_good_arguments_parse_to_the_cycles_the_run_makes(tmp_path):
     assert cli.parse_args(["--out", out, "--seed", "4", "--cycles", "1"]).cycles == 1
     a = cli.parse_args(["--out", out, "--cycles", "2", "--speed", "4", "--sweep", "3", "--threads", "1"])
     assert (a.cycles, a.speed, a.sweep, a.threads) == (2, 4.0, 3, 1)
+    assert cli.parse_args(["--out", out]).format == "png" and cli.parse_args(["--out", out, "--format", "pdf"]).format == "pdf"
     assert (tmp_path / "new" / "out").is_dir()
 
 
@@ -104,11 +106,15 @@ def test_a_seeded_run_reports_its_seed_and_arguments_and_the_sweep_its_rows(tmp_
     assert rep["seed"] == 4 and rep["cycles_planned"] == 1 and len(rep["cycles"]) == 1
     assert rep["bars"] == [H.random_bar(4).round(12).tolist()]
     assert rep["command_line"] == dict(cycles=1, seed=4, sweep=2, threads=2, video=False, speed=2.0, live=False,
-                                       out=str(out))
+                                       out=str(out), format="png")
     for key in ("dt", "log_every", "world_every", "control_every", "t_limit", "mouth", "slope", "handover_yaw",
                 "container_shift", "grip1_turn"):
         assert key in rep, key
+    # the stamp: what made it, with every argument (coopsim.stamp; tests/test_stamp.py)
+    assert rep["stamp"]["seed"] == 4 and rep["stamp"]["arguments"]["seed"] == 4
+    assert rep["stamp"]["arguments"]["format"] == "png" and rep["stamp"]["coopsim"]
     sw = json.loads((out / "sweep.json").read_text())
+    assert sw["stamp"]["seed"] == [0, 1] and sw["stamp"]["arguments"] == rep["stamp"]["arguments"]
     lines = text.splitlines()
     head = next(k for k, ln in enumerate(lines) if ln.split()[:1] == ["seed"])
     rows = [ln.split() for ln in lines[head + 1:head + 3]]

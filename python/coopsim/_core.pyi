@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -2532,6 +2532,10 @@ def box_distances(poses_a: typing.Any, half_a: typing.Any, poses_b: typing.Any, 
 def box_inertia(mass: typing.SupportsFloat | typing.SupportsIndex, lx: typing.SupportsFloat | typing.SupportsIndex, ly: typing.SupportsFloat | typing.SupportsIndex, lz: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
     Inertia tensor (3, 3) in kg m^2 of a solid box of `mass` kg and edges lx, ly, lz (m) along x, y, z, about its centre.
+    """
+def build_toolchain() -> dict:
+    """
+    How this module was built, as a dict of str (cxx_standard an int): compiler (CMake's compiler id and version), compiler_version (the compiler's own version string), build_type (CMake's, e.g. 'Release'), flags (the C++ flags of that build type and the sanitizers' flags; the engine adds -Wall -Wextra), cxx_standard (__cplusplus), eigen and pybind11 (the versions compiled in). Empty strings where the build did not say (a build outside CMake).
     """
 def commandable_directions(robot: Robot, q0: typing.Any = None) -> tuple:
     """

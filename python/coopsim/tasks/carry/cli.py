@@ -15,7 +15,8 @@ from ...view.animation import MAX_SPEED
 from ..handover.cli import check_out_folder
 from .controllers import CONTROLLERS, controller_factory
 from .disturbances import DISTURBANCES, disturbances
-from .report import summary, write_outputs, write_report
+from .report import (FIGURE_FORMATS, SERIES_FORMATS, parquet_missing, summary, sweep_series_table, write_outputs,
+                     write_report, write_table)
 from .runs import sweep_table
 from .sequence import check_controllers, run
 
@@ -50,6 +51,12 @@ def parser() -> argparse.ArgumentParser:
                     help="the sweep's disturbances, one per run, joined by commas (default: the run's --disturbance, "
                          "combined)")
     ap.add_argument("--threads", type=int, default=2, help="the sweep's threads (>= 1, default 2)")
+    ap.add_argument("--format", default="png", choices=FIGURE_FORMATS,
+                    help="the figures' file format (default png; svg and pdf are vector graphics)")
+    ap.add_argument("--series", default=None, choices=SERIES_FORMATS,
+                    help="also write the time series as one table: series.npz or series.parquet (the log, the "
+                         "cooperation columns and the carry's own), and with --sweep every run's log and "
+                         "cooperation columns in sweep_series.npz or .parquet (npz needs nothing, parquet pyarrow)")
     ap.add_argument("--video", dest="video", action="store_true", default=True, help="write carry.mp4 (default)")
     ap.add_argument("--no-video", dest="video", action="store_false", help="skip the animation")
     ap.add_argument("--speed", type=float, default=1.0,
@@ -98,6 +105,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         ap.error("argument --mass-factor: not with a mass disturbance in the sweep")
     if not (0.0 < args.speed <= MAX_SPEED) or not math.isfinite(args.speed):   # also NaN
         ap.error(f"argument --speed: must be > 0 and <= {MAX_SPEED:g}, got {args.speed:g}")
+    if args.series == "parquet" and parquet_missing():
+        ap.error(f"argument --series: {parquet_missing()}")
     check_out_folder(ap, args.out)
     return args
 
@@ -162,17 +171,19 @@ def main(argv=None) -> int:
                                options_by_controller=args.options_by_controller, mass_factor=args.mass_factor,
                                sweep=args.sweep, sweep_controllers=args.sweep_controllers,
                                sweep_disturbances=args.sweep_disturbances, threads=args.threads, video=args.video,
-                               speed=args.speed, out=args.out)
+                               speed=args.speed, out=args.out, format=args.format, series=args.series)
     print(summary(rep))
     print(f"simulated {rep['simulated_time']:.2f} s in {wall:.3f} s of wall time: "
           f"{rep['simulated_time'] / wall:.0f}x real time (scoring {res.timing['scoring']:.3f} s more)")
-    paths = write_outputs(res, args.out, video=args.video, speed=args.speed)
+    paths = write_outputs(res, args.out, video=args.video, speed=args.speed, fmt=args.format, series=args.series,
+                          arguments=vars(args))
     if args.sweep:
         t1 = time.perf_counter()
         table = sweep_table(args.sweep_controllers, args.sweep_disturbances, range(args.sweep), threads=args.threads,
                             mass_factor=args.mass_factor, controller_options=args.controller_options or None,
                             options_by_controller={c: o for c, o in args.options_by_controller.items()
-                                                   if c in args.sweep_controllers})
+                                                   if c in args.sweep_controllers},
+                            keep_logs=args.series is not None)
         n = len(table)
         print(f"sweep of {n} runs ({len(args.sweep_controllers)} controllers x {len(args.sweep_disturbances)} "
               f"disturbances x {args.sweep} seeds) on {args.threads} threads in {time.perf_counter() - t1:.1f} s: "
@@ -181,11 +192,16 @@ def main(argv=None) -> int:
         print(means.to_string(float_format=lambda x: f"{x:.3f}"))
         for r in table[~table.success.astype(bool)].itertuples():
             print(f"  {r.controller}, {r.disturbance}, seed {r.seed}: FAILED in {r.step}: {r.reason or r.error}")
+        if args.series is not None:
+            paths.append(write_table(sweep_series_table(table), os.path.join(args.out, "sweep_series." + args.series),
+                                     args.series))
+            table = table.drop(columns="log")
         p = os.path.join(args.out, "sweep.csv")
         table.to_csv(p)
         paths.append(p)
-        records = table.drop(columns=[c for c in ("log",) if c in table]).to_dict(orient="records")
+        records = table.to_dict(orient="records")
         paths.append(write_report(dict(success_rate=float(table.success.astype(bool).mean()), runs=records),
-                                  os.path.join(args.out, "sweep.json")))
+                                  os.path.join(args.out, "sweep.json"), arguments=vars(args),
+                                  seed=list(range(args.sweep))))
     print("wrote " + ", ".join(paths))
     return 0 if rep["success"] else 1

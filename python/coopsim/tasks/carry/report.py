@@ -1,18 +1,35 @@
-"""The carry's outputs: a summary in text, the report as JSON, the figures (the bar's path against its plan,
-the welds' forces and stretch, the joint torques, a few frames of the scene) and the animation."""
+"""The carry's outputs: a summary in text, the report as JSON (stamped), the time series (the log and the
+cooperation columns as CSV and Excel, or one table as .npz or Parquet), the figures (the bar's path against its
+plan, the welds' forces and stretch, the joint torques, a few frames of the scene; PNG, SVG or PDF) and the
+animation."""
 from __future__ import annotations
 
+import importlib.util
 import os
-from typing import Dict, List
+from typing import Dict, List, Optional
 
 import numpy as np
 
 from ... import view
-from ..handover.report import write_report
+from ...log import _atomic_write, cooperation_schema
+from ..handover.report import FIGURE_FORMATS, save_figures, write_report
 from . import scene
 from .sequence import CarryResult
 
-__all__ = ["report_figures", "summary", "write_outputs", "write_report"]
+__all__ = ["FIGURE_FORMATS", "SERIES_FORMATS", "cooperation_table", "report_figures", "series_table", "summary",
+           "sweep_series_table", "write_outputs", "write_report", "write_table"]
+
+#: the formats of one table of series (the command line's --series): NumPy's .npz (nothing to install) and
+#: Parquet (pyarrow)
+SERIES_FORMATS = ("npz", "parquet")
+
+#: the components of the cooperation columns, by quantity (the columns are '<quantity>.<component>')
+_COMPONENTS = {"centre": "xyz", "point_a": "xyz", "point_b": "xyz",
+               "external": ("fx", "fy", "fz", "mx", "my", "mz"),
+               "internal": ("fx_a", "fy_a", "fz_a", "mx_a", "my_a", "mz_a", "fx_b", "fy_b", "fz_b", "mx_b", "my_b",
+                            "mz_b"),
+               "bending": ("a", "b"), "load_share": ("a", "b"),
+               "relative_pose_error": ("x", "y", "z", "rx", "ry", "rz")}
 
 
 def summary(report: dict) -> str:
@@ -174,23 +191,130 @@ def frames_figure(result: CarryResult, steps=("grasp", "carry", "place", "back o
     return fig
 
 
-def write_outputs(result: CarryResult, out_dir, *, video: bool = True, speed: float = 1.0) -> List[str]:
-    """Writes report.json, summary.txt, the figures (PNG) and, with `video`, carry.mp4 into out_dir (made if
-    missing). Returns the paths."""
-    import matplotlib.pyplot as plt  # matplotlib loads only to draw
+def cooperation_table(log, a: int = 0, b: int = 1):
+    """The log's cooperation columns of robots a and b (:meth:`coopsim.SimulationLog.cooperation`) as a pandas
+    DataFrame, one row per log row: t (s), holding (1: both hold one body, else 0; the other columns are NaN
+    then), then '<quantity>' or '<quantity>.<component>' in the order of :func:`coopsim.log.cooperation_schema`:
+    centre.x .. z, point_a.*, point_b.* (m, world), external.fx .. mz (N, N m), internal.fx_a .. mz_b (N,
+    N m), squeeze (N, compression > 0), twist (N m), bending.a, bending.b (N m), shear (N), load_share.a,
+    load_share.b, relative_pose_error.x .. z (m), .rx .. rz (rad)."""
+    import pandas as pd  # pandas loads only for tables
 
+    co = log.cooperation(a, b)
+    cols = {"t": np.asarray(co["t"], float), "holding": co["holding"].astype(np.int8)}
+    for name, width, _ in cooperation_schema():
+        if name == "body":
+            continue
+        x = np.asarray(co[name], float)
+        if width == 1:
+            cols[name] = x
+        else:
+            for k, c in enumerate(_COMPONENTS[name]):
+                cols[f"{name}.{c}"] = x[:, k]
+    return pd.DataFrame(cols)
+
+
+def series_table(result: CarryResult):
+    """The run's time series as one pandas DataFrame, one row per log row: the log's columns
+    (:meth:`coopsim.SimulationLog.to_dataframe`: t, each robot's joints' quantities, the bar's pose and twist)
+    then its cooperation columns (:func:`cooperation_table`, without its t); for a scored run also the carry's
+    own per row: bar.position_error (m) and bar.angle_error (rad) against its planned path, weld_stretch.a and
+    .b (m), carried, pair and airborne (1 or 0: the rows of the scores, docs/carry.md)."""
+    import pandas as pd  # pandas loads only for tables
+
+    parts = [result.log.to_dataframe(), cooperation_table(result.log).drop(columns="t")]
+    s = result.series
+    if s is not None:
+        parts.append(pd.DataFrame({"bar.position_error": s["position_error"], "bar.angle_error": s["angle_error"],
+                                   "weld_stretch.a": s["weld_stretch"][:, 0], "weld_stretch.b": s["weld_stretch"][:, 1],
+                                   "carried": s["carried"].astype(np.int8), "pair": s["pair"].astype(np.int8),
+                                   "airborne": s["airborne"].astype(np.int8)}))
+    return pd.concat(parts, axis=1)
+
+
+def sweep_series_table(table):
+    """One table of a sweep's time series (:func:`~.runs.sweep_table` with ``keep_logs=True``): per run that
+    has a log, its rows with the columns controller, disturbance, seed, then the log's columns and its
+    cooperation columns (:func:`series_table` without the carry's scores). Runs whose robots' joints differ
+    would not share columns: all runs of the carry have the same robots."""
+    import pandas as pd  # pandas loads only for tables
+
+    if "log" not in table:
+        raise ValueError("table must hold the runs' logs: sweep_table(..., keep_logs=True)")
+    parts = []
+    for r in table.itertuples():
+        if r.log is None or not hasattr(r.log, "to_dataframe"):
+            continue
+        df = pd.concat([r.log.to_dataframe(), cooperation_table(r.log).drop(columns="t")], axis=1)
+        df.insert(0, "seed", int(r.seed))
+        df.insert(0, "disturbance", str(r.disturbance))
+        df.insert(0, "controller", str(r.controller))
+        parts.append(df)
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=["controller", "disturbance", "seed"])
+
+
+def parquet_missing() -> Optional[str]:
+    """None when Parquet can be written here (pyarrow imports), else one line saying what to install."""
+    if importlib.util.find_spec("pyarrow") is None:
+        return "Parquet needs pyarrow, which is not installed: pip install pyarrow (or use npz, which needs nothing)"
+    return None
+
+
+def write_table(df, path, fmt: str) -> str:
+    """Writes a DataFrame as one file, atomically: 'npz' (NumPy's compressed archive, one array per column in
+    the table's order, text columns as str arrays: ``pandas.DataFrame(dict(numpy.load(path)))`` reads it back)
+    or 'parquet' (needs pyarrow: ValueError saying so without it). Returns the path."""
+    if fmt not in SERIES_FORMATS:
+        raise ValueError(f"fmt must be one of {', '.join(SERIES_FORMATS)}, got {fmt!r}")
+    if fmt == "parquet":
+        missing = parquet_missing()
+        if missing:
+            raise ValueError(missing)
+
+        def write(tmp):
+            df.to_parquet(tmp, index=False, engine="pyarrow")
+    else:
+        arrays = {str(c): (df[c].to_numpy(dtype=str) if df[c].dtype == object or str(df[c].dtype) in ("str", "string")
+                           else df[c].to_numpy()) for c in df.columns}
+
+        def write(tmp):
+            with open(tmp, "wb") as f:          # a file object: savez adds no .npz to the temporary name
+                np.savez_compressed(f, **arrays)
+    return _atomic_write(path, "." + fmt, write)
+
+
+def write_outputs(result: CarryResult, out_dir, *, video: bool = True, speed: float = 1.0, fmt: str = "png",
+                  series: Optional[str] = None, arguments: Optional[dict] = None) -> List[str]:
+    """Writes into out_dir (made if missing): report.json (stamped with `arguments`, every argument of the
+    command line or call: :func:`~coopsim.tasks.handover.report.write_report`), summary.txt, the time series
+    as the handover writes them (the log as carry.csv and carry.xlsx, :meth:`coopsim.SimulationLog.to_csv`
+    and ``to_excel``; the cooperation columns with the carry's own series as cooperation.csv and
+    cooperation.xlsx: :func:`series_table`'s columns past the log's), with `series` ('npz' or 'parquet') also
+    all of them as one table series.npz or series.parquet (:func:`write_table`), the figures as `fmt` (png,
+    svg or pdf) and, with `video`, carry.mp4. Returns the paths."""
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"fmt must be one of {', '.join(FIGURE_FORMATS)}, got {fmt!r}")
+    if series is not None and series not in SERIES_FORMATS:
+        raise ValueError(f"series must be None or one of {', '.join(SERIES_FORMATS)}, got {series!r}")
     os.makedirs(out_dir, exist_ok=True)
-    paths = [write_report(result.report, os.path.join(out_dir, "report.json"))]
+    paths = [write_report(result.report, os.path.join(out_dir, "report.json"), arguments=arguments)]
     p = os.path.join(out_dir, "summary.txt")
     with open(p, "w", encoding="utf-8") as f:
         f.write(summary(result.report) + "\n")
     paths.append(p)
+    paths += [result.log.to_csv(os.path.join(out_dir, "carry.csv")),
+              result.log.to_excel(os.path.join(out_dir, "carry.xlsx"))]
+    table = series_table(result)
+    together = table[["t"] + list(table.columns[len(result.log.columns()):])]
+    paths.append(_atomic_write(os.path.join(out_dir, "cooperation.csv"), ".csv",
+                               lambda tmp: together.to_csv(tmp, index=False, float_format="%.17g")))
+    paths.append(_atomic_write(os.path.join(out_dir, "cooperation.xlsx"), ".xlsx",
+                               lambda tmp: together.to_excel(tmp, index=False, sheet_name="cooperation",
+                                                             engine="xlsxwriter")))
+    if series is not None:
+        paths.append(write_table(table, os.path.join(out_dir, "series." + series), series))
     if result.series is not None:
-        for name, fig in report_figures(result).items():
-            p = os.path.join(out_dir, name)
-            fig.savefig(p, dpi=90)
-            plt.close(fig)
-            paths.append(p)
+        paths += save_figures(report_figures(result), out_dir, fmt)
     if video:
         # the world's stands are drawn as its scenery, the bar at its logged poses
         anim = view.animate(result.sim, speed=speed, fps=20, path=os.path.join(out_dir, "carry.mp4"))

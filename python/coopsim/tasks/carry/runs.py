@@ -67,7 +67,7 @@ def _controllers(values) -> list:
 
 def sweep_table(controllers: Iterable[str] = ("ct",), disturbances: Iterable[Optional[str]] = ("none",),
                 seeds: Iterable[int] = (0,), *, threads: int = 2, executor=None,
-                options_by_controller: Optional[dict] = None, **options):
+                options_by_controller: Optional[dict] = None, keep_logs: bool = False, **options):
     """The carry for every controller x disturbance x seed (the grid's order: controllers slowest, seeds
     fastest) through :func:`coopsim.sweep`, on `threads` threads (the engine releases the GIL while it
     steps) or through `executor` (a concurrent.futures executor or a Dask distributed.Client).
@@ -105,7 +105,8 @@ def sweep_table(controllers: Iterable[str] = ("ct",), disturbances: Iterable[Opt
         return CarryRun(controllers=controller, disturbance=disturbance, seed=seed, **o)
 
     grid = dict(controller=controllers, disturbance=[d or "none" for d in disturbances], seed=seeds)
-    return _sweep(make, grid=grid, executor=executor, threads=None if executor is not None else threads)
+    return _sweep(make, grid=grid, executor=executor, threads=None if executor is not None else threads,
+                  keep_logs=keep_logs)
 
 
 def sweep(seeds: Sequence[int], *, threads: int = 2, executor=None, **options) -> dict:

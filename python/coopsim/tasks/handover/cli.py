@@ -14,7 +14,7 @@ import time
 from ... import view
 from ...view.animation import MAX_SPEED
 from .constants import MAX_CYCLES
-from .report import plot_report, step_markers, summary, write_report
+from .report import FIGURE_FORMATS, plot_report, step_markers, summary, write_report
 from .runs import sweep
 from .sequence import run
 
@@ -32,6 +32,8 @@ def parser() -> argparse.ArgumentParser:
                     help="also run seeds 0 .. N-1 and print a row per seed and the rate")
     ap.add_argument("--threads", type=int, default=2, help="threads for the sweep (>= 1, default 2)")
     ap.add_argument("--no-video", action="store_true", help="skip the animation (MP4) and the browser replay")
+    ap.add_argument("--format", default="png", choices=FIGURE_FORMATS,
+                    help="the figures' file format (default png; svg and pdf are vector graphics)")
     ap.add_argument("--speed", type=float, default=None,
                     help=f"simulated seconds per wall second, > 0 and <= {MAX_SPEED:g}: the video's (default 2) and, "
                          f"with --live, the page's, the run starting at once (1 = 100 %%)")
@@ -145,7 +147,7 @@ def _interrupted(args, res) -> int:
     """A run stopped by Ctrl-C: its report (marked interrupted) and its log, in one line."""
     rep = res.report
     rep["command_line"] = _command_line(args)
-    paths = [write_report(rep, os.path.join(args.out, "report.json")),
+    paths = [write_report(rep, os.path.join(args.out, "report.json"), arguments=vars(args)),
              res.log.to_csv(os.path.join(args.out, "task.csv"))]
     step = rep["cycles"][-1]["failed_step"] if rep["cycles"] else "start"
     print(f"interrupted (Ctrl-C) at t = {rep['simulated_time']:.3f} s in {step}: wrote {', '.join(paths)}", flush=True)
@@ -155,7 +157,7 @@ def _interrupted(args, res) -> int:
 def _command_line(args) -> dict:
     # speed: the video's (and with --live the page's) as used, the default 2 when not given
     return dict(cycles=args.cycles, seed=args.seed, sweep=args.sweep, threads=args.threads, video=not args.no_video,
-                speed=2.0 if args.speed is None else args.speed, live=args.live, out=args.out)
+                speed=2.0 if args.speed is None else args.speed, live=args.live, out=args.out, format=args.format)
 
 
 def _outputs(args, res) -> int:
@@ -165,10 +167,10 @@ def _outputs(args, res) -> int:
     print(summary(rep))
     print(f"simulated {rep['simulated_time']:.2f} s in {wall:.2f} s of wall time: {rep['simulated_time'] / wall:.1f}x "
           f"real time (scoring {res.timing['scoring']:.2f} s more)")
-    paths = [write_report(rep, os.path.join(args.out, "report.json")),
+    paths = [write_report(rep, os.path.join(args.out, "report.json"), arguments=vars(args)),
              res.log.to_csv(os.path.join(args.out, "task.csv")),
              res.log.to_excel(os.path.join(args.out, "task.xlsx"))]
-    paths += plot_report(res, args.out)
+    paths += plot_report(res, args.out, args.format)
     if not args.no_video:
         paths.append(view.replay_html(res.sim, os.path.join(args.out, "task_replay.html"),
                                       title="coopsim: the cooperative bar handover", markers=step_markers(rep)))
@@ -181,6 +183,7 @@ def _outputs(args, res) -> int:
         print(sweep_table(sw))
         print(f"success rate {sw['success_rate'] * 100:.0f} % ({len(sw['runs']) - len(sw['failures'])} of "
               f"{len(sw['runs'])})")
-        paths.append(write_report(sw, os.path.join(args.out, "sweep.json")))
+        paths.append(write_report(sw, os.path.join(args.out, "sweep.json"), arguments=vars(args),
+                                  seed=list(range(args.sweep))))
     print("wrote " + ", ".join(paths))
     return 0 if rep["success"] else 1

@@ -3,12 +3,13 @@ from __future__ import annotations
 
 import json
 import os
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 
 from ...log import _atomic_write
 from ... import view
+from ...stamp import stamp
 from ...plotting import plot_log
 from .sequence import TaskResult
 from .summary import summary  # noqa: F401  (the summary, here beside the other outputs)
@@ -26,13 +27,40 @@ def _jsonable(x):
     return x
 
 
-def write_report(report: dict, path) -> str:
-    """The report as JSON, written atomically (a temporary file renamed into place); returns the path."""
+#: the figures' file formats (the command lines' --format)
+FIGURE_FORMATS = ("png", "svg", "pdf")
+
+
+def write_report(report: dict, path, *, arguments: Optional[dict] = None, seed=None) -> str:
+    """The report as JSON, written atomically (a temporary file renamed into place), with its ``stamp``
+    (:func:`coopsim.stamp.stamp`: coopsim's version, the git commit, the build, Python, numpy, the machine,
+    `seed` (default the report's own ``seed``) and `arguments`, every argument of the command line or call);
+    the handover's, the carry's and the sweeps' reports are all written here. Returns the path."""
+    out = dict(report)
+    out["stamp"] = stamp(seed=report.get("seed") if seed is None else seed, arguments=arguments)
+
     def write(tmp):
         with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(_jsonable(report), f, indent=1)
+            json.dump(_jsonable(out), f, indent=1)
 
     return _atomic_write(path, ".json", write)
+
+
+def save_figures(figs: dict, out_dir, fmt: str = "png", dpi: int = 90) -> List[str]:
+    """Saves figures {name.png: Figure} into out_dir as `fmt` (png, svg or pdf: the name's suffix replaced),
+    closing each; returns the paths."""
+    import matplotlib.pyplot as plt  # matplotlib loads only to draw
+
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"fmt must be one of {', '.join(FIGURE_FORMATS)}, got {fmt!r}")
+    os.makedirs(out_dir, exist_ok=True)
+    paths = []
+    for name, fig in figs.items():
+        p = os.path.join(out_dir, os.path.splitext(name)[0] + "." + fmt)
+        fig.savefig(p, dpi=dpi, format=fmt)
+        plt.close(fig)
+        paths.append(p)
+    return paths
 
 
 def step_markers(report: dict) -> List[tuple]:
@@ -128,16 +156,7 @@ def insertion_figure(result: TaskResult):
     return anim.fig
 
 
-def plot_report(result: TaskResult, out_dir) -> List[str]:
-    """The plots of a run into out_dir (:func:`report_figures`, as PNG). Returns the paths."""
-    import matplotlib.pyplot as plt  # matplotlib loads only to draw
-
-    os.makedirs(out_dir, exist_ok=True)
-    paths = []
-    for name, fig in report_figures(result).items():
-        p = os.path.join(out_dir, name)
-        fig.savefig(p, dpi=90)
-        plt.close(fig)
-        paths.append(p)
-    return paths
+def plot_report(result: TaskResult, out_dir, fmt: str = "png") -> List[str]:
+    """The plots of a run into out_dir (:func:`report_figures`) as `fmt` (png, svg or pdf). Returns the paths."""
+    return save_figures(report_figures(result), out_dir, fmt)
 
