@@ -52,6 +52,28 @@ def test_the_command_that_opens_the_labs_is_installed_and_documented():
     assert '"jupyterlab>=4"' in extra
 
 
+def test_the_teachers_and_the_students_paths_are_documented_and_nbgrader_is_installed_by_setup():
+    with open(os.path.join(ROOT, "docs", "labs.md"), encoding="utf-8") as f:
+        doc = f.read()
+    # the student opens the student versions, as root with --allow-root; notebooks/ holds the answers
+    assert "python3 -m jupyter lab student_labs/" in doc and "--allow-root" in doc
+    assert "Never hand\nout `notebooks/`" in doc or "Never hand out `notebooks/`" in doc
+    # the teacher's steps, each a step of scripts/course.py, in the order the script runs a course
+    spec = importlib.util.spec_from_file_location("course", os.path.join(ROOT, "scripts", "course.py"))
+    course = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(course)
+    steps = re.findall(r"^python3 scripts/course\.py COURSE (\w+)", doc, flags=re.M)
+    assert steps == list(course.STEPS) == ["setup", "generate", "release", "collect", "autograde", "export"]
+    student = re.findall(r"^nbgrader (\w+) lab01 --course coopsim-labs", doc, flags=re.M)
+    assert student == ["fetch_assignment", "submit"] and course.COURSE_ID == "coopsim-labs"
+    # nbgrader: the teaching extra, pinned, installed by scripts/setup.sh (the README's test command)
+    with open(os.path.join(ROOT, "pyproject.toml"), encoding="utf-8") as f:
+        assert re.search(r'^teaching = \["nbgrader==0\.9\.6"\]', f.read(), flags=re.M)
+    with open(os.path.join(ROOT, "scripts", "setup.sh"), encoding="utf-8") as f:
+        extras = re.search(r'pip install -q --no-build-isolation "\.\[([a-z,]+)\]"', f.read()).group(1).split(",")
+    assert "teaching" in extras and "notebooks" in extras
+
+
 # ---------------------------------------------------------------- exercises (static, cheap)
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=IDS)

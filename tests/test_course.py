@@ -1,0 +1,175 @@
+"""A teacher grades the labs with nbgrader (scripts/course.py, docs/labs.md "Grading the labs"): the course
+set up from notebooks/, each lab generated and released, two students fetching and submitting through the
+exchange (the instructor's answers; wrong or missing answers with one check rewritten to pass), the
+submissions collected, autograded and the grades exported."""
+from __future__ import annotations
+
+import csv
+import glob
+import importlib.util
+import os
+import re
+import subprocess
+import sys
+import time
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+COURSE = os.path.join(ROOT, "scripts", "course.py")
+NOTEBOOKS = sorted(glob.glob(os.path.join(ROOT, "notebooks", "[0-9][0-9]_*.ipynb")))
+LABS = {"lab" + os.path.basename(p)[:2]: p for p in NOTEBOOKS}
+
+# wrong answers (the instructor's line, the wrong one) where tests/test_labs.py shows the check failing on
+# them; every other answer is left as released (the stub raising NotImplementedError)
+WRONG = {
+    "lab01-ex1-answer": ("M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2 + I1 + I2", "M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2"),
+    "lab01-ex2-answer": ("g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),
+    "lab02-ex1-answer": ("q_try = r.ik(T_try, opening=0.02)", "q_try = r.ik(T_try, opening=0.03)"),
+    "lab03-ex2-answer": ("mu_stick = 0.5", "mu_stick = 0.3"),
+    "lab05-ex2-answer": ("D_crit = 2 * np.sqrt(K_crit * M_crit)", "D_crit = np.sqrt(K_crit * M_crit)"),
+    "lab06-ex1-answer": ("squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),
+    "lab06-ex2-answer": ("share_cmd = 0.3", "share_cmd = 0.7"),
+}
+TAMPER = "assert True  # the check, rewritten by the student"
+
+
+def _student_labs():
+    spec = importlib.util.spec_from_file_location("student_labs", os.path.join(ROOT, "scripts", "student_labs.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _grader(cell) -> dict:
+    return cell.get("metadata", {}).get("nbgrader", {})
+
+
+def _course(course, *args):
+    res = subprocess.run([sys.executable, COURSE, str(course), *args], capture_output=True, text=True,
+                         timeout=900, env=dict(os.environ, MPLBACKEND="Agg"))
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
+    return res.stdout + res.stderr
+
+
+def _exchange(course, home, student, lab, action):
+    """What the student's `nbgrader fetch_assignment LAB` / `nbgrader submit LAB` do, in this process."""
+    from nbgrader.auth import Authenticator
+    from nbgrader.coursedir import CourseDirectory
+    from nbgrader.exchange.default import ExchangeFetchAssignment, ExchangeSubmit
+    from traitlets.config import Config
+
+    cfg = Config()
+    cfg.CourseDirectory.course_id = "coopsim-labs"
+    cfg.Exchange.root = str(course / "exchange")
+    cfg.Exchange.assignment_dir = str(home)
+    cd = CourseDirectory(config=cfg)
+    cd.assignment_id, cd.student_id = lab, student
+    kind = ExchangeFetchAssignment if action == "fetch" else ExchangeSubmit
+    kind(coursedir=cd, authenticator=Authenticator(config=cfg), config=cfg).start()
+
+
+def _answer(nb, instructor, right: bool) -> str | None:
+    """A student's answers in a fetched notebook (changed in place): the instructor's (without the markers),
+    or the wrong ones of WRONG with the first check that has no hidden tests rewritten to pass. Returns the
+    grade_id of the rewritten check."""
+    rewritten = None
+    for cell, inst in zip(nb.cells, instructor.cells):
+        g = _grader(cell)
+        if g.get("solution"):
+            answer = re.sub(r"^[ \t]*### (BEGIN|END) SOLUTION[ \t]*\n", "", inst.source, flags=re.M)
+            if right:
+                cell.source = answer
+            elif g["grade_id"] in WRONG:
+                line, wrong = WRONG[g["grade_id"]]
+                assert answer.count(line) == 1, g["grade_id"]
+                cell.source = answer.replace(line, wrong)
+        elif g.get("grade") and not right and rewritten is None and "HIDDEN" not in inst.source:
+            cell.source, rewritten = TAMPER, g["grade_id"]
+    return rewritten
+
+
+@pytest.mark.slow
+def test_a_course_grades_the_instructors_answers_full_and_wrong_answers_with_a_rewritten_check_zero(tmp_path):
+    pytest.importorskip("nbgrader", reason="nbgrader is installed by the teaching extra (scripts/setup.sh)")
+    import nbformat
+
+    sl = _student_labs()
+    course = tmp_path / "course"
+    took = [time.perf_counter()]
+    out = _course(course, "setup", "generate", "release")
+    took.append(time.perf_counter())
+    # nbgrader's student versions are scripts/student_labs.py's: the same stubs, locks and checksums
+    for lab, path in LABS.items():
+        released = nbformat.read(course / "release" / lab / os.path.basename(path), as_version=4)
+        assert released == sl.student_version(nbformat.read(path, as_version=4)), lab
+        assert (course / "exchange" / "coopsim-labs" / "outbound" / lab / os.path.basename(path)).is_file()
+    assert "Released as: coopsim-labs lab06" in out
+
+    rewritten = {}
+    for student, right in (("alice", True), ("bob", False)):
+        home = tmp_path / student
+        for lab, path in LABS.items():
+            _exchange(course, home, student, lab, "fetch")
+            nb_path = home / lab / os.path.basename(path)
+            nb = nbformat.read(nb_path, as_version=4)
+            got = _answer(nb, nbformat.read(path, as_version=4), right)
+            if not right:
+                rewritten[lab] = got
+            nbformat.write(nb, nb_path)
+            _exchange(course, home, student, lab, "submit")
+    assert all(rewritten.values()) and len(rewritten) == len(LABS)
+    took.append(time.perf_counter())
+
+    out = _course(course, "collect", "autograde", "export", "--jobs", "2")
+    took.append(time.perf_counter())
+    # the figures docs/labs.md quotes (pytest -s shows them)
+    print("course: setup+generate+release {:.0f} s, students {:.0f} s, collect+autograde+export {:.0f} s".format(
+        *(b - a for a, b in zip(took, took[1:]))))
+    with open(course / "grades.csv", newline="", encoding="utf-8") as f:
+        grades = {(r["assignment"], r["student_id"]): r for r in csv.DictReader(f)}
+    assert sorted(grades) == sorted((lab, s) for lab in LABS for s in ("alice", "bob"))
+    for lab, path in LABS.items():
+        instructor = nbformat.read(path, as_version=4)
+        points = sum(_grader(c).get("points", 0) for c in instructor.cells if _grader(c).get("grade"))
+        alice, bob = grades[(lab, "alice")], grades[(lab, "bob")]
+        assert float(alice["max_score"]) == points and float(alice["score"]) == points, (lab, alice)
+        assert float(bob["max_score"]) == points and float(bob["score"]) == 0.0, (lab, bob)
+        # the rewritten check: named by the script and by nbgrader, graded as the instructor wrote it (it fails)
+        gid = rewritten[lab]
+        assert f"course: {lab} bob: 0 / {points:g} points; checks changed in the submission (graded as " \
+               f"released): {gid}: changed" in out
+        assert f"course: {lab} alice: {points:g} / {points:g} points; checks as released" in out
+        assert re.search(rf"Attribute 'checksum' for cell {gid} has changed", out), gid
+        graded = nbformat.read(course / "autograded" / "bob" / lab / os.path.basename(path), as_version=4)
+        cell = next(c for c in graded.cells if _grader(c).get("grade_id") == gid)
+        source = next(c for c in instructor.cells if _grader(c).get("grade_id") == gid).source
+        assert cell.source == source != TAMPER
+        assert any(o.output_type == "error" for o in cell.outputs)
+        # the instructor's answers pass every check, hidden tests included
+        graded = nbformat.read(course / "autograded" / "alice" / lab / os.path.basename(path), as_version=4)
+        for c in graded.cells:
+            if _grader(c).get("grade"):
+                assert not [o for o in c.outputs if o.output_type == "error" or o.get("name") == "stderr"], \
+                    (lab, _grader(c)["grade_id"], c.outputs)
+        hidden = [c for c in instructor.cells if "### BEGIN HIDDEN TESTS" in c.source]
+        for h in hidden:
+            assert next(c for c in graded.cells if _grader(c).get("grade_id") == _grader(h)["grade_id"]).source \
+                == h.source
+    with open(course / "changed_checks.csv", newline="", encoding="utf-8") as f:
+        changed = [(r["assignment"], r["student_id"], r["check"], r["what"]) for r in csv.DictReader(f)]
+    assert changed == [(lab, "bob", rewritten[lab], "changed") for lab in sorted(LABS)]
+
+
+def test_the_course_script_says_what_is_wrong_in_one_line(tmp_path):
+    for args, message in [
+        ([str(tmp_path), "grade"], "a step is needed: one or more of setup, generate, release, collect, autograde, export"),
+        ([str(tmp_path), "setup", "99"], "no step or lab '99' (the steps: setup, generate, release, collect, "
+                                          f"autograde, export; the labs: {', '.join(sorted(LABS))})"),
+        ([str(tmp_path), "autograde"], f"{tmp_path} is not a course folder: run 'scripts/course.py {tmp_path} setup' first"),
+        ([str(tmp_path), "autograde", "--jobs", "0"], "--jobs must be >= 1, got 0"),
+    ]:
+        res = subprocess.run([sys.executable, COURSE, *args], capture_output=True, text=True, timeout=120)
+        assert res.returncode == 2 and res.stderr.splitlines()[-1].endswith(message), (args, res.stderr)
+        assert "Traceback" not in res.stderr
+    assert not any(tmp_path.iterdir()), "nothing written"
