@@ -21,8 +21,9 @@ the start stands (:func:`~.planning.random_start`).
 
 The modules: :mod:`.constants` (the values, checked in tests/test_carry.py), :mod:`.scene` (the World),
 :mod:`.planning`, :mod:`.controllers`, :mod:`.disturbances`, :mod:`.sequence` (the run and its rules),
-:mod:`.scoring`, :mod:`.report` (text, JSON and figures), :mod:`.runs` (sweeps: :func:`sweep_table` over
-controllers x disturbances x seeds through :func:`coopsim.sweep`) and :mod:`.cli`.
+:mod:`.scoring`, :mod:`.report` (text, JSON, series and figures), :mod:`.runs` (sweeps: :func:`sweep_table`
+over controllers x disturbances x seeds through :func:`coopsim.sweep`), :mod:`.statistics` (a sweep's means,
+deviations and intervals: :func:`sweep_statistics`) and :mod:`.cli`.
 
 Command line: ``python -m coopsim.tasks.carry --out out/carry`` (``--help`` for the options).
 """
@@ -34,7 +35,9 @@ from .disturbances import DISTURBANCES, Disturbances  # noqa: F401
 from .planning import STEPS, BarPath, Plan, make_plan, random_start  # noqa: F401
 from .report import report_figures, summary, write_outputs  # noqa: F401
 from .runs import CarryRun, sweep, sweep_table
+from .statistics import sweep_statistics  # noqa: F401
 from .sequence import CarryError, CarryResult, run
 
 __all__ = ["CONTROLLERS", "DISTURBANCES", "STEPS", "CarryError", "CarryResult", "CarryRun", "Cooperative",
-           "Disturbances", "Phased", "make_plan", "register_controller", "run", "sweep", "sweep_table"]
+           "Disturbances", "Phased", "make_plan", "register_controller", "run", "sweep", "sweep_statistics",
+           "sweep_table"]

@@ -11,6 +11,8 @@ import math
 import os
 import time
 
+import numpy as np
+
 from ...view.animation import MAX_SPEED
 from ..handover.cli import check_out_folder
 from .controllers import CONTROLLERS, controller_factory
@@ -19,6 +21,7 @@ from .report import (FIGURE_FORMATS, SERIES_FORMATS, parquet_missing, summary, s
                      write_report, write_table)
 from .runs import sweep_table
 from .sequence import check_controllers, run
+from .statistics import format_statistics, sweep_statistics
 
 
 def parser() -> argparse.ArgumentParser:
@@ -43,8 +46,11 @@ def parser() -> argparse.ArgumentParser:
                          "which it excludes)")
     ap.add_argument("--sweep", type=int, default=0, metavar="N",
                     help="also sweep seeds 0 .. N-1 for every controller of --sweep-controllers and disturbance of "
-                         "--sweep-disturbances (threads: --threads), print the table's means and write sweep.csv and "
-                         "sweep.json")
+                         "--sweep-disturbances (threads: --threads), print each score's mean, standard deviation and "
+                         "95 %% confidence interval and the success rate with its Wilson interval, and write "
+                         "sweep.csv, sweep_statistics.csv and sweep.json")
+    ap.add_argument("--sweep-only", action="store_true",
+                    help="with --sweep: only the sweep, not the run of --controller first (no figures, no video)")
     ap.add_argument("--sweep-controllers", default=None, metavar="A,B",
                     help="the sweep's controllers, joined by commas (default: --controller)")
     ap.add_argument("--sweep-disturbances", default=None, metavar="A,B",
@@ -88,6 +94,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         ap.error(f"argument --controller: {e}")
     if args.sweep < 0:
         ap.error(f"argument --sweep: must be >= 0, got {args.sweep}")
+    if args.sweep_only and not args.sweep:
+        ap.error("argument --sweep-only: give --sweep N (the seeds) too")
     if args.threads < 1:
         ap.error(f"argument --threads: must be >= 1, got {args.threads}")
     args.sweep_controllers = _list(args.sweep_controllers) or [args.controller]
@@ -154,54 +162,73 @@ def run_options(args, controller: str) -> dict:
     return {**args.controller_options, **args.options_by_controller.get(controller, {})}
 
 
-#: the sweep table's columns printed, as their means per controller and disturbance
-SWEEP_SUMMARY = ("success", "bar_error_rms_mm", "bar_error_max_mm", "squeeze_rms_N", "internal_force_max_N",
+#: the scores whose statistics the command line prints per controller and disturbance (sweep_statistics.csv
+#: has all of :data:`~.statistics.SCORES`)
+SWEEP_SUMMARY = ("bar_error_rms_mm", "bar_error_max_mm", "squeeze_rms_N", "internal_force_max_N",
                  "load_share_deviation", "relative_position_max_mm", "wall_time")
 
 
 def main(argv=None) -> int:
-    """``python -m coopsim.tasks.carry``: runs the carry, writes its outputs, prints the summary; exit 0 on
-    success, 1 on a failed carry."""
+    """``python -m coopsim.tasks.carry``: runs the carry, writes its outputs, prints the summary, and with
+    --sweep the sweep's statistics; exit 0 on success, 1 on a failed carry (with --sweep-only: a failed run of
+    the sweep)."""
     args = parse_args(argv)
-    res = run(seed=args.seed, disturbance=args.disturbance, controllers=args.controller,
-              controller_options=run_options(args, args.controller), mass_factor=args.mass_factor)
-    rep, wall = res.report, res.timing["run"]
-    rep["command_line"] = dict(seed=args.seed, disturbance=args.disturbance, controller=args.controller,
-                               controller_options=args.controller_options,
-                               options_by_controller=args.options_by_controller, mass_factor=args.mass_factor,
-                               sweep=args.sweep, sweep_controllers=args.sweep_controllers,
-                               sweep_disturbances=args.sweep_disturbances, threads=args.threads, video=args.video,
-                               speed=args.speed, out=args.out, format=args.format, series=args.series)
-    print(summary(rep))
-    print(f"simulated {rep['simulated_time']:.2f} s in {wall:.3f} s of wall time: "
-          f"{rep['simulated_time'] / wall:.0f}x real time (scoring {res.timing['scoring']:.3f} s more)")
-    paths = write_outputs(res, args.out, video=args.video, speed=args.speed, fmt=args.format, series=args.series,
-                          arguments=vars(args))
+    paths, ok = [], True
+    if not args.sweep_only:
+        res = run(seed=args.seed, disturbance=args.disturbance, controllers=args.controller,
+                  controller_options=run_options(args, args.controller), mass_factor=args.mass_factor)
+        rep, wall = res.report, res.timing["run"]
+        rep["command_line"] = dict(seed=args.seed, disturbance=args.disturbance, controller=args.controller,
+                                   controller_options=args.controller_options,
+                                   options_by_controller=args.options_by_controller, mass_factor=args.mass_factor,
+                                   sweep=args.sweep, sweep_controllers=args.sweep_controllers,
+                                   sweep_disturbances=args.sweep_disturbances, threads=args.threads,
+                                   video=args.video, speed=args.speed, out=args.out, format=args.format,
+                                   series=args.series)
+        print(summary(rep))
+        print(f"simulated {rep['simulated_time']:.2f} s in {wall:.3f} s of wall time: "
+              f"{rep['simulated_time'] / wall:.0f}x real time (scoring {res.timing['scoring']:.3f} s more)")
+        paths += write_outputs(res, args.out, video=args.video, speed=args.speed, fmt=args.format,
+                               series=args.series, arguments=vars(args))
+        ok = bool(rep["success"])
     if args.sweep:
-        t1 = time.perf_counter()
-        table = sweep_table(args.sweep_controllers, args.sweep_disturbances, range(args.sweep), threads=args.threads,
-                            mass_factor=args.mass_factor, controller_options=args.controller_options or None,
-                            options_by_controller={c: o for c, o in args.options_by_controller.items()
-                                                   if c in args.sweep_controllers},
-                            keep_logs=args.series is not None)
-        n = len(table)
-        print(f"sweep of {n} runs ({len(args.sweep_controllers)} controllers x {len(args.sweep_disturbances)} "
-              f"disturbances x {args.sweep} seeds) on {args.threads} threads in {time.perf_counter() - t1:.1f} s: "
-              f"success rate {table.success.astype(bool).mean() * 100:.0f} %; means:")
-        means = table.groupby(["controller", "disturbance"], sort=False)[list(SWEEP_SUMMARY)].mean()
-        print(means.to_string(float_format=lambda x: f"{x:.3f}"))
-        for r in table[~table.success.astype(bool)].itertuples():
-            print(f"  {r.controller}, {r.disturbance}, seed {r.seed}: FAILED in {r.step}: {r.reason or r.error}")
-        if args.series is not None:
-            paths.append(write_table(sweep_series_table(table), os.path.join(args.out, "sweep_series." + args.series),
-                                     args.series))
-            table = table.drop(columns="log")
-        p = os.path.join(args.out, "sweep.csv")
-        table.to_csv(p)
-        paths.append(p)
-        records = table.to_dict(orient="records")
-        paths.append(write_report(dict(success_rate=float(table.success.astype(bool).mean()), runs=records),
-                                  os.path.join(args.out, "sweep.json"), arguments=vars(args),
-                                  seed=list(range(args.sweep))))
+        paths += _sweep(args)
+        ok = ok and (not args.sweep_only or _sweep.all_succeeded)
     print("wrote " + ", ".join(paths))
-    return 0 if rep["success"] else 1
+    return 0 if ok else 1
+
+
+def _sweep(args) -> list:
+    """The sweep of the command line: runs it, prints its statistics and failures, writes sweep.csv,
+    sweep_statistics.csv, sweep.json and with --series sweep_series.*; returns the paths."""
+    t1 = time.perf_counter()
+    table = sweep_table(args.sweep_controllers, args.sweep_disturbances, range(args.sweep), threads=args.threads,
+                        mass_factor=args.mass_factor, controller_options=args.controller_options or None,
+                        options_by_controller={c: o for c, o in args.options_by_controller.items()
+                                               if c in args.sweep_controllers},
+                        keep_logs=args.series is not None)
+    success = np.array([v is True or (isinstance(v, (bool, np.bool_)) and bool(v)) for v in table.success])
+    _sweep.all_succeeded = bool(success.all())
+    print(f"sweep of {len(table)} runs ({len(args.sweep_controllers)} controllers x {len(args.sweep_disturbances)} "
+          f"disturbances x {args.sweep} seeds) on {args.threads} threads in {time.perf_counter() - t1:.1f} s: "
+          f"success rate {success.mean() * 100:.0f} %; per controller and disturbance, mean +- standard deviation "
+          f"and 95 % intervals (all scores in sweep_statistics.csv):")
+    stats = sweep_statistics(table)
+    print(format_statistics(stats[stats.quantity.isin(("success_rate",) + SWEEP_SUMMARY)]))
+    for r in table[~success].itertuples():
+        print(f"  {r.controller}, {r.disturbance}, seed {r.seed}: FAILED in {r.step}: {r.reason or r.error}")
+    paths = []
+    if args.series is not None:
+        paths.append(write_table(sweep_series_table(table), os.path.join(args.out, "sweep_series." + args.series),
+                                 args.series))
+        table = table.drop(columns="log")
+    p = os.path.join(args.out, "sweep.csv")
+    table.to_csv(p)
+    paths.append(p)
+    p = os.path.join(args.out, "sweep_statistics.csv")
+    stats.to_csv(p, index=False, float_format="%.17g")
+    paths.append(p)
+    paths.append(write_report(dict(success_rate=float(success.mean()), statistics=stats.to_dict(orient="records"),
+                                   runs=table.to_dict(orient="records")),
+                              os.path.join(args.out, "sweep.json"), arguments=vars(args), seed=list(range(args.sweep))))
+    return paths
