@@ -187,3 +187,126 @@ void ComputedTorque::compute(const ControlInput& in, double* tau) {
 }
 
 }  // namespace coopsim
+
+// ---- linearisations (Controller::linearize; linearize.hpp closes the loop with them) ----
+
+namespace coopsim {
+
+namespace {
+
+// zero the rows of a saturated output (its derivative is zero past the limit)
+void saturated_rows(const VecN& tau_max, ControllerJacobians& J) {
+  for (int i = 0; i < J.tau.size(); ++i) {
+    if (std::abs(J.tau[i]) <= tau_max[i]) continue;
+    J.tau[i] = J.tau[i] > 0 ? tau_max[i] : -tau_max[i];
+    J.dtau_dq.row(i).setZero();
+    J.dtau_dqd.row(i).setZero();
+    if (J.dtau_dc.cols()) J.dtau_dc.row(i).setZero();
+  }
+}
+
+}  // namespace
+
+bool PID::linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const {
+  check(robot);
+  const int n = robot.dof();
+  const bool ran = n_ == n && !first_;
+  if (ran && std::abs(h_ - period) > 1e-12 * period)
+    throw std::invalid_argument("the PID ran with a period of " + std::to_string(h_) + " s, not the model's " +
+                                std::to_string(period) + " s");
+  const double h = period;
+  const VecN Kp = expand(kp_, n), Ki = expand(ki_, n), Kd = expand(kd_, n), tau_max = robot.tau_max();
+  const VecN Ilim = ilim_.size() ? expand(ilim_, n) : tau_max;
+  Eigen::VectorXd I = ran ? Eigen::VectorXd(integral_) : Eigen::VectorXd::Zero(n), v(n), qp(n);
+  for (int i = 0; i < n; ++i) {
+    v[i] = ran ? v_[i] : in.qd[i];
+    qp[i] = ran ? q_prev_[i] : in.q[i] - h * in.qd[i];
+  }
+  // G(q) and its derivative, of the model the run would use
+  const std::shared_ptr<const Robot> gm = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  VecN g = VecN::Zero(n);
+  MatN dg = MatN::Zero(n, n);
+  if (gm) {
+    Workspace ws;
+    const VecN zero = VecN::Zero(n);
+    MatN unused_dqd, unused_M;
+    gm->gravity(in.q, ws, g);
+    gm->inverse_dynamics_derivatives(in.q, zero.data(), zero.data(), {}, ws, dg, unused_dqd, unused_M);
+  }
+  const int m = 3 * n;
+  J.c.resize(m);
+  J.c << I, v, qp;
+  J.states.clear();
+  for (const char* part : {"integral", "velocity_estimate", "q_previous"})
+    for (int i = 0; i < n; ++i) J.states.push_back(std::string("pid.") + part + std::to_string(i));
+  J.tau.resize(n);
+  J.c_next.resize(m);
+  J.dtau_dq = dg;
+  J.dtau_dqd = Eigen::MatrixXd::Zero(n, n);
+  J.dtau_dc = Eigen::MatrixXd::Zero(n, m);
+  J.dc_dq = Eigen::MatrixXd::Zero(m, n);
+  J.dc_dqd = Eigen::MatrixXd::Zero(m, n);
+  J.dc_dc = Eigen::MatrixXd::Zero(m, m);
+  const double a = tf_ / (tf_ + h);
+  for (int i = 0; i < n; ++i) {
+    const double vn = a * v[i] + (1.0 - a) * (in.q[i] - qp[i]) / h;  // v+ (compute's filter)
+    const double e = in.q_ref[i] - in.q[i];
+    const double u0 = Kp[i] * e + Kd[i] * (in.qd_ref[i] - vn) + g[i];
+    // the integral: integrating (dI+/dI = 1, dI+/dq = -h), held by the anti-windup (1, 0), or at its clamp (0, 0)
+    double In = I[i] + e * h, dI_dI = 1.0, dI_dq = -h;
+    const double u = u0 + Ki[i] * In;
+    if ((u > tau_max[i] && e > 0) || (u < -tau_max[i] && e < 0)) {
+      In = I[i];
+      dI_dq = 0.0;
+    }
+    if (Ki[i] > 0 && std::abs(In) > Ilim[i] / Ki[i]) {
+      In = In > 0 ? Ilim[i] / Ki[i] : -Ilim[i] / Ki[i];
+      dI_dI = dI_dq = 0.0;
+    }
+    J.tau[i] = u0 + Ki[i] * In;
+    J.c_next[i] = In;
+    J.c_next[n + i] = vn;
+    J.c_next[2 * n + i] = in.q[i];
+    const double dv_dq = (1.0 - a) / h;
+    J.dtau_dq(i, i) += -Kp[i] - Kd[i] * dv_dq + Ki[i] * dI_dq;
+    J.dtau_dc(i, i) = Ki[i] * dI_dI;           // integral
+    J.dtau_dc(i, n + i) = -Kd[i] * a;          // velocity estimate
+    J.dtau_dc(i, 2 * n + i) = Kd[i] * dv_dq;   // last q
+    J.dc_dq(i, i) = dI_dq;
+    J.dc_dq(n + i, i) = dv_dq;
+    J.dc_dq(2 * n + i, i) = 1.0;
+    J.dc_dc(i, i) = dI_dI;
+    J.dc_dc(n + i, n + i) = a;
+    J.dc_dc(n + i, 2 * n + i) = -dv_dq;
+  }
+  saturated_rows(tau_max, J);
+  return true;
+}
+
+bool ComputedTorque::linearize(const Robot& robot, double, const ControlInput& in, ControllerJacobians& J) const {
+  check(robot);
+  const int n = robot.dof();
+  const VecN Kp = expand(kp_, n), Kd = expand(kd_, n);
+  const Robot& model = model_ ? *model_ : robot;
+  VecN v(n);
+  for (int i = 0; i < n; ++i) v[i] = in.qdd_ref[i] + Kd[i] * (in.qd_ref[i] - in.qd[i]) + Kp[i] * (in.q_ref[i] - in.q[i]);
+  Workspace ws;
+  MatN M, dq, dqd;
+  VecN tau;
+  model.inverse_dynamics_derivatives(in.q, in.qd, v.data(), {}, ws, dq, dqd, M);
+  model.rnea(in.q, in.qd, v.data(), ws, tau, 1.0, true);
+  J.tau = tau;
+  J.dtau_dq = dq - M * Kp.asDiagonal();
+  J.dtau_dqd = dqd - M * Kd.asDiagonal();
+  J.c.resize(0);
+  J.c_next.resize(0);
+  J.states.clear();
+  J.dtau_dc = Eigen::MatrixXd::Zero(n, 0);
+  J.dc_dq = Eigen::MatrixXd::Zero(0, n);
+  J.dc_dqd = Eigen::MatrixXd::Zero(0, n);
+  J.dc_dc = Eigen::MatrixXd::Zero(0, 0);
+  saturated_rows(robot.tau_max(), J);
+  return true;
+}
+
+}  // namespace coopsim

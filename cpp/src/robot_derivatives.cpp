@@ -258,12 +258,14 @@ void Robot::inverse_dynamics_derivatives(const double* q, const double* qd, cons
 
 void Robot::forward_dynamics_derivatives(const double* q, const double* qd, const double* tau,
                                          const std::vector<ExternalWrench>& wrenches, Workspace& ws,
-                                         MatN& dqdd_dq, MatN& dqdd_dqd, MatN& Minv, VecN* qdd_out) const {
+                                         MatN& dqdd_dq, MatN& dqdd_dqd, MatN& Minv, VecN* qdd_out,
+                                         const double* tau_ext) const {
   kinematics(q, ws);
   VecN te, qdd;
-  const double* tep = nullptr;
+  const double* tep = tau_ext;
   if (!wrenches.empty()) {
     external_torques(wrenches, ws, te);
+    if (tau_ext) te += Eigen::Map<const VecN>(tau_ext, n_);
     tep = te.data();
   }
   // one pass for M, the bias and qdd = M^-1 (tau + tau_ext - bias), the derivatives at that qdd

@@ -11,6 +11,7 @@ from ._core import (
     CubicTrajectory,
     IKError,
     InertiaWarning,
+    LinearModel,
     LinkBox,
     Reference,
     Robot,
@@ -28,6 +29,7 @@ from ._core import (
     forward_dynamics_batch,
     forward_dynamics_derivatives_batch,
     integrate,
+    linearize,
     rk4_step,
 )
 from . import grasp, robots
@@ -77,6 +79,7 @@ __all__ = [
     "CubicTrajectory",
     "IKError",
     "InertiaWarning",
+    "LinearModel",
     "LinkBox",
     "Reference",
     "Robot",
@@ -98,6 +101,7 @@ __all__ = [
     "forward_dynamics_batch",
     "forward_dynamics_derivatives_batch",
     "integrate",
+    "linearize",
     "rk4_step",
     "grasp",
     "robots",

@@ -35,6 +35,17 @@ struct ControlInput {
   const Workspace* frames = nullptr;
 };
 
+// A controller's linearisation at one update (Controller::linearize). With c its internal state (m values),
+// the update gives tau = g(q, qd, c) and leaves c+ = h(q, qd, c); a saturated output's row is zero.
+struct ControllerJacobians {
+  Eigen::VectorXd tau;                         // (n,) the output at this update (N m or N)
+  Eigen::VectorXd c;                           // (m,) the internal state before the update
+  Eigen::VectorXd c_next;                      // (m,) and after it
+  Eigen::MatrixXd dtau_dq, dtau_dqd, dtau_dc;  // (n, n), (n, n), (n, m)
+  Eigen::MatrixXd dc_dq, dc_dqd, dc_dc;        // (m, n), (m, n), (m, m)
+  std::vector<std::string> states;  // (m,) the names of c's entries
+};
+
 class Controller {
  public:
   virtual ~Controller() = default;
@@ -51,6 +62,12 @@ class Controller {
   // A copy with its configuration and state, for another run of the same model
   // (SimulationModel); null for a controller that cannot be copied (the default).
   virtual std::shared_ptr<Controller> clone() const { return nullptr; }
+  // Fills J at the update `in` for `robot` with the period (s) between updates, without changing the
+  // controller: at its state when it has run (reset for this robot), else at a new run's. False for a
+  // controller that does not give its linearisation (the default).
+  virtual bool linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const {
+    return false;
+  }
 };
 
 // Controller::compute for numbers given as tables: q, qd, q_ref, qd_ref,
@@ -99,6 +116,10 @@ kp (N m/rad), ki (N m/(rad s)), kd (N m s/rad): scalars (every joint) or
   void check(const Robot& robot) const override;
   void reset(const Robot& robot, double period) override;
   void compute(const ControlInput& in, double* tau) override;
+  // c = [integral (n); velocity estimate (n); last measured q (n)]: the update's exact Jacobians (the
+  // backward difference and its filter, the integral's anti-windup branch, G(q)'s derivative); a new run's
+  // state is the integral 0, the estimate qd and the last q = q - period qd (a steady motion).
+  bool linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const override;
 
   const Eigen::VectorXd& kp() const { return kp_; }
   const Eigen::VectorXd& ki() const { return ki_; }
@@ -145,6 +166,8 @@ damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.)do
   void check(const Robot& robot) const override;
   void reset(const Robot& robot, double period) override;
   void compute(const ControlInput& in, double* tau) override;
+  // No internal state: dtau/dx = dID/dx - M [kp, kd] (the model's inverse dynamics' derivatives).
+  bool linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const override;
 
   const Eigen::VectorXd& kp() const { return kp_; }
   const Eigen::VectorXd& kd() const { return kd_; }

@@ -369,10 +369,12 @@ to the base frame's origin.)doc";
   // (n, n), [j, k] = dqdd_j / dq_k (1/s^2, 1/s, 1/(kg m^2) ...), of exactly what forward_dynamics
   // computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,
   // the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).
-  // ValueError naming q where M is not positive definite, as forward_dynamics.
+  // ValueError naming q where M is not positive definite, as forward_dynamics. tau_ext (n, may be null):
+  // joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext.
   void forward_dynamics_derivatives(const double* q, const double* qd, const double* tau,
                                     const std::vector<ExternalWrench>& wrenches, Workspace& ws, MatN& dqdd_dq,
-                                    MatN& dqdd_dqd, MatN& Minv, VecN* qdd = nullptr) const;
+                                    MatN& dqdd_dqd, MatN& Minv, VecN* qdd = nullptr,
+                                    const double* tau_ext = nullptr) const;
 
 
  private:
