@@ -1,7 +1,7 @@
 """A teacher grades the labs with nbgrader (scripts/course.py, docs/labs.md "Grading the labs"): the course
 set up from notebooks/, each lab generated and released, two students fetching and submitting through the
-exchange (the instructor's answers; wrong or missing answers with one check rewritten to pass), the
-submissions collected, autograded and the grades exported."""
+exchange (the instructor's answers; a wrong answer to every exercise with one check per lab rewritten to
+pass), the submissions collected, autograded and the grades exported."""
 from __future__ import annotations
 
 import csv
@@ -20,16 +20,37 @@ COURSE = os.path.join(ROOT, "scripts", "course.py")
 NOTEBOOKS = sorted(glob.glob(os.path.join(ROOT, "notebooks", "[0-9][0-9]_*.ipynb")))
 LABS = {"lab" + os.path.basename(p)[:2]: p for p in NOTEBOOKS}
 
-# wrong answers (the instructor's line, the wrong one) where tests/test_labs.py shows the check failing on
-# them; every other answer is left as released (the stub raising NotImplementedError)
+# a wrong answer to every exercise: (the instructor's text, the wrong text in its place); each check then
+# fails with an AssertionError naming what it expected and what it found
 WRONG = {
-    "lab01-ex1-answer": ("M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2 + I1 + I2", "M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2"),
-    "lab01-ex2-answer": ("g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),
-    "lab02-ex1-answer": ("q_try = r.ik(T_try, opening=0.02)", "q_try = r.ik(T_try, opening=0.03)"),
-    "lab03-ex2-answer": ("mu_stick = 0.5", "mu_stick = 0.3"),
+    "lab01-ex1-answer": (" + I1 + I2", ""),                                      # the links' own inertias forgotten
+    "lab01-ex2-answer": ("g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),     # still in the arm's plane
+    "lab01-ex3-answer": ("L1=0.40", "L1=0.35"),
+    "lab01-ex4-answer": ("energy_drift(2 * dt) / energy_drift(dt)", "energy_drift(dt) / energy_drift(2 * dt)"),
+    "lab01-ex5-answer": ('("revolute", "continuous", "prismatic")', '("revolute", "continuous")'),
+    "lab02-ex1-answer": ("opening=0.02", "opening=0.03"),
+    "lab02-ex2-answer": ("r2.ik_solutions(T2_try, opening=0.02)", "[]"),
+    "lab02-ex3-answer": ("cs.plan_cartesian(r, poses[::-1]", "cs.plan_cartesian(r, poses"),  # not reversed
+    "lab02-ex4-answer": ("try_sim.run(3.5)", "try_sim.run(1.0)"),
+    "lab02-ex5-answer": ("+ self.robot.gravity(q)[2]", "+ self.robot.gravity(q)[2]\n        tau[3] = 1e-3"),
+    "lab02-ex6-answer": (".idxmax()", ".idxmin()"),
+    "lab02-ex7-answer": ('output="metrics")]', 'output="metrics")][::-1]'),
+    "lab03-ex1-answer": ("rest = -sum(", "rest = sum("),                          # the bar's force on the floor
+    "lab03-ex2-answer": ("mu_stick = 0.5", "mu_stick = 0.3"),                     # below tan 20°
+    "lab03-ex3-answer": ('log_y.contacts["begin"].min()', "0.0"),
+    "lab03-ex4-answer": ("d3 = 0.05", "d3 = q_top[2]"),
+    "lab03-ex5-answer": ("mask.sum(axis=0)", "mask.any(axis=0).astype(int)"),
+    "lab03-ex6-answer": ("if not getattr(c, k)", "if getattr(c, k)"),
+    "lab04-ex1-answer": ("math.cos(yaw_deg * DEG), math.sin(yaw_deg * DEG)", "math.cos(yaw_deg), math.sin(yaw_deg)"),
+    "lab04-ex2-answer": ('r.log[0].q[int(np.searchsorted(r.log.t, c["failed_at"])), 2]', "r.log[0].q[0, 2]"),
+    "lab05-ex1-answer": ("-BAR_M * G", "BAR_M * G"),
     "lab05-ex2-answer": ("D_crit = 2 * np.sqrt(K_crit * M_crit)", "D_crit = np.sqrt(K_crit * M_crit)"),
-    "lab06-ex1-answer": ("squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),
-    "lab06-ex2-answer": ("share_cmd = 0.3", "share_cmd = 0.7"),
+    "lab05-ex3-answer": ("F_try + BAR_M * G", "F_try - BAR_M * G"),
+    "lab05-ex4-answer": ("self.D * s.error_rate + self.K * s.error", "self.K * s.error"),  # no damping
+    "lab06-ex1-answer": ("squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),              # a push, not a pull
+    "lab06-ex2-answer": ("share_cmd = 0.3", "share_cmd = 0.7"),                   # SCARA #1's share
+    "lab06-ex3-answer": ("if p > 1.0)", "if p > 0.1)"),
+    "lab06-ex4-answer": ("part * self.mass * G", "0.0 * part * self.mass * G"),   # the weight forgotten
 }
 TAMPER = "assert True  # the check, rewritten by the student"
 
@@ -80,7 +101,7 @@ def _answer(nb, instructor, right: bool) -> str | None:
             answer = re.sub(r"^[ \t]*### (BEGIN|END) SOLUTION[ \t]*\n", "", inst.source, flags=re.M)
             if right:
                 cell.source = answer
-            elif g["grade_id"] in WRONG:
+            else:
                 line, wrong = WRONG[g["grade_id"]]
                 assert answer.count(line) == 1, g["grade_id"]
                 cell.source = answer.replace(line, wrong)
@@ -145,7 +166,12 @@ def test_a_course_grades_the_instructors_answers_full_and_wrong_answers_with_a_r
         cell = next(c for c in graded.cells if _grader(c).get("grade_id") == gid)
         source = next(c for c in instructor.cells if _grader(c).get("grade_id") == gid).source
         assert cell.source == source != TAMPER
-        assert any(o.output_type == "error" for o in cell.outputs)
+        # every check fails on its wrong answer with a message naming the value expected and the one found
+        for c in graded.cells:
+            if _grader(c).get("grade"):
+                errors = [o for o in c.outputs if o.output_type == "error"]
+                assert len(errors) == 1 and errors[0].ename == "AssertionError", (_grader(c)["grade_id"], c.outputs)
+                assert re.search(r"^[^:\n]+: expected .+, found .+", errors[0].evalue), errors[0].evalue
         # the instructor's answers pass every check, hidden tests included
         graded = nbformat.read(course / "autograded" / "alice" / lab / os.path.basename(path), as_version=4)
         for c in graded.cells:

@@ -309,6 +309,43 @@ def test_a_check_passes_on_the_answer_and_fails_on_a_wrong_one(name, grade_id, r
     nb.cells[k].source = nb.cells[k].source.replace(right, wrong)
     failed = _run_cells(nb, k + 1, tmp_path)
     assert failed is not None and failed[0] == k + 1 and failed[1]["ename"] == "AssertionError"
+    assert re.search(r": expected .+, found ", failed[1]["evalue"]), failed[1]["evalue"]  # says what it wanted
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=IDS)
+def test_every_assert_of_a_check_says_what_it_checks_and_the_value_expected_against_the_one_found(path):
+    """Each assert of a check cell, hidden tests too, carries a message "<what>: expected <value>, found
+    <value>" whose values are formatted from the run (an f-string naming at least one name); a bare assert
+    said nothing, and "forces (N)" not what was wrong. tests/test_course.py runs every check with a wrong
+    answer and reads the messages."""
+    import ast
+
+    for cell in _read(path).cells:
+        if not _grader(cell).get("grade"):
+            continue
+        tree = ast.parse(cell.source)
+        asserts = [n for n in ast.walk(tree) if isinstance(n, ast.Assert)]
+        assert asserts, cell.source
+        for a in asserts:
+            where = f"{_grader(cell)['grade_id']}: {ast.get_source_segment(cell.source, a.test)}"
+            assert a.msg is not None, f"{where}: no message"
+            text = _template(a.msg)
+            assert re.search(r"^[^:]+: expected .+, found .*\{\}", text, flags=re.S), f"{where}: {text!r}"
+
+
+def _template(node) -> str:
+    """The text of a message expression with "{}" for each value formatted into it."""
+    import ast
+
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        return node.value
+    if isinstance(node, ast.JoinedStr):
+        return "".join(_template(v) for v in node.values)
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+        return _template(node.left) + _template(node.right)
+    if isinstance(node, ast.IfExp):
+        return _template(node.body) + " | " + _template(node.orelse)
+    return "{}"
 
 
 # ---------------------------------------------------------------- plot axes: names and units
