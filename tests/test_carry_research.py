@@ -3,12 +3,14 @@ factories of one's own (module:factory, path/to/file.py:factory), at the command
 from __future__ import annotations
 
 import json
+import re
 import sys
 import textwrap
 
 import numpy as np
 import pytest
 
+import coopsim as cs
 from coopsim.tasks import carry as C
 from coopsim.tasks.carry import cli
 
@@ -158,8 +160,6 @@ def outputs(tmp_path_factory):
 def test_the_carry_writes_its_series_as_csv_and_excel_and_one_npz_table(outputs):
     import pandas as pd
 
-    import coopsim as cs
-
     code, out = outputs
     assert code == 0
     log = cs.SimulationLog.read_csv(out / "carry.csv")             # the log, as the handover writes it
@@ -236,3 +236,118 @@ def test_parquet_is_written_with_pyarrow_or_refused_in_one_line_naming_what_to_i
     for argv, says in ((["--series", "csv"], "argument --series: invalid choice: 'csv'"),
                        (["--format", "jpg"], "argument --format: invalid choice: 'jpg'")):
         assert says in _parse_error(capsys, argv, tmp_path)
+
+
+# ---- signed squeeze read-outs and what a cooperative law commands ----
+
+def test_the_squeeze_reads_signed_everywhere_it_is_summarised():
+    """The baseline pulls the bar apart a little (tension, a negative squeeze) for the whole carry: the scores,
+    the sweep's row and the printed summary say so with the sign; a commanded compression reads positive."""
+    from coopsim.tasks.carry.scoring import score_row
+
+    for options, sign in ((None, -1.0), (dict(squeeze=1.0), 1.0)):
+        res = C.run(controllers="object" if options else "ct", controller_options=options)
+        sq = res.series["cooperation"]["squeeze"][res.series["pair"]]
+        c = res.report["scores"]["cooperation"]["squeeze_N"]
+        assert set(c) == {"mean", "rms", "peak"}
+        # (a law taking over starts from the baseline's pull: all but its first rows)
+        assert np.sign(c["mean"]) == np.sign(c["peak"]) == sign and np.mean(np.sign(sq) == sign) > 0.99
+        assert (c["mean"], c["peak"]) == (pytest.approx(sq.mean(), rel=1e-12), sq[np.argmax(np.abs(sq))])
+        row = score_row(res.report)
+        assert (row["squeeze_mean_N"], row["squeeze_rms_N"], row["squeeze_peak_N"]) == (c["mean"], c["rms"], c["peak"])
+        assert row["squeeze_max_N"] == abs(c["peak"])
+        line = next(ln for ln in C.summary(res.report).splitlines() if "together while carried" in ln)
+        assert f"squeeze {c['mean']:+.3f} N mean, {c['rms']:.3f} N RMS, peak {c['peak']:+.3f} N (compression > 0" in line
+    # the baseline's steady pull: about -0.09 N, which the old read-out printed as "0.094 N RMS, 0.114 N max"
+    assert line.count("+") >= 2 and "commanded +1.00 N" in line
+    base = C.run().report["scores"]["cooperation"]["squeeze_N"]
+    assert -0.12 < base["mean"] < -0.06 and base["peak"] < base["mean"] < 0
+
+
+class _Declaring(cs.CooperativeController):
+    """A cooperative law of one's own that declares what it commands as its attributes (the protocol)."""
+
+    def __init__(self, robots, plan, load_share=None, squeeze=None):
+        super().__init__()
+        self.inner = C.controllers._object_control_law(robots, plan, load_share=load_share or 0.5,
+                                                       squeeze=squeeze or 0.0)
+        if load_share is not None:
+            self.load_share = load_share
+        if squeeze is not None:
+            self.squeeze = squeeze
+
+    def reset(self, robots, period):
+        self.inner.reset(robots, period)
+
+    def compute(self, t, members):
+        return self.inner.compute(t, members)
+
+
+def test_a_cooperative_law_of_one_s_own_declares_its_commands_by_the_protocol():
+    plan = C.make_plan()
+    robots = C.scene.scaras()
+    from coopsim.tasks.carry.sequence import commanded_sharing
+
+    def coop(*, declared=(), law_kw=None):
+        return C.Cooperative(free=C.computed_torque(robots, plan), law=_Declaring(robots, plan, **(law_kw or {})),
+                             **dict(declared))
+
+    # nothing declared: the lever rule's share, no squeeze
+    assert commanded_sharing(coop(), plan) == dict(load_share=[0.5, 0.5], squeeze=0.0, source="lever rule")
+    # the law's attributes, one or both
+    assert commanded_sharing(coop(law_kw=dict(squeeze=-1.5)), plan) == dict(load_share=[0.5, 0.5], squeeze=-1.5,
+                                                                           source="controller")
+    got = commanded_sharing(coop(law_kw=dict(load_share=0.3)), plan)
+    assert got["load_share"] == pytest.approx([0.3, 0.7]) and got["squeeze"] == 0.0
+    # the Cooperative's declaration over the law's
+    got = commanded_sharing(coop(declared=dict(squeeze=2.0), law_kw=dict(squeeze=-1.5)), plan)
+    assert got["squeeze"] == 2.0
+    for bad, says in ((dict(load_share=1.5), "load_share must be in [0, 1], got 1.5"),
+                      (dict(squeeze=float("nan")), "squeeze must be finite"),
+                      (dict(squeeze="tight"), "squeeze must be a number, got 'tight'")):
+        with pytest.raises(ValueError, match=re.escape(says)):
+            commanded_sharing(coop(declared=bad), plan)
+
+
+class _Pulling(cs.CooperativeController):
+    """A cooperative law in Python that commands a squeeze without showing it: computed torque per arm, plus
+    through J^T at each tool half of the bar's weight and the squeeze along the line between the tools
+    (compression positive)."""
+
+    def __init__(self, robots, mass, squeeze):
+        super().__init__()
+        self.robots, self.mass, self.s = robots, mass, squeeze
+        self.ct = [cs.ComputedTorque(*C.controllers._gains(i)) for i in range(2)]
+
+    def reset(self, robots, period):
+        for c, r in zip(self.ct, robots):
+            c.reset(r, period)
+
+    def compute(self, t, members):
+        p = [r.fk(m.q)[:3, 3] for r, m in zip(self.robots, members)]
+        e = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+        out = []
+        for k, (r, c, m) in enumerate(zip(self.robots, self.ct, members)):
+            f = np.r_[np.array([0.0, 0.0, self.mass * 9.81 / 2]) + (self.s if k == 0 else -self.s) * e, 0, 0, 0]
+            out.append(c.compute(t, m.q, m.qd, m.q_ref, m.qd_ref, m.qdd_ref) + r.tool_jacobian(m.q).T @ f)
+        return out
+
+
+def test_cooperative_takes_squeeze_beside_load_share_and_the_report_and_scores_follow():
+    def pulling(robots, plan, *, pull=0.0):
+        return _Pulling(robots, plan.model_bar_mass, -pull)
+
+    factory = C.cooperative(pulling, load_share=0.5, squeeze=lambda pull=0.0, **_: -pull)
+    res = C.run(controllers=factory, controller_options=dict(pull=1.0))
+    assert res.success, res.report["failure"]
+    assert res.report["commanded"] == dict(load_share=[0.5, 0.5], squeeze=-1.0, source="controller")
+    c = res.report["scores"]["cooperation"]
+    # the law pulls open loop (feedforward on stiff position control): measured -0.81 N of the -1 N, tension
+    assert c["squeeze_commanded_N"] == -1.0 and -1.1 < c["squeeze_N"]["mean"] < -0.6
+    assert "commanded -1.00 N" in C.summary(res.report)
+    # undeclared, the same law commands nothing the report knows of
+    assert C.run(controllers=C.cooperative(pulling), controller_options=dict(pull=1.0),
+                 score_run=False).report["commanded"]["source"] == "lever rule"
+    for bad in ("tight", True, [1.0]):
+        with pytest.raises(ValueError, match="squeeze must be None, a number"):
+            C.cooperative(pulling, squeeze=bad)

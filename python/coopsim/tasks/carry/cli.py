@@ -164,7 +164,7 @@ def run_options(args, controller: str) -> dict:
 
 #: the scores whose statistics the command line prints per controller and disturbance (sweep_statistics.csv
 #: has all of :data:`~.statistics.SCORES`)
-SWEEP_SUMMARY = ("bar_error_rms_mm", "bar_error_max_mm", "squeeze_rms_N", "internal_force_max_N",
+SWEEP_SUMMARY = ("bar_error_rms_mm", "bar_error_max_mm", "squeeze_mean_N", "squeeze_peak_N", "internal_force_max_N",
                  "load_share_deviation", "relative_position_max_mm", "wall_time")
 
 

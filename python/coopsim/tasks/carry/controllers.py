@@ -89,13 +89,19 @@ class Phased:
 class Cooperative:
     """Per-robot controllers `free` (one per robot: outside the dual hold, and the robots' own controllers,
     standing aside, during it) and one cooperative `law` (a :class:`coopsim.CooperativeController`) driving
-    both robots from the end of the grasp to the end of the place. `load_share`: SCARA #1's part of the bar's
-    vertical load that the law commands, when it commands one and does not show it as its own ``load_share``
-    (None: the law's ``load_share``, or none commanded; the report's ``commanded``)."""
+    both robots from the end of the grasp to the end of the place.
+
+    What the law commands of the bar's sharing (the protocol of docs/carry.md, "What a cooperative law
+    commands"; the report's ``commanded``, against which the scores measure it): `load_share`, SCARA #1's part
+    of the bar's vertical load (0 .. 1), and `squeeze`, the internal force along the line between the welds
+    (N, compression positive). Each given here is what the law commands; each None is read from the law's own
+    attribute of that name when it has one (:class:`coopsim.ObjectControl` has both; a Python law may define
+    them), else nothing is commanded: the lever rule's share, no squeeze."""
 
     free: Sequence[Controller]
     law: CooperativeController
     load_share: Optional[float] = None
+    squeeze: Optional[float] = None
 
 
 def _gains(i):
@@ -175,25 +181,40 @@ def check_options(fn: Callable, options: dict, what: str, skip: int = 2) -> None
                          f"({'choose from ' + ', '.join(taken) if taken else 'it takes none'})")
 
 
-def cooperative(make_law: Callable[..., CooperativeController], load_share: Optional[Callable[..., float]] = None
+def _declared(value, options: dict) -> Optional[float]:
+    """A declared command (load_share or squeeze of :func:`cooperative`): None, a number, or a function of the
+    law's options giving one."""
+    if value is None:
+        return None
+    return float(value(**options) if callable(value) else value)
+
+
+def cooperative(make_law: Callable[..., CooperativeController], load_share=None, squeeze=None
                 ) -> Callable[..., Cooperative]:
     """A factory of :class:`Cooperative` controllers from ``make_law(robots, plan, **options)`` -> a
     :class:`coopsim.CooperativeController`: the law drives both arms during the dual hold, the baseline
-    (:func:`computed_torque`) outside it. Its name is the law maker's. `load_share`: optional
-    ``load_share(**options)`` -> SCARA #1's commanded part of the bar's vertical load
-    (:attr:`Cooperative.load_share`), for a law that commands one without showing it."""
+    (:func:`computed_torque`) outside it. Its name is the law maker's.
+
+    What the law commands, for a law that does not show it as its own ``load_share`` / ``squeeze`` attributes
+    (the protocol of docs/carry.md, "What a cooperative law commands"): `load_share`, SCARA #1's part of the
+    bar's vertical load (0 .. 1), and `squeeze` (N, compression positive), each None (read from the law, else
+    none commanded), a number, or a function ``(**options) -> number`` of the law's options (a squeeze
+    command that is an option of the law: ``squeeze=lambda squeeze=0.0, **_: squeeze``)."""
 
     if not callable(make_law):
         raise ValueError(f"make_law must be callable (robots, plan, **options) -> a CooperativeController, "
                          f"got {make_law!r}")
-    if load_share is not None and not callable(load_share):
-        raise ValueError(f"load_share must be callable (**options) -> SCARA #1's share, or None, got {load_share!r}")
+    for value, what, unit in ((load_share, "load_share", "SCARA #1's share"), (squeeze, "squeeze", "N")):
+        if value is not None and not callable(value) and (isinstance(value, bool) or
+                                                          not isinstance(value, (int, float, np.number))):
+            raise ValueError(f"{what} must be None, a number ({unit}) or callable (**options) -> one, got {value!r}")
 
     def factory(robots: Sequence[Robot], plan, **options) -> Cooperative:
         check_options(make_law, options, f"the cooperative law {getattr(make_law, '__name__', '')!r}")
         law = make_law(robots, plan, **options)
-        share = None if load_share is None else float(load_share(**options))
-        return Cooperative(free=computed_torque(robots, plan), law=law, load_share=share)
+        return Cooperative(free=computed_torque(robots, plan), law=law,
+                           load_share=_declared(load_share, options),
+                           squeeze=_declared(squeeze, options))
 
     factory.__name__ = getattr(make_law, "__name__", "cooperative")
     factory.__doc__ = make_law.__doc__

@@ -60,12 +60,14 @@ def summary(report: dict) -> str:
         c = s.get("cooperation")
         if c:
             ls = c["load_share"]
-            lines.append(f"  together while carried: squeeze {c['squeeze_N']['rms']:.3f} N RMS, {c['squeeze_N']['max']:.3f} N "
-                         f"max (commanded {c['squeeze_commanded_N']:.2f} N); internal force {c['internal_force_N']['rms']:.3f} "
-                         f"N RMS, {c['internal_force_N']['max']:.3f} N max; SCARA #1's load share {ls['mean']:.3f} "
-                         f"(commanded {c['load_share_commanded']:.2f}, off by {ls['mean_abs_deviation']:.3f} on average); "
-                         f"relative pose error {c['relative_position_error_mm']:.2f} mm, "
-                         f"{c['relative_angle_error_mrad']:.2f} mrad max")
+            sq = c["squeeze_N"]
+            f_int = c["internal_force_N"]
+            lines.append(f"  together while carried: squeeze {sq['mean']:+.3f} N mean, {sq['rms']:.3f} N RMS, peak "
+                         f"{sq['peak']:+.3f} N (compression > 0; commanded {c['squeeze_commanded_N']:+.2f} N); "
+                         f"internal force {f_int['rms']:.3f} N RMS, {f_int['max']:.3f} N max; SCARA #1's load share "
+                         f"{ls['mean']:.3f} (commanded {c['load_share_commanded']:.2f}, off by "
+                         f"{ls['mean_abs_deviation']:.3f} on average); relative pose error "
+                         f"{c['relative_position_error_mm']:.2f} mm, {c['relative_angle_error_mrad']:.2f} mrad max")
         if s["clearance_robots"]:
             lines.append(f"  min clearance robot-robot {s['clearance_robots']['min'] * 1e3:.0f} mm at t = "
                          f"{s['clearance_robots']['t']:.2f} s; {len(s['grasp_events'])} grasp events, "

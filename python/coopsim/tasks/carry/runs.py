@@ -27,7 +27,7 @@ class CarryRun(OptionsRun):
 
     #: the sweep's first columns for these runs (:func:`~.scoring.score_row`'s)
     sweep_columns = ("success", "step", "reason", "bar_error_rms_mm", "bar_error_max_mm", "bar_angle_max_mrad",
-                     "squeeze_rms_N", "squeeze_max_N", "internal_force_rms_N", "internal_force_max_N",
+                     "squeeze_mean_N", "squeeze_rms_N", "squeeze_peak_N", "squeeze_max_N", "internal_force_rms_N", "internal_force_max_N",
                      "load_share_deviation", "relative_position_max_mm", "relative_angle_max_mrad",
                      "slip_max_mm_0", "slip_max_mm_1", "torque_fraction_0", "torque_fraction_1")
 

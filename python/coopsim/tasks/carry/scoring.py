@@ -26,6 +26,11 @@ def _max(x) -> float:
     return float(np.max(x)) if len(x) else 0.0
 
 
+def _peak(x) -> float:
+    """The value of largest magnitude, with its sign (0 for none)."""
+    return float(x[np.argmax(np.abs(x))]) if len(x) else 0.0
+
+
 def clamp_link_frames(robot, q) -> np.ndarray:
     """The world poses (rows, 4, 4) of the clamp's link (the fixed jaw's) at joint positions q (rows, n): the
     tool pose with the jaw at a fixed opening times that link's constant offset from it (one forward
@@ -147,8 +152,9 @@ def cooperation_scores(co: dict, pair, airborne, commanded=None) -> dict:
     closing and the release's hand-over to the free controllers are left out) and `airborne` where they hold
     it off the stands:
 
-    - squeeze_N: the internal force along the line between the welds (compression positive): rms, max (of
-      its magnitude), mean; internal_force_N: the magnitude of the internal wrench's force (each weld's,
+    - squeeze_N: the internal force along the line between the welds, signed (compression positive, tension
+      negative): mean (signed), rms, peak (signed: the value of largest magnitude, so a steady pull reads as a
+      negative mean and peak); internal_force_N: the magnitude of the internal wrench's force (each weld's,
       equal and opposite): rms, max; twist_Nm, bending_Nm: their largest magnitudes (pair rows);
     - load_share: SCARA #1's part of the vertical load against the commanded one (``commanded['load_share']``,
       the lever rule's when the controllers command none): mean and mean_abs_deviation (airborne rows only:
@@ -164,7 +170,7 @@ def cooperation_scores(co: dict, pair, airborne, commanded=None) -> dict:
     want = (commanded or {}).get("load_share", [0.5, 0.5])[0]
     rel = co["relative_pose_error"][pair]
     return dict(
-        squeeze_N=dict(rms=_rms(sq), max=_max(np.abs(sq)), mean=float(np.mean(sq)) if len(sq) else 0.0),
+        squeeze_N=dict(mean=float(np.mean(sq)) if len(sq) else 0.0, rms=_rms(sq), peak=_peak(sq)),
         internal_force_N=dict(rms=_rms(f_int), max=_max(f_int)),
         twist_Nm=_max(np.abs(co["twist"][pair])), bending_Nm=_max(np.abs(co["bending"][pair])),
         load_share=dict(mean=float(np.mean(share)) if len(share) else float("nan"),
@@ -177,8 +183,10 @@ def cooperation_scores(co: dict, pair, airborne, commanded=None) -> dict:
 
 def score_row(report: dict) -> dict:
     """One flat row of a run's outcome and scores (a sweep's columns): success, step, reason (of a failure);
-    the bar's position error rms and max (mm) and angle error max (mrad) while carried; the squeeze's rms and
-    max (N), the internal force's rms and max (N); the load share's mean absolute deviation from the
+    the bar's position error rms and max (mm) and angle error max (mrad) while carried; the squeeze (N,
+    compression positive): its signed mean, its rms and its signed peak (squeeze_mean_N, squeeze_rms_N,
+    squeeze_peak_N; squeeze_max_N, the peak's magnitude, is kept for older tables), the internal force's rms and
+    max (N); the load share's mean absolute deviation from the
     commanded one; the relative pose error's max (mm, mrad); each robot's largest slip (mm) and its largest
     joint torque as a fraction of its limits. The scores are NaN for a run not scored."""
     f = report.get("failure") or {}
@@ -190,7 +198,9 @@ def score_row(report: dict) -> dict:
     row.update(
         bar_error_rms_mm=get("bar_position_error_mm", "rms"), bar_error_max_mm=get("bar_position_error_mm", "max"),
         bar_angle_max_mrad=get("bar_angle_error_mrad", "max"),
-        squeeze_rms_N=get("cooperation", "squeeze_N", "rms"), squeeze_max_N=get("cooperation", "squeeze_N", "max"),
+        squeeze_mean_N=get("cooperation", "squeeze_N", "mean"), squeeze_rms_N=get("cooperation", "squeeze_N", "rms"),
+        squeeze_peak_N=get("cooperation", "squeeze_N", "peak"),
+        squeeze_max_N=abs(get("cooperation", "squeeze_N", "peak")),
         internal_force_rms_N=get("cooperation", "internal_force_N", "rms"),
         internal_force_max_N=get("cooperation", "internal_force_N", "max"),
         load_share_deviation=get("cooperation", "load_share", "mean_abs_deviation"),

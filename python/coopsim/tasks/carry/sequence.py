@@ -248,22 +248,39 @@ class _Runner:
 
 
 def commanded_sharing(coop: Optional[Cooperative], plan: Plan) -> dict:
-    """What the controllers command of the bar's sharing while both hold it: dict(load_share=(2,) SCARA #1's
-    and #2's parts of the vertical load, squeeze N, source). A cooperative law with ``load_share`` and
-    ``squeeze`` (:class:`coopsim.ObjectControl`) commands those; a :class:`~.controllers.Cooperative` with its
-    own ``load_share`` (leader-follower: the leader carries what the follower does not) commands that and no
-    squeeze; otherwise nothing is commanded and the reference is what two pins at the planned grips would share
-    (the lever rule: each carries the other's distance from the centre over their distance) without squeezing."""
+    """What the controllers command of the bar's sharing while both hold it (the protocol of docs/carry.md,
+    "What a cooperative law commands"): dict(load_share=(2,) SCARA #1's and #2's parts of the vertical load,
+    squeeze N (compression positive), source). Each of load_share and squeeze is the
+    :class:`~.controllers.Cooperative`'s when it declares one, else the law's attribute of that name when it has
+    one (:class:`coopsim.ObjectControl`; a Python law's attribute or property), else not commanded: the share
+    the lever rule gives two pins at the planned grips (each carries the other's distance from the centre over
+    their distance), no squeeze. source: 'controller' when the controllers command either, else 'lever rule'.
+    ValueError naming what is wrong for a declared share outside [0, 1] or a value that is not a finite number."""
     law = coop.law if coop is not None else None
-    if law is not None and hasattr(law, "load_share") and hasattr(law, "squeeze"):
-        a = float(law.load_share)
-        return dict(load_share=[a, 1.0 - a], squeeze=float(law.squeeze), source="controller")
-    if coop is not None and coop.load_share is not None:
-        a = float(coop.load_share)
-        return dict(load_share=[a, 1.0 - a], squeeze=0.0, source="controller")
-    s = [float(G[0, 3]) for G in plan.grips]     # the grips' positions along the bar from its centre (m)
-    a = abs(s[1]) / (abs(s[0]) + abs(s[1]))
-    return dict(load_share=[a, 1.0 - a], squeeze=0.0, source="lever rule")
+
+    def declared(name):
+        v = getattr(coop, name, None)
+        if v is None and law is not None:
+            v = getattr(law, name, None)
+        if v is None:
+            return None
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise ValueError(f"the cooperative law's {name} must be a number, got {v!r}") from None
+        if not np.isfinite(v) or (name == "load_share" and not 0.0 <= v <= 1.0):
+            raise ValueError(f"the cooperative law's {name} must be {'in [0, 1]' if name == 'load_share' else 'finite'}"
+                             f", got {v!r}")
+        return v
+
+    share, squeeze = (declared("load_share"), declared("squeeze")) if coop is not None else (None, None)
+    if share is None:
+        s = [float(G[0, 3]) for G in plan.grips]     # the grips' positions along the bar from its centre (m)
+        share_used = abs(s[1]) / (abs(s[0]) + abs(s[1]))
+    else:
+        share_used = share
+    source = "controller" if share is not None or squeeze is not None else "lever rule"
+    return dict(load_share=[share_used, 1.0 - share_used], squeeze=0.0 if squeeze is None else squeeze, source=source)
 
 
 def _plain(x):
