@@ -4,9 +4,11 @@
 // moving sets of shapes over many configurations with few GJK calls.
 #include "coopsim/box_distance.hpp"
 #include "coopsim/robot.hpp"
+#include "bullet_hull.hpp"
 
 #include <BulletCollision/CollisionShapes/btBoxShape.h>
 #include <BulletCollision/CollisionShapes/btConvexHullShape.h>
+#include <BulletCollision/CollisionShapes/btConvexPolyhedron.h>
 #include <BulletCollision/CollisionShapes/btCylinderShape.h>
 #include <BulletCollision/CollisionShapes/btSphereShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
@@ -115,11 +117,74 @@ double convex_distance(const btConvexShape& a, const btTransform& ta, const btCo
   return std::max<double>(out.m_distance, lower);
 }
 
+bool polyhedral(const Shape& s) { return s.type == ShapeKind::Box || s.type == ShapeKind::Hull; }
+
+// The depth of the overlap of two convex polyhedra (a box's or a hull's faces and edges, Bullet's
+// initializePolyhedralFeatures) at their poses, m (> 0), by their separating axes: the smallest overlap
+// of their projections over each face normal of either and each cross product of an edge direction of
+// one with one of the other, which holds the direction of the smallest translation that parts them
+// (exact, where EPA converges to a tolerance). < 0 when some axis separates them.
+double polyhedra_depth(const btConvexPolyhedron& a, const btTransform& ta, const btConvexPolyhedron& b,
+                       const btTransform& tb) {
+  thread_local std::vector<btVector3> va, vb;
+  va.resize(a.m_vertices.size());
+  vb.resize(b.m_vertices.size());
+  for (int i = 0; i < a.m_vertices.size(); ++i) va[i] = ta(a.m_vertices[i]);
+  for (int i = 0; i < b.m_vertices.size(); ++i) vb[i] = tb(b.m_vertices[i]);
+  double depth = std::numeric_limits<double>::infinity();
+  auto along = [&](const btVector3& n) {
+    double lo_a = kInf, hi_a = -kInf, lo_b = kInf, hi_b = -kInf;
+    for (const btVector3& v : va) {
+      const double x = v.dot(n);
+      lo_a = std::min(lo_a, x);
+      hi_a = std::max(hi_a, x);
+    }
+    for (const btVector3& v : vb) {
+      const double x = v.dot(n);
+      lo_b = std::min(lo_b, x);
+      hi_b = std::max(hi_b, x);
+    }
+    depth = std::min(depth, std::min(hi_a - lo_b, hi_b - lo_a));
+  };
+  for (int f = 0; f < a.m_faces.size(); ++f) {
+    const auto& pl = a.m_faces[f].m_plane;
+    along(ta.getBasis() * btVector3(pl[0], pl[1], pl[2]));
+  }
+  for (int f = 0; f < b.m_faces.size(); ++f) {
+    const auto& pl = b.m_faces[f].m_plane;
+    along(tb.getBasis() * btVector3(pl[0], pl[1], pl[2]));
+  }
+  for (int i = 0; i < a.m_uniqueEdges.size(); ++i) {
+    const btVector3 ea = ta.getBasis() * a.m_uniqueEdges[i];
+    for (int j = 0; j < b.m_uniqueEdges.size(); ++j) {
+      const btVector3 n = ea.cross(tb.getBasis() * b.m_uniqueEdges[j]);
+      const double len = n.length();
+      if (len > 1e-9 * ea.length() * b.m_uniqueEdges[j].length()) along(n / len);
+    }
+  }
+  return depth;
+}
+
 // A set of shapes ready for the distance of any pair: the shapes checked (their bounds set), Bullet's
-// shapes, bounding radii.
+// shapes, bounding radii; a hull's faces and edges made when first needed (polyhedra_depth).
 struct ShapeSet {
   std::vector<Shape> shape;
   std::vector<std::unique_ptr<btConvexShape>> bt;
+  mutable std::vector<char> features;  // initializePolyhedralFeatures done
+  const btConvexPolyhedron& polyhedron(size_t i) const {
+    auto& p = static_cast<btPolyhedralConvexShape&>(*bt[i]);
+    if (!features[i]) {
+      if (shape[i].type == ShapeKind::Hull) {  // the exact vertices (bullet_hull.hpp)
+        const auto h = detail::exact_hull(shape[i].points, true);
+        btConvexPolyhedron copy = *h->getConvexPolyhedron();
+        p.setPolyhedralFeatures(copy);
+      } else {
+        p.initializePolyhedralFeatures();
+      }
+      features[i] = 1;
+    }
+    return *p.getConvexPolyhedron();
+  }
   std::vector<double> radius;  // of the sphere about the frame's origin that holds the shape
   explicit ShapeSet(const std::vector<Shape>& shapes, const char* what) {
     shape = shapes;
@@ -127,6 +192,7 @@ struct ShapeSet {
       if (s.is_box()) check_half(s.half_extents, what);
       else finish_shape(s, what);
       bt.push_back(gjk_shape(s));
+      features.push_back(0);
       double r = s.half_extents.norm();
       if (s.type == ShapeKind::Sphere) r = s.radius;
       if (s.type == ShapeKind::Hull) {
@@ -145,7 +211,12 @@ double pair_distance(const ShapeSet& A, size_t i, const Eigen::Isometry3d& ea, c
   if (a.is_box() && b.is_box())
     return gjk_distance(static_cast<const btBoxShape&>(*A.bt[i]), bt_pose(ea), static_cast<const btBoxShape&>(*B.bt[j]),
                         bt_pose(eb), ea, a.half_extents, eb, b.half_extents, gap, certain);
-  return convex_distance(*A.bt[i], bt_pose(ea), *B.bt[j], bt_pose(eb), gap);
+  const btTransform ta = bt_pose(ea), tb = bt_pose(eb);
+  const double d = convex_distance(*A.bt[i], ta, *B.bt[j], tb, gap);
+  if (d > 0 || !polyhedral(a) || !polyhedral(b)) return d;
+  // two polyhedra overlapping: the exact depth by their separating axes rather than EPA's
+  const double depth = polyhedra_depth(A.polyhedron(i), ta, B.polyhedron(j), tb);
+  return depth >= 0 ? -depth : d;
 }
 
 }  // namespace

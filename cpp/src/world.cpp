@@ -5,6 +5,7 @@
 // only engine file that includes Bullet.
 #include "coopsim/world.hpp"
 #include "coopsim/robot.hpp"
+#include "bullet_hull.hpp"
 #include "internal.hpp"
 
 #include <btBulletDynamicsCommon.h>
@@ -49,7 +50,7 @@ bool static_like(BodyKind k) { return k == BodyKind::Floor || k == BodyKind::Sta
 
 // Bullet's own shape for a body's shape, its margin zero as the boxes' (the shape is exactly its size):
 // btBoxShape, btSphereShape (its radius is its margin), btCylinderShapeZ, btConvexHullShape (reduced
-// to its hull's vertices). With `polyhedra` a box's or a hull's faces and edges are computed
+// to its hull's vertices, bullet_hull.hpp). With `polyhedra` a box's or a hull's faces and edges are computed
 // (initializePolyhedralFeatures) for Bullet's polyhedral contact clipping, which gives a hull the
 // patch of points a box gets from the box-box detector.
 std::unique_ptr<btCollisionShape> make_shape(const Shape& s, bool polyhedra) {
@@ -61,15 +62,8 @@ std::unique_ptr<btCollisionShape> make_shape(const Shape& s, bool polyhedra) {
       c->setMargin(0.0);  // keeps the outer size: the cylinder is exact, its rims sharp
       return c;
     }
-    case ShapeKind::Hull: {
-      auto h = std::make_unique<btConvexHullShape>();
-      for (const Eigen::Vector3d& p : s.points) h->addPoint(bt(p), false);
-      h->setMargin(0.0);
-      h->optimizeConvexHull();  // the hull's vertices only
-      h->recalcLocalAabb();
-      if (polyhedra) h->initializePolyhedralFeatures();
-      return h;
-    }
+    case ShapeKind::Hull:
+      return detail::exact_hull(s.points, polyhedra);  // the hull's vertices only, exactly the points
     default: {
       auto b = std::make_unique<btBoxShape>(bt(s.half_extents));
       b->setMargin(0.0);  // the box is exactly its size

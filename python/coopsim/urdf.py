@@ -95,14 +95,20 @@ _ZERO_INERTIAL = ['    <inertial>', '      <origin xyz="0 0 0" rpy="0 0 0"/>', '
 
 def _boxes(boxes, frame):
     """<visual> and <collision> of LinkBoxes whose poses are given in `frame`'s coordinates
-    (frame: 4x4 from the URDF link frame to the box's link DH frame)."""
+    (frame: 4x4 from the URDF link frame to the box's link DH frame): boxes, spheres and cylinders as
+    such, a convex hull as its bounding box (half_extents; a mesh file cannot be written inline)."""
     out = []
     for b in boxes:
-        size = " ".join(_fmt(2.0 * h) for h in b.half_extents)
+        if b.kind == "sphere":
+            geometry = f'<sphere radius="{_fmt(b.radius)}"/>'
+        elif b.kind == "cylinder":
+            geometry = f'<cylinder radius="{_fmt(b.radius)}" length="{_fmt(b.length)}"/>'
+        else:
+            geometry = '<box size="' + " ".join(_fmt(2.0 * h) for h in b.half_extents) + '"/>'
         nm = f" name={quoteattr(b.name)}" if b.name and not _XML_ILLEGAL.search(b.name) else ""
         for tag in ("visual", "collision"):
             out += [f"    <{tag}{nm}>", f"      {_origin(frame @ b.pose)}",
-                    f'      <geometry><box size="{size}"/></geometry>', f"    </{tag}>"]
+                    f"      <geometry>{geometry}</geometry>", f"    </{tag}>"]
     return out
 
 
@@ -132,7 +138,11 @@ def to_urdf(robot, name: str | None = None) -> str:
     Coulomb F_c as its ``friction`` (N m or N; its width v_c has no URDF
     field). The armature goes in a ``<transmission>`` as Drake's
     ``drake:rotor_inertia`` with ``drake:gear_ratio`` 1. Links without mass
-    carry an explicit zero ``<inertial>``. See the module's docstring.
+    carry an explicit zero ``<inertial>``. The link shapes (``Robot.boxes``)
+    are written as ``<visual>`` and ``<collision>``: boxes, spheres and
+    cylinders as such; a convex hull (from a mesh) as its bounding box
+    (``LinkBox.half_extents`` about its pose), since the text holds no mesh
+    file: a robot read back collides as boxes there. See the module's docstring.
     """
     n = robot.dof
     dh, com, masses, inertias = robot.dh, robot.com, robot.masses, robot.inertias
