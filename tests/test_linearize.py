@@ -216,3 +216,63 @@ def test_bad_input_is_named_in_one_line():
     with pytest.raises(ValueError) as e:
         cs.linearize(r, q, qd, dt=1e-3, controller=Mine())
     _one_line(e, "no linearisation", "A + B K")
+
+
+def test_state_feedback_is_the_lqr_law_and_closes_the_loop_exactly():
+    """cs.StateFeedback: tau = tau0 [+ G(q)] - K (x - x_ref); linearize closes the loop with it as
+    A - B K (and + B dG/dq with gravity compensation, against central differences); an LQR from SciPy's
+    Riccati solver on the step's (A, B) is stable and holds a SCARA under a 1 N push at the tool."""
+    sl = pytest.importorskip("scipy.linalg")
+    r, n = SCARA, SCARA.dof
+    q0 = np.array([0.3, 0.5, 0.1, 0.2, np.pi / 2, 0.02])
+    tau0 = r.gravity(q0)
+    lin = cs.linearize(r, q0, np.zeros(n), tau0, dt=1e-3, steps=5)
+    Q, R = np.diag([1e4] * n + [1.0] * n), 1e-2 * np.eye(n)
+    P = sl.solve_discrete_are(lin.A, lin.B, Q, R)
+    K = np.linalg.solve(R + lin.B.T @ P @ lin.B, lin.B.T @ P @ lin.A)
+    lqr = cs.StateFeedback(K, tau0)
+    cl = cs.linearize(r, q0, np.zeros(n), dt=1e-3, steps=5, controller=lqr)
+    assert np.abs(cl.A - (lin.A - lin.B @ K)).max() < 1e-12 * np.abs(lin.A).max()
+    assert np.abs(np.linalg.eigvals(cl.A)).max() < 1.0
+    np.testing.assert_array_equal(cl.tau0, tau0)
+
+    g = cs.StateFeedback(K, gravity_compensation=True)
+    g.reset(r, 1e-3)
+    x0 = np.r_[q0 + 0.01, np.zeros(n)]
+    d = cs.linearize(r, x0[:n], x0[n:], dt=1e-3, controller=g, q_ref=q0, qd_ref=np.zeros(n))
+
+    def phi(x):
+        tau = g.compute(0.0, x[:n], x[n:], q0, np.zeros(n), np.zeros(n))
+        return np.r_[cs.rk4_step(r, x[:n], x[n:], tau, 1e-3)]
+
+    assert _rel(d.A, _central(phi, x0)) < 1e-7
+
+    sim = cs.Simulation(dt=2e-4, control_every=5, log_every=50)
+    sim.add_robot(r, lqr, cs.SetPoint(q0))
+    sim.set_applied(0, wrenches=[cs.Wrench.at_tool([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])])
+    log = sim.run(1.0)
+    dy = r.fk(log.q)[:, 1, 3] - r.fk(q0)[1, 3]
+    assert 1e-5 < np.abs(dy).max() < 2e-3  # the push moves the tool, the LQR holds it within 2 mm
+
+
+def test_state_feedback_bad_input_and_pickling():
+    import pickle
+    r, n = SCARA, SCARA.dof
+    with pytest.raises(ValueError) as e:
+        cs.StateFeedback(np.zeros((n, n)))
+    _one_line(e, "K", "(n, 2n)")
+    with pytest.raises(ValueError) as e:
+        cs.StateFeedback(np.full((n, 2 * n), np.nan))
+    _one_line(e, "K", "finite")
+    with pytest.raises(ValueError) as e:
+        cs.StateFeedback(np.zeros((n, 2 * n)), np.zeros(3))
+    _one_line(e, "tau0")
+    sim = cs.Simulation()
+    with pytest.raises(ValueError) as e:
+        sim.add_robot(r, cs.StateFeedback(np.zeros((2, 4))), cs.SetPoint(np.zeros(n)))
+    _one_line(e, "K", r.name)
+    K = np.arange(2.0 * n * n).reshape(n, 2 * n)
+    back = pickle.loads(pickle.dumps(cs.StateFeedback(K, np.ones(n), gravity_compensation=True)))
+    np.testing.assert_array_equal(back.K, K)
+    np.testing.assert_array_equal(back.tau0, np.ones(n))
+    assert back.gravity_compensation

@@ -142,4 +142,29 @@ actuator limits. Controllers keep state, so give each robot its own.)doc")
       .def(pickle_by_call<ComputedTorque>([](const ComputedTorque& c) {
         return py::make_tuple(py::make_tuple(np(c.kp()), np(c.kd())), py::dict(py::arg("model") = model_out(c.model())));
       }));
+  py::class_<StateFeedback, Controller, std::shared_ptr<StateFeedback>>(m, "StateFeedback", StateFeedback::kDoc)
+      .def(py::init([](const py::object& K, const py::object& tau0, bool gravity, const py::object& model) {
+             Arr k = array(K, {-1, -1}, "K");
+             Eigen::MatrixXd Km(k.shape(0), k.shape(1));
+             for (py::ssize_t i = 0; i < k.shape(0); ++i)
+               for (py::ssize_t j = 0; j < k.shape(1); ++j) Km(i, j) = *k.data(i, j);
+             Eigen::VectorXd t0;
+             if (!tau0.is_none()) {
+               Arr a = array(tau0, {-1}, "tau0");
+               t0 = Eigen::Map<const Eigen::VectorXd>(a.data(), a.shape(0));
+             }
+             return std::make_shared<StateFeedback>(Km, t0, gravity, model_arg(model));
+           }),
+           py::arg("K"), py::arg("tau0") = py::none(), py::kw_only(), py::arg("gravity_compensation") = false,
+           py::arg("model") = py::none())
+      .def_property_readonly("K", [](const StateFeedback& c) { return to_numpy(c.K()); }, "(n, 2n), the gain on [q - q_ref; qd - qd_ref].")
+      .def_property_readonly("tau0", [](const StateFeedback& c) { return np(c.tau0()); }, "(n,) or (0,), N m or N.")
+      .def_property_readonly("gravity_compensation", &StateFeedback::gravity_compensation)
+      .def_property_readonly("model", [](const StateFeedback& c) { return model_out(c.model()); },
+                             "The controller's model for G(q) (a copy), or None for the simulated robot.")
+      .def(pickle_by_call<StateFeedback>([](const StateFeedback& c) {
+        return py::make_tuple(py::make_tuple(to_numpy(c.K()), np(c.tau0())),
+                              py::dict(py::arg("gravity_compensation") = c.gravity_compensation(),
+                                       py::arg("model") = model_out(c.model())));
+      }));
 }

@@ -309,4 +309,84 @@ bool ComputedTorque::linearize(const Robot& robot, double, const ControlInput& i
   return true;
 }
 
+// ---- state feedback ----
+
+StateFeedback::StateFeedback(Eigen::MatrixXd K, Eigen::VectorXd tau0, bool gravity_compensation,
+                             std::shared_ptr<const Robot> model)
+    : K_(std::move(K)), tau0_(std::move(tau0)), gravity_(gravity_compensation), model_(std::move(model)) {
+  if (K_.rows() < 1 || K_.rows() > kMaxDof || K_.cols() != 2 * K_.rows())
+    throw std::invalid_argument("wrong shape for K: expected (n, 2n) with 1 <= n <= " + std::to_string(kMaxDof) +
+                                ", got (" + std::to_string(K_.rows()) + ", " + std::to_string(K_.cols()) + ")");
+  if (!K_.allFinite()) throw std::invalid_argument("K must be finite (got NaN or inf)");
+  if (tau0_.size() && tau0_.size() != K_.rows())
+    throw std::invalid_argument("wrong shape for tau0: expected (" + std::to_string(K_.rows()) + ",), got (" +
+                                std::to_string(tau0_.size()) + ",)");
+  if (!tau0_.allFinite()) throw std::invalid_argument("tau0 must be finite (got NaN or inf)");
+}
+
+void StateFeedback::check(const Robot& robot) const {
+  if (K_.rows() != robot.dof())
+    throw std::invalid_argument("wrong size for K: expected (" + std::to_string(robot.dof()) + ", " +
+                                std::to_string(2 * robot.dof()) + ") for robot '" + robot.name() + "', got (" +
+                                std::to_string(K_.rows()) + ", " + std::to_string(K_.cols()) + ")");
+  check_model(model_, robot);
+}
+
+void StateFeedback::reset(const Robot& robot, double) {
+  check(robot);
+  n_ = robot.dof();
+  tau_max_ = robot.tau_max();
+  gmodel_ = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  out_ = Eigen::VectorXd::Zero(n_);
+}
+
+void StateFeedback::law_(const Robot* gm, const double* q, const double* qd, const double* q_ref,
+                         const double* qd_ref, Workspace& ws, Eigen::VectorXd& tau) const {
+  const int n = static_cast<int>(K_.rows());
+  Eigen::VectorXd e(2 * n);
+  for (int i = 0; i < n; ++i) {
+    e[i] = q[i] - q_ref[i];
+    e[n + i] = qd[i] - qd_ref[i];
+  }
+  tau = -K_ * e;
+  if (tau0_.size()) tau += tau0_;
+  if (gm) {
+    VecN g;
+    gm->gravity(q, ws, g);
+    tau += g;
+  }
+}
+
+void StateFeedback::compute(const ControlInput& in, double* tau) {
+  if (n_ == 0 || in.n != n_) throw std::logic_error("StateFeedback.compute called before reset() for this robot");
+  law_(gmodel_.get(), in.q, in.qd, in.q_ref, in.qd_ref, ws_, out_);
+  for (int i = 0; i < n_; ++i) tau[i] = out_[i];
+  saturate(n_, tau_max_.data(), tau);
+}
+
+bool StateFeedback::linearize(const Robot& robot, double, const ControlInput& in, ControllerJacobians& J) const {
+  check(robot);
+  const int n = robot.dof();
+  const std::shared_ptr<const Robot> gm = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  Workspace ws;
+  law_(gm.get(), in.q, in.qd, in.q_ref, in.qd_ref, ws, J.tau);
+  J.dtau_dq = -K_.leftCols(n);
+  J.dtau_dqd = -K_.rightCols(n);
+  if (gm) {
+    const VecN zero = VecN::Zero(n);
+    MatN dg, unused_dqd, unused_M;
+    gm->inverse_dynamics_derivatives(in.q, zero.data(), zero.data(), {}, ws, dg, unused_dqd, unused_M);
+    J.dtau_dq += dg;
+  }
+  J.c.resize(0);
+  J.c_next.resize(0);
+  J.states.clear();
+  J.dtau_dc = Eigen::MatrixXd::Zero(n, 0);
+  J.dc_dq = Eigen::MatrixXd::Zero(0, n);
+  J.dc_dqd = Eigen::MatrixXd::Zero(0, n);
+  J.dc_dc = Eigen::MatrixXd::Zero(0, 0);
+  saturated_rows(robot.tau_max(), J);
+  return true;
+}
+
 }  // namespace coopsim

@@ -182,4 +182,48 @@ damped with bandwidth w (rad/s). kp (1/s^2), kd (1/s): scalars or (n,), >= 0.)do
   int n_ = 0;
 };
 
+class StateFeedback : public Controller {
+ public:
+  std::shared_ptr<Controller> clone() const override { return std::make_shared<StateFeedback>(*this); }
+  // documentation (Python's too)
+  static constexpr char kDoc[] = R"doc(
+Linear state feedback around the reference (the law of an LQR):
+
+    tau = sat(tau0 [+ G(q)] - K [q - q_ref; qd - qd_ref])
+
+K (n, 2n): the gain on the state error x - x_ref, x = [q; qd] (N m/rad and
+N m s/rad for revolute joints), e.g. from scipy.linalg.solve_discrete_are on
+coopsim.linearize's (A, B); tau0 (n,): feed-forward torques (N m or N,
+default 0; e.g. the linear model's tau0); gravity_compensation adds G(q) of
+`model` (default: the simulated robot). Saturated at the actuator limits.
+coopsim.linearize closes the loop with it exactly (dtau/dx = -K [+ dG/dq]).)doc";
+  StateFeedback(Eigen::MatrixXd K, Eigen::VectorXd tau0 = Eigen::VectorXd(), bool gravity_compensation = false,
+                std::shared_ptr<const Robot> model = nullptr);
+
+  void check(const Robot& robot) const override;
+  void reset(const Robot& robot, double period) override;
+  void compute(const ControlInput& in, double* tau) override;
+  bool linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const override;
+
+  const Eigen::MatrixXd& K() const { return K_; }
+  const Eigen::VectorXd& tau0() const { return tau0_; }
+  bool gravity_compensation() const { return gravity_; }
+  const std::shared_ptr<const Robot>& model() const { return model_; }
+
+ private:
+  // tau before saturation at (q, qd) and the reference, G(q) of gm when given
+  void law_(const Robot* gm, const double* q, const double* qd, const double* q_ref, const double* qd_ref,
+            Workspace& ws, Eigen::VectorXd& tau) const;
+  Eigen::MatrixXd K_;
+  Eigen::VectorXd tau0_;
+  bool gravity_ = false;
+  std::shared_ptr<const Robot> model_;
+  // run state
+  std::shared_ptr<const Robot> gmodel_;
+  Workspace ws_;
+  Eigen::VectorXd out_;
+  VecN tau_max_;
+  int n_ = 0;
+};
+
 }  // namespace coopsim
