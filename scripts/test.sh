@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite, after setting up everything it needs; then the engine under the sanitizers
-# (README, "Sanitizers and threads"): the whole suite again against the engine and module built
-# with AddressSanitizer + UndefinedBehaviorSanitizer, on 2 worker processes, and run_batch with
+# (README, "Sanitizers and threads"): the suite's tests not marked slow again against the engine and module
+# built with AddressSanitizer + UndefinedBehaviorSanitizer, on 2 worker processes, and run_batch with
 # worlds on threads under ThreadSanitizer. The sanitizers' builds run at the lowest priority while
 # the plain suite runs, on the core it leaves idle. Extra arguments go to both pytest runs;
 # COOPSIM_SKIP_SANITIZERS=1 runs the plain suite only.
@@ -35,5 +35,7 @@ if ! wait "$builds"; then
 fi
 builds=
 # -p no:benchmark: pytest-benchmark, where installed, refuses to run beside xdist
-COOPSIM_SKIP_SETUP=1 bash scripts/test_sanitized.sh -n 2 --dist loadfile -p no:benchmark "$@"
+# the tests not marked slow: the slow ones (notebooks, a browser, process pools, run-time compiles) drive the
+# same engine paths as the rest from Python, at twice the cost under the sanitizers
+COOPSIM_SKIP_SETUP=1 bash scripts/test_sanitized.sh -n 2 --dist loadfile -p no:benchmark -m "not slow" "$@"
 COOPSIM_SKIP_SETUP=1 bash scripts/test_threads.sh
