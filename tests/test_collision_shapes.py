@@ -384,3 +384,10 @@ def test_bad_shapes_are_one_line_errors(make, message):
     with pytest.raises(ValueError, match=message) as e:
         make()
     assert "\n" not in str(e.value)
+
+
+def test_a_clamp_keeps_the_last_links_hull_and_meshes_can_be_left_out(ur5):
+    clamped = cs.robots.add_clamp(ur5)
+    assert [b.kind for b in clamped.boxes if b.link == 6 and b.name == "wrist_3_link_0"] == ["hull"]
+    plain = cs.Robot.from_urdf(UR5, collision_meshes=False)
+    assert [b.kind for b in plain.boxes] == ["box"] and plain.boxes[0].name == "ee_link_0"

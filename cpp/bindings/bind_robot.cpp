@@ -224,6 +224,13 @@ void bind_robot(py::module_& m) {
            "that half_extents is the points' bounding box. The world collides it as Bullet's btConvexHullShape "
            "(reduced to the hull's vertices); its cost grows with k: coopsim.Robot.from_urdf keeps 64 points of "
            "a mesh's hull by default.")
+      .def("moved", [](const LinkBox& b, int link, const py::object& pose_obj) {
+             LinkBox out = b;
+             out.link = link;
+             out.pose = pose(pose_obj, "pose");
+             return out;
+           }, py::arg("link"), py::arg("pose"),
+           "The same shape (kind, sizes, points, name) on `link` at `pose` ((4, 4) in that link's DH frame).")
       .def_readonly("link", &LinkBox::link)
       .def_property_readonly("kind", [](const LinkBox& b) { return shape_kind_name(b.type); },
                              "\"box\", \"sphere\", \"cylinder\" or \"hull\".")

@@ -469,7 +469,7 @@ def add_clamp(robot: Robot, *, mount=None, **values) -> Robot:
     face = Cn @ [[0.0, 1, 0, 0], [0, 0, 1, 0], [1, 0, 0, L5 + Lj / 2], [0, 0, 0, 1]]  # x: approach, z: jaw axis
     tcp = Cn.copy()
     tcp[:3, 3] = face[:3, 3]
-    boxes = [b if b.link != n else LinkBox(n, b.half_extents, X @ b.pose, b.name) for b in robot.boxes]
+    boxes = [b if b.link != n else b.moved(n, X @ b.pose) for b in robot.boxes]
     for link, (centre, size), frame, name in ((n, body, Cn, "clamp_body"), (n, fixed_jaw, Cn, "fixed_jaw"),
                                               (n + 1, moving_jaw, Cj, "moving_jaw")):
         boxes.append(LinkBox(link, np.array(size) / 2, frame @ _translation(centre), name))

@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import warnings
 import xml.etree.ElementTree as ET
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -39,7 +38,8 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from . import _checks
-from ._core import LinkBox, Robot, dh_transform
+from ._core import Robot, dh_transform
+from .urdf_shapes import _collision_shapes
 from .robots import add_clamp
 
 __all__ = ["to_urdf", "from_urdf", "rpy_from_matrix", "Visual", "visuals"]
@@ -314,79 +314,6 @@ def _visual(sh, ln, body, X, base_dir, snap):
 _MAX_NUMBER = 1e12
 
 
-def _hull_vertices(points: np.ndarray, count: int) -> np.ndarray:
-    """At most `count` of a convex hull's vertices (k, 3), by farthest-point sampling: first the vertex
-    farthest from their centroid, then each time the vertex farthest from those chosen (ties: the first
-    in order). Deterministic; the hull of the points kept lies inside the full one and keeps its extremes."""
-    if len(points) <= count:
-        return points
-    d = np.linalg.norm(points - points.mean(axis=0), axis=1)
-    chosen = [int(np.argmax(d))]
-    dist = np.linalg.norm(points - points[chosen[0]], axis=1)
-    for _ in range(count - 1):
-        k = int(np.argmax(dist))
-        chosen.append(k)
-        dist = np.minimum(dist, np.linalg.norm(points - points[k], axis=1))
-    return points[np.sort(chosen)]
-
-
-def _mesh_hull(path: str, scale, count: int) -> np.ndarray:
-    """The convex hull's vertices (k, 3) m of the mesh file at `path` scaled by `scale` (3,), at most
-    `count` of them (_hull_vertices); read with trimesh. Raises on a file trimesh cannot read or a mesh
-    without volume."""
-    import trimesh
-
-    mesh = trimesh.load(path, force="mesh")
-    v = np.asarray(mesh.vertices, dtype=float) * np.asarray(scale, dtype=float)
-    if len(v) < 4:
-        raise ValueError("fewer than 4 vertices")
-    hull = trimesh.convex.convex_hull(v)
-    return _hull_vertices(np.asarray(hull.vertices, dtype=float), count)
-
-
-def _collision_shapes(link, ln, body, X, base_dir, snap, hull_points):
-    """The LinkBoxes of URDF link `link` (name ln) on robot link `body`, X (4, 4) its frame in the body's DH
-    frame: its <collision> shapes (or its <visual> ones when it has no collision): boxes, spheres and
-    cylinders as such, meshes as the convex hull of their (scaled) vertices, at most `hull_points` of them
-    (farthest-point sampling of the hull's vertices, _hull_vertices). A mesh file not found or that trimesh
-    cannot read: a RuntimeWarning naming it, and the link keeps its other shapes (a robot left without any
-    gets the default boxes)."""
-    out = []
-    shapes = link.findall("collision") or link.findall("visual")
-    for k, sh in enumerate(shapes):
-        what = f"link {ln!r} {sh.tag}"
-        label = sh.get("name") or f"{ln}_{k}"
-        g = sh.find("geometry")
-        if g is None:
-            continue
-        T = X @ _pose(sh, what, snap)
-        box, sphere, cyl, mesh = g.find("box"), g.find("sphere"), g.find("cylinder"), g.find("mesh")
-        if box is not None:
-            size = _floats(box.get("size"), 3, f"link {ln!r} box size")
-            if min(size) <= 0:
-                raise ValueError(f"link {ln!r}: box sizes must be > 0, got {size}")
-            out.append(LinkBox(body, 0.5 * np.array(size), T, label))
-        elif sphere is not None:
-            out.append(LinkBox.sphere(body, _attr(sphere, "radius", f"{what} sphere"), T, label))
-        elif cyl is not None:
-            out.append(LinkBox.cylinder(body, _attr(cyl, "radius", f"{what} cylinder"),
-                                        _attr(cyl, "length", f"{what} cylinder"), T, label))
-        elif mesh is not None and sh.tag == "collision":
-            fn = mesh.get("filename") or ""
-            scale = _floats(mesh.get("scale", "1 1 1"), 3, f"{what} mesh scale")
-            path = _mesh_path(fn, base_dir) if fn else None
-            try:
-                if path is None:
-                    raise FileNotFoundError("file not found")
-                points = _mesh_hull(path, scale, hull_points)
-                out.append(LinkBox.hull(body, points, T, label))
-            except Exception as e:  # noqa: BLE001 - any reader's failure: the shape is left out, said so
-                warnings.warn(f"{what}: collision mesh {fn!r} could not be read ({type(e).__name__}: {e}); "
-                              "left out: the link keeps its other shapes (a robot without any gets the default "
-                              "boxes)", RuntimeWarning, stacklevel=4)
-    return out
-
-
 def _floats(text, count, what):
     try:
         v = [float(x) for x in (text or "").split()]
@@ -614,7 +541,7 @@ _UNBOUNDED = 1e9
 
 def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None,
               gravity=(0.0, 0.0, -9.81), coulomb_width=0.01, inertia_check: str = "warn", snap: float = 1e-9,
-              limits: str = "file", clamp=None, hull_points: int = 64):
+              limits: str = "file", clamp=None, hull_points: int = 64, collision_meshes: bool = True):
     """A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
 
     Joints: revolute, continuous (unbounded) and prismatic ones make the
@@ -667,7 +594,8 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         of add_clamp's keywords (mount, opening, jaw_length, ...) sets them. The tip link's visuals
         are kept, moved into the turned last frame.
     hull_points: the most points (4 .. 4096, default 64) a collision mesh's convex hull keeps (see
-        above): a hull's cost in the world's contacts grows with it.
+        above): a hull's cost in the world's contacts grows with it. collision_meshes=False leaves the
+        meshes out (the robot's other shapes, or the default boxes).
     snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
         read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
         5e-12 rad would make every derived angle general (and generated code
@@ -827,7 +755,8 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
         b = body_of[ln]
         X = np.linalg.inv(F[b]) @ pose[ln]  # link frame in the body's DH frame (frame 0 for the base)
         parts[b].append(_moved(X, *_inertial(links[ln], snap)))
-        box_list += _collision_shapes(links[ln], ln, b, X, base_dir, snap, hull_points)
+        box_list += _collision_shapes(links[ln], ln, b, X, base_dir, snap, hull_points if collision_meshes else 0,
+                                      (_attr, _floats, _mesh_path, _pose))
         for sh in links[ln].findall("visual"):
             v = _visual(sh, ln, b, X, base_dir, snap)
             if v is not None:
