@@ -32,6 +32,7 @@ import importlib.util
 import os
 import shutil
 import sys
+import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -123,10 +124,12 @@ def changed_checks(api, name: str, student: str) -> list[str]:
     return found
 
 
-def _autograde_one(course_dir: str, name: str, student: str) -> tuple[bool, str]:
+def _autograde_one(course_dir: str, name: str, student: str) -> tuple[bool, str, float]:
+    t0 = time.perf_counter()
     api, _ = _api(course_dir)
     res = api.autograde(name, student)
-    return res["success"], res.get("log", "") + (res.get("error", "") if not res["success"] else "")
+    return (res["success"], res.get("log", "") + (res.get("error", "") if not res["success"] else ""),
+            time.perf_counter() - t0)
 
 
 def autograde(course_dir: str, names: list[str], jobs: int) -> None:
@@ -155,7 +158,7 @@ def autograde(course_dir: str, names: list[str], jobs: int) -> None:
             results[k] = r
     failed = []
     with Gradebook(api.coursedir.db_url) as gb:
-        for (name, student), (ok, log) in zip(todo, results):
+        for (name, student), (ok, log, took) in zip(todo, results):
             print(log.rstrip())
             if not ok:
                 failed.append(f"{name} {student}")
@@ -164,7 +167,8 @@ def autograde(course_dir: str, names: list[str], jobs: int) -> None:
             changed = changed_checks(api, name, student)
             print(f"course: {name} {student}: {sub.score:g} / {sub.max_score:g} points; "
                   + ("checks as released" if not changed else
-                     "checks changed in the submission (graded as released): " + ", ".join(changed)))
+                     "checks changed in the submission (graded as released): " + ", ".join(changed))
+                  + f" (graded in {took:.0f} s)")
     if failed:
         raise SystemExit(f"course: autograde failed for {', '.join(failed)}")
 
