@@ -15,7 +15,7 @@ The student version is locked as nbgrader's ``generate_assignment`` locks it (it
 ComputeChecksums steps): a check cell is read-only and undeletable (``metadata.editable = false``,
 ``metadata.deletable = false``), an answer cell undeletable, and each cell nbgrader grades carries
 ``nbgrader.checksum`` (nbgrader's rule, :func:`checksum`) and ``nbgrader.cell_type``. With
-nbgrader's ``ClearSolutions.code_stub`` set to this script's stub (scripts/course.sh does), nbgrader's
+nbgrader's ``ClearSolutions.code_stub`` set to this script's stub (scripts/course.py does), nbgrader's
 release and these student versions are the same notebooks. ``--verify`` compares a submitted
 notebook's check cells with the student version of the instructor's notebook of the same name and
 names each check that was changed or deleted (exit status 1); nbgrader's ``autograde`` does the
