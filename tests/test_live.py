@@ -23,9 +23,9 @@ from coopsim import view
 viser = pytest.importorskip("viser", reason="the live view needs viser (the live extra; scripts/setup.sh)")
 
 from test_grasp import BOX, closing, scene  # noqa: E402  (a SCARA #1 closing its clamp on a box)
-from test_replay import browser  # noqa: E402,F401  (Debian's chromium through Playwright)
-
-WAIT = 120.0    # s: generous bound for anything the page or the run must reach (never a timing assertion)
+# Debian's chromium through Playwright, its pages patient; WAIT (180 s): the generous bound for anything the page
+# or the run must reach (never a timing assertion)
+from test_replay import WAIT, browser, patient  # noqa: E402,F401
 
 
 def until(cond, what, timeout=WAIT):
@@ -287,27 +287,50 @@ def test_the_server_binds_localhost_by_default(views):
 
 def live_page(browser, width, height):  # noqa: F811
     """A new browser page for a live view. Every action of Playwright (a click, a fill, a shot) waits for
-    the page's rendered frames, and on a loaded machine the live page's software WebGL draws a frame every
-    few seconds: each action may take up to WAIT s (a bound load can only approach, never a timing)."""
-    page = browser.new_page(viewport={"width": width, "height": height}, accept_downloads=True)
-    page.set_default_timeout(WAIT * 1000)
+    the page's rendered frames, and on a loaded machine the live page's software WebGL may take many seconds
+    for a frame: each action may take up to WAIT s (a bound load can only approach, never a timing)."""
+    return patient(browser.new_page(viewport={"width": width, "height": height}, accept_downloads=True))
+
+
+def page_ready(page):
+    """Waits (up to WAIT s) until the live page says it takes input: its <html data-coopsim-live="ready">,
+    set by the page itself once it is connected, its tabs are built and it has drawn frames since
+    (coopsim.view.live.serving.announce_readiness), and again after a reconnect."""
+    from coopsim.view.live.serving import READY_ATTRIBUTE
+
+    page.locator(f'html[{READY_ATTRIBUTE}="ready"]').wait_for(state="attached", timeout=WAIT * 1000)
+
+
+def open_live(page, url):
+    """Opens the live page at `url` in `page` and waits until it is ready (page_ready)."""
+    page.goto(url)
+    page_ready(page)
     return page
 
 
 class LivePage:
-    """A browser page of a live view; waits for the page's elements, never for a fixed time."""
+    """A browser page of a live view (or of any object with the view's `url`, e.g. a view served by another
+    process: _Url); waits for the page's own readiness and elements, never for a fixed time."""
 
     def __init__(self, browser, v, width=900, height=560, keep=None):   # noqa: F811
         self.v, self.keep = v, keep
-        self.page = live_page(browser, width, height)
-        self.page.goto(v.url)
-        self.page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
-        until(lambda: len(v.server.get_clients()) > 0, "the page connected")
+        self.page = open_live(live_page(browser, width, height), v.url)
+        if getattr(v, "server", None) is not None:
+            until(lambda: len(v.server.get_clients()) > 0, "the page connected")
+
+    def ready(self):
+        page_ready(self.page)
+
+    def reload(self):
+        self.page.reload()
+        self.ready()
 
     def tab(self, name):
+        self.ready()                       # connected (a disconnected page's panel takes no clicks)
         self.page.get_by_role("tab", name=name).click()
 
     def click(self, name):
+        self.ready()
         self.page.get_by_role("button", name=name, exact=True).click()
 
     def slider(self, label):
@@ -405,6 +428,49 @@ def hue_of(colour):
 is_red = hue_test(hue_of(view.COLORS["body"]))                 # the bar; colliding boxes (the same hue)
 is_green = hue_test(hue_of(view.COLORS["holding"]), width=25, saturation=0.22)  # holding; free collision boxes
 is_orange = hue_test(hue_of(view.COLORS["robots"][0]), saturation=0.2)          # SCARA #1's links
+
+
+def test_the_readiness_script_follows_the_panels_and_names_their_tabs(views):
+    """The page's readiness (serving.announce_readiness) is a script queued after every element of the panels,
+    so a page runs it once it has received them all (and again on a reconnect's replay), waiting for the tabs
+    the panels built (TAB_TITLES, checked here against the tab group sent)."""
+    import json
+
+    from viser import _messages
+
+    from coopsim.view.live.panels import TAB_TITLES
+    from coopsim.view.live.serving import READY_ATTRIBUTE
+
+    v = make(views, two_scaras(), start=False)
+    items = sorted(v.server.gui._websock_interface.get_message_buffer().message_from_id.items())
+    scripts = [(i, m.source) for i, m in items
+               if isinstance(m, _messages.RunJavascriptMessage) and READY_ATTRIBUTE in m.source]
+    assert len(scripts) == 1
+    made = [i for i, m in items if type(m).__name__.startswith("Gui") and hasattr(m, "container_uuid")]
+    assert len(made) > 40 and max(made) < scripts[0][0]           # every button, field, folder and tab before it
+    groups = [m.props._tab_labels for _, m in items if isinstance(m, _messages.GuiTabGroupMessage)]
+    assert groups == [TAB_TITLES] and json.dumps(list(TAB_TITLES)) in scripts[0][1]
+
+
+@pytest.mark.slow
+def test_the_page_says_it_is_ready_only_while_connected(browser, views):  # noqa: F811
+    """<html data-coopsim-live>: 'ready' once the tabs are built and take clicks; 'connecting' again once the
+    server is gone (viser freezes the panel), as a script or a test waiting on it needs."""
+    from coopsim.view.live.panels import TAB_TITLES
+
+    v = make(views, two_scaras(), speed=1.0)
+    page = open_live(live_page(browser, 900, 560), v.url)
+    try:
+        live = page.evaluate("({state: window.coopsimLive.state, ready: window.coopsimLive.ready, "
+                             "tabs: window.coopsimLive.tabs})")
+        assert live == {"state": "ready", "ready": True, "tabs": list(TAB_TITLES)}
+        page.get_by_role("tab", name="Data").click()
+        page.get_by_text("Download CSV").first.wait_for()
+        v.close()
+        page.locator('html[data-coopsim-live="connecting"]').wait_for(state="attached")
+        assert page.evaluate("window.coopsimLive.ready") is False
+    finally:
+        page.close()
 
 
 @pytest.mark.slow
@@ -514,10 +580,11 @@ def test_the_pages_controls_reach_the_simulation(browser, views):  # noqa: F811
         until(lambda: v.pacer.speed == 4.0, "400 % again")
         lp.click("Pause")
         until(lambda: v.pacer.paused, "paused from the page")
-        time.sleep(0.1)
-        t1 = sim.time
-        time.sleep(0.3)
-        assert sim.time == t1
+        f1 = v.frames
+        until(lambda: v.frames > f1 + 2, "frames drawn after the pause")       # the chunk under way is over
+        t1, f1 = sim.time, v.frames
+        until(lambda: v.frames > f1 + 10, "ten frames drawn while paused")
+        assert sim.time == t1                                                  # and the time stood still
         s0 = sim.steps
         lp.click("One step")
         until(lambda: sim.steps != s0, "one step from the page")
@@ -730,8 +797,7 @@ def test_two_pages_a_closed_page_and_a_reload_leave_the_run_intact(browser, view
         a.close()
         t1, f1 = sim.time, v.frames
         until(lambda: sim.time > t1 + 0.1 and v.frames > f1 + 3, "the run goes on after a page closed")
-        b.page.reload()
-        b.page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
+        b.reload()                                       # connected again, its tabs built again
         t2 = sim.time
         until(lambda: sim.time > t2 + 0.1, "the run goes on after a reload")
         assert v.error is None and v._thread.is_alive()
@@ -825,26 +891,40 @@ def _text_in_page(page, text):
     page.get_by_text(text).first.wait_for(timeout=WAIT * 1000)
 
 
+def _run_table(page):
+    """The Run panel's table as the page shows it now: {row's name: its number} (units dropped)."""
+    rows = page.locator("table", has_text="Simulated time").first.locator("tr").all_inner_texts()
+    out = {}
+    for row in rows:
+        name, _, value = row.partition("\t")
+        try:
+            out[name.strip()] = float(value.split()[0])
+        except (IndexError, ValueError):
+            pass
+    return out
+
+
 @pytest.mark.slow
 def test_the_main_job_waits_for_start_then_serves_downloads_and_reset_after_the_run(browser, tmp_path):  # noqa: F811
     """`--live`: paused at t = 0 until Start; after the run the page states it finished, shows the summary,
     sends the log and runs the task again on Reset; Ctrl-C closes it with no traceback."""
     proc, url, lines = _cli(tmp_path, "--hold", "600")
     try:
-        page = live_page(browser, 900, 700)
-        page.goto(url)
-        page.get_by_role("tab", name="Run").wait_for(timeout=WAIT * 1000)
+        page = open_live(live_page(browser, 900, 700), url)
         _text_in_page(page, "waiting")
-        time.sleep(1.0)                      # still waiting, at t = 0 (no Start yet)
-        assert "0.0000 s" in page.get_by_text("Simulated time").first.locator("xpath=..").inner_text()
+        # still waiting, at t = 0 (no Start yet), after a second of the run's wall time (the page's own table)
+        until(lambda: _run_table(page)["Wall time (this run)"] >= 1.0, "a second of waiting shown")
+        assert _run_table(page)["Simulated time"] == 0.0
         thumb = page.locator('label:visible', has_text="Speed (%)").first
         slider = page.locator(f'[id="{thumb.get_attribute("for")}"] [role="slider"]')
         slider.focus()
         page.keyboard.press("End")           # 400 %
+        page_ready(page)
         page.get_by_role("button", name="Start", exact=True).click()
         _text_in_page(page, "1 of 1 cycles succeeded")
         _text_in_page(page, "finished")
         _text_in_page(page, "the page stays until Ctrl-C")      # the outputs written, the page served
+        page_ready(page)
         page.get_by_role("tab", name="Data").click()
         with page.expect_download(timeout=WAIT * 1000) as d:
             page.get_by_role("button", name="Download CSV", exact=True).click()
@@ -853,6 +933,7 @@ def test_the_main_job_waits_for_start_then_serves_downloads_and_reset_after_the_
         got = cs.SimulationLog.read_csv(path)
         assert got.t[-1] > 10.0              # the whole run (about 16 s simulated)
         # Reset after the run: the task again, in the page, from t = 0
+        page_ready(page)
         page.get_by_role("tab", name="Run").click()
         page.get_by_role("button", name="Reset to start", exact=True).click()
         _text_in_page(page, "running")
@@ -868,12 +949,17 @@ def test_the_main_job_waits_for_start_then_serves_downloads_and_reset_after_the_
 
 
 @pytest.mark.slow
-def test_ctrl_c_during_the_main_jobs_run_writes_the_log_and_an_interrupted_report(tmp_path):
+def test_ctrl_c_during_the_main_jobs_run_writes_the_log_and_an_interrupted_report(browser, tmp_path):  # noqa: F811
     import json
 
-    proc, url, lines = _cli(tmp_path, "--speed", "1", "--hold", "0")
-    time.sleep(2.0)                           # the run is under way at 100 % (about 16 s simulated)
-    rc, out = _finish(proc, lines, sig=True)
+    # at 1 % the task's 16 s simulated take over 1600 s: Ctrl-C comes during the run however loaded the machine
+    proc, url, lines = _cli(tmp_path, "--speed", "0.01", "--hold", "0")
+    try:
+        lp = LivePage(browser, _Url(url))
+        until(lambda: _run_table(lp.page)["Simulated time"] > 0.0, "the run under way (the page's time)")
+        lp.close()
+    finally:
+        rc, out = _finish(proc, lines, sig=True)
     assert rc == 130, out
     assert "Traceback" not in out
     said = [line for line in out.splitlines() if line.startswith("interrupted")]
@@ -1580,7 +1666,7 @@ def test_the_plots_tab_draws_the_q_curves_across_the_panel(browser, views):  # n
     v = make(views, sim, speed=1.0)
     lp = LivePage(browser, v, width=1200, height=800)
     until(lambda: sim.time > 0.05, "the run started")
-    lp.page.get_by_role("tab", name="Plots").click(timeout=WAIT * 1000)
+    lp.tab("Plots")
 
     def wide():       # the first canvas's box in the page, read without waiting on the (busy) page's frames
         box = lp.page.evaluate("() => { const c = document.querySelector('.uplot canvas');"
@@ -1591,5 +1677,5 @@ def test_the_plots_tab_draws_the_q_curves_across_the_panel(browser, views):  # n
     rgb = [int(_PALETTE[0][k:k + 2], 16) for k in (1, 3, 5)]       # q1's stroke
     until(lambda: lp.page.evaluate(_CANVAS_HAS, rgb + [40]), "q1's curve drawn in its colour")
     assert not lp.page.evaluate(_CANVAS_HAS, [255, 0, 255, 40])    # a colour no series has: the check can fail
-    lp.page.get_by_role("tab", name="Robots").click(timeout=WAIT * 1000)   # the tabs still answer
+    lp.tab("Robots")                                                         # the tabs still answer
     lp.close()

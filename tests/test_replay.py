@@ -29,6 +29,11 @@ SIZE_BOUND = 1.2e6
 #: float32 poses: positions within a few 1e-7 m of the log's (coordinates below 2 m), rotations 1e-6
 TOL = 2e-6
 CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if os.path.exists("/usr/bin/chromium") else None)
+#: s: the bound on anything a page in the browser must reach, each of Playwright's actions (a click, a fill, a
+#: shot, a wait) too. On a loaded machine the pages' software WebGL may take tens of seconds for a frame, and
+#: Playwright's actions wait for frames: a generous bound that load can only approach, never a timing (the tests
+#: wait for the page's own signals: window.coopsim.ready here, the live page's data-coopsim-live in test_live)
+WAIT = 180.0
 
 
 def trajectory(robot, t_end, phase):
@@ -372,8 +377,31 @@ def _browser_or_skip():
     return sync_playwright
 
 
+def patient(page):
+    """`page` with Playwright's default timeouts (30 s, tuned to an idle machine) raised to WAIT for every action,
+    navigation and wait of it (a download awaited, a function waited for) that names no timeout of its own."""
+    page.set_default_timeout(WAIT * 1000)
+    page.set_default_navigation_timeout(WAIT * 1000)
+    return page
+
+
+class PatientBrowser:
+    """A Playwright Browser whose new pages are :func:`patient`; everything else is the browser's."""
+
+    def __init__(self, browser):
+        self._browser = browser
+
+    def new_page(self, **kwargs):
+        return patient(self._browser.new_page(**kwargs))
+
+    def __getattr__(self, name):
+        return getattr(self._browser, name)
+
+
 @pytest.fixture(scope="module")
 def browser():
+    """Debian's chromium, headless, through Playwright, for a test module; its pages wait up to WAIT s for
+    each action (:class:`PatientBrowser`)."""
     sync_playwright = _browser_or_skip()
     with sync_playwright() as p:
         # without the sanitizers' runtimes that scripts/test_sanitized.sh preloads for the interpreter:
@@ -382,9 +410,13 @@ def browser():
         b = p.chromium.launch(executable_path=CHROMIUM, args=["--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
                               env=env)
         try:
-            yield b
+            yield PatientBrowser(b)
         finally:
             b.close()
+
+
+#: a script resolving once the page has drawn two more frames (a paused page's time must not move across them)
+TWO_FRAMES = "new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(() => done(true))))"
 
 
 class Page:
@@ -392,7 +424,7 @@ class Page:
 
     def __init__(self, browser, path, width=1000, height=700):
         self.errors, self.blocked = [], []
-        self.page = browser.new_page(viewport={"width": width, "height": height})
+        self.page = patient(browser.new_page(viewport={"width": width, "height": height}))
         self.page.on("console", lambda msg: self.errors.append(f"console {msg.type}: {msg.text}")
                      if msg.type == "error" else None)
         self.page.on("pageerror", lambda exc: self.errors.append(f"page error: {exc}"))
@@ -406,7 +438,7 @@ class Page:
 
         self.page.route("**/*", route)
         self.page.goto("file://" + os.path.abspath(path))
-        self.page.wait_for_function("window.coopsim && window.coopsim.ready", timeout=30000)
+        self.page.wait_for_function("window.coopsim && window.coopsim.ready")      # the page's own signal
 
     def js(self, expr):
         return self.page.evaluate(expr)
@@ -478,13 +510,18 @@ def test_a_seek_shows_the_logs_poses(page, sim):
 @pytest.mark.slow
 def test_the_controls_play_pause_scrub_and_set_the_speed(page):
     js = page.js
-    # the play button plays and pauses
-    js("window.coopsim.seek(0)")
+    # the play button plays and pauses (at 1 % the 2 s replay lasts 200 s, beyond the bound WAIT on a click:
+    # the second click lands before the end however loaded the machine)
+    js("window.coopsim.seek(0); window.coopsim.setSpeed(0.01)")
     page.page.click("#cs-play")
     assert js("window.coopsim.playing()")
-    page.page.wait_for_timeout(300)
+    page.page.wait_for_function("window.coopsim.time() > 0")
     page.page.click("#cs-play")
-    assert not js("window.coopsim.playing()") and 0.29 < js("window.coopsim.time()") < T_END
+    t = js("window.coopsim.time()")
+    assert not js("window.coopsim.playing()") and 0 < t < T_END
+    page.page.evaluate(TWO_FRAMES)
+    assert js("window.coopsim.time()") == t                                # paused: two frames drawn, no time
+    js("window.coopsim.setSpeed(1)")
     # the replay's time runs at the speed times the wall time
     # (time() reads the page's clock when called: the played time lies between speed times the wall time
     # measured inside and outside the play() .. time() span, however loaded the machine)
@@ -512,7 +549,7 @@ def test_the_controls_play_pause_scrub_and_set_the_speed(page):
     js("window.coopsim.setSpeed(1)")
     # played to the end it stops there; the space bar plays from the start again
     js("window.coopsim.seek(1.95); window.coopsim.play()")
-    page.page.wait_for_function("!window.coopsim.playing()", timeout=5000)
+    page.page.wait_for_function("!window.coopsim.playing()")
     assert js("window.coopsim.time()") == pytest.approx(T_END)
     page.page.keyboard.press("Space")
     assert js("window.coopsim.playing()") and js("window.coopsim.time()") < 1.0
@@ -623,21 +660,21 @@ def test_the_page_plays_when_opened_or_opens_at_the_time_in_its_address(browser,
     p = Page(browser, path, width=400, height=300)
     try:
         assert p.js("window.coopsim.playing()")
-        p.page.wait_for_function("window.coopsim.time() > 0.05", timeout=10000)
+        p.page.wait_for_function("window.coopsim.time() > 0.05")
     finally:
         p.close()
     p = Page(browser, path + "#t=1.25", width=400, height=300)
     try:
         assert not p.js("window.coopsim.playing()") and p.js("window.coopsim.time()") == pytest.approx(1.25)
-        p.page.wait_for_timeout(200)
-        assert p.js("window.coopsim.time()") == pytest.approx(1.25)          # paused there
+        p.page.evaluate(TWO_FRAMES)
+        assert p.js("window.coopsim.time()") == pytest.approx(1.25)          # paused there, two frames later
         assert p.js("document.getElementById('cs-time').textContent") == "1.250 s / 2.000 s"
     finally:
         p.close()
     p = Page(browser, path + "#t=0.5&play", width=400, height=300)
     try:
         # playing from 0.5 s (on a loaded machine it may have reached the end already)
-        p.page.wait_for_function("window.coopsim.time() > 0.5", timeout=10000)
+        p.page.wait_for_function("window.coopsim.time() > 0.5")
         assert p.js("window.coopsim.playing() || window.coopsim.time() === window.coopsim.t1")
         assert p.errors == [] and p.blocked == []
     finally:

@@ -17,6 +17,8 @@ from .run_panel import _RunPanel
 from .teach import _TeachMode
 
 _PANEL_NAMES = ("run", "display", "robots", "plots", "data")
+#: the tabs' titles, in the page's order (what the page's readiness waits for: serving.announce_readiness)
+TAB_TITLES = ("Run", "Display", "Robots", "Plots", "Data")
 
 
 class _Panels(_RunPanel, _RobotsPanel, _TeachMode, _PlotsPanel):

@@ -1,6 +1,6 @@
 """Where the live page is served and how a browser reaches it: viser's server started quiet, its port and host
-checked, the page's address through a proxy (a remote Jupyter: jupyter-server-proxy), the tab's title, and
-the page in a notebook cell."""
+checked, the page's address through a proxy (a remote Jupyter: jupyter-server-proxy), the tab's title, the
+page's readiness (an attribute of its <html> a script or a test waits on), and the page in a notebook cell."""
 from __future__ import annotations
 
 import html
@@ -91,6 +91,56 @@ def set_title(server, title: str) -> None:
 
     server.gui._websock_interface.queue_message(
         _messages.RunJavascriptMessage(source=f"document.title = {json.dumps(str(title))};"))
+
+
+#: The attribute of the page's ``<html>`` element that states whether the page takes input (see
+#: :func:`announce_readiness`): ``"ready"`` or ``"connecting"``.
+READY_ATTRIBUTE = "data-coopsim-live"
+
+_READINESS_JS = """(() => {
+  const tabs = %s, root = document.documentElement;
+  const live = window.coopsimLive || (window.coopsimLive = {state: "", ready: false, changes: 0});
+  live.tabs = tabs;
+  if (live.timer !== undefined) return;          /* a reconnect replays this script: one watcher a page */
+  let epoch = 0, asked = -1, drawn = -1;        /* epoch: a new one each time the tabs are not there */
+  const set = (state) => {
+    if (live.state === state) return;
+    live.state = state; live.ready = state === "ready"; live.changes += 1;
+    root.setAttribute(%s, state);
+  };
+  /* each tab in the page and taking pointer input (viser freezes its panel while the websocket is closed) */
+  const built = () => {
+    const there = Array.from(document.querySelectorAll('[role="tab"]'))
+      .filter((t) => getComputedStyle(t).pointerEvents !== "none").map((t) => t.textContent.trim());
+    return live.tabs.every((name) => there.includes(name));
+  };
+  /* ready: the tabs built and two frames drawn since (the page's first frames may take seconds) */
+  const check = () => {
+    if (!built()) { epoch += 1; set("connecting"); return; }
+    if (drawn === epoch) { set("ready"); return; }
+    if (asked === epoch) return;
+    const e = asked = epoch;
+    requestAnimationFrame(() => requestAnimationFrame(() => { if (e === epoch) { drawn = e; check(); } }));
+  };
+  set("connecting");
+  live.timer = setInterval(check, 100);
+  check();
+})();"""
+
+
+def announce_readiness(server, tabs) -> None:
+    """Makes every page of `server` state whether it takes input, for a script or a test to wait on (a
+    loaded machine may take many seconds to build the panel and draw its first frames). A script queued
+    after the panels (so each page runs it once it has received them, and again on each reconnect) keeps
+    the page's ``<html data-coopsim-live="...">`` and ``window.coopsimLive`` (``state``, ``ready``,
+    ``tabs``, ``changes``) up to date, every 0.1 s: ``"ready"`` once each tab named in `tabs` is in the
+    page and takes pointer input (viser freezes the panel while its websocket is closed: a connected page)
+    and the page has drawn two animation frames since; ``"connecting"`` before, and again while the page
+    is disconnected."""
+    from viser import _messages  # viser's message of a script to run in the page
+
+    source = _READINESS_JS % (json.dumps([str(t) for t in tabs]), json.dumps(READY_ATTRIBUTE))
+    server.gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
 
 
 def url_prefix(value: Optional[str]) -> str:

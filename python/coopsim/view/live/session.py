@@ -22,7 +22,7 @@ from ... import _checks
 from .common import _FOREVER, _GONE, _HOST, _robot_colors
 from .data import _Data
 from .drawing import Frame, _Drawing
-from .panels import _Panels
+from .panels import TAB_TITLES, _Panels
 from . import serving
 
 
@@ -138,6 +138,7 @@ class LiveView(_Panels, _Data, _Drawing):
             self.server.on_client_connect(lambda client: self._client_seen())
             self._build_scene()
             self._build_panels()
+            serving.announce_readiness(self.server, TAB_TITLES)     # <html data-coopsim-live="ready">
             self._draw(self._snapshot())
         except BaseException:
             self.server.stop()
