@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import coopsim as cs
-from coopsim import codegen
+from coopsim import codegen, mjcf
 
 mujoco = pytest.importorskip("mujoco", reason="mujoco is installed by the test extra")
 
@@ -326,6 +326,10 @@ def test_generated_code_equals_mujoco(tmp_path):
 def test_clamp_on_import():
     robot = cs.from_mjcf(HAND_SMALL, tip="l3", clamp={"opening": 0.04})
     assert robot.joint_types == "RRPP" and robot.joint_names[-1] == "clamp_jaw" and robot.clamp is not None
+
+
+def test_the_importer_is_the_package_s_and_the_robot_s():
+    assert cs.from_mjcf is mjcf.from_mjcf and cs.Robot.from_mjcf is mjcf.from_mjcf
 
 
 def test_source_forms(tmp_path):
