@@ -1,4 +1,5 @@
-"""The dual carry: both SCARAs grasp one bar at two points, lift it together, carry it along a path in their
+"""The dual carry: two arms (the two SCARAs by default; two UR5s, two Pandas or a pair of one's own with
+``run(robots=...)``, :mod:`.pairs`) grasp one bar at two points, lift it together, carry it along a path in their
 common workspace (a translation, a turn, a change of height), set it down on two other stands, let go and
 back off.
 
@@ -20,6 +21,7 @@ the bar mid-carry, a clamp gripping 5 mm off its planned point, noisy force sens
 the start stands (:func:`~.planning.random_start`).
 
 The modules: :mod:`.constants` (the values, checked in tests/test_carry.py), :mod:`.scene` (the World),
+:mod:`.pairs` (the arms: 'scara', 'ur5', 'panda' or one's own, placed, with what the plan and the baseline need),
 :mod:`.planning`, :mod:`.controllers`, :mod:`.disturbances`, :mod:`.sequence` (the run and its rules),
 :mod:`.scoring`, :mod:`.report` (text, JSON, series and figures), :mod:`.runs` (sweeps: :func:`sweep_table`
 over controllers x disturbances x seeds through :func:`coopsim.sweep`), :mod:`.statistics` (a sweep's means,
@@ -32,12 +34,13 @@ from .controllers import (CONTROLLERS, Cooperative, Phased, computed_torque, com
                           cooperative, leader_follower, object_control, object_impedance,
                           register_controller)
 from .disturbances import DISTURBANCES, Disturbances  # noqa: F401
-from .planning import STEPS, BarPath, Plan, make_plan, random_start  # noqa: F401
+from .pairs import PAIRS, Pair, pair  # noqa: F401
+from .planning import STEPS, BarPath, Plan, clearances, make_plan, random_start  # noqa: F401
 from .report import report_figures, summary, write_outputs  # noqa: F401
 from .runs import CarryRun, sweep, sweep_table
 from .statistics import sweep_statistics  # noqa: F401
 from .sequence import CarryError, CarryResult, run
 
-__all__ = ["CONTROLLERS", "DISTURBANCES", "STEPS", "CarryError", "CarryResult", "CarryRun", "Cooperative",
-           "Disturbances", "Phased", "make_plan", "register_controller", "run", "sweep", "sweep_statistics",
+__all__ = ["CONTROLLERS", "DISTURBANCES", "PAIRS", "STEPS", "CarryError", "CarryResult", "CarryRun", "Cooperative",
+           "Disturbances", "Pair", "Phased", "clearances", "make_plan", "pair", "register_controller", "run", "sweep", "sweep_statistics",
            "sweep_table"]

@@ -15,7 +15,8 @@ import numpy as np
 
 from ...view.animation import MAX_SPEED
 from ..handover.cli import check_out_folder
-from .controllers import CONTROLLERS, controller_factory
+from .controllers import CONTROLLERS, controller_factory, load_callable
+from .pairs import PAIRS
 from .disturbances import DISTURBANCES, disturbances
 from .report import (FIGURE_FORMATS, SERIES_FORMATS, parquet_missing, summary, sweep_series_table, write_outputs,
                      write_report, write_table)
@@ -28,6 +29,11 @@ def parser() -> argparse.ArgumentParser:
     """The command line's parser (its checks of the values are in :func:`parse_args`)."""
     ap = argparse.ArgumentParser(prog="python -m coopsim.tasks.carry", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="out/carry", help="folder for the outputs (default out/carry; made if missing)")
+    ap.add_argument("--robots", default="scara",
+                    help=f"the pair of arms: one of {', '.join(PAIRS)} (default scara, the two SCARAs; ur5: two UR5s "
+                         f"with clamps facing each other; panda: two 7-dof Pandas), or a factory of one's own as "
+                         f"module:factory or path/to/file.py:factory returning the two clamped robots and their "
+                         f"bases")
     ap.add_argument("--seed", type=int, default=None,
                     help="shift and turn the start stands by a seeded draw (>= 0; default: the planned start)")
     ap.add_argument("--disturbance", action="append", default=None, metavar="NAME",
@@ -88,6 +94,14 @@ def parse_args(argv=None) -> argparse.Namespace:
             ap.error(f"argument --mass-factor: must be finite and > 0, got {args.mass_factor:g}")
         if any(n.startswith("mass") for n in names):
             ap.error("argument --mass-factor: not with a mass disturbance (both set the bar's mass in the models)")
+    if args.robots not in PAIRS:
+        if ":" not in args.robots:
+            ap.error(f"argument --robots: unknown pair {args.robots!r}: choose from {', '.join(PAIRS)} (or name a "
+                     f"factory as module:factory or path/to/file.py:factory)")
+        try:
+            load_callable(args.robots, "robots", "() -> the two robots and their bases")
+        except ValueError as e:
+            ap.error(f"argument --robots: {e}")
     try:
         controller_factory(args.controller)      # loads it (made with its options below)
     except ValueError as e:
@@ -149,7 +163,7 @@ def _controller_options(ap, args) -> None:
         (scoped.setdefault(who, {}) if who else common)[key] = option_value(value)
     for c in used:
         try:
-            check_controllers(c, {**common, **scoped.get(c, {})})
+            check_controllers(c, {**common, **scoped.get(c, {})}, robots=args.robots)
         except ValueError as e:
             ap.error(f"argument --controller-option: {e}")
     args.controller_options = common
@@ -175,10 +189,10 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     paths, ok = [], True
     if not args.sweep_only:
-        res = run(seed=args.seed, disturbance=args.disturbance, controllers=args.controller,
+        res = run(seed=args.seed, disturbance=args.disturbance, controllers=args.controller, robots=args.robots,
                   controller_options=run_options(args, args.controller), mass_factor=args.mass_factor)
         rep, wall = res.report, res.timing["run"]
-        rep["command_line"] = dict(seed=args.seed, disturbance=args.disturbance, controller=args.controller,
+        rep["command_line"] = dict(robots=args.robots, seed=args.seed, disturbance=args.disturbance, controller=args.controller,
                                    controller_options=args.controller_options,
                                    options_by_controller=args.options_by_controller, mass_factor=args.mass_factor,
                                    sweep=args.sweep, sweep_controllers=args.sweep_controllers,
@@ -204,6 +218,7 @@ def _sweep(args) -> list:
     t1 = time.perf_counter()
     table = sweep_table(args.sweep_controllers, args.sweep_disturbances, range(args.sweep), threads=args.threads,
                         mass_factor=args.mass_factor, controller_options=args.controller_options or None,
+                        robots=args.robots,
                         options_by_controller={c: o for c, o in args.options_by_controller.items()
                                                if c in args.sweep_controllers},
                         keep_logs=args.series is not None)

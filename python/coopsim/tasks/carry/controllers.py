@@ -68,7 +68,7 @@ from typing import Callable, Dict, List, Optional, Sequence
 import numpy as np
 
 from ..._core import (ComputedTorque, Controller, CooperativeController, LeaderFollower, ObjectControl, Robot,
-                     box_inertia)
+                     box_inertia, commandable_directions)
 from . import scene
 from .constants import LEADER_FOLLOWER, OBJECT_GAINS, OBJECT_IMPEDANCE, OMEGA
 
@@ -104,14 +104,17 @@ class Cooperative:
     squeeze: Optional[float] = None
 
 
-def _gains(i):
-    return OMEGA[i] ** 2, 2.0 * OMEGA[i]
+def _gains(i, plan=None):
+    """Robot i's baseline gains (kp, kd) (n,): the pair's of the plan (the SCARAs' OMEGA without one)."""
+    pair = getattr(plan, "pair", None)
+    w = OMEGA[i] if pair is None else pair.omega[i]
+    return w ** 2, 2.0 * w
 
 
 def computed_torque(robots: Sequence[Robot], plan) -> List[Controller]:
-    """The baseline: independent computed torque per arm (kp = omega^2, kd = 2 omega from
-    :data:`~.constants.OMEGA`), each with the robot alone as its model."""
-    return [ComputedTorque(*_gains(i)) for i in range(len(robots))]
+    """The baseline: independent computed torque per arm (kp = omega^2, kd = 2 omega from the pair's gains,
+    ``plan.pair.omega``: the SCARAs' :data:`~.constants.OMEGA`), each with the robot alone as its model."""
+    return [ComputedTorque(*_gains(i, plan)) for i in range(len(robots))]
 
 
 def with_point_mass(robot: Robot, link: int, point, mass: float) -> Robot:
@@ -161,7 +164,7 @@ def computed_torque_payload(robots: Sequence[Robot], plan) -> Phased:
     held = []
     for i, r in enumerate(robots):
         model = with_point_mass(r, r.clamp.fixed_link, grip_point(r, plan.q_grasp[i]), plan.model_bar_mass / 2.0)
-        held.append(ComputedTorque(*_gains(i), model=model))
+        held.append(ComputedTorque(*_gains(i, plan), model=model))
     return Phased(free=computed_torque(robots, plan), held=held)
 
 
@@ -232,7 +235,8 @@ def _object_control_law(robots: Sequence[Robot], plan, *, load_share: float = 0.
                         **gains) -> ObjectControl:
     """Object-level control (:class:`coopsim.ObjectControl`) with the bar's model (:func:`bar_model`): SCARA
     #1 carries `load_share` of its weight, the clamps squeeze it with `squeeze` N (compression positive); gains
-    (kp 1/s^2, kd 1/s, kp_force, ki_force 1/s, integral_limit N) default to :data:`~.constants.OBJECT_GAINS`."""
+    (kp 1/s^2, kd 1/s, kp_force, ki_force 1/s, integral_limit N) default to :data:`~.constants.OBJECT_GAINS`, with
+    the pair's own over them (``plan.pair.object_gains``: the UR5s' and Pandas' ki_force 0)."""
     return _object_law("object control", plan, load_share, squeeze, gains, None)
 
 
@@ -254,7 +258,8 @@ def _object_law(what, plan, load_share, squeeze, options, impedance) -> ObjectCo
         raise ValueError(f"unknown option(s) of {what}: {', '.join(sorted(unknown))} (choose from "
                          f"load_share, squeeze, {', '.join(known)})")
     m, inertia = bar_model(plan)
-    gains = {**OBJECT_GAINS, **{k: v for k, v in options.items() if k in OBJECT_GAINS}}
+    pair_gains = getattr(getattr(plan, "pair", None), "object_gains", None) or {}
+    gains = {**OBJECT_GAINS, **pair_gains, **{k: v for k, v in options.items() if k in OBJECT_GAINS}}
     if impedance is not None:
         o = {**impedance, **{k: v for k, v in options.items() if k in impedance}}
         gains.update(impedance=(o["stiffness"], o["damping"], o["mass"]), accel_filter=o["accel_filter"])
@@ -283,7 +288,25 @@ def _leader_follower_law(robots: Sequence[Robot], plan, **options) -> LeaderFoll
         raise ValueError(f"unknown option(s) of leader-follower: {', '.join(sorted(unknown))} (choose from "
                          f"{', '.join(LEADER_FOLLOWER)})")
     o = {**LEADER_FOLLOWER, **options}
-    return LeaderFollower(o.pop("stiffness"), o.pop("damping"), o.pop("mass"), object_mass=plan.model_bar_mass, **o)
+    directions = _common_directions(robots)
+    k, d, m = (_per_direction(o.pop(key), directions) for key in ("stiffness", "damping", "mass"))
+    return LeaderFollower(k, d, m, object_mass=plan.model_bar_mass, **o)
+
+
+def _common_directions(robots: Sequence[Robot]) -> List[str]:
+    """The task directions both robots command (:func:`coopsim.commandable_directions`), in the engine's order."""
+    a, b = (set(commandable_directions(r)) for r in robots)
+    return [x for x in commandable_directions(robots[0]) if x in b and x in a]
+
+
+def _per_direction(value, directions: List[str]):
+    """A value of LEADER_FOLLOWER's form, over x, y, z, yaw (the SCARAs' directions), as one per direction the
+    robots command: the translations' for x, y, z, the yaw's for every rotation. A scalar, or values for exactly
+    the directions commanded, stay as they are (the engine checks them)."""
+    v = np.asarray(value, float)
+    if v.ndim == 0 or v.shape != (4,) or len(directions) == 4:
+        return value
+    return np.array([v[3] if x in ("roll", "pitch", "yaw") else v["xyz".index(x)] for x in directions])
 
 
 def _leader_share(*, follower_share: float = LEADER_FOLLOWER["follower_share"], **_) -> float:
@@ -327,23 +350,29 @@ def controller_factory(spec: str) -> Callable:
     if ":" not in spec:
         raise ValueError(f"unknown controller {spec!r}: choose from {', '.join(CONTROLLERS)} (or name a factory of "
                          f"your own as module:factory or path/to/file.py:factory)")
+    return load_callable(spec, "controller", "(robots, plan, **options) -> controllers")
+
+
+def load_callable(spec: str, what: str, call: str) -> Callable:
+    """The callable ``"module:name"`` or ``"path/to/file.py:name"`` stands for (as :func:`controller_factory`
+    finds a factory); ValueError naming `what` (e.g. 'controller') and what it is called as (`call`) for one
+    that does not import, is missing or is not callable."""
     where, attr = (x.strip() for x in spec.rsplit(":", 1))
     if not where or not attr:
-        raise ValueError(f"controller {spec!r}: give it as module:factory or path/to/file.py:factory")
+        raise ValueError(f"{what} {spec!r}: give it as module:factory or path/to/file.py:factory")
     try:
         module = _load_file(where) if where.endswith(".py") or os.sep in where or "/" in where \
             else importlib.import_module(where)
     except Exception as e:  # noqa: BLE001 - the module's own error, in one line
-        raise ValueError(f"controller {spec!r}: cannot import {where!r}: {type(e).__name__}: "
+        raise ValueError(f"{what} {spec!r}: cannot import {where!r}: {type(e).__name__}: "
                          f"{str(e).splitlines()[0] if str(e) else ''}") from None
     obj = module
     for part in attr.split("."):
         if not hasattr(obj, part):
-            raise ValueError(f"controller {spec!r}: {where!r} has no {attr!r}")
+            raise ValueError(f"{what} {spec!r}: {where!r} has no {attr!r}")
         obj = getattr(obj, part)
     if not callable(obj):
-        raise ValueError(f"controller {spec!r}: {attr!r} is not callable (robots, plan, **options) -> controllers, "
-                         f"it is {type(obj).__name__}")
+        raise ValueError(f"{what} {spec!r}: {attr!r} is not callable {call}, it is {type(obj).__name__}")
     return obj
 
 

@@ -36,7 +36,9 @@ def summary(report: dict) -> str:
     """A few lines: the outcome (or the failed step, time and reason), then the scores."""
     d = report["disturbance"]
     what = ", ".join(d["names"]) or "none"
-    lines = [f"dual carry, controller {report['controller']}, disturbance {what}"
+    pair = report.get("robots", "scara")
+    lines = [f"dual carry{'' if pair == 'scara' else ' by the ' + pair + ' pair'}, controller {report['controller']}, "
+             f"disturbance {what}"
              + (f", seed {report['seed']}" if report["seed"] is not None else "")]
     f = report["failure"]
     if f:
@@ -60,11 +62,12 @@ def summary(report: dict) -> str:
         c = s.get("cooperation")
         if c:
             ls = c["load_share"]
+            first = report.get("robot_names", ["SCARA #1"])[0]
             sq = c["squeeze_N"]
             f_int = c["internal_force_N"]
             lines.append(f"  together while carried: squeeze {sq['mean']:+.3f} N mean, {sq['rms']:.3f} N RMS, peak "
                          f"{sq['peak']:+.3f} N (compression > 0; commanded {c['squeeze_commanded_N']:+.2f} N); "
-                         f"internal force {f_int['rms']:.3f} N RMS, {f_int['max']:.3f} N max; SCARA #1's load share "
+                         f"internal force {f_int['rms']:.3f} N RMS, {f_int['max']:.3f} N max; {first}'s load share "
                          f"{ls['mean']:.3f} (commanded {c['load_share_commanded']:.2f}, off by "
                          f"{ls['mean_abs_deviation']:.3f} on average); relative pose error "
                          f"{c['relative_position_error_mm']:.2f} mm, {c['relative_angle_error_mrad']:.2f} mrad max")
@@ -131,7 +134,7 @@ def report_figures(result: CarryResult) -> Dict[str, object]:
     figs["bar_path.png"] = fig
 
     fig, axes = plt.subplots(3, 1, figsize=(10, 7), sharex=True)
-    names = ("SCARA #1", "SCARA #2")
+    names = tuple(result.report.get("robot_names", ("SCARA #1", "SCARA #2")))
     for i in range(2):
         axes[0].plot(t, np.linalg.norm(s["weld"][:, i, :3], axis=1), label=names[i])
         axes[1].plot(t, np.linalg.norm(s["weld"][:, i, 3:], axis=1) * 1e3, label=names[i])

@@ -8,9 +8,8 @@ from typing import List
 
 import numpy as np
 
-from ..._core import box_clearances
+from ..._core import shape_clearances
 from . import scene
-from .planning import ROBOT_NAMES
 
 
 def _angles(R) -> np.ndarray:
@@ -76,7 +75,7 @@ def score(runner, report: dict) -> dict:
             rows = np.flatnonzero(holding[:, i])
             stretch[rows, i] = weld_stretch(r, rl.q[rows], bar[rows], a)
     shapes = [r.shapes(rl.q) for r, rl in zip(robots, log.robots)]
-    d_rr = box_clearances(shapes[0][0], shapes[0][1], shapes[1][0], shapes[1][1])[0]
+    d_rr = shape_clearances(shapes[0][0], list(robots[0].boxes), shapes[1][0], list(robots[1].boxes))[0]
     # the tool's tracking error with the jaw where it is (closed on the bar the jaw stops at the bar's width,
     # short of its squeezing reference, and the tool centre point midway between the jaws would count that)
     tcp_err = np.column_stack([np.linalg.norm(r.fk(rl.q)[:, :3, 3] - r.fk(_jaw_as(rl.q_ref, rl.q))[:, :3, 3], axis=1)
@@ -91,7 +90,7 @@ def score(runner, report: dict) -> dict:
         h = holding[:, i]
         tau = np.abs(rl.tau)
         s["robots"].append(dict(
-            robot=ROBOT_NAMES[i],
+            robot=runner.names[i],
             # the raw weld wrench on the bar, world axes, moment about the weld's point
             peak_weld_force=_max(np.linalg.norm(weld[h, i, :3], axis=1)),
             peak_weld_moment=_max(np.linalg.norm(weld[h, i, 3:], axis=1)),

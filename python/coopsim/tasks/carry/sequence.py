@@ -8,18 +8,19 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from ..._core import CooperativeController, DivergenceError, IKError, box_distances
+from ..._core import CooperativeController, DivergenceError, IKError, LinkBox, shape_clearances
 from ...simulation import Simulation
 from . import scene
 from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
 from .controllers import CONTROLLERS, Cooperative, Phased, check_options, computed_torque, controller_factory, grip_point
 from .disturbances import Disturbances, disturbances
-from .planning import ROBOT_NAMES, STEPS, Plan, make_plan, random_start
+from .pairs import pair as make_pair
+from .planning import STEPS, Plan, make_plan, random_start
 from .scoring import score
 
 __all__ = ["CarryError", "CarryResult", "run"]
 
-JAWS = ("/fixed_jaw", "/link6")
+JAWS = ("/fixed_jaw", "/link6")   # the SCARAs' jaws' boxes in the world (a pair's: "/" + Pair.jaws)
 CHUNK = 0.001          # s: while a grasp or release is awaited, and while the bar is held, the run goes in chunks
 HELD_CHUNK = 0.05      # of these, checking the grasps between them
 
@@ -55,7 +56,9 @@ class _Runner:
     def __init__(self, plan: Plan, start, dist: Disturbances, factory, *, dt, log_every, world_every,
                  control_every):
         self.plan, self.dist = plan, dist
-        self.robots = scene.scaras()
+        self.robots = plan.robots
+        self.names = plan.pair.names
+        self.jaws = tuple("/" + j for j in plan.pair.jaws)
         self.sim = Simulation(dt=dt, world=scene.world(start, plan.end), log_every=log_every,
                               world_every=world_every, control_every=control_every)
         made = factory(self.robots, plan)
@@ -110,7 +113,7 @@ class _Runner:
                 g = self.sim.log.grasps
                 e = g[(g.robot == i) & (g.event == "release")]
                 why = f" ({e.reason.iloc[-1]} at t = {e.t.iloc[-1]:.4f} s)" if len(e) else ""
-                raise CarryError(self.step, self.sim.time, f"{ROBOT_NAMES[i]} let go of the bar{why}")
+                raise CarryError(self.step, self.sim.time, f"{self.names[i]} let go of the bar{why}")
 
     def record_anchor(self, i):
         """The weld's point (midway between the pads now, just after the grasp) in the clamp's link frame and in
@@ -136,7 +139,7 @@ class _Runner:
                 failed = [k for k in ("closing", "aligned", "touching", "in_pads", "slow") if not getattr(c, k)]
                 detail = (f"angle {np.degrees(c.angle):.1f} deg, gaps {c.gap_fixed * 1e3:.1f} and "
                           f"{c.gap_moving * 1e3:.1f} mm, speed {c.speed:.3f} m/s")
-                raise CarryError("grasp", self.sim.time, f"{ROBOT_NAMES[i]} did not grasp the bar: the clamp rule's "
+                raise CarryError("grasp", self.sim.time, f"{self.names[i]} did not grasp the bar: the clamp rule's "
                                  f"{', '.join(failed) or 'hold time'} failed ({detail})")
 
     # ---- contacts ----
@@ -147,7 +150,7 @@ class _Runner:
         if scene.BAR not in (a, b):
             return False          # robot-robot, robot-scenery, a robot's own links
         other = b if a == scene.BAR else a
-        if other.endswith(JAWS):
+        if other.endswith(self.jaws):
             return True
         if other.startswith("start_stand"):
             return begin <= self.plan.steps["lift"][1]
@@ -209,7 +212,7 @@ class _Runner:
             self.run_to(min(t_open, sim.time + CHUNK))
         for i in range(2):
             if sim.holding(i) is not None:
-                raise CarryError("release", sim.time, f"{ROBOT_NAMES[i]} did not let go of the bar")
+                raise CarryError("release", sim.time, f"{self.names[i]} did not let go of the bar")
         if self.phased:
             for i, c in enumerate(self.phased.free):
                 sim.set_controller(i, c)
@@ -234,16 +237,17 @@ class _Runner:
                              f"{PLACE_TOL * 1e3:.0f} mm, {PLACE_TOL_ANGLE * 1e3:.0f} mrad, at rest)")
 
     def check_backed_off(self):
-        """Every box of both robots at least BACKED_OFF m from the bar."""
+        """Every collision shape of both robots at least BACKED_OFF m from the bar."""
         from_bar = []
         bar = self.sim.body_state(scene.BAR).pose[None]
+        bar_shape = [LinkBox(0, scene.BAR_HALF_EXTENTS, np.eye(4), scene.BAR)]
         for i, r in enumerate(self.robots):
-            P, H = r.shapes(self.sim.state(i)[0])
-            from_bar.append(float(box_distances(P, H, bar, scene.BAR_HALF_EXTENTS[None]).min()))
+            P, _ = r.shapes(self.sim.state(i)[0])
+            from_bar.append(float(shape_clearances(P[None], list(r.boxes), bar, bar_shape)[0][0]))
         self.backed_off = from_bar
         for i, d in enumerate(from_bar):
             if d < BACKED_OFF:
-                raise CarryError("back off", self.sim.time, f"{ROBOT_NAMES[i]} ended {d * 1e3:.1f} mm from the bar "
+                raise CarryError("back off", self.sim.time, f"{self.names[i]} ended {d * 1e3:.1f} mm from the bar "
                                  f"(at least {BACKED_OFF * 1e3:.0f} mm expected)")
 
 
@@ -315,15 +319,15 @@ def _factory(controllers, name, options):
     return (lambda robots, plan: controllers(robots, plan, **options)), name
 
 
-def check_controllers(controllers, options: Optional[dict] = None) -> None:
+def check_controllers(controllers, options: Optional[dict] = None, robots=None) -> None:
     """Makes the controllers of `controllers` (as :func:`run` takes it) with `options` for the planned carry,
     and drops them: the ValueError (one line) :func:`run` would raise for an unknown controller, a factory that
     does not load, an option the factory does not take or a value it refuses, without running anything (the
-    command line checks its arguments so; about 10 ms)."""
+    command line checks its arguments so; about 10 ms for the SCARAs). robots: the pair (as run takes it)."""
     factory, _ = _factory(controllers, None, options)
-    plan = make_plan(START, END)
+    plan = make_plan(START, END, robots=robots)
     try:
-        made = factory(scene.scaras(), plan)
+        made = factory(plan.robots, plan)
     except TypeError as e:        # a factory of one's own called with keywords it does not take
         raise ValueError(f"controller {controllers!r}: {e}") from None
     if made is None:
@@ -332,8 +336,8 @@ def check_controllers(controllers, options: Optional[dict] = None) -> None:
 
 def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, controllers=computed_torque,
         controller_name: Optional[str] = None, controller_options: Optional[dict] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
-        dt: float = 2e-4, log_every: int = 25, world_every: int = 5, control_every: int = 5,
-        score_run: bool = True) -> CarryResult:
+        robots=None, dt: Optional[float] = None, log_every: Optional[int] = None, world_every: Optional[int] = None,
+        control_every: Optional[int] = None, score_run: bool = True) -> CarryResult:
     """Runs the dual carry and scores it.
 
     seed: the start stands shifted and turned by a seeded draw (:func:`~.planning.random_start`; None: the
@@ -348,9 +352,14 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     ``load_share`` and gains for 'object', ``stiffness`` for 'leader-follower' and 'object-impedance');
     controller_name: its name in the report (default the name given, or the factory's __name__). mass_factor:
     the bar's mass in the controllers' models over the world's (> 0), instead of a 'mass' disturbance's.
-    jaws_close: (2,) flags, False: that clamp's jaw is never commanded to close (a forced failure). dt (s),
-    log_every, world_every, control_every: the simulation's (the robots integrated at 5 kHz, the controllers
-    and the world at 1 kHz). score_run: compute the scores (:func:`~.scoring.score`).
+    jaws_close: (2,) flags, False: that clamp's jaw is never commanded to close (a forced failure). robots: the
+    pair of arms (:func:`~.pairs.pair`): 'scara' (default: the handover's two SCARAs), 'ur5' (two UR5s of
+    example-robot-data with clamps, facing each other), 'panda' (two 7-dof Pandas), a
+    :class:`~.pairs.Pair`, or a factory ``() -> ((robot #1, robot #2), ((position, yaw), (position, yaw)))`` of
+    two clamped robots and their bases. dt (s), log_every, world_every, control_every: the simulation's (None:
+    the pair's, Pair.simulation; the SCARAs' robots integrated at 5 kHz, the controllers and the world at 1 kHz;
+    the UR5s' and Pandas' robots, controllers and world all at 1 kHz; a log row every 5 ms). score_run: compute
+    the scores (:func:`~.scoring.score`).
 
     A run fails, naming its step (approach, grasp, lift, carry, place, release, back off), time and reason, on
     an unexpected contact (robot-robot, a robot with a stand or the floor or its own links, the bar with
@@ -369,14 +378,21 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     start = random_start(int(seed)) if seed is not None else (START if start is None else start)
     end = END if end is None else end
     factory, name = _factory(controllers, controller_name, controller_options)
-    plan0 = make_plan(start, end)             # checks start and end; the disturbances need the start's yaw
+    pair = make_pair(robots)
+    rates = dict(pair.simulation)
+    dt = float(rates.get("dt", 2e-4)) if dt is None else dt
+    world_every = int(rates.get("world_every", 5)) if world_every is None else world_every
+    control_every = int(rates.get("control_every", 5)) if control_every is None else control_every
+    if log_every is None:
+        log_every = max(1, int(round(5e-3 / dt))) if isinstance(dt, (int, float)) and dt > 0 else 25
+    plan0 = make_plan(start, end, robots=pair)  # checks start and end; the disturbances need the start's yaw
     dist = disturbances(disturbance, plan0.start[3])
     if mass_factor is not None:
         if dist.mass_factor != 1.0:
             raise ValueError(f"mass_factor {mass_factor!r} and the disturbance's mass factor {dist.mass_factor} both "
                              f"given: give one of them")
         dist = dataclasses.replace(dist, mass_factor=mass_factor)
-    plan = make_plan(plan0.start, plan0.end, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
+    plan = make_plan(plan0.start, plan0.end, robots=pair, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
                      mass_factor=dist.mass_factor)
     runner = _Runner(plan, plan.start, dist, factory, dt=dt, log_every=log_every, world_every=world_every,
                      control_every=control_every)
@@ -394,6 +410,7 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     report = dict(success=failure is None, failure=failure, steps=runner.steps,
                   planned_steps={k: list(v) for k, v in plan.steps.items()},
                   simulated_time=runner.sim.time, seed=seed, start=list(plan.start), end=list(plan.end),
+                  robots=pair.name, robot_names=list(pair.names),
                   controller=name, controller_options=_plain(dict(controller_options or {})),
                   commanded=runner.commanded, disturbance=_plain(dataclasses.asdict(dist)), jaws_close=list(plan.close),
                   dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
