@@ -35,7 +35,7 @@ from ._core import (
     linearize,
     rk4_step,
 )
-from . import grasp, robots
+from . import analysis, grasp, robots
 from .urdf import from_urdf, to_urdf
 from .mjcf import from_mjcf
 from .planning import clamp_pose, plan_cartesian
@@ -109,6 +109,7 @@ __all__ = [
     "integrate",
     "linearize",
     "rk4_step",
+    "analysis",
     "grasp",
     "robots",
     "from_urdf",
