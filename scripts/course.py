@@ -13,7 +13,8 @@ The teacher's steps, in order (docs/labs.md, "Grading the labs"):
     collect    the exchange's submissions into submitted/STUDENT/labNN/ (newer ones replace older ones)
     autograde  autograded/STUDENT/labNN/: every submission run with the instructor's checks, hidden
                tests included; a check the student changed or deleted is named here and graded as
-               the instructor wrote it. One line per submission: its points and its changed checks.
+               the instructor wrote it. One line per submission: its points, the points of its
+               written answers still to grade by hand (nbgrader's formgrader), its changed checks.
     export     COURSE_DIR/grades.csv (nbgrader's CSV: a row per lab and student) and
                COURSE_DIR/changed_checks.csv (a row per check a submission had changed or deleted)
 
@@ -165,7 +166,9 @@ def autograde(course_dir: str, names: list[str], jobs: int) -> None:
                 continue
             sub = gb.find_submission(name, student)
             changed = changed_checks(api, name, student)
-            print(f"course: {name} {student}: {sub.score:g} / {sub.max_score:g} points; "
+            by_hand = sum(g.max_score for nb in sub.notebooks for g in nb.grades if g.needs_manual_grade)
+            print(f"course: {name} {student}: {sub.score:g} / {sub.max_score:g} points"
+                  + (f" ({by_hand:g} to grade by hand)" if by_hand else "") + "; "
                   + ("checks as released" if not changed else
                      "checks changed in the submission (graded as released): " + ", ".join(changed))
                   + f" (graded in {took:.0f} s)")

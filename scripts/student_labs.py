@@ -9,7 +9,9 @@ answer lies between ``### BEGIN SOLUTION`` and ``### END SOLUTION``, followed by
 cell (``nbgrader.grade``) of asserts, whose ``### BEGIN HIDDEN TESTS`` ... ``### END HIDDEN TESTS``
 part the student does not see. In the student version each answer becomes a stub, indented as its
 markers, that raises ``NotImplementedError("Your turn: ...")``; checks stay, hidden tests go, and
-every output and execution count is cleared.
+every output and execution count is cleared. A written answer is a markdown solution cell that is also
+a grade cell (graded by hand, its model answer and rubric between the markers): its answer becomes
+nbgrader's text stub, ``YOUR ANSWER HERE``.
 
 The student version is locked as nbgrader's ``generate_assignment`` locks it (its LockCells and
 ComputeChecksums steps): a check cell is read-only and undeletable (``metadata.editable = false``,
@@ -32,6 +34,7 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STUB = 'raise NotImplementedError("Your turn: replace this line with your answer, then run the check below")'
+TEXT_STUB = "YOUR ANSWER HERE"   # nbgrader's ClearSolutions.text_stub: a written answer's stub (a markdown cell)
 _SOLUTION = re.compile(r"^([ \t]*)### BEGIN SOLUTION[ \t]*\n.*?^[ \t]*### END SOLUTION[ \t]*$", re.M | re.S)
 _HIDDEN = re.compile(r"^[ \t]*### BEGIN HIDDEN TESTS[ \t]*\n.*?^[ \t]*### END HIDDEN TESTS[ \t]*(\n|\Z)", re.M | re.S)
 
@@ -91,11 +94,14 @@ def _check_markers(source: str, begin: str, end: str, where: str) -> None:
         raise ValueError(f"{where}: {b} '{begin}' but {e} '{end}'")
 
 
-def student_source(source: str, where: str = "cell") -> str:
-    """The source of a solution cell with every answer region replaced by the stub (same indentation)."""
+def student_source(source: str, where: str = "cell", cell_type: str = "code") -> str:
+    """The source of a solution cell with every answer region replaced by the stub (same indentation): the code
+    stub in a code cell, nbgrader's text stub in a markdown cell (a written answer, graded by hand)."""
     _check_markers(source, "### BEGIN SOLUTION", "### END SOLUTION", where)
     if "### BEGIN SOLUTION" not in source:
         raise ValueError(f"{where}: a solution cell needs a ### BEGIN SOLUTION ... ### END SOLUTION region")
+    if cell_type == "markdown":
+        return _SOLUTION.sub(lambda m: m.group(1) + TEXT_STUB, source)
     return _SOLUTION.sub(lambda m: m.group(1) + "# YOUR CODE HERE\n" + m.group(1) + STUB, source)
 
 
@@ -112,7 +118,7 @@ def student_version(nb, name: str = "notebook"):
             cell.outputs = []
             cell.execution_count = None
         if meta.get("solution"):
-            cell.source = student_source(src, where)
+            cell.source = student_source(src, where, cell.cell_type)
         elif "### BEGIN SOLUTION" in src:
             raise ValueError(f"{where}: a ### BEGIN SOLUTION region outside a solution cell (nbgrader.solution)")
         _check_markers(cell.source, "### BEGIN HIDDEN TESTS", "### END HIDDEN TESTS", where)

@@ -51,6 +51,12 @@ WRONG = {
     "lab06-ex2-answer": ("share_cmd = 0.3", "share_cmd = 0.7"),                   # SCARA #1's share
     "lab06-ex3-answer": ("if p > 1.0)", "if p > 0.1)"),
     "lab06-ex4-answer": ("part * self.mass * G", "0.0 * part * self.mass * G"),   # the weight forgotten
+    "lab08-ex1-answer": ("n_zero_pred = 5 ", "n_zero_pred = 6 "),                # the pitch counted as free too
+    "lab08-ex2-answer": ("Ad = np.linalg.matrix_power(T, steps)", "Ad = T"),      # one step, not `steps`
+    "lab08-ex3-answer": ("(step(x + e, tau) - step(x - e, tau)) / (2 * h)", "(step(x + e, tau) - step(x, tau)) / (2 * h)"),
+    "lab08-ex4-answer": ("dq_ok, dqd_ok = 0.022, 3.0", "dq_ok, dqd_ok = 0.01, 3.0"),  # too stiff: saturates
+    "lab08-ex5-answer": ("r.mass_matrix(q0) * kp", "np.eye(n) * kp"),            # the inertia forgotten
+    "lab08-ex6-answer": ("np.abs(z_cl).max()", "np.abs(z_cl).min()"),            # the fastest mode, not the slowest
 }
 TAMPER = "assert True  # the check, rewritten by the student"
 
@@ -92,12 +98,16 @@ def _exchange(course, home, student, lab, action):
 
 def _answer(nb, instructor, right: bool) -> str | None:
     """A student's answers in a fetched notebook (changed in place): the instructor's (without the markers),
-    or the wrong ones of WRONG with the first check that has no hidden tests rewritten to pass. Returns the
-    grade_id of the rewritten check."""
+    or the wrong ones of WRONG with the first check that has no hidden tests rewritten to pass; a written answer
+    (graded by hand) is the instructor's model answer, or left unanswered. Returns the grade_id of the
+    rewritten check."""
     rewritten = None
     for cell, inst in zip(nb.cells, instructor.cells):
         g = _grader(cell)
-        if g.get("solution"):
+        if g.get("solution") and g.get("grade"):   # a written answer: the model answer, or none (nbgrader gives 0)
+            if right:
+                cell.source = re.sub(r"^[ \t]*### (BEGIN|END) SOLUTION[ \t]*\n", "", inst.source, flags=re.M)
+        elif g.get("solution"):
             answer = re.sub(r"^[ \t]*### (BEGIN|END) SOLUTION[ \t]*\n", "", inst.source, flags=re.M)
             if right:
                 cell.source = answer
@@ -148,7 +158,22 @@ def test_a_course_grades_the_instructors_answers_full_and_wrong_answers_with_a_r
     assert all(rewritten.values()) and len(rewritten) == len(LABS)
     took.append(time.perf_counter())
 
-    out = _course(course, "collect", "autograde", "export", "--jobs", "2")
+    out = _course(course, "collect", "autograde", "--jobs", "2")
+    # the teacher grades the written answers by hand (formgrader writes the same field): full points for the
+    # instructor's model answers; bob answered none, and nbgrader gave those 0 without asking for a hand grade
+    from nbgrader.api import Gradebook
+
+    hand = {}
+    with Gradebook(f"sqlite:///{course / 'gradebook.db'}") as gb:
+        for lab in LABS:
+            for student in ("alice", "bob"):
+                for nb in gb.find_submission(lab, student).notebooks:
+                    for grade in nb.grades:
+                        if grade.needs_manual_grade:
+                            hand.setdefault((lab, student), []).append(grade.name)
+                            grade.manual_score, grade.needs_manual_grade = grade.max_score, False
+            gb.db.commit()
+    out += _course(course, "export")
     took.append(time.perf_counter())
     # the figures docs/labs.md quotes (pytest -s shows them)
     print("course: setup+generate+release {:.0f} s, students {:.0f} s, collect+autograde+export {:.0f} s".format(
@@ -159,6 +184,9 @@ def test_a_course_grades_the_instructors_answers_full_and_wrong_answers_with_a_r
     for lab, path in LABS.items():
         instructor = nbformat.read(path, as_version=4)
         points = sum(_grader(c).get("points", 0) for c in instructor.cells if _grader(c).get("grade"))
+        written = {_grader(c)["grade_id"]: _grader(c)["points"] for c in instructor.cells
+                   if _grader(c).get("grade") and _grader(c).get("solution")}
+        assert hand.get((lab, "alice"), []) == list(written) and (lab, "bob") not in hand, (lab, hand)
         alice, bob = grades[(lab, "alice")], grades[(lab, "bob")]
         assert float(alice["max_score"]) == points and float(alice["score"]) == points, (lab, alice)
         assert float(bob["max_score"]) == points and float(bob["score"]) == 0.0, (lab, bob)
@@ -166,7 +194,9 @@ def test_a_course_grades_the_instructors_answers_full_and_wrong_answers_with_a_r
         gid = rewritten[lab]
         assert f"course: {lab} bob: 0 / {points:g} points; checks changed in the submission (graded as " \
                f"released): {gid}: changed (graded in " in out
-        assert f"course: {lab} alice: {points:g} / {points:g} points; checks as released (graded in " in out
+        by_hand = f" ({sum(written.values()):g} to grade by hand)" if written else ""
+        assert f"course: {lab} alice: {points - sum(written.values()):g} / {points:g} points{by_hand}; checks as " \
+               f"released (graded in " in out
         assert re.search(rf"Attribute 'checksum' for cell {gid} has changed", out), gid
         graded = nbformat.read(course / "autograded" / "bob" / lab / os.path.basename(path), as_version=4)
         cell = next(c for c in graded.cells if _grader(c).get("grade_id") == gid)
@@ -174,14 +204,14 @@ def test_a_course_grades_the_instructors_answers_full_and_wrong_answers_with_a_r
         assert cell.source == source != TAMPER
         # every check fails on its wrong answer with a message naming the value expected and the one found
         for c in graded.cells:
-            if _grader(c).get("grade"):
+            if _grader(c).get("grade") and not _grader(c).get("solution"):
                 errors = [o for o in c.outputs if o.output_type == "error"]
                 assert len(errors) == 1 and errors[0].ename == "AssertionError", (_grader(c)["grade_id"], c.outputs)
                 assert re.search(r"^[^:\n]+: expected .+, found .+", errors[0].evalue), errors[0].evalue
         # the instructor's answers pass every check, hidden tests included
         graded = nbformat.read(course / "autograded" / "alice" / lab / os.path.basename(path), as_version=4)
         for c in graded.cells:
-            if _grader(c).get("grade"):
+            if _grader(c).get("grade") and not _grader(c).get("solution"):
                 assert not [o for o in c.outputs if o.output_type == "error" or o.get("name") == "stderr"], \
                     (lab, _grader(c)["grade_id"], c.outputs)
         hidden = [c for c in instructor.cells if "### BEGIN HIDDEN TESTS" in c.source]

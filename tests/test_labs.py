@@ -80,7 +80,18 @@ def test_the_teachers_and_the_students_paths_are_documented_and_nbgrader_is_inst
 def test_every_your_turn_is_an_answer_cell_and_a_locked_check_in_nbgraders_format(path):
     nb = _read(path)
     cells = nb.cells
-    answers = [k for k, c in enumerate(cells) if _grader(c).get("solution")]
+    # a written answer (graded by hand): a markdown answer cell that is its own grade cell, its model answer and
+    # the rubric between the markers (the instructor's version only), after a prompt that says it is graded by hand
+    written = [k for k, c in enumerate(cells) if _grader(c).get("solution") and _grader(c).get("grade")]
+    for k in written:
+        w = _grader(cells[k])
+        assert cells[k].cell_type == "markdown"
+        assert w == {"grade": True, "grade_id": w["grade_id"], "locked": False, "points": w["points"],
+                     "schema_version": 3, "solution": True, "task": False} and w["points"] > 0
+        model = re.search(r"### BEGIN SOLUTION\n(.*?)\n### END SOLUTION", cells[k].source, flags=re.S).group(1)
+        assert "*Rubric (" in model and "*A model answer.*" in model, w["grade_id"]
+        assert cells[k - 1].cell_type == "markdown" and "graded by hand" in cells[k - 1].source
+    answers = [k for k, c in enumerate(cells) if _grader(c).get("solution") and k not in written]
     assert answers, "a lab has exercises"
     for k in answers:
         a, c = _grader(cells[k]), _grader(cells[k + 1])
@@ -93,7 +104,7 @@ def test_every_your_turn_is_an_answer_cell_and_a_locked_check_in_nbgraders_forma
         assert "assert" not in src, "the answer cell holds no check: the check cell does"
         assert cells[k + 1].source.lstrip().startswith("assert"), cells[k + 1].source
     ids = [_grader(c)["grade_id"] for c in cells if _grader(c)]
-    assert len(ids) == len(set(ids)) == 2 * len(answers)
+    assert len(ids) == len(set(ids)) == 2 * len(answers) + len(written)
     # every "Your turn" text is followed by its exercise, and nothing outside an exercise holds markers
     for k, c in enumerate(cells):
         if c.cell_type == "markdown" and "**Your turn.**" in c.source:
@@ -115,13 +126,14 @@ def test_the_student_version_has_stubs_for_answers_keeps_checks_and_drops_hidden
             assert stud.outputs == [] and stud.execution_count is None
         if g.get("solution"):
             answers = re.findall(r"### BEGIN SOLUTION\n(.*?)\n[ \t]*### END SOLUTION", inst.source, flags=re.S)
-            assert stud.source.count(sl.STUB) == len(answers) >= 1
+            stub = sl.TEXT_STUB if inst.cell_type == "markdown" else sl.STUB     # a written answer: nbgrader's text stub
+            assert stud.source.count(stub) == len(answers) >= 1
             assert "SOLUTION" not in stud.source
             for ans in answers:
                 assert ans.strip() not in stud.source
             # the scaffold around the answer stays as it was
             assert stud.source.splitlines()[0] == inst.source.splitlines()[0] or "### BEGIN" in inst.source.splitlines()[0]
-        elif g.get("grade"):
+        elif g.get("grade"):  # a check (a written answer is a solution cell too, above)
             hidden += "### BEGIN HIDDEN TESTS" in inst.source
             assert "HIDDEN" not in stud.source
             assert stud.source == re.sub(r"\n?### BEGIN HIDDEN TESTS.*?### END HIDDEN TESTS", "", inst.source,
@@ -130,9 +142,9 @@ def test_the_student_version_has_stubs_for_answers_keeps_checks_and_drops_hidden
             assert stud.source == inst.source
         # locked as nbgrader locks them: a check read-only and undeletable, an answer undeletable; each with
         # the checksum of what the student sees
-        if g.get("grade"):
+        if g.get("grade") and not g.get("solution"):
             assert stud.metadata["editable"] is False and stud.metadata["deletable"] is False
-        elif g.get("solution"):
+        elif g.get("solution"):  # an answer, written ones too
             assert stud.metadata["deletable"] is False and "editable" not in stud.metadata
         else:
             assert stud.metadata == inst.metadata
@@ -295,6 +307,9 @@ WRONG = [
     ("06_cooperative_control", "lab06-ex1-answer", "squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),  # a push, not a pull
     ("06_cooperative_control", "lab06-ex2-answer", "share_cmd = 0.3", "share_cmd = 0.7"),  # SCARA #1's share
     ("06_cooperative_control", "lab06-ex3-answer", "if p > 1.0)", "if p > 0.1)"),  # the takeover's 0.1 N peak
+    ("08_linear_models_and_lqr", "lab08-ex2-answer", "Ad = np.linalg.matrix_power(T, steps)", "Ad = T"),  # one step
+    ("08_linear_models_and_lqr", "lab08-ex4-answer", "dq_ok, dqd_ok = 0.022, 3.0",
+     "dq_ok, dqd_ok = 0.01, 3.0"),  # Bryson's rule with 1 cm: too stiff, the first joints saturate
 ]
 
 
@@ -321,7 +336,7 @@ def test_every_assert_of_a_check_says_what_it_checks_and_the_value_expected_agai
     import ast
 
     for cell in _read(path).cells:
-        if not _grader(cell).get("grade"):
+        if not _grader(cell).get("grade") or _grader(cell).get("solution"):  # checks, not written answers
             continue
         tree = ast.parse(cell.source)
         asserts = [n for n in ast.walk(tree) if isinstance(n, ast.Assert)]
@@ -331,6 +346,49 @@ def test_every_assert_of_a_check_says_what_it_checks_and_the_value_expected_agai
             assert a.msg is not None, f"{where}: no message"
             text = _template(a.msg)
             assert re.search(r"^[^:]+: expected .+, found .*\{\}", text, flags=re.S), f"{where}: {text!r}"
+
+
+def _shown(value) -> list[str]:
+    """How a value could be written in a prompt: an integer as its digits and its word, a float with 3 or 4
+    significant digits, in SI units and in thousandths (mm, ms)."""
+    words = "zero one two three four five six seven eight nine ten eleven twelve".split()
+    if float(value).is_integer() and abs(value) < 1000:
+        v = int(value)
+        return [rf"(?<![\w.]){v}(?![\w.]|\.\d)"] + ([rf"\b{words[v]}\b"] if 0 <= v < len(words) else [])
+    return [rf"(?<![\d.]){re.escape(f'{x:.{d}g}')}(?!\d)" for x in (value, 1e3 * value) for d in (3, 4)]
+
+
+@pytest.mark.slow
+def test_lab08s_prompts_do_not_contain_the_values_its_hidden_tests_expect(tmp_path):
+    """A prediction is graded against the run by a hidden test; the text a student reads up to the answer (the
+    markdown since the check before, and the answer cell's scaffold) must not give the value away. The instructor's lab 08 is run; each hidden test names what it expects `_expected_*`;
+    each such value, written as a prompt would write it, is searched in that exercise's prompt."""
+    pytest.importorskip("nbclient")
+    import json
+
+    import nbformat
+
+    path = os.path.join(ROOT, "notebooks", "08_linear_models_and_lqr.ipynb")
+    nb = _read(path)
+    student = _student_labs().student_version(nb)
+    prompts, start = {}, 0
+    for k, c in enumerate(nb.cells):
+        g = _grader(c)
+        if g.get("grade") and not g.get("solution"):
+            names = re.findall(r"^(_expected_\w+) =", c.source, flags=re.M)
+            if names:
+                prompts[g["grade_id"]] = (names, "\n".join(s.source for s in student.cells[start:k]
+                                                           if s.cell_type == "markdown" or _grader(s).get("solution")))
+            start = k + 1
+    assert sorted(prompts) == ["lab08-ex1-check", "lab08-ex5-check", "lab08-ex6-check"]
+    nb.cells.append(nbformat.v4.new_code_cell(
+        "import json\nprint(json.dumps({k: float(v) for k, v in globals().items() if k.startswith('_expected_')}))"))
+    assert _run_cells(nb, len(nb.cells) - 1, tmp_path) is None
+    values = json.loads(nb.cells[-1].outputs[0]["text"])
+    for gid, (names, prompt) in prompts.items():
+        for name in names:
+            for pattern in _shown(values[name]):
+                assert not re.search(pattern, prompt, flags=re.I), f"{gid}: {name} = {values[name]!r} ({pattern})"
 
 
 def _template(node) -> str:
