@@ -226,12 +226,12 @@ def test_state_feedback_is_the_lqr_law_and_closes_the_loop_exactly():
     r, n = SCARA, SCARA.dof
     q0 = np.array([0.3, 0.5, 0.1, 0.2, np.pi / 2, 0.02])
     tau0 = r.gravity(q0)
-    lin = cs.linearize(r, q0, np.zeros(n), tau0, dt=1e-3, steps=5)
+    lin = cs.linearize(r, q0, np.zeros(n), tau0, dt=2e-4, steps=5)
     Q, R = np.diag([1e4] * n + [1.0] * n), 1e-2 * np.eye(n)
     P = sl.solve_discrete_are(lin.A, lin.B, Q, R)
     K = np.linalg.solve(R + lin.B.T @ P @ lin.B, lin.B.T @ P @ lin.A)
     lqr = cs.StateFeedback(K, tau0)
-    cl = cs.linearize(r, q0, np.zeros(n), dt=1e-3, steps=5, controller=lqr)
+    cl = cs.linearize(r, q0, np.zeros(n), dt=2e-4, steps=5, controller=lqr)
     assert np.abs(cl.A - (lin.A - lin.B @ K)).max() < 1e-12 * np.abs(lin.A).max()
     assert np.abs(np.linalg.eigvals(cl.A)).max() < 1.0
     np.testing.assert_array_equal(cl.tau0, tau0)
