@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -74,14 +74,37 @@ class Wrench:
         ...
 class LinkBox:
     """
-    A box fixed to a link: the shape the world collides and the views draw.
+    A shape fixed to a link: what the world collides and the views draw.
     
-    link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the box's centre
-    and axes in the DH frame of `link` (frame i for link i; frame 0, the base
-    frame, for link 0). half_extents: (3,) m, > 0: the box spans +-half_extents
-    along its own x, y, z. name: a label (e.g. "link1", "base", "fixed_jaw").
+    A box (LinkBox(link, half_extents, pose, name)), or made by LinkBox.sphere,
+    LinkBox.cylinder or LinkBox.hull: kind is "box", "sphere", "cylinder" or
+    "hull". link: 0 (the base, fixed to DH frame 0) .. n. pose: (4, 4) the
+    shape's frame in the DH frame of `link` (frame i for link i; frame 0, the
+    base frame, for link 0): a box's centre and axes, a sphere's centre, a
+    cylinder's centre with its axis along z, the frame of a hull's points.
+    half_extents: (3,) m, > 0: a box spans +-half_extents along its own x, y,
+    z; for the other kinds the box centred at the frame's origin that holds
+    the shape (its bound, which the box views draw). radius (m): a sphere's or
+    a cylinder's; length (m): a cylinder's, along its z; points (k, 3) m: a
+    hull's points in its frame. name: a label (e.g. "link1", "base",
+    "fixed_jaw").
     """
-    def __getstate__(self) -> tuple[tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str], dict]:
+    @staticmethod
+    def cylinder(link: typing.SupportsInt | typing.SupportsIndex, radius: typing.SupportsFloat | typing.SupportsIndex, length: typing.SupportsFloat | typing.SupportsIndex, pose: typing.Any = ..., name: str = '') -> LinkBox:
+        """
+        A cylinder of `radius` and `length` (m, > 0) on `link` (0 .. n), centred at `pose`'s origin ((4, 4) in the link's DH frame) with its axis along `pose`'s z (URDF's convention); the world collides it as Bullet's btCylinderShapeZ.
+        """
+    @staticmethod
+    def hull(link: typing.SupportsInt | typing.SupportsIndex, points: typing.Any, pose: typing.Any = ..., name: str = '') -> LinkBox:
+        """
+        The convex hull of `points` (k, 3) m (4 <= k <= 4096, not on one plane) given in the frame `pose` ((4, 4) in the DH frame of `link`, 0 .. n; the identity: points in the link's frame). Kept about the centre of the points' bounding box: `pose` moves there and `points` are given back less it, so that half_extents is the points' bounding box. The world collides it as Bullet's btConvexHullShape (reduced to the hull's vertices); its cost grows with k: coopsim.Robot.from_urdf keeps 64 points of a mesh's hull by default.
+        """
+    @staticmethod
+    def sphere(link: typing.SupportsInt | typing.SupportsIndex, radius: typing.SupportsFloat | typing.SupportsIndex, pose: typing.Any = ..., name: str = '') -> LinkBox:
+        """
+        A sphere of `radius` (m, > 0) on `link` (0 .. n), centred at `pose`'s origin ((4, 4) in the link's DH frame); the world collides it as Bullet's btSphereShape.
+        """
+    def __getstate__(self) -> tuple[int, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str, str, float, float, numpy.typing.NDArray[numpy.float64]]:
         ...
     def __init__(self, link: typing.SupportsInt | typing.SupportsIndex, half_extents: typing.Any, pose: typing.Any = ..., name: str = '') -> None:
         ...
@@ -89,9 +112,23 @@ class LinkBox:
         ...
     def __setstate__(self, arg0: tuple) -> None:
         ...
+    def moved(self, link: typing.SupportsInt | typing.SupportsIndex, pose: typing.Any) -> LinkBox:
+        """
+        The same shape (kind, sizes, points, name) on `link` at `pose` ((4, 4) in that link's DH frame).
+        """
     @property
     def half_extents(self) -> numpy.typing.NDArray[numpy.float64]:
         ...
+    @property
+    def kind(self) -> str:
+        """
+        "box", "sphere", "cylinder" or "hull".
+        """
+    @property
+    def length(self) -> float:
+        """
+        A cylinder's length along its z, m (0 for the other kinds).
+        """
     @property
     def link(self) -> int:
         ...
@@ -99,8 +136,18 @@ class LinkBox:
     def name(self) -> str:
         ...
     @property
+    def points(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        A hull's points (k, 3) m in its frame (pose); (0, 3) for the other kinds.
+        """
+    @property
     def pose(self) -> numpy.typing.NDArray[numpy.float64]:
         ...
+    @property
+    def radius(self) -> float:
+        """
+        A sphere's or a cylinder's radius, m (0 for the other kinds).
+        """
 class Clamp:
     """
     A parallel-jaw clamp.
@@ -226,7 +273,7 @@ class Robot:
             
         """
     @staticmethod
-    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file', clamp = None):
+    def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, name: str | None = None, gravity = (0.0, 0.0, -9.81), coulomb_width = 0.01, inertia_check: str = 'warn', snap: float = 1e-09, limits: str = 'file', clamp = None, hull_points: int = 64, collision_meshes: bool = True):
         """
         A coopsim.Robot from a URDF serial chain (text, or the path of a .urdf file).
         
@@ -247,9 +294,16 @@ class Robot:
             which to_urdf writes for none, too); dynamics damping as the viscous K,
             friction as Coulomb F_c (with `coulomb_width` v_c, rad/s or m/s); a
             ``<transmission>`` actuator's ``drake:rotor_inertia`` times
-            ``drake:gear_ratio`` squared as the armature. ``<collision>`` boxes (or
+            ``drake:gear_ratio`` squared as the armature. ``<collision>`` shapes (or
             ``<visual>`` ones when a link has no collision) become the robot's
-            boxes; meshes are left out (a robot without boxes gets the default ones).
+            shapes (``Robot.boxes``, LinkBox): boxes, spheres and cylinders as such
+            (Bullet's own shapes in the world), collision meshes (read with trimesh,
+            their scale applied) as the convex hull of at most `hull_points` of their
+            hull's vertices (trimesh's convex hull, then farthest-point sampling:
+            the vertex farthest from the centroid first, then each time the one
+            farthest from those kept); a mesh that cannot be read is left out with a
+            RuntimeWarning naming its file (a robot without any shape gets the
+            default boxes).
             The ``<visual>`` meshes (files found: ``package://`` through
             ROS_PACKAGE_PATH or the URDF file's parent directories), boxes and
             cylinders are kept in Python for the views (:func:`visuals`; the live
@@ -272,6 +326,9 @@ class Robot:
                 its last link (coopsim.robots.add_clamp with its defaults, mounted on the tip's frame), a dict
                 of add_clamp's keywords (mount, opening, jaw_length, ...) sets them. The tip link's visuals
                 are kept, moved into the turned last frame.
+            hull_points: the most points (4 .. 4096, default 64) a collision mesh's convex hull keeps (see
+                above): a hull's cost in the world's contacts grows with it. collision_meshes=False leaves the
+                meshes out (the robot's other shapes, or the default boxes).
             snap: origin angles (rpy, rad) within `snap` of a multiple of pi/12 are
                 read as that multiple: URDFs often write pi/2 as 1.57079632679, whose
                 5e-12 rad would make every derived angle general (and generated code
@@ -295,7 +352,11 @@ class Robot:
             Coulomb F_c as its ``friction`` (N m or N; its width v_c has no URDF
             field). The armature goes in a ``<transmission>`` as Drake's
             ``drake:rotor_inertia`` with ``drake:gear_ratio`` 1. Links without mass
-            carry an explicit zero ``<inertial>``. See the module's docstring.
+            carry an explicit zero ``<inertial>``. The link shapes (``Robot.boxes``)
+            are written as ``<visual>`` and ``<collision>``: boxes, spheres and
+            cylinders as such; a convex hull (from a mesh) as its bounding box
+            (``LinkBox.half_extents`` about its pose), since the text holds no mesh
+            file: a robot read back collides as boxes there. See the module's docstring.
             
         """
     def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], str, typing.Any, typing.Any, typing.Any, numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], float, Tool, str, float, float, list[LinkBox] | None, typing.Any, dict[str, float], typing.Any, typing.Any, typing.Any, typing.Any, str], str, str, list[str], list[str]]:
@@ -358,7 +419,8 @@ class Robot:
         (n, n), [j, k] = dqdd_j / dq_k (1/s^2, 1/s, 1/(kg m^2) ...), of exactly what forward_dynamics
         computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,
         the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).
-        ValueError naming q where M is not positive definite, as forward_dynamics.
+        ValueError naming q where M is not positive definite, as forward_dynamics. tau_ext (n, may be null):
+        joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext.
         """
     def frames(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """
@@ -635,6 +697,80 @@ class Robot:
         ...
 class InertiaWarning(UserWarning):
     pass
+class LinearModel:
+    """
+    A linear model of the joint dynamics at one point: x+ = x_next + A (x - x0) + B (tau - tau0) for a step
+    (dt > 0), xdot = xdot0 + A (x - x0) + B (tau - tau0) for the continuous model (dt = 0).
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('A', 'B', 'x0', 'tau0', 'x_next', 'dt', 'steps', 'method', 'states')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def A(self) -> typing.Any:
+        """
+        (s, s), s = 2n (+ m, the controller's state, when closed): d(x+)/dx, or d(xdot)/dx
+        """
+    @property
+    def B(self) -> typing.Any:
+        """
+        (s, n): d(x+)/dtau, or d(xdot)/dtau (1/(kg m^2) ...)
+        """
+    @property
+    def dt(self) -> typing.Any:
+        """
+        s, the step (0: continuous)
+        """
+    @property
+    def method(self) -> typing.Any:
+        """
+        "continuous", "rk4" or "euler"
+        """
+    @property
+    def states(self) -> typing.Any:
+        """
+        (s,) the names of the state's entries: q0 .. qd0 .. then the controller's
+        """
+    @property
+    def steps(self) -> typing.Any:
+        """
+        integration steps per model step (the controller's period: steps dt)
+        """
+    @property
+    def tau0(self) -> typing.Any:
+        """
+        (n,) the joint torques there (N m or N): given, or the controller's output
+        """
+    @property
+    def x0(self) -> typing.Any:
+        """
+        (s,) the point: [q; qd] (rad, rad/s or m, m/s) [; the controller's state]
+        """
+    @property
+    def x_next(self) -> typing.Any:
+        """
+        (s,) x+ at the point (a step), or xdot (continuous)
+        """
 class Reference:
     """
     A joint-space reference: desired q, qd, qdd at any time; holds its end point after t_end. Subclass it in Python by defining dof, t_start, t_end and evaluate(t) -> (q, qd, qdd), each (n,).
@@ -884,6 +1020,43 @@ class ComputedTorque(Controller):
     def model(self) -> typing.Any:
         """
         The controller's model (a copy), or None for the simulated robot.
+        """
+class StateFeedback(Controller):
+    """
+    Linear state feedback around the reference (the law of an LQR):
+    
+        tau = sat(tau0 [+ G(q)] - K [q - q_ref; qd - qd_ref])
+    
+    K (n, 2n): the gain on the state error x - x_ref, x = [q; qd] (N m/rad and
+    N m s/rad for revolute joints), e.g. from scipy.linalg.solve_discrete_are on
+    coopsim.linearize's (A, B); tau0 (n,): feed-forward torques (N m or N,
+    default 0; e.g. the linear model's tau0); gravity_compensation adds G(q) of
+    `model` (default: the simulated robot). Saturated at the actuator limits.
+    coopsim.linearize closes the loop with it exactly (dtau/dx = -K [+ dG/dq]).
+    """
+    def __getstate__(self) -> tuple[tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]], dict]:
+        ...
+    def __init__(self, K: typing.Any, tau0: typing.Any = None, *, gravity_compensation: bool = False, model: typing.Any = None) -> None:
+        ...
+    def __setstate__(self, arg0: tuple) -> None:
+        ...
+    @property
+    def K(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n, 2n), the gain on [q - q_ref; qd - qd_ref].
+        """
+    @property
+    def gravity_compensation(self) -> bool:
+        ...
+    @property
+    def model(self) -> typing.Any:
+        """
+        The controller's model for G(q) (a copy), or None for the simulated robot.
+        """
+    @property
+    def tau0(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (n,) or (0,), N m or N.
         """
 class Payload:
     """
@@ -2598,6 +2771,31 @@ def integrate(robot: Robot, q0: typing.Any, qd0: typing.Any, tau: typing.Any, dt
     state and the bound; a mass matrix not positive definite at a sane state names
     q (links without mass or inertia).
     """
+def linearize(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any = None, dt: typing.Any = None, *, steps: typing.SupportsInt | typing.SupportsIndex = 1, method: str = 'rk4', controller: ... = None, q_ref: typing.Any = None, qd_ref: typing.Any = None, qdd_ref: typing.Any = None, tau_ext: typing.Any = None, f_ext: typing.Any = None, end_stops: bool = True) -> LinearModel:
+    """
+    A linear model of the robot's joint dynamics at (q, qd, tau): a LinearModel.
+    
+    dt None: the continuous model, xdot = [qd; qdd(q, qd, tau)], x = [q; qd] (2n):
+        A = [[0, 1], [dqdd/dq, dqdd/dqd]] (2n, 2n),  B = [[0], [M^-1]] (2n, n),
+    from the dynamics' analytic derivatives (Robot.forward_dynamics_derivatives).
+    dt (s): the exact Jacobians of `steps` integration steps of dt (method "rk4", as
+    rk4_step and the simulation integrate, or "euler") with tau held: RK4's four
+    stages differentiated by the chain rule (not finite differences), so that
+    x+ = x_next + A (x - x0) + B (tau - tau0) to first order; x_next equals
+    rk4_step's result.
+    controller (PID or ComputedTorque; tau must then be None): the loop closed
+    by it, updated once per `steps` dt with the reference (q_ref, qd_ref,
+    qdd_ref) (default: (q, qd, 0), regulation at the point); the state is then
+    [q; qd; c] with c the controller's own state (the PID's integral, velocity
+    estimate and last q: see PID.linearize), B the input of a torque added to
+    the controller's output. A controller that has run linearises at its state.
+    dt None with a controller: its continuous closed loop (controllers without
+    state only).
+    tau_ext (n,): joint torques held (no derivative); f_ext: a (6,) wrench at
+    the tool or Wrench(s) on links, fixed in the world (their points move with
+    the links). With end_stops (as rk4_step), a stage beyond a joint limit is a
+    ValueError: the end stops' derivative is not modelled.
+    """
 def load_generated_library(path: str) -> str:
     """
     Loads a shared library built by coopsim.codegen.compile, registers its generated dynamics under the name it carries (attach with Robot.with_generated) and returns that name.
@@ -2639,6 +2837,18 @@ def sensor_defaults() -> SensorOptions:
     sensor-frame reading turned into world axes (the same point). The contact wrenches are those
     held over the world step, at the links' present pose. The noise is drawn from a generator seeded
     with `seed` (std::mt19937_64) at set_sensor() and at reset(): a seed gives the same noise.
+    """
+def shape_clearances(poses_a: typing.Any, shapes_a: collections.abc.Sequence[LinkBox], poses_b: typing.Any, shapes_b: collections.abc.Sequence[LinkBox]) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.int64], numpy.typing.NDArray[numpy.int64]]:
+    """
+    box_clearances of convex shapes of any kind: the smallest shape_distance (m) in each of N configurations over every pair of a shape of one set and a shape of the other, and the pair.
+    
+    poses_a: (N, ka, 4, 4) world poses of shapes_a's ka shapes (a list of LinkBox, e.g. Robot.boxes) per row (Robot.shapes(Q)[0]); poses_b: (N, kb, 4, 4), or (kb, 4, 4) for shapes that do not move; shapes_b: kb LinkBox. Returns (d (N,), ia (N,), ib (N,)). The same lower bounds as box_clearances (each shape lies in its half_extents' box); boxes alone give box_clearances' values. GIL released.
+    """
+def shape_distance(shape_a: LinkBox, pose_a: typing.Any, shape_b: LinkBox, pose_b: typing.Any) -> float:
+    """
+    Distance between two convex shapes of any kind (LinkBox: box, sphere, cylinder, hull), m: the gap between their nearest points (> 0; Bullet's GJK, no collision margin), or minus the depth of their overlap (<= 0: two boxes by their separating axes, exactly; any other pair by Bullet's EPA).
+    
+    shape_a, shape_b: LinkBox (their link and pose are not used); pose_a, pose_b: (4, 4) world poses of the shapes' frames (for a robot's shapes, Robot.shapes(q)'s poses). Two boxes give box_distance.
     """
 def simulation_defaults() -> dict:
     """

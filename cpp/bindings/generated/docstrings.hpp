@@ -22,6 +22,13 @@ constexpr const char* doc_box_clearances = "The clearance between two sets of bo
     "far fewer GJK calls: each row starts from the previous row's nearest pair, and a pair goes to\n"
     "GJK only if no lower bound of its distance shows it cannot be nearer: its bound from an earlier\n"
     "row less how far its boxes can have moved since, its bounding spheres, its separating axes.";
+constexpr const char* doc_shape_distance = "Distance between two convex shapes of any kind (Shape: box, sphere, cylinder, hull) at the world poses\n"
+    "of their frames, m: > 0 the gap between their nearest points (Bullet's GJK, margins zero), <= 0 minus\n"
+    "the depth of their overlap (two boxes: the separating-axis depth, exact; any other pair: Bullet's\n"
+    "EPA). Two boxes give box_distance's value.";
+constexpr const char* doc_shape_clearances = "box_clearances of shapes of any kind (the world poses of their frames): shape_distance's minimum\n"
+    "over every pair, with the same lower bounds (their bounds' spheres and separating axes: a shape lies\n"
+    "in its bound); for boxes alone box_clearances itself.";
 constexpr const char* doc_BoxClearances = "box_clearances of poses_a (N, ka, 4, 4), half_a (ka, 3), poses_b (N, kb, 4, 4) or (kb, 4, 4)\n"
     "(boxes that do not move), half_b (kb, 3): N rows each of d, ia, ib.";
 constexpr const char* doc_Array = "Numbers as the engine takes a table: the values in row-major order and the\n"
@@ -52,6 +59,18 @@ constexpr const char* doc_ControlInput_wrench = "The force/torque sensor's readi
     "environment (see SensorOptions). In a simulation it is read at the start of the step, from\n"
     "the contact and weld wrenches of the last world step.";
 constexpr const char* doc_ControlInput_frames = "The robot's frames at q (Robot::kinematics, frames only) when the caller has them, else null.";
+constexpr const char* doc_ControllerJacobians = "A controller's linearisation at one update (Controller::linearize). With c its internal state (m values),\n"
+    "the update gives tau = g(q, qd, c) and leaves c+ = h(q, qd, c); a saturated output's row is zero.";
+constexpr const char* doc_ControllerJacobians_tau = "(n,) the output at this update (N m or N)";
+constexpr const char* doc_ControllerJacobians_c = "(m,) the internal state before the update";
+constexpr const char* doc_ControllerJacobians_c_next = "(m,) and after it";
+constexpr const char* doc_ControllerJacobians_dtau_dq = "(n, n), (n, n), (n, m)";
+constexpr const char* doc_ControllerJacobians_dtau_dqd = "(n, n), (n, n), (n, m)";
+constexpr const char* doc_ControllerJacobians_dtau_dc = "(n, n), (n, n), (n, m)";
+constexpr const char* doc_ControllerJacobians_dc_dq = "(m, n), (m, n), (m, m)";
+constexpr const char* doc_ControllerJacobians_dc_dqd = "(m, n), (m, n), (m, m)";
+constexpr const char* doc_ControllerJacobians_dc_dc = "(m, n), (m, n), (m, m)";
+constexpr const char* doc_ControllerJacobians_states = "(m,) the names of c's entries";
 constexpr const char* doc_Controller_check = "Throws std::invalid_argument when the controller cannot drive `robot`\n"
     "(e.g. gains of the wrong size), naming the argument.";
 constexpr const char* doc_Controller_reset = "Called once before the first update of a run. period (s) is the time\n"
@@ -60,6 +79,9 @@ constexpr const char* doc_Controller_compute = "Writes n commanded torques (N m 
 constexpr const char* doc_Controller_senses = "True for a controller that reads the force/torque sensor (ControlInput::wrench).";
 constexpr const char* doc_Controller_clone = "A copy with its configuration and state, for another run of the same model\n"
     "(SimulationModel); null for a controller that cannot be copied (the default).";
+constexpr const char* doc_Controller_linearize = "Fills J at the update `in` for `robot` with the period (s) between updates, without changing the\n"
+    "controller: at its state when it has run (reset for this robot), else at a new run's. False for a\n"
+    "controller that does not give its linearisation (the default).";
 constexpr const char* doc_compute = "Controller::compute for numbers given as tables: q, qd, q_ref, qd_ref,\n"
     "qdd_ref (n,) each, finite, 1 <= n <= kMaxDof; t (s) finite. Each checked,\n"
     "naming it (std::invalid_argument); returns tau (n,).\n"
@@ -69,9 +91,14 @@ constexpr const char* doc_gains = "Gains as a table: one number (every joint) or
     "here, the values by the controllers.";
 constexpr const char* doc_saturate = "Clamps each tau_i to [-tau_max_i, tau_max_i].";
 constexpr const char* doc_PID_kDoc = "documentation (Python's too)";
+constexpr const char* doc_PID_linearize = "c = [integral (n); velocity estimate (n); last measured q (n)]: the update's exact Jacobians (the\n"
+    "backward difference and its filter, the integral's anti-windup branch, G(q)'s derivative); a new run's\n"
+    "state is the integral 0, the estimate qd and the last q = q - period qd (a steady motion).";
 constexpr const char* doc_PID_integral = "State after the last update: integral of the error (rad s or m s) and\n"
     "the filtered measured velocity.";
 constexpr const char* doc_ComputedTorque_kDoc = "documentation (Python's too)";
+constexpr const char* doc_ComputedTorque_linearize = "No internal state: dtau/dx = dID/dx - M [kp, kd] (the model's inverse dynamics' derivatives).";
+constexpr const char* doc_StateFeedback_kDoc = "documentation (Python's too)";
 constexpr const char* doc_CoopMember = "One robot of a cooperative group at an update.";
 constexpr const char* doc_CoopMember_robot = "its index in the simulation";
 constexpr const char* doc_CoopMember_in = "q, qd, the joint reference and the sensor (ControlInput::wrench)";
@@ -311,6 +338,29 @@ constexpr const char* doc_forward_dynamics_batch = "Forward dynamics of N indepe
     "writes its rows of QDD; nothing is allocated per state. A state whose\n"
     "dynamics throw stops the batch: the first failing row (as a serial loop\n"
     "would find it) is rethrown, a std::domain_error naming the row.";
+constexpr const char* doc_kLinearizeDoc = "documentation of coopsim.linearize (Python)";
+constexpr const char* doc_LinearModel = "A linear model of the joint dynamics at one point: x+ = x_next + A (x - x0) + B (tau - tau0) for a step\n"
+    "(dt > 0), xdot = xdot0 + A (x - x0) + B (tau - tau0) for the continuous model (dt = 0).";
+constexpr const char* doc_LinearModel_A = "(s, s), s = 2n (+ m, the controller's state, when closed): d(x+)/dx, or d(xdot)/dx";
+constexpr const char* doc_LinearModel_B = "(s, n): d(x+)/dtau, or d(xdot)/dtau (1/(kg m^2) ...)";
+constexpr const char* doc_LinearModel_x0 = "(s,) the point: [q; qd] (rad, rad/s or m, m/s) [; the controller's state]";
+constexpr const char* doc_LinearModel_tau0 = "(n,) the joint torques there (N m or N): given, or the controller's output";
+constexpr const char* doc_LinearModel_x_next = "(s,) x+ at the point (a step), or xdot (continuous)";
+constexpr const char* doc_LinearModel_dt = "s, the step (0: continuous)";
+constexpr const char* doc_LinearModel_steps = "integration steps per model step (the controller's period: steps dt)";
+constexpr const char* doc_LinearModel_method = "\"continuous\", \"rk4\" or \"euler\"";
+constexpr const char* doc_LinearModel_states = "(s,) the names of the state's entries: q0 .. qd0 .. then the controller's";
+constexpr const char* doc_linearize_continuous = "The continuous model at (q, qd, tau) under tau_ext (n, may be null, held) and wrenches (as in\n"
+    "Robot::forward_dynamics_derivatives). Throws std::domain_error where M is not positive definite.";
+constexpr const char* doc_linearize_step = "The exact Jacobians of `steps` steps of `method` of dt (s) from (q, qd) under tau held (the stages\n"
+    "differentiated; x_next is rk4_step's / euler_step's own result, or with wrenches, which the integrator\n"
+    "does not take, the stages' sum). With end_stops, a stage's\n"
+    "state beyond a joint limit (where the end stops act and their derivative is not modelled) throws\n"
+    "std::invalid_argument naming the joint and the stage.";
+constexpr const char* doc_linearize_closed_loop = "The loop closed by `controller` (Controller::linearize: a controller that has run linearises at its\n"
+    "state, a new one at a new run's), at (q, qd) with the reference (q_ref, qd_ref, qdd_ref): the controller's\n"
+    "output held over the period. dt = 0: the continuous closed loop (controllers without internal state\n"
+    "only). Throws std::invalid_argument when the controller gives no linearisation (Controller::linearize).";
 constexpr const char* doc_LogColumn = "Append-only rows of `width` doubles, row-major in one memory block.\n"
     "Growing moves the rows to a new block and clear() starts a new one, so\n"
     "rows already written never change in a block: whoever shares a block\n"
@@ -379,12 +429,17 @@ constexpr const char* doc_EndStop = "End stops: beyond a joint limit a spring-da
 constexpr const char* doc_EndStop_frequency = "natural frequency w, rad/s";
 constexpr const char* doc_EndStop_damping_ratio = "zeta";
 constexpr const char* doc_GeneratedDynamics = "see generated.hpp";
-constexpr const char* doc_kLinkBoxDoc = "A box fixed to a link; documentation (Python's too):";
-constexpr const char* doc_y = "A box fixed to a link; documentation (Python's too):";
+constexpr const char* doc_kLinkBoxDoc = "A shape fixed to a link; documentation (Python's too):";
+constexpr const char* doc_y = "A shape fixed to a link; documentation (Python's too):";
+constexpr const char* doc_s = "A shape fixed to a link; documentation (Python's too):";
 constexpr const char* doc_LinkBox_link = "0..n";
 constexpr const char* doc_LinkBox_pose = "in the DH frame of `link`";
-constexpr const char* doc_LinkBox_half_extents = "m, each > 0";
 constexpr const char* doc_LinkBox_name = "e.g. \"link1\", \"base\", \"fixed_jaw\"";
+constexpr const char* doc_LinkBox_sphere = "A sphere of `radius` (m, > 0) centred at `pose`'s origin.";
+constexpr const char* doc_LinkBox_cylinder = "A cylinder of `radius` and `length` (m, > 0) centred at `pose`'s origin, its axis `pose`'s z.";
+constexpr const char* doc_LinkBox_hull = "The convex hull of `points` (k >= 4, not on one plane, m) given in the frame `pose` (in the DH frame\n"
+    "of `link`): stored about the centre of their bounding box (pose moved there, points less it), so\n"
+    "that its bound is tight.";
 constexpr const char* doc_kClampDoc = "A parallel-jaw clamp; documentation (Python's too):";
 constexpr const char* doc_Clamp_fixed_link = "1..n; 0: the robot has no clamp";
 constexpr const char* doc_Clamp_moving_joint = "1..n, prismatic, = fixed_link + 1";
@@ -487,7 +542,8 @@ constexpr const char* doc_Robot_forward_dynamics_derivatives = "The forward dyna
     "(n, n), [j, k] = dqdd_j / dq_k (1/s^2, 1/s, 1/(kg m^2) ...), of exactly what forward_dynamics\n"
     "computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,\n"
     "the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).\n"
-    "ValueError naming q where M is not positive definite, as forward_dynamics.";
+    "ValueError naming q where M is not positive definite, as forward_dynamics. tau_ext (n, may be null):\n"
+    "joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext.";
 constexpr const char* doc_RobotTables = "A robot as tables: the arguments of Robot.from_dh, documented here\n"
     "(Python's docstring too); an optional table left empty takes the default.";
 constexpr const char* doc_RobotTables_boxes = "none: the default boxes";
@@ -517,6 +573,19 @@ constexpr const char* doc_com_row_from_vector = "The paper's CoM row (frame i-1 
     "the joint axis to rounding (within 16 eps max(|a| + |r|, scale), scale\n"
     "the robot's size in m) gets theta_c = theta. Exact for both joint types:\n"
     "the CoM frame's pose in frame i is constant and its origin is r.";
+constexpr const char* doc_shape_kind_name = "\"box\", \"sphere\", \"cylinder\", \"hull\"";
+constexpr const char* doc_Shape = "A convex shape in its own frame (m). Every kind keeps `half_extents`: for a box its half extents, for\n"
+    "the others the half extents of a box centred at the frame's origin, along its axes, that holds the\n"
+    "shape (its bound: what separating-axis bounds, bounding spheres and the box views use).";
+constexpr const char* doc_Shape_half_extents = "m, each > 0 (the box, or the bound)";
+constexpr const char* doc_Shape_radius = "sphere, cylinder: m, > 0";
+constexpr const char* doc_Shape_half_length = "cylinder: half its length along its z, m, > 0";
+constexpr const char* doc_Shape_points = "hull: its points (4 or more, not coplanar), m";
+constexpr const char* doc_kMaxHullPoints = "Most points a hull may have (its support function is a linear search over them).";
+constexpr const char* doc_finish_shape = "Checks a shape's values for its kind and sets the bound (half_extents) of a sphere, a cylinder or a\n"
+    "hull from them; throws std::invalid_argument starting with `who` naming what is wrong: sizes not\n"
+    "finite or not > 0, a hull of fewer than 4 or more than kMaxHullPoints points, or of points on one\n"
+    "plane (no volume).";
 constexpr const char* doc_SimulationBusyError = "Thrown by a call that advances or changes a simulation (see \"One driver at a time\" above) from\n"
     "another thread than the one holding it. holder(): the holder's label (\"another thread\" for an\n"
     "implicit hold); thread(): its thread's id (std::thread::id as printed; on Linux pthread_self(),\n"
@@ -813,8 +882,9 @@ constexpr const char* doc_contact_kind = "The kind of a contact between two bodi
     "\"robot-body\" (a link and a free body), \"body-scenery\", \"body-body\".";
 constexpr const char* doc_BodySpec = "A body of the world: the floor (the plane z = 0 within 100 m of the\n"
     "origin: the top face of a static 200 m cube), a static box, a free box\n"
-    "(mass > 0), or a link box of a robot (kinematic; added by a simulation).";
-constexpr const char* doc_BodySpec_half_extents = "m (boxes)";
+    "(mass > 0), or a link shape of a robot (kinematic; added by a simulation):\n"
+    "a box, or for a link any Shape (sphere, cylinder, convex hull). Its shape's\n"
+    "fields (Shape): kind, half_extents (m: a box's, or the bound of another kind).";
 constexpr const char* doc_BodySpec_mass = "kg, > 0 for free bodies";
 constexpr const char* doc_BodySpec_pose = "initial world pose of the centre";
 constexpr const char* doc_BodySpec_velocity = "initial, m/s, of the centre";
@@ -863,14 +933,15 @@ constexpr const char* doc_World_add_static_box = "Throw std::invalid_argument na
     "1e-4 .. 1e4 m, non-positive or non-finite mass, friction < 0,\n"
     "restitution outside 0 .. 1, a pose that is not a finite rigid\n"
     "transform within 1e6 m, an empty or duplicate name. Return the body id.";
-constexpr const char* doc_World_add_robot = "Link bodies of one robot (its boxes at their first poses), named\n"
+constexpr const char* doc_World_add_robot = "Link bodies of one robot (its shapes at their first poses: boxes, spheres,\n"
+    "cylinders, convex hulls, finished by finish_shape), named\n"
     "\"<label>/<box name>\"; `excluded` lists pairs of box indices that never\n"
     "collide (the robot's adjacent, same-link and always-touching boxes).\n"
     "Called by the simulation that owns the world.";
 constexpr const char* doc_World_add_body = "A static or free body as add_static_box or add_free_box adds it (spec's fields; the kind\n"
     "decides which).";
 constexpr const char* doc_World_clear_robots = "Removes the robots' link bodies (the world keeps its own).";
-constexpr const char* doc_World_replace_robot_boxes = "New sizes, first poses and exclusions of one robot's link bodies, ids first .. first + k - 1 (the\n"
+constexpr const char* doc_World_replace_robot_boxes = "New shapes, first poses and exclusions of one robot's link bodies, ids first .. first + k - 1 (the\n"
     "same count, the same links), in place: the other bodies keep their states. Called by the\n"
     "simulation that owns the world when it replaces a robot.";
 constexpr const char* doc_World_find = "-1 if none";
