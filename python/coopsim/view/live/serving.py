@@ -131,12 +131,12 @@ _READINESS_JS = """(() => {
 def announce_readiness(server, tabs) -> None:
     """Makes every page of `server` state whether it takes input, for a script or a test to wait on (a
     loaded machine may take many seconds to build the panel and draw its first frames). A script queued
-    after the panels (so each page runs it once it has received them, and again on each reconnect) keeps
-    the page's ``<html data-coopsim-live="...">`` and ``window.coopsimLive`` (``state``, ``ready``,
-    ``tabs``, ``changes``) up to date, every 0.1 s: ``"ready"`` once each tab named in `tabs` is in the
-    page and takes pointer input (viser freezes the panel while its websocket is closed: a connected page)
-    and the page has drawn two animation frames since; ``"connecting"`` before, and again while the page
-    is disconnected."""
+    after the panels and the first frame (so each page runs it once it has received them, and again on
+    each reconnect's replay) keeps the page's ``<html data-coopsim-live="...">`` and
+    ``window.coopsimLive`` (``state``, ``ready``, ``tabs``, ``changes``) up to date, every 0.1 s:
+    ``"ready"`` once each tab named in `tabs` is in the page and takes pointer input (viser freezes the
+    panel while its websocket is closed: a connected page) and the page has drawn two animation frames
+    since; ``"connecting"`` before, and again while the page is disconnected."""
     from viser import _messages  # viser's message of a script to run in the page
 
     source = _READINESS_JS % (json.dumps([str(t) for t in tabs]), json.dumps(READY_ATTRIBUTE))

@@ -138,8 +138,8 @@ class LiveView(_Panels, _Data, _Drawing):
             self.server.on_client_connect(lambda client: self._client_seen())
             self._build_scene()
             self._build_panels()
-            serving.announce_readiness(self.server, TAB_TITLES)     # <html data-coopsim-live="ready">
             self._draw(self._snapshot())
+            serving.announce_readiness(self.server, TAB_TITLES)     # <html data-coopsim-live="ready">
         except BaseException:
             self.server.stop()
             raise
