@@ -6,7 +6,7 @@
 Starts N processes (default: one per core, os.cpu_count()), each a plain Python loop that never sleeps, at
 the default priority, so they take their share of the cores from everything else. With a COMMAND, runs it
 beside them, stops them when it ends (or on Ctrl-C) and exits with its return code; without one, keeps them
-busy for S seconds (default: until Ctrl-C). Prints, when done, the wall time (s) and the one-minute load
+busy for S seconds (default: until Ctrl-C or SIGTERM). Prints, when done, the wall time (s) and the one-minute load
 average sampled every 5 s (mean and maximum), e.g. to run the browser tests under load (docs/development.md):
 
     python3 scripts/busy.py -- python3 -m pytest -q -m slow tests/test_live.py tests/test_replay.py tests/test_parts.py
@@ -64,6 +64,10 @@ class LoadSampler(threading.Thread):
         self.join()
 
 
+def _terminated(signum, frame):
+    raise KeyboardInterrupt("SIGTERM")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -81,6 +85,11 @@ def main(argv=None) -> int:
     if command and args.seconds is not None:
         ap.error("give a command or --seconds, not both (the command decides how long)")
 
+    # Ctrl-C reaches this script and the command even when started in the background, where a shell ignores
+    # SIGINT and children inherit that (a handled signal is reset to its default in a child); SIGTERM stops
+    # the busy processes as Ctrl-C does
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _terminated)
     sampler = LoadSampler()
     sampler.start()
     procs = start_busy(args.procs)

@@ -854,10 +854,21 @@ def _cli(tmp_path, *args):
     import subprocess
     import sys
 
+    import signal
+
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--cycles", "1", "--no-video",
-                             "--out", str(tmp_path), *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, env=env)
+    # Ctrl-C (SIGINT) must reach it even where the tests run with SIGINT ignored (a background job), which a child
+    # would inherit: while it starts, SIGINT is handled here, so the child gets its default
+    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    if ignored:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", "coopsim.tasks.handover", "--live", "--cycles", "1",
+                                 "--no-video", "--out", str(tmp_path), *args], stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True, env=env)
+    finally:
+        if ignored:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
     lines = []
     end = time.monotonic() + WAIT
     while time.monotonic() < end:
