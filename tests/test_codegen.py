@@ -69,6 +69,13 @@ def _mismatches(gen, num, n_states=N_STATES, seed=0):
             "forward": (gen.forward_dynamics(q, qd, tau), num.forward_dynamics(q, qd, tau)),
             "inverse": (gen.inverse_dynamics(q, qd, qdd), num.inverse_dynamics(q, qd, qdd)),
         }
+        # the derivatives (generated where the code carries them, else the recursive algorithm's)
+        for label, (a, b) in (("forward derivatives", (gen.forward_dynamics_derivatives(q, qd, tau),
+                                                       num.forward_dynamics_derivatives(q, qd, tau))),
+                              ("inverse derivatives", (gen.inverse_dynamics_derivatives(q, qd, qdd),
+                                                       num.inverse_dynamics_derivatives(q, qd, qdd)))):
+            for k, (x, y) in enumerate(zip(a, b)):
+                checks[f"{label} {k}"] = (x, y)
         bad += [(s, k) for k, (a, b) in checks.items() if not _close(a, b)]
     return bad
 
@@ -153,7 +160,11 @@ def _check_emitted(text, structure, prefix):
     assert "pow(" not in text
     assert text.count("std::sin(") == text.count("std::cos(") == 1  # the fallback in sin_cos only
     funcs = _functions(text)
-    assert set(funcs) == {prefix + f for f in EMITTED + ("solve", "constants")}
+    # the derivatives where the generator emits them (the collected form)
+    assert set(funcs) - {prefix + "derivatives"} == {prefix + f for f in EMITTED + ("solve", "constants")}
+    if prefix + "derivatives" in funcs:
+        assert text.count("static inline double coulomb_slope(") == 1
+        assert "coulomb_slope(" in funcs[prefix + "derivatives"]
     written = re.findall(r"^  k\[(\d+)\] = ", funcs[prefix + "constants"], re.M)
     assert [int(j) for j in written] == list(range(len(written)))
     base = 19 * structure.dof + 3
@@ -193,6 +204,8 @@ def test_generated_files_header_and_format():
             assert ops == cs.codegen.info(getattr(cs.robots, name)())["operation_count"] > 0
             assert "pow(" not in text
         _check_emitted(texts["cpp"], s, f"{name}_")
+        assert f"{name}_derivatives" in _functions(texts["cpp"])
+        assert f"d.derivatives = &{name}_derivatives;" in texts["cpp"]
     registry = (REPO / "cpp" / "generated" / "registry.cpp").read_text()
     assert registry.startswith(HEADER + "n/a.") and "pow(" not in registry
 
@@ -470,7 +483,8 @@ def test_derive_takes_any_robot_name():
 
 def test_friction_check_detects_wrong_friction(tmp_path):
     """The friction comparison of _compare fails on generated code whose h drops or doubles K qd
-    (mutated builds of a small robot); M, C and G stay equal to the numeric ones."""
+    (mutated builds of a small robot); M, C, G and the inverse dynamics' derivatives stay equal to the
+    numeric ones."""
     cxx = os.environ.get("CXX") or "g++"
     for label, factor in (("dropped", "0.0"), ("doubled", "2.0")):
         s = codegen.structure_of(_arm2(), name=f"test_friction_{label}")
@@ -489,7 +503,8 @@ def test_friction_check_detects_wrong_friction(tmp_path):
         assert cs.codegen.load(lib) == s.name
         r = _arm2().with_generated(s.name)
         bad = {k for _, k in _mismatches(r, _arm2(), n_states=20)}
-        assert bad == {"friction", "inverse", "forward"}, (label, bad)
+        # the forward derivatives are taken at the forward dynamics' qdd: dqdd/dq follows the wrong h
+        assert bad == {"friction", "inverse", "forward", "forward derivatives 0"}, (label, bad)
 
 
 def _arm6(scale=1.0):
@@ -523,6 +538,28 @@ def test_compile_six_dof_robot(tmp_path):
     r2 = codegen.compile(_arm6(scale=1.2), cache=tmp_path)
     assert cs.codegen.info(r2)["name"] == name and len(list(tmp_path.glob("*.so"))) == 1
     _compare(r2, _arm6(scale=1.2), n_states=200, seed=1)
+
+
+def test_compiled_code_carries_the_derivatives_where_they_are_tractable(tmp_path):
+    """codegen.compile emits the dynamics' derivatives in the collected form (a small RR arm) and leaves
+    them out in the Jacobian form (the 4-DOF arm with general angles), where the recursive algorithm
+    gives them; either way they equal the numeric robot's to 1e-12 relative."""
+    from conftest import random_state
+
+    for make, carries in ((_arm2, True), (_runtime_robot, False)):
+        num = make()
+        gen = codegen.compile(num, cache=tmp_path)
+        assert cs.codegen.info(gen)["derivatives"] is carries
+        name = cs.codegen.info(gen)["name"]
+        assert ("coopsim_gen_derivatives(" in (tmp_path / f"coopsim_{name}.cpp").read_text()) is carries
+        rng = np.random.default_rng(3)
+        for _ in range(20):
+            q, qd, qdd = random_state(num, rng)
+            tau = 3 * rng.normal(size=num.dof)
+            for a, b in ((gen.forward_dynamics_derivatives(q, qd, tau), num.forward_dynamics_derivatives(q, qd, tau)),
+                         (gen.inverse_dynamics_derivatives(q, qd, qdd), num.inverse_dynamics_derivatives(q, qd, qdd))):
+                for x, y in zip(a, b):
+                    assert np.abs(x - y).max() <= 1e-12 * np.abs(y).max()
 
 
 def test_compile_bad_input(tmp_path):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import coopsim as cs
+import coopsim.codegen
 from conftest import random_fleet, random_state
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio ('pin' on PyPI) is installed by the test extra")
@@ -112,17 +113,115 @@ def test_coulomb_derivative_is_the_smooth_models_at_and_away_from_zero_velocity(
         np.testing.assert_allclose(dqd - rigid - np.diag(expected), 0, atol=1e-12)
 
 
+def _generated_variants(which):
+    """The built-in SCARA as it comes, with other dimensions, masses, friction, a turned base and a tilted
+    gravity, and with armature and Coulomb friction on every joint: (generated, numeric) pairs."""
+    factory = getattr(cs.robots, which)
+    changed = dict(masses=[4.0, 1.5, 1.1, 0.4, 0.3, 0.08], friction=[0.3, 0.2, 1.0, 0.1, 0.0, 0.5], base_yaw=0.7,
+                   gravity=(0.4, -0.3, -9.7), L1=0.42 if which == "scara1" else 0.25)
+    drives = _with_drives(factory(backend="numeric"), 13).with_generated(which)
+    return [(factory(), factory(backend="numeric")), (factory(**changed), factory(backend="numeric", **changed)),
+            (drives, drives.with_backend("numeric"))]
+
+
 @pytest.mark.parametrize("which", ["scara1", "scara2"])
-def test_every_backend_has_the_same_derivatives(which):
-    """The generated SCARA (closed-form dynamics) and the numeric one give the same derivatives to 1e-12:
-    the recursive algorithm's, whatever the backend."""
-    gen = getattr(cs.robots, which)()
-    num = gen.with_backend("numeric")
-    for q, qd, qdd, tau in _states(gen, 2, 4):
-        for a, b in zip(gen.forward_dynamics_derivatives(q, qd, tau), num.forward_dynamics_derivatives(q, qd, tau)):
-            assert _rel(a, b) <= 1e-12
-        for a, b in zip(gen.inverse_dynamics_derivatives(q, qd, qdd), num.inverse_dynamics_derivatives(q, qd, qdd)):
-            assert _rel(a, b) <= 1e-12
+def test_generated_derivatives_equal_the_recursive_ones(which):
+    """The generated SCARAs take their derivatives from the symbolic model (emitted C++,
+    GeneratedDynamics::derivatives): equal to the recursive algorithm's to 1e-12 relative, both calls,
+    with other parameters, armature and Coulomb friction, and with wrenches at the tool and on links (whose
+    term is the recursive one's). Not the same arithmetic: the two differ in the last bits somewhere."""
+    last_bits = False
+    for gen, num in _generated_variants(which):
+        assert gen.backend == "generated" and num.backend == "numeric"
+        assert cs.codegen.info(gen)["derivatives"] is True
+        for q, qd, qdd, tau in _states(gen, 2, 4):
+            for f_ext in _wrenches(gen):
+                pairs = [(gen.forward_dynamics_derivatives(q, qd, tau, f_ext),
+                          num.forward_dynamics_derivatives(q, qd, tau, f_ext)),
+                         (gen.inverse_dynamics_derivatives(q, qd, qdd, f_ext),
+                          num.inverse_dynamics_derivatives(q, qd, qdd, f_ext))]
+                for ours, theirs in pairs:
+                    for a, b in zip(ours, theirs):
+                        assert _rel(a, b) <= 1e-12
+                        last_bits |= not np.array_equal(a, b)
+    assert last_bits
+
+
+def test_generated_forward_derivatives_are_taken_at_forward_dynamics_acceleration():
+    """The generated path takes qdd from forward_dynamics' own computation (the generated dynamics and
+    LDL^T): its forward derivatives equal -M^-1 times its inverse ones at that qdd."""
+    robot = _generated_variants("scara2")[2][0]
+    f_ext = np.array([1.0, 2.0, -1.0, 0.1, 0.0, 0.2])
+    for q, qd, _, tau in _states(robot, 5, 3):
+        qdd = robot.forward_dynamics(q, qd, tau, f_ext)
+        dq, dqd, M = robot.inverse_dynamics_derivatives(q, qd, qdd, f_ext)
+        aq, aqd, Minv = robot.forward_dynamics_derivatives(q, qd, tau, f_ext)
+        np.testing.assert_allclose(aq, -np.linalg.solve(M, dq), rtol=0, atol=1e-11 * np.abs(aq).max())
+        np.testing.assert_allclose(aqd, -np.linalg.solve(M, dqd), rtol=0, atol=1e-11 * np.abs(aqd).max())
+        np.testing.assert_allclose(Minv, np.linalg.inv(M), rtol=0, atol=1e-11 * np.abs(Minv).max())
+
+
+# ---- out= and the arguments read in place ----
+
+@pytest.mark.parametrize("backend", ["generated", "numeric"])
+def test_out_receives_the_results_in_place(backend):
+    """out= (three float64 (n, n) arrays) gets the same values as new arrays, and the call returns them."""
+    r = cs.robots.scara1(backend=backend)
+    for q, qd, qdd, tau in _states(r, 3, 2):
+        for call, x in ((r.forward_dynamics_derivatives, tau), (r.inverse_dynamics_derivatives, qdd)):
+            fresh = call(q, qd, x)
+            out = tuple(np.full((6, 6), np.nan) for _ in range(3))
+            got = call(q, qd, x, out=out)
+            assert got is out or all(g is o for g, o in zip(got, out))
+            for a, b in zip(out, fresh):
+                np.testing.assert_array_equal(a, b)
+            block = np.empty((3, 6, 6))
+            got = call(q, qd, x, None, out=list(block))  # views of one block, as a list
+            np.testing.assert_array_equal(block, np.array(fresh))
+            assert isinstance(got, tuple) and len(got) == 3
+
+
+def test_arguments_of_any_layout_give_the_same_results():
+    """float64 C-contiguous arrays are read in place; lists, other dtypes, strided and byte-swapped arrays are
+    converted: the same results, bit for bit."""
+    r = cs.robots.scara2()
+    q, qd, _, tau = next(_states(r, 8, 1))
+    ref = r.forward_dynamics_derivatives(q, qd, tau)
+    wide = np.zeros((6, 2))
+    wide[:, 0] = qd
+    for args in ([list(q), list(qd), list(tau)], [q.astype(">f8"), wide[:, 0], tau],
+                 [q, qd, np.asfortranarray(tau)], [q.astype(np.longdouble), qd, tau]):
+        for a, b in zip(r.forward_dynamics_derivatives(*args), ref):
+            np.testing.assert_array_equal(a, b)
+    readonly = q.copy()
+    readonly.flags.writeable = False
+    for a, b in zip(r.forward_dynamics_derivatives(readonly, qd, tau), ref):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_bad_out_is_named_in_one_line_and_nothing_is_written():
+    r = cs.robots.scara1()
+    z = np.zeros(6)
+    good = np.empty((6, 6))
+    ro = np.zeros((6, 6))
+    ro.flags.writeable = False
+    bad = [np.empty((3, 6, 6)), (good, good), (good, good, good), (good, np.empty((6, 5)), np.empty((6, 6))),
+           (np.empty((6, 6), np.float32), np.empty((6, 6)), np.empty((6, 6))),
+           (np.empty((6, 6), order="F"), np.empty((6, 6)), np.empty((6, 6))),
+           (ro, np.empty((6, 6)), np.empty((6, 6))), "abc", (1, 2, 3)]
+    for out in bad:
+        for call in (r.forward_dynamics_derivatives, r.inverse_dynamics_derivatives):
+            with pytest.raises(ValueError) as e:
+                call(z, z, z, out=out)
+            _one_line(e, "out must be", "(6, 6)")
+    assert not ro.any()
+    # a result that is not finite: refused before anything is written
+    for robot in (r, r.with_backend("numeric")):
+        out = tuple(np.zeros((6, 6)) for _ in range(3))
+        with pytest.raises(ValueError) as e:
+            robot.inverse_dynamics_derivatives(r.q_limits.mean(axis=1), np.full(6, 1e200), z, out=out)
+        _one_line(e, "inverse_dynamics_derivatives: result is not finite")
+        assert not any(o.any() for o in out)
 
 
 # ---- Pinocchio ----

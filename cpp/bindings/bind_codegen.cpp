@@ -27,8 +27,9 @@ void bind_codegen(py::module_& m) {
     d["generator_version"] = g.generator_version;
     d["operation_count"] = g.operation_count;
     d["in_use"] = r.uses_generated();
+    d["derivatives"] = g.derivatives != nullptr;
     return d;
   }, py::arg("robot"),
   "The generated dynamics attached to `robot` as a dict (name, dof, joint_types, angles, generator_version, "
-  "operation_count, in_use), or None.");
+  "operation_count, in_use, derivatives: whether it carries the dynamics' derivatives), or None.");
 }

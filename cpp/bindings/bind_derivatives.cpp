@@ -1,5 +1,11 @@
 // The dynamics' derivatives (robot_derivatives.cpp): Robot.forward_dynamics_derivatives,
 // Robot.inverse_dynamics_derivatives and the batch forward_dynamics_derivatives_batch (GIL released).
+//
+// The single calls are made to be called in loops (iLQR, MPC): a float64 C-contiguous argument of the
+// right shape is read in place (any other goes through convert.hpp's conversion and its one-line errors),
+// the results are written straight into new numpy arrays, or into the caller's own (`out=`), with no
+// intermediate copies or containers.
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
 #include <pybind11/stl.h>
@@ -26,8 +32,105 @@ VecN optional_vec(const py::object& obj, int n, const char* name) {
 
 const double* ptr(const VecN& v) { return v.size() ? v.data() : nullptr; }
 
-py::tuple three(const MatN& a, const MatN& b, const MatN& c, const char* what) {
-  return py::make_tuple(checked(a, what), checked(b, what), checked(c, what));
+// The data of `obj` when it is a float64 (native byte order), aligned, C-contiguous numpy array of shape
+// (rows,) (cols = 0) or (rows, cols), writeable if asked; null otherwise.
+double* direct(const py::handle& obj, py::ssize_t rows, py::ssize_t cols, bool writeable) {
+  const auto& api = py::detail::npy_api::get();
+  if (!api.PyArray_Check_(obj.ptr())) return nullptr;
+  const auto* a = py::detail::array_proxy(obj.ptr());
+  const auto* d = py::detail::array_descriptor_proxy(a->descr);
+  int need = py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_ | py::detail::npy_api::NPY_ARRAY_ALIGNED_;
+  if (writeable) need |= py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+  if (d->type_num != py::detail::npy_api::NPY_DOUBLE_ || d->byteorder != '=' || (a->flags & need) != need)
+    return nullptr;
+  if (cols == 0 ? (a->nd != 1 || a->dimensions[0] != rows)
+                : (a->nd != 2 || a->dimensions[0] != rows || a->dimensions[1] != cols))
+    return nullptr;
+  return reinterpret_cast<double*>(a->data);
+}
+
+// An (n,) argument: read in place when it is a float64 C-contiguous array of n numbers (its values
+// checked finite), else converted and checked by vec().
+class VecArg {
+ public:
+  VecArg(const py::handle& obj, int n, const char* name) {
+    if (const double* d = direct(obj, n, 0, false)) {
+      check_finite(d, static_cast<size_t>(n), name);
+      p_ = d;
+    } else {
+      copy_ = vec(obj, n, name);
+      p_ = copy_.data();
+    }
+  }
+  const double* data() const { return p_; }
+
+ private:
+  VecN copy_;
+  const double* p_;
+};
+
+// m (column-major) into numpy's row-major (n, n) at p
+void write_rows(const MatN& m, double* p) {
+  const Eigen::Index n = m.rows();
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j < n; ++j) p[i * n + j] = m(i, j);
+}
+
+// A new (n, n) float64 array of m, made by numpy's own constructor (no shape containers on the way).
+py::object new_matrix(const MatN& m) {
+  const auto& api = py::detail::npy_api::get();
+  Py_intptr_t dims[2] = {m.rows(), m.cols()};
+  PyObject* descr = api.PyArray_DescrFromType_(py::detail::npy_api::NPY_DOUBLE_);
+  if (!descr) throw py::error_already_set();
+  PyObject* arr = api.PyArray_NewFromDescr_(api.PyArray_Type_, descr, 2, dims, nullptr, nullptr, 0, nullptr);
+  if (!arr) throw py::error_already_set();
+  write_rows(m, reinterpret_cast<double*>(py::detail::array_proxy(arr)->data));
+  return py::reinterpret_steal<py::object>(arr);
+}
+
+// What an out= given is, in one line: "a tuple of 3: float64 (6, 6), float32 (6, 6) read-only, ..."
+std::string describe_out(const py::object& out) {
+  auto item = [](const py::handle& h) -> std::string {
+    if (!py::isinstance<py::array>(h)) return Py_TYPE(h.ptr())->tp_name;
+    const auto a = py::reinterpret_borrow<py::array>(h);
+    std::string s = std::string(py::str(a.dtype())) + " " + std::string(py::str(py::tuple(a.attr("shape"))));
+    if (!a.writeable()) s += " read-only";
+    if (!(a.flags() & py::array::c_style)) s += " not C-contiguous";
+    return s;
+  };
+  if (!PyTuple_Check(out.ptr()) && !PyList_Check(out.ptr())) return item(out);
+  std::string s = std::string("a ") + Py_TYPE(out.ptr())->tp_name + " of " + std::to_string(py::len(out));
+  const char* sep = ": ";
+  for (const py::handle h : out) {
+    s += sep + item(h);
+    sep = ", ";
+  }
+  return s;
+}
+
+// The three results as new arrays, or written into `out` (three float64 C-contiguous writeable (n, n)
+// arrays, returned as a tuple); refused, with nothing written, when a result is not finite.
+py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object& out, const char* what) {
+  if (!a.allFinite() || !b.allFinite() || !c.allFinite())
+    throw py::value_error(std::string(what) + ": result is not finite for this input (values out of range?)");
+  if (out.is_none()) return py::reinterpret_steal<py::object>(PyTuple_Pack(3, new_matrix(a).ptr(),
+                                                                           new_matrix(b).ptr(),
+                                                                           new_matrix(c).ptr()));
+  const py::ssize_t n = a.rows();
+  double* d[3] = {nullptr, nullptr, nullptr};
+  const bool sequence = PyTuple_Check(out.ptr()) || PyList_Check(out.ptr());
+  if (sequence && py::len(out) == 3)
+    for (int i = 0; i < 3; ++i) d[i] = direct(out[py::int_(i)], n, n, true);
+  if (!d[0] || !d[1] || !d[2] || d[0] == d[1] || d[1] == d[2] || d[0] == d[2]) {
+    const std::string shape = "(" + std::to_string(n) + ", " + std::to_string(n) + ")";
+    throw py::value_error("out must be None or three distinct writeable float64 C-contiguous arrays of shape " +
+                          shape + " (e.g. tuple(np.empty((3, " + std::to_string(n) + ", " + std::to_string(n) +
+                          ")))), got " + describe_out(out));
+  }
+  write_rows(a, d[0]);
+  write_rows(b, d[1]);
+  write_rows(c, d[2]);
+  return PyTuple_Check(out.ptr()) ? out : py::object(py::tuple(out));
 }
 
 }  // namespace
@@ -35,27 +138,29 @@ py::tuple three(const MatN& a, const MatN& b, const MatN& c, const char* what) {
 void bind_derivatives(py::module_& m) {
   auto robot = py::reinterpret_borrow<py::class_<Robot>>(m.attr("Robot"));
   robot.def("inverse_dynamics_derivatives", [](const Robot& r, const py::object& q, const py::object& qd,
-                                                const py::object& qdd, const py::object& f_ext) {
+                                                const py::object& qdd, const py::object& f_ext,
+                                                const py::object& out) {
          const int n = r.dof();
-         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), qddv = vec(qdd, n, "qdd");
+         const VecArg qv(q, n, "q"), qdv(qd, n, "qd"), qddv(qdd, n, "qdd");
          const std::vector<ExternalWrench> w = wrenches_or_none(f_ext);
          Workspace ws;
          MatN dq, dqd, M;
          r.inverse_dynamics_derivatives(qv.data(), qdv.data(), qddv.data(), w, ws, dq, dqd, M);
-         return three(dq, dqd, M, "inverse_dynamics_derivatives");
-       }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(),
-       docs::doc_Robot_inverse_dynamics_derivatives);
+         return results(dq, dqd, M, out, "inverse_dynamics_derivatives");
+       }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(), py::kw_only(),
+       py::arg("out") = py::none(), docs::doc_Robot_inverse_dynamics_derivatives);
   robot.def("forward_dynamics_derivatives", [](const Robot& r, const py::object& q, const py::object& qd,
-                                                const py::object& tau, const py::object& f_ext) {
+                                                const py::object& tau, const py::object& f_ext,
+                                                const py::object& out) {
          const int n = r.dof();
-         const VecN qv = vec(q, n, "q"), qdv = vec(qd, n, "qd"), tv = vec(tau, n, "tau");
+         const VecArg qv(q, n, "q"), qdv(qd, n, "qd"), tv(tau, n, "tau");
          const std::vector<ExternalWrench> w = wrenches_or_none(f_ext);
          Workspace ws;
          MatN dq, dqd, Minv;
          r.forward_dynamics_derivatives(qv.data(), qdv.data(), tv.data(), w, ws, dq, dqd, Minv);
-         return three(dq, dqd, Minv, "forward_dynamics_derivatives");
-       }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(),
-       docs::doc_Robot_forward_dynamics_derivatives);
+         return results(dq, dqd, Minv, out, "forward_dynamics_derivatives");
+       }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(), py::kw_only(),
+       py::arg("out") = py::none(), docs::doc_Robot_forward_dynamics_derivatives);
   m.def("forward_dynamics_derivatives_batch", [](const Robot& r, const py::object& Q, const py::object& QD,
                                                  const py::object& TAU, const py::object& threads_obj) {
          const int threads = static_cast<int>(index_arg(threads_obj, "threads", 0, 4096));

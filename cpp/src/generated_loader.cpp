@@ -87,6 +87,8 @@ std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::strin
   g->gravity = library_symbol<decltype(g->gravity)>(h, path, "coopsim_gen_gravity");
   g->dynamics = library_symbol<decltype(g->dynamics)>(h, path, "coopsim_gen_dynamics");
   g->solve = library_symbol<decltype(g->solve)>(h, path, "coopsim_gen_solve");
+  // optional: emitted where the derivatives are tractable (the collected form)
+  g->derivatives = reinterpret_cast<decltype(g->derivatives)>(dlsym(h, "coopsim_gen_derivatives"));
   return g;
 }
 

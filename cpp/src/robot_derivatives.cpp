@@ -17,9 +17,11 @@
 // and for k < j, with alpha_j = Ic_j S_j and beta_j = Bc_j^T S_j - S_j x* H_j,
 //   dtau_j/dq_k  = Psi_k . alpha_j + dS_k/dt . beta_j,   dtau_j/dqd_k = 2 dS_k/dt . alpha_j + S_k . beta_j,
 // and M_jk = S_min(j,k) . alpha_max(j,k) (plus the armature on the diagonal). O(n^2) in all.
+//
+// A robot whose generated code carries the derivatives (GeneratedDynamics::derivatives: the symbolic
+// model's d(M qdd + b)/dq, db/dqd and M, emitted by coopsim.codegen) takes them from there instead, the
+// wrenches' term added as on the recursive path.
 #include "coopsim/robot.hpp"
-
-#include <Eigen/Cholesky>
 
 #include <algorithm>
 #include <atomic>
@@ -28,8 +30,10 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "batch_rows.hpp"
+#include "coopsim/generated.hpp"
 #include "internal.hpp"
 
 namespace coopsim {
@@ -85,6 +89,87 @@ struct Body {
     T += o.T;
   }
 };
+
+// On x86-64 the forward derivatives' linear algebra is compiled twice, for the baseline x86-64 and for
+// x86-64-v3 (AVX2, FMA), as the generated code is; the loader picks the one this CPU runs.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(COOPSIM_GENERATED_BASELINE_ONLY)
+#define COOPSIM_DERIVATIVES_TARGETS __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define COOPSIM_DERIVATIVES_TARGETS
+#endif
+
+// The forward dynamics' derivatives from the inverse ones: [X Y Minv] = M^-1 [-A -B 1] with M symmetric
+// positive definite (n x n, column-major, as A, B and the results): one Cholesky factorisation and the
+// substitutions of the 3n right-hand sides at once, each row a vector of 3n numbers (vectorised across the
+// columns), the size known at compile time. false where a pivot is lost (solve_spd's rule).
+template <int N>
+inline __attribute__((always_inline)) bool forward_from_inverse_fixed(const double* M, const double* A,
+                                                                      const double* B, double* Minv, double* X,
+                                                                      double* Y) {
+  constexpr int W = 3 * N;
+  double L[N][N], r[N];
+  for (int j = 0; j < N; ++j) {
+    const double d0 = M[j + j * N];
+    double d = d0;
+    for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+    if (!(d > 1e-13 * d0)) return false;
+    d = std::sqrt(d);
+    L[j][j] = d;
+    r[j] = 1.0 / d;
+    for (int i = j + 1; i < N; ++i) {
+      double v = M[i + j * N];
+      for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+      L[i][j] = v * r[j];
+    }
+  }
+  alignas(32) double Z[N][W];
+  for (int i = 0; i < N; ++i)
+    for (int c = 0; c < N; ++c) {
+      Z[i][c] = -A[i + c * N];
+      Z[i][N + c] = -B[i + c * N];
+      Z[i][2 * N + c] = i == c ? 1.0 : 0.0;
+    }
+  for (int i = 0; i < N; ++i) {  // L y = z
+    for (int k = 0; k < i; ++k)
+      for (int c = 0; c < W; ++c) Z[i][c] -= L[i][k] * Z[k][c];
+    for (int c = 0; c < W; ++c) Z[i][c] *= r[i];
+  }
+  for (int i = N - 1; i >= 0; --i) {  // L^T x = y
+    for (int k = i + 1; k < N; ++k)
+      for (int c = 0; c < W; ++c) Z[i][c] -= L[k][i] * Z[k][c];
+    for (int c = 0; c < W; ++c) Z[i][c] *= r[i];
+  }
+  for (int c = 0; c < N; ++c)
+    for (int i = 0; i < N; ++i) {
+      X[i + c * N] = Z[i][c];
+      Y[i + c * N] = Z[i][N + c];
+      Minv[i + c * N] = Z[i][2 * N + c];
+    }
+  return true;
+}
+
+template <int... Ns>
+inline __attribute__((always_inline)) bool forward_from_inverse_sizes(int n, const double* M, const double* A,
+                                                                      const double* B, double* Minv, double* X,
+                                                                      double* Y, std::integer_sequence<int, Ns...>) {
+  bool ok = false;
+  ((n == Ns + 1 ? (ok = forward_from_inverse_fixed<Ns + 1>(M, A, B, Minv, X, Y), true) : false) || ...);
+  return ok;
+}
+
+COOPSIM_DERIVATIVES_TARGETS
+bool forward_from_inverse_n(int n, const double* M, const double* A, const double* B, double* Minv, double* X,
+                            double* Y) {
+  return forward_from_inverse_sizes(n, M, A, B, Minv, X, Y, std::make_integer_sequence<int, kMaxDof>());
+}
+
+bool forward_from_inverse(const MatN& M, const MatN& A, const MatN& B, MatN& Minv, MatN& X, MatN& Y) {
+  const int n = static_cast<int>(M.rows());
+  Minv.resize(n, n);
+  X.resize(n, n);
+  Y.resize(n, n);
+  return forward_from_inverse_n(n, M.data(), A.data(), B.data(), Minv.data(), X.data(), Y.data());
+}
 
 }  // namespace
 
@@ -246,6 +331,19 @@ void Robot::external_torque_derivatives_(const std::vector<ExternalWrench>& wren
 void Robot::inverse_dynamics_derivatives(const double* q, const double* qd, const double* qdd,
                                          const std::vector<ExternalWrench>& wrenches, Workspace& ws,
                                          MatN& dtau_dq, MatN& dtau_dqd, MatN& M) const {
+  if (uses_generated() && generated_->derivatives) {
+    dtau_dq.resize(n_, n_);
+    dtau_dqd.resize(n_, n_);
+    M.resize(n_, n_);
+    generated_->derivatives(gen_params_.data(), q, qd, qdd, dtau_dq.data(), dtau_dqd.data(), M.data());
+    if (!wrenches.empty()) {
+      kinematics(q, ws, false);  // the frames, where the wrenches act
+      MatN d = MatN::Zero(n_, n_);
+      external_torque_derivatives_(wrenches, ws, d);
+      dtau_dq -= d;
+    }
+    return;
+  }
   kinematics(q, ws);
   VecN acc;
   rnea_derivatives_kin_(qd, qdd, nullptr, nullptr, ws, dtau_dq, dtau_dqd, M, acc);
@@ -260,7 +358,9 @@ void Robot::forward_dynamics_derivatives(const double* q, const double* qd, cons
                                          const std::vector<ExternalWrench>& wrenches, Workspace& ws,
                                          MatN& dqdd_dq, MatN& dqdd_dqd, MatN& Minv, VecN* qdd_out,
                                          const double* tau_ext) const {
-  kinematics(q, ws);
+  const bool gen = uses_generated() && generated_->derivatives && generated_->dynamics;
+  if (!gen) kinematics(q, ws);
+  else if (!wrenches.empty()) kinematics(q, ws, false);  // the frames, where the wrenches act
   VecN te, qdd;
   const double* tep = tau_ext;
   if (!wrenches.empty()) {
@@ -268,21 +368,42 @@ void Robot::forward_dynamics_derivatives(const double* q, const double* qd, cons
     if (tau_ext) te += Eigen::Map<const VecN>(tau_ext, n_);
     tep = te.data();
   }
-  // one pass for M, the bias and qdd = M^-1 (tau + tau_ext - bias), the derivatives at that qdd
   MatN dq, dqd, M;
-  if (!rnea_derivatives_kin_(qd, nullptr, tau, tep, ws, dq, dqd, M, qdd)) {
-    forward_dynamics(q, qd, tau, tep, ws, qdd, false);  // raises forward_dynamics' own error
-    throw std::domain_error("forward_dynamics_derivatives: the mass matrix is not positive definite");
+  bool ok;
+  if (gen) {
+    // qdd = FD(q, qd, tau) as forward_dynamics computes it, then the generated derivatives at that qdd
+    const double* p = gen_params_.data();
+    M.resize(n_, n_);
+    qdd.resize(n_);
+    VecN h(n_);
+    generated_->dynamics(p, q, qd, M.data(), h.data());
+    qdd = Eigen::Map<const VecN>(tau, n_) - h;
+    if (tep) qdd += Eigen::Map<const VecN>(tep, n_);
+    if (generated_->solve) {
+      ok = generated_->solve(M.data(), qdd.data());
+    } else {
+      MatN L = M;
+      const VecN rhs = qdd;
+      ok = solve_spd(L, rhs, qdd);
+    }
+    if (ok) {
+      dq.resize(n_, n_);
+      dqd.resize(n_, n_);
+      generated_->derivatives(p, q, qd, qdd.data(), dq.data(), dqd.data(), M.data());
+    }
+  } else {
+    // one pass for M, the bias and qdd = M^-1 (tau + tau_ext - bias), the derivatives at that qdd
+    ok = rnea_derivatives_kin_(qd, nullptr, tau, tep, ws, dq, dqd, M, qdd);
   }
-  if (!wrenches.empty()) {
+  if (ok && !wrenches.empty()) {
     MatN d = MatN::Zero(n_, n_);
     external_torque_derivatives_(wrenches, ws, d);
     dq -= d;
   }
-  const Eigen::LLT<MatN> llt(M);
-  Minv = llt.solve(MatN::Identity(n_, n_));
-  dqdd_dq.noalias() = -Minv * dq;
-  dqdd_dqd.noalias() = -Minv * dqd;
+  if (!ok || !forward_from_inverse(M, dq, dqd, Minv, dqdd_dq, dqdd_dqd)) {
+    forward_dynamics(q, qd, tau, tep, ws, qdd, false);  // raises forward_dynamics' own error
+    throw std::domain_error("forward_dynamics_derivatives: the mass matrix is not positive definite");
+  }
   if (qdd_out) *qdd_out = qdd;
 }
 

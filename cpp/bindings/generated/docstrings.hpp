@@ -531,9 +531,11 @@ constexpr const char* doc_Robot_end_stop_torques = "End-stop torques for (q, qd)
 constexpr const char* doc_Robot_kinetic_energy = "Kinetic and potential energy (J); potential of gravity relative to z = 0.";
 constexpr const char* doc_Robot_inverse_dynamics_derivatives = "The inverse dynamics' derivatives at (q, qd, qdd): (dtau_dq, dtau_dqd, M), each (n, n), [j, k] =\n"
     "dtau_j / dq_k (N m/rad, N/m, ...), of exactly what inverse_dynamics computes (Eq. (1): tau =\n"
-    "M qdd + C + G + friction(qd) - J^T F, armature in M): the recursive Newton-Euler algorithm\n"
-    "differentiated analytically (Carpentier & Mansard, RSS 2018), exact to rounding (no finite\n"
-    "differences), by the recursive algorithm whatever the backend. f_ext: as in inverse_dynamics, a\n"
+    "M qdd + C + G + friction(qd) - J^T F, armature in M), exact to rounding (no finite differences):\n"
+    "with generated code that carries them (the built-in SCARAs, codegen.compile where tractable) the\n"
+    "symbolic model's closed forms, else the recursive Newton-Euler algorithm differentiated\n"
+    "analytically (Carpentier & Mansard, RSS 2018); both agree to 1e-12. From Python, out= (three\n"
+    "float64 C-contiguous (n, n) arrays) receives the results in place. f_ext: as in inverse_dynamics, a\n"
     "(6,) wrench [f; m] (world, N and N m) at the tool centre point, or Wrench(s) on links, fixed in\n"
     "the world while the points they act at move with their links. The Coulomb term\n"
     "F_c tanh(qd / v_c) is smooth: its derivative F_c / v_c (1 - tanh^2(qd / v_c)) is in dtau_dqd's\n"
@@ -543,7 +545,9 @@ constexpr const char* doc_Robot_forward_dynamics_derivatives = "The forward dyna
     "computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,\n"
     "the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).\n"
     "ValueError naming q where M is not positive definite, as forward_dynamics. tau_ext (n, may be null):\n"
-    "joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext.";
+    "joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext. Generated code\n"
+    "(as inverse_dynamics_derivatives) gives qdd as forward_dynamics does and the derivatives there;\n"
+    "out= as there.";
 constexpr const char* doc_RobotTables = "A robot as tables: the arguments of Robot.from_dh, documented here\n"
     "(Python's docstring too); an optional table left empty takes the default.";
 constexpr const char* doc_RobotTables_boxes = "none: the default boxes";

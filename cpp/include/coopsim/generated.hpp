@@ -40,6 +40,13 @@ struct GeneratedDynamics {
   // optional: M and h = C(q, qd) qd + G(q) + K qd + F_c tanh(qd / v_c) in one
   // pass (shared sin/cos); M always includes the armature on its diagonal
   void (*dynamics)(const double* p, const double* q, const double* qd, double* M, double* h) = nullptr;
+  // optional: the inverse dynamics' derivatives at (q, qd, qdd) from the symbolic model, with
+  // tau = M(q) qdd + C(q, qd) qd + G(q) + K qd + F_c tanh(qd / v_c): dtau_dq = d tau / dq,
+  // dtau_dqd = d tau / dqd (friction's slope on the diagonal), each n x n column-major with
+  // [i + n k] = d tau_i / d x_k, and M (armature included) in the same pass; null where the
+  // generator did not emit them (the engine's recursive algorithm is used then)
+  void (*derivatives)(const double* p, const double* q, const double* qd, const double* qdd, double* dtau_dq,
+                      double* dtau_dqd, double* M) = nullptr;
   // optional: x <- M^-1 x by an unrolled LDL^T that skips M's structural
   // zeros; false if M is not positive definite (x is then undefined)
   bool (*solve)(const double* M, double* x) = nullptr;

@@ -355,9 +355,11 @@ to the base frame's origin.)doc";
   // ---- derivatives of the dynamics (robot_derivatives.cpp) ----
   // The inverse dynamics' derivatives at (q, qd, qdd): (dtau_dq, dtau_dqd, M), each (n, n), [j, k] =
   // dtau_j / dq_k (N m/rad, N/m, ...), of exactly what inverse_dynamics computes (Eq. (1): tau =
-  // M qdd + C + G + friction(qd) - J^T F, armature in M): the recursive Newton-Euler algorithm
-  // differentiated analytically (Carpentier & Mansard, RSS 2018), exact to rounding (no finite
-  // differences), by the recursive algorithm whatever the backend. f_ext: as in inverse_dynamics, a
+  // M qdd + C + G + friction(qd) - J^T F, armature in M), exact to rounding (no finite differences):
+  // with generated code that carries them (the built-in SCARAs, codegen.compile where tractable) the
+  // symbolic model's closed forms, else the recursive Newton-Euler algorithm differentiated
+  // analytically (Carpentier & Mansard, RSS 2018); both agree to 1e-12. From Python, out= (three
+  // float64 C-contiguous (n, n) arrays) receives the results in place. f_ext: as in inverse_dynamics, a
   // (6,) wrench [f; m] (world, N and N m) at the tool centre point, or Wrench(s) on links, fixed in
   // the world while the points they act at move with their links. The Coulomb term
   // F_c tanh(qd / v_c) is smooth: its derivative F_c / v_c (1 - tanh^2(qd / v_c)) is in dtau_dqd's
@@ -370,7 +372,9 @@ to the base frame's origin.)doc";
   // computes (Eq. (2), friction, armature, f_ext as there, end stops off): dqdd/dx = -M^-1 dtau/dx,
   // the inverse dynamics' derivatives (inverse_dynamics_derivatives) taken at qdd = FD(q, qd, tau).
   // ValueError naming q where M is not positive definite, as forward_dynamics. tau_ext (n, may be null):
-  // joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext.
+  // joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext. Generated code
+  // (as inverse_dynamics_derivatives) gives qdd as forward_dynamics does and the derivatives there;
+  // out= as there.
   void forward_dynamics_derivatives(const double* q, const double* qd, const double* tau,
                                     const std::vector<ExternalWrench>& wrenches, Workspace& ws, MatN& dqdd_dq,
                                     MatN& dqdd_dqd, MatN& Minv, VecN* qdd = nullptr,

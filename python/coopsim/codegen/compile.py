@@ -34,8 +34,9 @@ def cache_dir() -> Path:
 
 def info(robot) -> Optional[dict]:
     """The generated dynamics attached to `robot` (built into the engine or by :func:`compile`): a dict with
-    name, dof, joint_types, angles, generator_version, operation_count and in_use; None for a robot
-    without any."""
+    name, dof, joint_types, angles, generator_version, operation_count, in_use and derivatives (whether
+    it carries the dynamics' derivatives, used by Robot.inverse_dynamics_derivatives and
+    forward_dynamics_derivatives); None for a robot without any."""
     if not isinstance(robot, Robot):
         raise ValueError(f"robot must be a coopsim.Robot, got {type(robot).__name__}")
     return generated_info(robot)

@@ -17,7 +17,8 @@ from sympy.printing.precedence import precedence
 
 from .symbolic import PARAMS_PER_LINK, Coulomb, SymbolicModel, _cse_ops
 
-__all__ = ["EmittedFunction", "emit_functions", "emit_constants", "emit_solve", "FUNCTIONS", "SIN_COS"]
+__all__ = ["EmittedFunction", "emit_functions", "emit_derivatives", "emit_constants", "emit_solve", "FUNCTIONS",
+           "DERIVATIVES", "SIN_COS", "COULOMB_SLOPE"]
 
 # name, arguments (after p), outputs
 FUNCTIONS = (
@@ -27,6 +28,9 @@ FUNCTIONS = (
     ("gravity", "const double* q, double* g"),
     ("dynamics", "const double* q, const double* qd, double* M, double* h"),
 )
+# the inverse dynamics' derivatives (and M) at (q, qd, qdd); emitted where tractable (the collected form)
+DERIVATIVES = ("derivatives",
+               "const double* q, const double* qd, const double* qdd, double* dtau_dq, double* dtau_dqd, double* M")
 
 
 class _Printer(C99CodePrinter):
@@ -63,6 +67,10 @@ class _Printer(C99CodePrinter):
     def _print_Coulomb(self, expr):
         Fc, qd, vc = (self._print(a) for a in expr.args)
         return f"({Fc} > 0.0 ? {Fc}*std::tanh({qd}/{vc}) : 0.0)"
+
+    def _print_CoulombSlope(self, expr):
+        Fc, qd, vc = (self._print(a) for a in expr.args)
+        return f"coulomb_slope({Fc}, {qd}, {vc})"
 
     def _print_Rational(self, expr):
         return repr(float(expr))
@@ -113,6 +121,18 @@ static inline void sin_cos(double x, double& s, double& c) {
     case 2: s = -sr; c = -cr; break;
     default: s = -cr; c = sr; break;
   }
+}
+"""
+
+
+#: The Coulomb term's slope, emitted after SIN_COS in files with derivatives (the recursive
+#: algorithm's formula, robot_derivatives.cpp).
+COULOMB_SLOPE = """\
+// d/dqd of F_c tanh(qd / v_c): F_c / v_c (1 - tanh^2(qd / v_c)); no tanh without Coulomb friction.
+static inline double coulomb_slope(double Fc, double qd, double vc) {
+  if (!(Fc > 0.0)) return 0.0;
+  const double t = std::tanh(qd / vc);
+  return Fc / vc * (1.0 - t * t);
 }
 """
 
@@ -201,6 +221,7 @@ def _names(model: SymbolicModel):
     for i in range(model.n):
         names[model.q[i]] = f"q[{i}]"
         names[model.qd[i]] = f"qd[{i}]"
+        names[model.qdd[i]] = f"qdd[{i}]"
     for s in model.trig:
         names[s] = s.name
     for k in list(model.kappa) + list(model.slides):
@@ -209,7 +230,8 @@ def _names(model: SymbolicModel):
 
 
 def emit_functions(model: SymbolicModel) -> list:
-    """The five functions of GeneratedDynamics as EmittedFunction (bodies only)."""
+    """The functions of GeneratedDynamics as EmittedFunction (bodies only): the five of FUNCTIONS,
+    then ``derivatives`` where emit_derivatives gives it."""
     n = model.n
     # fixed order of derivation keeps kappa numbering, hence the output, deterministic
     M, G = model.M_kappa, model.G_kappa
@@ -244,7 +266,31 @@ def emit_functions(model: SymbolicModel) -> list:
     for fname, sig in FUNCTIONS:
         body, ops = _body(model, outputs[fname], names, out_cse)
         out.append(EmittedFunction(fname, sig, body, ops))
+    deriv = emit_derivatives(model)
+    if deriv is not None:
+        out.append(deriv)
     return out
+
+
+def emit_derivatives(model: SymbolicModel):
+    """``derivatives(p, q, qd, qdd, dtau_dq, dtau_dqd, M)``: the inverse dynamics' derivatives
+    (SymbolicModel.inverse_dynamics_derivatives, friction included) and M (armature included),
+    each n x n column-major with [i + n k] = d tau_i / d x_k, as an EmittedFunction with a cse of
+    its own (the other functions' bodies stay as they are). None in the Jacobian form, where the
+    derivatives of general arms grow too large to be worth emitting (the engine's recursive
+    algorithm is used there)."""
+    if model.form != "collected":
+        return None
+    n = model.n
+    dq, dqd = model.inverse_dynamics_derivatives
+    M = model.M_kappa + model.armature
+
+    def mat(target, A):
+        return [(f"{target}[{i + n * j}]", sp.sympify(A[i, j])) for j in range(n) for i in range(n)]
+
+    outputs = mat("dtau_dq", dq) + mat("dtau_dqd", dqd) + mat("M", M)
+    body, ops = _body(model, outputs, _names(model), _SharedCse([e for _, e in outputs], "x"))
+    return EmittedFunction(DERIVATIVES[0], DERIVATIVES[1], body, ops)
 
 
 def _constants_offset(model: SymbolicModel) -> int:

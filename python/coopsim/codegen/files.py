@@ -3,14 +3,14 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .emit import SIN_COS, emit_constants, emit_functions, emit_solve
+from .emit import COULOMB_SLOPE, SIN_COS, emit_constants, emit_functions, emit_solve
 from .symbolic import PARAMS_PER_LINK, Structure, SymbolicModel
 
 __all__ = ["GENERATOR_VERSION", "COMMAND", "SYMPY_VERSION", "builtin_sources", "registry_source", "runtime_source",
            "header_line"]
 
 #: Bump when the emitted code changes for the same structure.
-GENERATOR_VERSION = "1.3.0"
+GENERATOR_VERSION = "1.4.0"
 #: The documented command that regenerates cpp/generated.
 COMMAND = "python -m coopsim.codegen"
 #: The sympy version the committed files were generated with (pyproject pins it).
@@ -34,7 +34,14 @@ def _describe(s: Structure, funcs, solve_ops, n_const, const_ops) -> str:
             f"// Lengths, masses, inertias, armatures, friction and gravity are read from p (19 per\n"
             f"// link, then gravity in frame 0), followed by the {n_const} parameter polynomials that\n"
             f"// constants() computes from them once ({const_ops} operations).\n"
-            f"// Operations per function (after cse, sin/cos counted once): {ops}.\n")
+            f"// Operations per function (after cse, sin/cos counted once): {ops}.\n"
+            + ("// derivatives: d(M qdd + C qd + G + friction)/dq and /dqd at qdd, and M, in one pass.\n"
+               if any(f.name == "derivatives" for f in funcs) else ""))
+
+
+def _helpers(funcs) -> str:
+    """sin_cos, and coulomb_slope where the derivatives are emitted."""
+    return SIN_COS + ("\n" + COULOMB_SLOPE if any(f.name == "derivatives" for f in funcs) else "")
 
 
 def _operation_count(funcs) -> int:
@@ -61,7 +68,7 @@ def builtin_sources(s: Structure, model: SymbolicModel | None = None) -> dict:
                         f"{f.body}\n}}" for f in funcs)
     defs += f"\n\nCOOPSIM_GENERATED_TARGETS\nbool {s.name}_solve(const double* M, double* x) {{\n{solve_body}\n}}"
     cpp = (f"{top}#include \"{s.name}_dynamics.hpp\"\n\n#include <cmath>\n\nnamespace coopsim::generated {{\n\n"
-           f"{SIN_COS}\n{defs}\n\n"
+           f"{_helpers(funcs)}\n{defs}\n\n"
            f"const GeneratedDynamics& {s.name}() {{\n"
            f"  static const GeneratedDynamics g = [] {{\n"
            f"    GeneratedDynamics d;\n"
@@ -112,5 +119,5 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
             f"long coopsim_gen_operation_count() {{ return {ops}; }}\n"
             f"int coopsim_gen_constant_count() {{ return {n_const}; }}\n")
     text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops, n_const, const_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
-            f"{SIN_COS}\n{meta}\n{defs}\n\n}}  // extern \"C\"\n")
+            f"{_helpers(funcs)}\n{meta}\n{defs}\n\n}}  // extern \"C\"\n")
     return text, ops
