@@ -118,9 +118,11 @@ py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object
                                                                            new_matrix(c).ptr()));
   const py::ssize_t n = a.rows();
   double* d[3] = {nullptr, nullptr, nullptr};
-  const bool sequence = PyTuple_Check(out.ptr()) || PyList_Check(out.ptr());
-  if (sequence && py::len(out) == 3)
-    for (int i = 0; i < 3; ++i) d[i] = direct(out[py::int_(i)], n, n, true);
+  PyObject* o = out.ptr();
+  if (PyTuple_Check(o) && PyTuple_GET_SIZE(o) == 3)
+    for (int i = 0; i < 3; ++i) d[i] = direct(PyTuple_GET_ITEM(o, i), n, n, true);
+  else if (PyList_Check(o) && PyList_GET_SIZE(o) == 3)
+    for (int i = 0; i < 3; ++i) d[i] = direct(PyList_GET_ITEM(o, i), n, n, true);
   if (!d[0] || !d[1] || !d[2] || d[0] == d[1] || d[1] == d[2] || d[0] == d[2]) {
     const std::string shape = "(" + std::to_string(n) + ", " + std::to_string(n) + ")";
     throw py::value_error("out must be None or three distinct writeable float64 C-contiguous arrays of shape " +
