@@ -37,6 +37,11 @@ void check_model(const std::shared_ptr<const Robot>& model, const Robot& robot) 
                                 "' has " + std::to_string(robot.dof()));
 }
 
+// the model a controller takes G(q) from: its own, else the robot's; null without gravity compensation
+std::shared_ptr<const Robot> gravity_model(bool on, const std::shared_ptr<const Robot>& model, const Robot& robot) {
+  return on ? (model ? model : std::make_shared<const Robot>(robot)) : nullptr;
+}
+
 // (1,) broadcasts to every joint
 VecN expand(const Eigen::VectorXd& g, int n) {
   VecN out(n);
@@ -111,7 +116,7 @@ void PID::reset(const Robot& robot, double period) {
   Kd_ = expand(kd_, n_);
   tau_max_ = robot.tau_max();
   Ilim_ = ilim_.size() ? expand(ilim_, n_) : tau_max_;
-  gmodel_ = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  gmodel_ = gravity_model(gravity_, model_, robot);
   integral_ = VecN::Zero(n_);
   v_ = VecN::Zero(n_);
   q_prev_ = VecN::Zero(n_);
@@ -205,6 +210,25 @@ void saturated_rows(const VecN& tau_max, ControllerJacobians& J) {
   }
 }
 
+// dG/dq (n, n) of `model` at q: its inverse dynamics' q-derivative at rest (friction has none in q)
+MatN gravity_derivative(const Robot& model, const double* q, Workspace& ws) {
+  const VecN zero = VecN::Zero(model.dof());
+  MatN dg, unused_dqd, unused_M;
+  model.inverse_dynamics_derivatives(q, zero.data(), zero.data(), {}, ws, dg, unused_dqd, unused_M);
+  return dg;
+}
+
+// a law without internal state (m = 0)
+void stateless(int n, ControllerJacobians& J) {
+  J.c.resize(0);
+  J.c_next.resize(0);
+  J.states.clear();
+  J.dtau_dc = Eigen::MatrixXd::Zero(n, 0);
+  J.dc_dq = Eigen::MatrixXd::Zero(0, n);
+  J.dc_dqd = Eigen::MatrixXd::Zero(0, n);
+  J.dc_dc = Eigen::MatrixXd::Zero(0, 0);
+}
+
 }  // namespace
 
 bool PID::linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const {
@@ -223,15 +247,13 @@ bool PID::linearize(const Robot& robot, double period, const ControlInput& in, C
     qp[i] = ran ? q_prev_[i] : in.q[i] - h * in.qd[i];
   }
   // G(q) and its derivative, of the model the run would use
-  const std::shared_ptr<const Robot> gm = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  const std::shared_ptr<const Robot> gm = gravity_model(gravity_, model_, robot);
   VecN g = VecN::Zero(n);
   MatN dg = MatN::Zero(n, n);
   if (gm) {
     Workspace ws;
-    const VecN zero = VecN::Zero(n);
-    MatN unused_dqd, unused_M;
     gm->gravity(in.q, ws, g);
-    gm->inverse_dynamics_derivatives(in.q, zero.data(), zero.data(), {}, ws, dg, unused_dqd, unused_M);
+    dg = gravity_derivative(*gm, in.q, ws);
   }
   const int m = 3 * n;
   J.c.resize(m);
@@ -298,13 +320,7 @@ bool ComputedTorque::linearize(const Robot& robot, double, const ControlInput& i
   J.tau = tau;
   J.dtau_dq = dq - M * Kp.asDiagonal();
   J.dtau_dqd = dqd - M * Kd.asDiagonal();
-  J.c.resize(0);
-  J.c_next.resize(0);
-  J.states.clear();
-  J.dtau_dc = Eigen::MatrixXd::Zero(n, 0);
-  J.dc_dq = Eigen::MatrixXd::Zero(0, n);
-  J.dc_dqd = Eigen::MatrixXd::Zero(0, n);
-  J.dc_dc = Eigen::MatrixXd::Zero(0, 0);
+  stateless(n, J);
   saturated_rows(robot.tau_max(), J);
   return true;
 }
@@ -336,7 +352,7 @@ void StateFeedback::reset(const Robot& robot, double) {
   check(robot);
   n_ = robot.dof();
   tau_max_ = robot.tau_max();
-  gmodel_ = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  gmodel_ = gravity_model(gravity_, model_, robot);
   out_ = Eigen::VectorXd::Zero(n_);
 }
 
@@ -367,24 +383,13 @@ void StateFeedback::compute(const ControlInput& in, double* tau) {
 bool StateFeedback::linearize(const Robot& robot, double, const ControlInput& in, ControllerJacobians& J) const {
   check(robot);
   const int n = robot.dof();
-  const std::shared_ptr<const Robot> gm = gravity_ ? (model_ ? model_ : std::make_shared<const Robot>(robot)) : nullptr;
+  const std::shared_ptr<const Robot> gm = gravity_model(gravity_, model_, robot);
   Workspace ws;
   law_(gm.get(), in.q, in.qd, in.q_ref, in.qd_ref, ws, J.tau);
   J.dtau_dq = -K_.leftCols(n);
   J.dtau_dqd = -K_.rightCols(n);
-  if (gm) {
-    const VecN zero = VecN::Zero(n);
-    MatN dg, unused_dqd, unused_M;
-    gm->inverse_dynamics_derivatives(in.q, zero.data(), zero.data(), {}, ws, dg, unused_dqd, unused_M);
-    J.dtau_dq += dg;
-  }
-  J.c.resize(0);
-  J.c_next.resize(0);
-  J.states.clear();
-  J.dtau_dc = Eigen::MatrixXd::Zero(n, 0);
-  J.dc_dq = Eigen::MatrixXd::Zero(0, n);
-  J.dc_dqd = Eigen::MatrixXd::Zero(0, n);
-  J.dc_dc = Eigen::MatrixXd::Zero(0, 0);
+  if (gm) J.dtau_dq += gravity_derivative(*gm, in.q, ws);
+  stateless(n, J);
   saturated_rows(robot.tau_max(), J);
   return true;
 }
