@@ -40,6 +40,20 @@ void check_half(const Eigen::Vector3d& h, const char* what) {
     throw std::invalid_argument(std::string(what) + ": half extents must be finite and > 0 m");
 }
 
+// Bullet's GJK (EPA where they overlap) on two convex shapes at their transforms: the closest points found.
+btPointCollector closest_points(const btConvexShape& a, const btTransform& ta, const btConvexShape& b,
+                                const btTransform& tb) {
+  btVoronoiSimplexSolver simplex;
+  btGjkEpaPenetrationDepthSolver epa;
+  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
+  btDiscreteCollisionDetectorInterface::ClosestPointInput in;
+  in.m_transformA = ta;
+  in.m_transformB = tb;
+  btPointCollector out;
+  gjk.getClosestPoints(in, out, nullptr);
+  return out;
+}
+
 // The gap by GJK; overlapping boxes get minus the separating-axis overlap,
 // which for boxes is the exact penetration depth (the 15 axes hold every
 // candidate direction of the minimum translation), where EPA is not exact.
@@ -49,14 +63,7 @@ double gjk_distance(const btBoxShape& a, const btTransform& ta, const btBoxShape
                     const Eigen::Vector3d& hb, double gap, bool exact) {
   if (exact) return gap;
   if (gap <= 0) return gap;  // they overlap (the separating-axis depth), or touch
-  btVoronoiSimplexSolver simplex;
-  btGjkEpaPenetrationDepthSolver epa;
-  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
-  btDiscreteCollisionDetectorInterface::ClosestPointInput in;
-  in.m_transformA = ta;
-  in.m_transformB = tb;
-  btPointCollector out;
-  gjk.getClosestPoints(in, out, nullptr);
+  const btPointCollector out = closest_points(a, ta, b, tb);
   // GJK's distance is at least the separating-axis bound, up to its own round-off
   if (out.m_hasResult && out.m_distance > 0.0) return std::max(out.m_distance, gap);
   return gap;  // no result: the separating-axis bound is the best known
@@ -105,14 +112,7 @@ std::unique_ptr<btConvexShape> gjk_shape(const Shape& s) {
 // `lower`, a lower bound of it (the gap of their bounds), where GJK finds no result.
 double convex_distance(const btConvexShape& a, const btTransform& ta, const btConvexShape& b, const btTransform& tb,
                        double lower) {
-  btVoronoiSimplexSolver simplex;
-  btGjkEpaPenetrationDepthSolver epa;
-  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
-  btDiscreteCollisionDetectorInterface::ClosestPointInput in;
-  in.m_transformA = ta;
-  in.m_transformB = tb;
-  btPointCollector out;
-  gjk.getClosestPoints(in, out, nullptr);
+  const btPointCollector out = closest_points(a, ta, b, tb);
   if (!out.m_hasResult) return lower;
   return std::max<double>(out.m_distance, lower);
 }
