@@ -77,14 +77,22 @@ Robot make_scara(const ScaraSpec& s, const Eigen::Vector3d& base, const std::str
   Robot r(links, Eigen::Vector3d(0, 0, -9.81), base, 0.0, tool, s.name);
   // shapes: the base column, each link's mass box on its CoM frame, the fixed jaw
   std::vector<LinkBox> boxes;
+  const auto box = [](int link, const Eigen::Isometry3d& pose, const Eigen::Vector3d& half, std::string name) {
+    LinkBox b;
+    b.link = link;
+    b.pose = pose;
+    b.half_extents = half;
+    b.name = std::move(name);
+    return b;
+  };
   const double col = s.L_base - s.height / 2;
-  boxes.push_back({0, translation(0, 0, col / 2), Eigen::Vector3d(s.width, s.width, col / 2), "base"});
+  boxes.push_back(box(0, translation(0, 0, col / 2), Eigen::Vector3d(s.width, s.width, col / 2), "base"));
   for (int i = 0; i < 6; ++i) {
     const auto& a = s.dh[i];
     const auto& c = s.com[i];
     const Eigen::Isometry3d pose = dh_transform(a[0], a[1], a[2], a[3]).inverse() * dh_transform(c[0], c[1], c[2], c[3]);
-    boxes.push_back({i + 1, pose, Eigen::Vector3d(s.boxes[i][0], s.boxes[i][1], s.boxes[i][2]) / 2,
-                     "link" + std::to_string(i + 1)});
+    boxes.push_back(box(i + 1, pose, Eigen::Vector3d(s.boxes[i][0], s.boxes[i][1], s.boxes[i][2]) / 2,
+                        "link" + std::to_string(i + 1)));
   }
   Eigen::Isometry3d face = Eigen::Isometry3d::Identity();
   face.linear() = s.face_R;
@@ -92,7 +100,7 @@ Robot make_scara(const ScaraSpec& s, const Eigen::Vector3d& base, const std::str
   const Eigen::Vector3d centre = s.face_p - s.face_R.col(2) * s.jaw_thickness / 2;
   const Eigen::Vector3d half =
       s.face_R.cwiseAbs() * Eigen::Vector3d(s.jaw_length / 2, s.width / 2, s.jaw_thickness / 2);
-  boxes.push_back({5, translation(centre.x(), centre.y(), centre.z()), half, "fixed_jaw"});
+  boxes.push_back(box(5, translation(centre.x(), centre.y(), centre.z()), half, "fixed_jaw"));
   Clamp clamp;
   clamp.fixed_link = 5;
   clamp.fixed_face = face;
