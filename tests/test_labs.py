@@ -358,37 +358,67 @@ def _shown(value) -> list[str]:
     return [rf"(?<![\d.]){re.escape(f'{x:.{d}g}')}(?!\d)" for x in (value, 1e3 * value) for d in (3, 4)]
 
 
+def _predictions(nb, student) -> dict:
+    """The checks of a lab that grade a prediction: {grade_id: (the `_expected_*` names its hidden tests compute,
+    the text a student reads up to the answer)}, found in the notebook itself (no list of ids kept here). The
+    text is the student version's markdown since the check before, and the answer cells' scaffold."""
+    prompts, start = {}, 0
+    for k, c in enumerate(nb.cells):
+        g = _grader(c)
+        if g.get("grade") and not g.get("solution"):
+            hidden = re.search(r"### BEGIN HIDDEN TESTS\n(.*?)### END HIDDEN TESTS", c.source, flags=re.S)
+            names = re.findall(r"^(_expected_\w+) =", hidden.group(1), flags=re.M) if hidden else []
+            if names:
+                prompts[g["grade_id"]] = (names, "\n".join(s.source for s in student.cells[start:k]
+                                                           if s.cell_type == "markdown" or _grader(s).get("solution")))
+            start = k + 1
+    return prompts
+
+
+# the values of the `_expected_*` names after a lab has run, as JSON: numbers, and the numbers of arrays, lists and
+# tuples; a text or a truth value (a choice among options the prompt has to name) is given as null
+_EXPECTED_DUMP = """import json as _json
+import numpy as _np
+
+
+def _expected_values(v):
+    if isinstance(v, (bool, _np.bool_, str)):
+        return None
+    try:
+        a = _np.asarray(v, dtype=float).ravel()
+    except (TypeError, ValueError):
+        return None
+    return [float(x) for x in a if _np.isfinite(x)]
+
+
+print(_json.dumps({k: _expected_values(v) for k, v in globals().items() if k.startswith("_expected_")}))"""
+
+
 @pytest.mark.slow
-def test_lab08s_prompts_do_not_contain_the_values_its_hidden_tests_expect(tmp_path):
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=IDS)
+def test_a_labs_prompts_do_not_contain_the_values_its_hidden_tests_expect(path, tmp_path):
     """A prediction is graded against the run by a hidden test; the text a student reads up to the answer (the
-    markdown since the check before, and the answer cell's scaffold) must not give the value away. The instructor's lab 08 is run; each hidden test names what it expects `_expected_*`;
-    each such value, written as a prompt would write it, is searched in that exercise's prompt."""
+    markdown since the check before, and the answer cell's scaffold) must not give the value away. Each lab has at
+    least one such prediction: a check whose hidden tests name what they expect `_expected_*` (the checks are
+    found in the notebook). The instructor's lab is run; each such value, written as a prompt would write it
+    (each number of an array), is searched in that exercise's prompt."""
     pytest.importorskip("nbclient")
     import json
 
     import nbformat
 
-    path = os.path.join(ROOT, "notebooks", "08_linear_models_and_lqr.ipynb")
     nb = _read(path)
-    student = _student_labs().student_version(nb)
-    prompts, start = {}, 0
-    for k, c in enumerate(nb.cells):
-        g = _grader(c)
-        if g.get("grade") and not g.get("solution"):
-            names = re.findall(r"^(_expected_\w+) =", c.source, flags=re.M)
-            if names:
-                prompts[g["grade_id"]] = (names, "\n".join(s.source for s in student.cells[start:k]
-                                                           if s.cell_type == "markdown" or _grader(s).get("solution")))
-            start = k + 1
-    assert sorted(prompts) == ["lab08-ex1-check", "lab08-ex5-check", "lab08-ex6-check"]
-    nb.cells.append(nbformat.v4.new_code_cell(
-        "import json\nprint(json.dumps({k: float(v) for k, v in globals().items() if k.startswith('_expected_')}))"))
+    prompts = _predictions(nb, _student_labs().student_version(nb))
+    assert prompts, "the lab has no prediction graded by a hidden test (`_expected_<name> = ...` in a check's hidden tests)"
+    nb.cells.append(nbformat.v4.new_code_cell(_EXPECTED_DUMP))
     assert _run_cells(nb, len(nb.cells) - 1, tmp_path) is None
-    values = json.loads(nb.cells[-1].outputs[0]["text"])
+    values = json.loads(nb.cells[-1].outputs[-1]["text"].strip().splitlines()[-1])
     for gid, (names, prompt) in prompts.items():
         for name in names:
-            for pattern in _shown(values[name]):
-                assert not re.search(pattern, prompt, flags=re.I), f"{gid}: {name} = {values[name]!r} ({pattern})"
+            assert name in values, f"{gid}: {name} is not defined after the lab has run"
+            for value in values[name] or []:
+                for pattern in _shown(value):
+                    assert not re.search(pattern, prompt, flags=re.I), f"{gid}: {name} = {value!r} ({pattern})"
 
 
 def _template(node) -> str:
