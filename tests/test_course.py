@@ -23,11 +23,12 @@ LABS = {"lab" + os.path.basename(p)[:2]: p for p in NOTEBOOKS}
 # a wrong answer to every exercise: (the instructor's text, the wrong text in its place); each check then
 # fails with an AssertionError naming what it expected and what it found
 WRONG = {
-    "lab01-ex1-answer": (" + I1 + I2", ""),                                      # the links' own inertias forgotten
+    "lab01-ex1-answer": ("M11_ratio_pred = M11_stretched / M11_folded", "M11_ratio_pred = 1.0"),  # M11 the same
     "lab01-ex2-answer": ("g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),     # still in the arm's plane
-    "lab01-ex3-answer": ("L1=0.40", "L1=0.35"),
-    "lab01-ex4-answer": ("energy_drift(2 * dt) / energy_drift(dt)", "energy_drift(dt) / energy_drift(2 * dt)"),
-    "lab01-ex5-answer": ('("revolute", "continuous", "prismatic")', '("revolute", "continuous")'),
+    "lab01-ex3-answer": ("np.cos(q1[0]), np.sin(q1[0])", "1.0, 0.0"),             # along x, as at q = 0
+    "lab01-ex4-answer": ("ratio_pred = 2.0**4", "ratio_pred = 2.0**5"),           # the local error's order
+    "lab01-ex5-answer": ("0.95 * dt *", "0.5 * dt *"),                            # too small a step: 432 steps
+    "lab01-ex6-answer": ('("revolute", "continuous", "prismatic")', '("revolute", "continuous")'),
     "lab02-ex1-answer": ("opening=0.02", "opening=0.03"),
     "lab02-ex2-answer": ("r2.ik_solutions(T2_try, opening=0.02)", "[]"),
     "lab02-ex3-answer": ("cs.plan_cartesian(r, poses[::-1]", "cs.plan_cartesian(r, poses"),  # not reversed

@@ -152,7 +152,7 @@ def test_the_student_version_has_stubs_for_answers_keeps_checks_and_drops_hidden
             assert _grader(stud) == dict(g, checksum=sl.checksum(stud), cell_type=stud.cell_type)
     assert nb == _read(path), "the instructor's notebook is not changed"
     if path.endswith("01_robots_and_dynamics.ipynb"):
-        assert hidden == 1
+        assert hidden == 5
 
 
 def test_the_checksums_are_nbgraders():
@@ -251,7 +251,7 @@ def test_the_script_writes_the_student_versions(tmp_path):
     assert res.returncode == 0, res.stdout + res.stderr
     written = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert written == [os.path.basename(p) for p in NOTEBOOKS]
-    assert "01_robots_and_dynamics.ipynb: 5 exercises" in res.stdout
+    assert "01_robots_and_dynamics.ipynb: 7 exercises" in res.stdout
 
 
 # ---------------------------------------------------------------- executing notebooks (a kernel each)
@@ -296,9 +296,13 @@ def test_a_student_notebook_runs_up_to_its_first_exercise_and_stops_there(path, 
 
 # (notebook, grade_id of the answer, the instructor's answer line, a wrong answer in its place)
 WRONG = [
-    ("01_robots_and_dynamics", "lab01-ex1-answer", "M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2 + I1 + I2",
-     "M11_formula = m1*lc1**2 + m2*(l1 + lc2)**2"),  # the links' own inertias forgotten
+    ("01_robots_and_dynamics", "lab01-ex1-answer", "M11_ratio_pred = M11_stretched / M11_folded",
+     "M11_ratio_pred = (m1*lc1**2 + m2*(l1 + lc2)**2) / (m1*lc1**2 + m2*(l1 - lc2)**2)"),  # the links' own inertias forgotten
     ("01_robots_and_dynamics", "lab01-ex2-answer", "g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),
+    ("01_robots_and_dynamics", "lab01-ex3-answer", "np.cos(q1[0]), np.sin(q1[0])",
+     "np.cos(q1[0] + q1[1]), np.sin(q1[0] + q1[1])"),  # along the forearm, not link 1
+    ("01_robots_and_dynamics", "lab01-ex4-answer", "ratio_pred = 2.0**4", "ratio_pred = 2.0**5"),  # the local error's order
+    ("01_robots_and_dynamics", "lab01-ex5-answer", "** (1 / 4)", "** (1 / 5)"),  # too small a step: 258 steps
     ("02_planning_and_control", "lab02-ex1-answer", "q_try = r.ik(T_try, opening=0.02)",
      "q_try = r.ik(T_try, opening=0.03)"),
     ("03_collisions_and_grasping", "lab03-ex2-answer", "mu_stick = 0.5", "mu_stick = 0.3"),  # below tan 20°
