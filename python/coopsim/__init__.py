@@ -60,6 +60,7 @@ from .batch import run_batch, simulate
 from . import sweeps
 from .sweeps import sweep
 from .tasks import TaskRun
+from .hold_model import HoldModel, linearize_hold  # noqa: E402  two arms holding one body, linearised
 from . import view
 
 Robot.to_urdf = to_urdf
@@ -119,5 +120,5 @@ __all__ = [
     "CooperativeController", "CoopMember", "LeaderFollower", "ObjectControl",
     "TASK_AXES", "HybridForce", "Impedance", "Payload", "TaskController", "TaskState", "commandable_directions", "task_axes",  # noqa: E501
     "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationBusyError", "SimulationLog", "run_batch", "simulate",  # noqa: E501
-    "sweep", "sweeps", "TaskRun",
+    "sweep", "sweeps", "TaskRun", "HoldModel", "linearize_hold",
 ]

@@ -1,0 +1,268 @@
+"""Two arms holding one body, linearised (coopsim.linearize_hold): the rigid-weld closed chain on its
+constraint manifold against the simulated hold with the engine's soft welds, its statics, the weld
+wrenches' indeterminate part, an LQR that regulates the bar's pose and squeeze against object-level control
+under the same push, and bad input."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sl
+
+import coopsim as cs
+from coopsim.hold_model import HoldFeedback, held_bar, squeeze_after_push
+
+# the LQR's weights: 1 mm and 10 mrad of the bar's pose, 0.05 N of squeeze weigh as 10 % of each joint's
+# torque limit; small weights on the joints (1/rad^2, and 0.01 on the speeds) for the modes the outputs miss
+LQR_OUTPUTS = dict(x=1e6, y=1e6, z=1e6, rx=1e4, ry=1e4, rz=1e4, squeeze=1 / 0.05 ** 2)
+PERIOD = 1e-3   # the controllers' period: dt 0.2 ms, control_every 5
+
+
+def rotvec(R):
+    """Rotation vector (3,) of a small rotation matrix (3, 3), to second order."""
+    w = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return w
+
+
+def open_loop(sim, model, du=None):
+    """Each arm driven by constant torques: the model's u0 (+ du), jaws held as they were."""
+    ta, tb = model.torques(model.u0 + (0 if du is None else du))
+    for i, t in ((0, ta), (1, tb)):
+        sim.set_controller(i, cs.StateFeedback(np.zeros((6, 12)), t))
+
+
+def settled():
+    """The held bar at rest under the rigid model's holding torques (0.25 s: the grasp's transient gone)."""
+    sim = held_bar(control_every=1, log_every=50)
+    model = cs.linearize_hold(sim)
+    open_loop(sim, model)
+    sim.run(sim.time + 0.25, progress=False)
+    return sim, model
+
+
+@pytest.fixture(scope="module")
+def point():
+    sim, first = settled()
+    return sim, first, cs.linearize_hold(sim)
+
+
+def outputs(sim, R0):
+    st, co = sim.body_state("bar"), sim.cooperation(0, 1)
+    return np.r_[st.position, rotvec(st.pose[:3, :3] @ R0.T), co.squeeze, co.load_share[0]]
+
+
+def test_the_closed_chain_of_two_scaras_has_five_coordinates_and_an_indeterminate_twist(point):
+    """Two SCARAs: SCARA #1's clamp pitches about the horizontal across the bar, #2's does not tilt; neither
+    rolls about the bar. The weld constraint's rank is 5 of 6: m = 10 - 5 coordinates (the bar's x, y, z,
+    yaw and #2's redundant planar joint). The moment about the bar's line is statically indeterminate (the
+    twist); squeeze, load share, shear, bending and the pose are determined. Central differences agree with
+    doubled steps to 1e-5 (relative)."""
+    _, _, m = point
+    assert m.rank == 5 and m.A.shape == (10, 10) and m.B.shape == (10, 10) and m.D.shape == (15, 10)
+    assert len(m.independent) == 5 and len(m.states) == 10 and len(m.inputs) == 10
+    det = dict(zip(m.outputs, m.determined))
+    assert not det["twist"]
+    assert all(det[k] for k in ("x", "y", "z", "rx", "ry", "rz", "squeeze", "load_share_a", "shear_h",
+                                "bending_a_h", "bending_b_h"))
+    assert m.fd_error < 1e-5
+    # the tangent map is the constraint's null space, and the state map its inverse on it
+    assert np.abs(m.constraint_jacobian @ m.T[:10, :5]).max() < 1e-9
+    np.testing.assert_allclose(m.state_map @ m.T, np.eye(10), atol=1e-9)
+    # positions enter through the velocities only: A = [[0, 1], [., .]]
+    np.testing.assert_allclose(m.A[:5], np.hstack([np.zeros((5, 5)), np.eye(5)]), atol=1e-6)
+
+
+def test_the_statics_at_rest(point):
+    """The holding torques u0 (each arm's gravity plus J^T its weld's share as held_body.hpp's metric shares
+    the weight): the rigid model is at rest there (zd0 = 0), squeezes nothing and shares the weight by the
+    lever rule along the line between the welds; the simulated hold under those torques alone, from the
+    computed-torque grasp (share 0.61), settles to the same: squeeze within 5 mN, share within 0.005."""
+    sim, m0, m = point
+    assert np.abs(m.zd0).max() < 1e-8
+    co = sim.cooperation(0, 1)
+    L = np.linalg.norm(co.point_b - co.point_a)
+    e = (co.point_b - co.point_a) / L
+    c = co.centre
+    c_on_line = co.point_a + ((c - co.point_a) @ e) * e
+    lever = np.linalg.norm(c_on_line - co.point_b) / L
+    y0 = dict(zip(m.outputs, m.y0))
+    assert abs(y0["squeeze"]) < 1e-9 and y0["load_share_a"] == pytest.approx(lever, abs=1e-9)
+    assert abs(co.squeeze) < 5e-3 and co.load_share[0] == pytest.approx(lever, abs=5e-3)
+    # the weight on the arms: the quills carry it (a's joint 3, b's joint 4)
+    w = 0.3 * 9.81
+    gravity_alone = np.r_[sim.robots[0].gravity(m.q0[0])[m.joints[0]], sim.robots[1].gravity(m.q0[1])[m.joints[1]]]
+    quills = (m.u0 - gravity_alone)[[2, 8]]
+    np.testing.assert_allclose(-quills, [lever * w, (1 - lever) * w], rtol=1e-6)
+
+
+def test_a_squeeze_made_by_the_torques(point):
+    """Torques that push both welds along the line (J_a^T s e, -J_b^T s e) squeeze the bar by s through D and
+    move nothing (B, the pose rows of D); in the simulated hold they squeeze it by s (2 %) and the bar stays
+    put (0.1 mm)."""
+    sim0, m0, m = point
+    co = sim0.cooperation(0, 1)
+    e = (co.point_b - co.point_a) / np.linalg.norm(co.point_b - co.point_a)
+    Ja = sim0.robots[0].jacobian(m.q0[0], 5, np.zeros(3))[:3, m.joints[0]]
+    Jb = sim0.robots[1].jacobian(m.q0[1], 5, np.zeros(3))[:3, m.joints[1]]
+    s = 1.0
+    du = np.r_[Ja.T @ (s * e), Jb.T @ (-s * e)]
+    dy = dict(zip(m.outputs, m.D @ du))
+    assert dy["squeeze"] == pytest.approx(s, rel=1e-6)
+    assert np.abs(m.B @ du).max() < 1e-6 * np.abs(m.B).max() * np.abs(du).max()
+    assert max(abs(dy[k]) for k in ("x", "y", "z", "rx", "ry", "rz", "load_share_a")) < 1e-8
+    sim, mm = settled()
+    p0 = sim.body_state("bar").position
+    open_loop(sim, mm, du)
+    sim.run(sim.time + 0.3, progress=False)
+    assert sim.cooperation(0, 1).squeeze == pytest.approx(s, rel=0.02)
+    assert np.linalg.norm(sim.body_state("bar").position - p0) < 1e-4
+
+
+PERTURBATIONS = {"a.tau1 0.02 N m": (0, 0.02), "a.tau3 0.5 N": (2, 0.5), "b.tau2 0.02 N m": (6, 0.02),
+                 "b.tau4 0.5 N": (8, 0.5)}
+
+
+@pytest.mark.parametrize("name", PERTURBATIONS)
+def test_the_model_against_finite_differences_of_the_simulated_hold(point, name, record_property):
+    """The held bar at rest under the model's torques, one torque stepped by +-du and held (open loop): the
+    simulated change of the bar's pose, squeeze and load share, (y(+du) - y(-du)) / 2, averaged over 80 to
+    160 ms after the step, against the model's prediction y = C z(t) + D du, z(t) = (discretize(t).B) du,
+    averaged alike. Tolerance: 10 % of the largest change of each kind plus a floor (0.5 um, 0.05 mrad,
+    2 mN, 0.002). Why not tighter: the engine's welds are soft (1000 rad/s), and their slowest mode, the
+    two arms swinging against each other through them, rings at about 25 Hz after a step, lightly damped
+    (its 80-160 ms tail still shows in the squeeze); the rigid model has neither."""
+    _, m0, _ = point
+    j, size = PERTURBATIONS[name]
+    du = np.zeros(10)
+    du[j] = size
+    times = np.arange(0.08, 0.161, 0.01)
+    runs = []
+    R0 = None
+    for sign in (1, -1):
+        sim, m = settled()
+        R0 = sim.body_state("bar").pose[:3, :3] if R0 is None else R0
+        open_loop(sim, m, sign * du)
+        t0, ys = sim.time, []
+        for t in times:
+            sim.run(t0 + t, progress=False)
+            ys.append(outputs(sim, R0))
+        runs.append(np.array(ys))
+    got = ((runs[0] - runs[1]) / 2).mean(axis=0)
+    idx = [0, 1, 2, 3, 4, 5, 6, 14]
+    want = np.mean([(m0.C @ m0.discretize(t).B @ du + m0.D @ du)[idx] for t in times], axis=0)
+    err = np.abs(got - want)
+    groups = [(slice(0, 3), 5e-7), (slice(3, 6), 5e-5), (slice(6, 7), 2e-3), (slice(7, 8), 2e-3)]
+    for sl, floor in groups:
+        tol = 0.1 * np.abs(want[sl]).max() + floor
+        assert np.all(err[sl] <= tol), (name, got, want)
+    record_property("largest change (model)", want.tolist())
+    record_property("error", err.tolist())
+    # the prediction is not trivial: the step moves what it should
+    assert np.abs(want).max() > 1e-5
+
+
+def lqr_law(sim):
+    """The LQR on the held bar: the model discretised at the controllers' period, the outputs' weights
+    turned into (Q, R, S) by HoldModel.lqr_weights, SciPy's Riccati solver."""
+    m = cs.linearize_hold(sim)
+    lim = np.r_[sim.robots[0].tau_limits[m.joints[0]], sim.robots[1].tau_limits[m.joints[1]]]
+    d = m.discretize(PERIOD)
+    Q, R, S = m.lqr_weights(LQR_OUTPUTS, 1 / (0.1 * lim) ** 2, np.r_[np.ones(5), np.full(5, 1e-2)])
+    P = sl.solve_discrete_are(d.A, d.B, Q, R, s=S)
+    K = np.linalg.solve(R + d.B.T @ P @ d.B, d.B.T @ P @ d.A + S.T)
+    return m, K, d
+
+
+def test_an_lqr_on_the_held_bar_against_object_control_under_one_push(record_property):
+    """The LQR (lqr_law: the bar's pose and squeeze as weighted outputs, cross terms through D) run as a
+    cooperative law at 1 kHz, and object-level control (the carry's gains: kp 2500, kd 100, kp_force 0.5,
+    ki_force 5) at 1 kHz, each holding the bar, then 1 N across it for 0.1 s. Measured: the time after the
+    push for the squeeze to stay within 5 % of its peak. Object control's force loop damps the welds' 25 Hz
+    mode, which the rigid model cannot see: it settles in 0.034 s, the LQR in 0.166 s (the issue's target,
+    the LQR faster, is not met). Both keep the bar within 0.15 mm; the LQR spends no more torque (each
+    joint's largest change at most 10 % above object control's, or 5 mN m above)."""
+    sim = held_bar()
+    m, K, dm = lqr_law(sim)
+    assert np.abs(np.linalg.eigvals(dm.A - dm.B @ K)).max() < 1.0
+    lqr = squeeze_after_push(sim, HoldFeedback(m, K))
+    sim = held_bar()
+    inertia = np.asarray(cs.box_inertia(0.3, 0.35, 0.02, 0.02))
+    obj = squeeze_after_push(sim, cs.ObjectControl(0.3, inertia, kp=2500.0, kd=100.0, kp_force=0.5,
+                                                   ki_force=5.0, integral_limit=50.0))
+    for name, r in (("LQR", lqr), ("object control", obj)):
+        record_property(f"{name}: squeeze peak (N)", r["peak"])
+        record_property(f"{name}: settle to 5 % of the peak (s)", r["settle"])
+        record_property(f"{name}: settle to 0.05 N (s)", r["settle_abs"])
+        record_property(f"{name}: bar's displacement (m)", r["bar_peak"])
+        assert 0.05 < r["peak"] < 0.2 and r["bar_peak"] < 1.5e-4
+        assert abs(r["squeeze"][-1]) < 0.05 * r["peak"]
+    assert lqr["settle"] == pytest.approx(0.166, abs=0.02) and obj["settle"] == pytest.approx(0.034, abs=0.01)
+    # no more effort: each joint's largest torque change under the LQR at most 10 % above object control's
+    assert np.all(lqr["torque_peak"] <= 1.1 * obj["torque_peak"] + 5e-3), (lqr["torque_peak"], obj["torque_peak"])
+
+
+def test_discretize_matches_small_steps_of_the_continuous_model(point):
+    _, _, m = point
+    d = m.discretize(1e-3)
+    z = np.zeros(10)
+    u = 0.01 * np.ones(10)
+    x = z.copy()
+    h = 1e-5
+
+    def f(x):
+        return m.A @ x + m.B @ u
+
+    for _ in range(100):   # RK4 on the continuous model, the torque held
+        k1 = f(x)
+        k2 = f(x + h / 2 * k1)
+        k3 = f(x + h / 2 * k2)
+        k4 = f(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    np.testing.assert_allclose(d.A @ z + d.B @ u, x, rtol=1e-8, atol=1e-15)
+    E = np.zeros((20, 20))
+    E[:10, :10], E[:10, 10:] = m.A, m.B
+    F = sl.expm(E * 1e-3)
+    np.testing.assert_allclose(np.hstack([d.A, d.B]), F[:10], rtol=1e-12, atol=1e-12 * np.abs(F[:10]).max())
+    assert d.dt == 1e-3 and np.array_equal(d.C, m.C)
+
+
+def test_bad_input_is_named_in_one_line(point):
+    sim, _, m = point
+
+    def one_line(exc, call, *words):
+        with pytest.raises(exc) as e:
+            call()
+        msg = str(e.value)
+        assert "\n" not in msg and all(w in msg for w in words), msg
+
+    one_line(ValueError, lambda: cs.linearize_hold(sim, 0, 0), "b", "another robot")
+    one_line(ValueError, lambda: cs.linearize_hold(sim, 0, 2), "b", "robot index")
+    one_line(ValueError, lambda: cs.linearize_hold(42), "source", "Simulation")
+    one_line(ValueError, lambda: cs.linearize_hold(sim, h_state=-1.0), "h_state")
+    r1, r2 = sim.robots
+    bare = r2.with_geometry(clamp=None) if hasattr(r2, "with_geometry") else None
+    one_line(ValueError, lambda: cs.linearize_hold((r1, bare), q=m.q0, points=(np.zeros(3), np.zeros(3)),
+                                                   body_pose=np.eye(4), body_mass=0.3, body_inertia=np.eye(3)),
+             "robot b", "no clamp")
+    one_line(ValueError, lambda: cs.linearize_hold((r1, r2)), "q, points")
+    one_line(ValueError, lambda: cs.linearize_hold((r1, r2), q=(m.q0[0], m.q0[1][:3]), points=(np.zeros(3),) * 2,
+                                                   body_pose=np.eye(4), body_mass=0.3, body_inertia=np.eye(3)),
+             "q[1]", "shape")
+    # a pair whose clamps are not where the body's welds put them
+    co = sim.cooperation(0, 1)
+    q_off = m.q0[1].copy()
+    q_off[0] += 0.5
+    one_line(ValueError, lambda: cs.linearize_hold((r1, r2), q=(m.q0[0], q_off), points=(co.point_a, co.point_b),
+                                                   body_pose=sim.body_state("bar").pose, body_mass=0.3,
+                                                   body_inertia=np.eye(3) * 1e-3),
+             "points[1]", "from robot b's clamp")
+    # robots that hold nothing, or not one body
+    free = held_bar()
+    free.release(1)
+    one_line(ValueError, lambda: cs.linearize_hold(free), "b", "robot 1 holds nothing")
+    one_line(ValueError, lambda: m.lqr_weights(dict(twist=1.0), 1.0), "output_weights", "twist")
+    one_line(ValueError, lambda: m.lqr_weights(dict(spin=1.0), 1.0), "output_weights", "spin")
+    one_line(ValueError, lambda: m.lqr_weights(dict(x=1.0), np.ones(3)), "torque_weights", "shape")
+    one_line(ValueError, lambda: HoldFeedback(m, np.zeros((3, 3))), "K", "shape")
+    one_line(ValueError, lambda: HoldFeedback(m, np.zeros((10, 10)), constraint_damping=-1.0), "constraint_damping")
+    one_line(ValueError, lambda: m.discretize(-1e-3), "dt")
+    one_line(ValueError, lambda: m.discretize(1e-3).discretize(1e-3), "dt", "discrete already")
