@@ -126,10 +126,12 @@ def test_the_model_against_finite_differences_of_the_simulated_hold(point, name,
     """The held bar at rest under the model's torques, one torque stepped by +-du and held (open loop): the
     simulated change of the bar's pose, squeeze and load share, (y(+du) - y(-du)) / 2, averaged over 80 to
     160 ms after the step, against the model's prediction y = C z(t) + D du, z(t) = (discretize(t).B) du,
-    averaged alike. Tolerance: 10 % of the largest change of each kind plus a floor (0.5 um, 0.05 mrad,
-    2 mN, 0.002). Why not tighter: the engine's welds are soft (1000 rad/s), and their slowest mode, the
-    two arms swinging against each other through them, rings at about 25 Hz after a step, lightly damped
-    (its 80-160 ms tail still shows in the squeeze); the rigid model has neither."""
+    averaged alike. Measured: within 0.3-1.4 % (e.g. 0.33 um of 41 um, 4.3 um of 1.29 mm, 0.43 mN of
+    30.5 mN of squeeze, 0.0003 of a 0.10 change of load share). Tolerance: 3 % of the largest change of
+    each kind plus a floor (2 um, 0.05 mrad, 1 mN, 0.002). Why not tighter: the engine's welds are soft
+    (1000 rad/s), and their slowest mode, the two arms swinging against each other through them, rings at
+    about 25 Hz after a step, lightly damped (its 80-160 ms tail still shows in the squeeze, hence the
+    average over that window and not one instant); the rigid model has neither."""
     _, m0, _ = point
     j, size = PERTURBATIONS[name]
     du = np.zeros(10)
@@ -150,10 +152,10 @@ def test_the_model_against_finite_differences_of_the_simulated_hold(point, name,
     idx = [0, 1, 2, 3, 4, 5, 6, 14]
     want = np.mean([(m0.C @ m0.discretize(t).B @ du + m0.D @ du)[idx] for t in times], axis=0)
     err = np.abs(got - want)
-    groups = [(slice(0, 3), 5e-7), (slice(3, 6), 5e-5), (slice(6, 7), 2e-3), (slice(7, 8), 2e-3)]
-    for sl, floor in groups:
-        tol = 0.1 * np.abs(want[sl]).max() + floor
-        assert np.all(err[sl] <= tol), (name, got, want)
+    groups = [(slice(0, 3), 2e-6), (slice(3, 6), 5e-5), (slice(6, 7), 1e-3), (slice(7, 8), 2e-3)]
+    for part, floor in groups:
+        tol = 0.03 * np.abs(want[part]).max() + floor
+        assert np.all(err[part] <= tol), (name, got, want)
     record_property("largest change (model)", want.tolist())
     record_property("error", err.tolist())
     # the prediction is not trivial: the step moves what it should
@@ -178,7 +180,7 @@ def test_an_lqr_on_the_held_bar_against_object_control_under_one_push(record_pro
     ki_force 5) at 1 kHz, each holding the bar, then 1 N across it for 0.1 s. Measured: the time after the
     push for the squeeze to stay within 5 % of its peak. Object control's force loop damps the welds' 25 Hz
     mode, which the rigid model cannot see: it settles in 0.034 s, the LQR in 0.166 s (the issue's target,
-    the LQR faster, is not met). Both keep the bar within 0.15 mm; the LQR spends no more torque (each
+    the LQR faster, is not met; with a 10 N s/m damper between the clamps, 0.131 s). Both keep the bar within 0.15 mm; the LQR spends no more torque (each
     joint's largest change at most 10 % above object control's, or 5 mN m above)."""
     sim = held_bar()
     m, K, dm = lqr_law(sim)
@@ -196,6 +198,12 @@ def test_an_lqr_on_the_held_bar_against_object_control_under_one_push(record_pro
         assert 0.05 < r["peak"] < 0.2 and r["bar_peak"] < 1.5e-4
         assert abs(r["squeeze"][-1]) < 0.05 * r["peak"]
     assert lqr["settle"] == pytest.approx(0.166, abs=0.02) and obj["settle"] == pytest.approx(0.034, abs=0.01)
+    # a damper between the clamps (zero on the rigid model's manifold) damps the welds' mode in part
+    sim = held_bar()
+    m, K, _ = lqr_law(sim)
+    damped = squeeze_after_push(sim, HoldFeedback(m, K, constraint_damping=[10.0, 10.0, 10.0, 0.0, 0.0, 0.0]))
+    record_property("LQR with a 10 N s/m damper between the clamps: settle (s)", damped["settle"])
+    assert damped["settle"] == pytest.approx(0.131, abs=0.02) and obj["settle"] < damped["settle"] < lqr["settle"]
     # no more effort: each joint's largest torque change under the LQR at most 10 % above object control's
     assert np.all(lqr["torque_peak"] <= 1.1 * obj["torque_peak"] + 5e-3), (lqr["torque_peak"], obj["torque_peak"])
 
