@@ -32,16 +32,17 @@ WRONG = {
     "lab02-ex1-answer": ("opening=0.02", "opening=0.03"),
     "lab02-ex2-answer": ("r2.ik_solutions(T2_try, opening=0.02)", "[]"),
     "lab02-ex3-answer": ("cs.plan_cartesian(r, poses[::-1]", "cs.plan_cartesian(r, poses"),  # not reversed
-    "lab02-ex4-answer": ("try_sim.run(3.5)", "try_sim.run(1.0)"),
-    "lab02-ex5-answer": ("+ self.robot.gravity(q)[2]", "+ self.robot.gravity(q)[2]\n        tau[3] = 1e-3"),
-    "lab02-ex6-answer": (".idxmax()", ".idxmin()"),
-    "lab02-ex7-answer": ('output="metrics")]', 'output="metrics")][::-1]'),
+    "lab02-ex4-answer": ("wrong.mass_matrix(q_end) * 900.0", "np.eye(6) * 900.0"),    # the quill's mass forgotten
+    "lab02-ex5-answer": ("w_design = 100.0", "w_design = 160.0"),                 # θ4 at its torque limit
+    "lab02-ex6-answer": ("+ self.robot.gravity(q)[2]", "+ self.robot.gravity(q)[2]\n        tau[3] = 1e-3"),
+    "lab02-ex7-answer": (".idxmax()", ".idxmin()"),
+    "lab02-ex8-answer": ('output="metrics")]', 'output="metrics")][::-1]'),
     "lab03-ex1-answer": ("rest = -sum(", "rest = sum("),                          # the bar's force on the floor
-    "lab03-ex2-answer": ("mu_stick = 0.5", "mu_stick = 0.3"),                     # below tan 20°
+    "lab03-ex2-answer": ("mu_stick = 0.37", "mu_stick = 0.3"),                    # below tan 20°: it slides
     "lab03-ex3-answer": ('log_y.contacts["begin"].min()', "0.0"),
-    "lab03-ex4-answer": ("d3 = 0.05", "d3 = q_top[2]"),
+    "lab03-ex4-answer": ("d3 = 0.0225", "d3 = q_top[2]"),                          # the wrist in the arm
     "lab03-ex5-answer": ("mask.sum(axis=0)", "mask.any(axis=0).astype(int)"),
-    "lab03-ex6-answer": ("if not getattr(c, k)", "if getattr(c, k)"),
+    "lab03-ex6-answer": ('failing_pred = ["touching"]', 'failing_pred = ["touching", "in_pads"]'),
     "lab04-ex1-answer": ("math.cos(yaw_deg * DEG), math.sin(yaw_deg * DEG)", "math.cos(yaw_deg), math.sin(yaw_deg)"),
     "lab04-ex2-answer": ('r.log[0].q[int(np.searchsorted(r.log.t, c["failed_at"])), 2]', "r.log[0].q[0, 2]"),
     "lab05-ex1-answer": ("-BAR_M * G", "BAR_M * G"),

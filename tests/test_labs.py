@@ -305,7 +305,13 @@ WRONG = [
     ("01_robots_and_dynamics", "lab01-ex5-answer", "** (1 / 4)", "** (1 / 5)"),  # too small a step: 258 steps
     ("02_planning_and_control", "lab02-ex1-answer", "q_try = r.ik(T_try, opening=0.02)",
      "q_try = r.ik(T_try, opening=0.03)"),
-    ("03_collisions_and_grasping", "lab03-ex2-answer", "mu_stick = 0.5", "mu_stick = 0.3"),  # below tan 20°
+    ("02_planning_and_control", "lab02-ex4-answer", "r.gravity(q_end) - wrong.gravity(q_end)",
+     "wrong.gravity(q_end) - r.gravity(q_end)"),  # the sign: the quill rests above its reference
+    ("02_planning_and_control", "lab02-ex5-answer", "w_design = 100.0", "w_design = 80.0"),  # not a third
+    ("03_collisions_and_grasping", "lab03-ex2-answer", "mu_stick = 0.37", "mu_stick = 0.5"),  # holds, not the least
+    ("03_collisions_and_grasping", "lab03-ex4-answer", "d3 = 0.0225", "d3 = 0.05"),  # clears, not the smallest
+    ("03_collisions_and_grasping", "lab03-ex6-answer", "gap_pred = jaw - 2 * BOX[1] - 2e-4",
+     "gap_pred = jaw - 2 * BOX[1]"),  # the box's 0.2 mm off the fixed jaw forgotten
     ("05_force_and_impedance", "lab05-ex2-answer", "D_crit = 2 * np.sqrt(K_crit * M_crit)",
      "D_crit = np.sqrt(K_crit * M_crit)"),  # zeta 0.5: it overshoots
     ("06_cooperative_control", "lab06-ex1-answer", "squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),  # a push, not a pull
