@@ -53,6 +53,10 @@ WRONG = {
     "lab06-ex2-answer": ("share_cmd = 0.3", "share_cmd = 0.7"),                   # SCARA #1's share
     "lab06-ex3-answer": ("if p > 1.0)", "if p > 0.1)"),
     "lab06-ex4-answer": ("part * self.mass * G", "0.0 * part * self.mass * G"),   # the weight forgotten
+    "lab07-ex1-answer": (" + model.damping * qd", ""),                             # the jaw's damping left out
+    "lab07-ex2-answer": ("2 * (BAR_HALF[1] + 0.005)", "2 * BAR_HALF[1]"),         # the faces on the bar's sides
+    "lab07-ex3-answer": (" - r1.tool_jacobian(q_mid).T @ f_bar", ""),             # the bar's weight forgotten
+    "lab07-ex4-answer": ("BASE_DISTANCE = 0.52", "BASE_DISTANCE = 0.50"),         # the upper arm 14 mm off the floor
     "lab08-ex1-answer": ("n_zero_pred = 5 ", "n_zero_pred = 6 "),                # the pitch counted as free too
     "lab08-ex2-answer": ("Ad = np.linalg.matrix_power(T, steps)", "Ad = T"),      # one step, not `steps`
     "lab08-ex3-answer": ("(step(x + e, tau) - step(x - e, tau)) / (2 * h)", "(step(x + e, tau) - step(x, tau)) / (2 * h)"),

@@ -317,6 +317,8 @@ WRONG = [
     ("06_cooperative_control", "lab06-ex1-answer", "squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),  # a push, not a pull
     ("06_cooperative_control", "lab06-ex2-answer", "share_cmd = 0.3", "share_cmd = 0.7"),  # SCARA #1's share
     ("06_cooperative_control", "lab06-ex3-answer", "if p > 1.0)", "if p > 0.1)"),  # the takeover's 0.1 N peak
+    ("07_bring_your_own_arm", "lab07-ex1-answer", " + model.damping * qd", ""),  # the jaw's damping left out
+    ("07_bring_your_own_arm", "lab07-ex3-answer", " - r1.tool_jacobian(q_mid).T @ f_bar", ""),  # the bar forgotten
     ("08_linear_models_and_lqr", "lab08-ex2-answer", "Ad = np.linalg.matrix_power(T, steps)", "Ad = T"),  # one step
     ("08_linear_models_and_lqr", "lab08-ex4-answer", "dq_ok, dqd_ok = 0.022, 3.0",
      "dq_ok, dqd_ok = 0.01, 3.0"),  # Bryson's rule with 1 cm: too stiff, the first joints saturate
