@@ -212,6 +212,31 @@ btScalar separation(const Bounds& A, const Bounds& B) {
   return btMax(btMax(d.x(), d.y()), d.z());
 }
 
+// Whether two bodies that Bullet would test by separating axes (both polyhedral with their faces, not
+// two boxes) are certainly apart: along the line between their centres (their shapes' origins) their
+// supports leave a gap of more than a nanometre. Separating axes would then find an axis too and report
+// nothing, at many times the cost (every face normal and edge pair of two hulls projected). Shapes that
+// are apart but not along that line go to separating axes as before.
+bool polyhedra_apart(const btCollisionObject* a, const btCollisionObject* b, const btDispatcherInfo& info) {
+  if (!info.m_enableSatConvex) return false;
+  const btCollisionShape* sa = a->getCollisionShape();
+  const btCollisionShape* sb = b->getCollisionShape();
+  if (!sa->isPolyhedral() || !sb->isPolyhedral()) return false;
+  if (sa->getShapeType() == BOX_SHAPE_PROXYTYPE && sb->getShapeType() == BOX_SHAPE_PROXYTYPE) return false;
+  const auto* pa = static_cast<const btPolyhedralConvexShape*>(sa);
+  const auto* pb = static_cast<const btPolyhedralConvexShape*>(sb);
+  if (!pa->getConvexPolyhedron() || !pb->getConvexPolyhedron()) return false;
+  const btTransform& ta = a->getWorldTransform();
+  const btTransform& tb = b->getWorldTransform();
+  btVector3 n = ta.getOrigin() - tb.getOrigin();  // from B towards A
+  const btScalar length = n.length();
+  if (!(length > 1e-9)) return false;
+  n /= length;
+  const btVector3 lowest_a = ta(pa->localGetSupportingVertexWithoutMargin(-n * ta.getBasis()));
+  const btVector3 highest_b = tb(pb->localGetSupportingVertexWithoutMargin(n * tb.getBasis()));
+  return n.dot(lowest_a) - n.dot(highest_b) > 1e-9;
+}
+
 // Bullet's near callback, for the pairs its broad phase keeps: those within
 // its contact margin (2 cm) plus its tree's margin (5 cm), most of them far
 // from touching.
@@ -222,20 +247,22 @@ btScalar separation(const Bounds& A, const Bounds& B) {
 // - The narrow phase is skipped for a pair whose boxes are apart (by more than
 //   a micrometre) and whose manifold holds no point: it would find nothing and
 //   change nothing.
+// - So is the narrow phase of two polyhedra (a hull and a box or a hull) whose manifold holds no point
+//   and which are certainly apart (polyhedra_apart): separating axes would find nothing either.
 void near_callback(btBroadphasePair& pair, btCollisionDispatcher& dispatcher, const btDispatcherInfo& info) {
   const auto* a = static_cast<const btCollisionObject*>(pair.m_pProxy0->m_clientObject);
   const auto* b = static_cast<const btCollisionObject*>(pair.m_pProxy1->m_clientObject);
   const btScalar apart = separation(*static_cast<const Bounds*>(a->getUserPointer()),
                                     *static_cast<const Bounds*>(b->getUserPointer()));
   if (!pair.m_algorithm) {
-    if (apart > gContactBreakingThreshold) return;
-  } else if (apart > 1e-6) {
+    if (apart > gContactBreakingThreshold || polyhedra_apart(a, b, info)) return;
+  } else {
     thread_local btManifoldArray manifolds;
     manifolds.resize(0);
     pair.m_algorithm->getAllContactManifolds(manifolds);
     bool empty = true;
     for (int m = 0; m < manifolds.size(); ++m) empty = empty && manifolds[m]->getNumContacts() == 0;
-    if (empty) return;
+    if (empty && (apart > 1e-6 || polyhedra_apart(a, b, info))) return;
   }
   btCollisionDispatcher::defaultNearCallback(pair, dispatcher, info);
 }
