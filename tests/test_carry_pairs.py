@@ -39,6 +39,33 @@ def runs():
     return _Runs()
 
 
+# ---- the pairs in the views ----
+
+@pytest.mark.parametrize("which", ARMS)
+def test_the_views_draw_the_pairs_arms_by_their_meshes_and_their_clamps_as_boxes(which):
+    """The live page, the replay and the animation draw a robot as coopsim.view.parts.robot_parts gives it: the
+    pair's arms by their URDF meshes (every link that has one in the file, the last one turned with add_clamp's
+    DH row), the clamp add_clamp put on them as its three boxes, where the robot's own boxes of those names are."""
+    from coopsim.view.parts import look_kind, part_poses, robot_parts
+
+    for r in C.pair(which).robots:
+        assert look_kind(r) == "urdf"
+        parts = robot_parts(r)
+        n = r.dof - 1                          # the arm's last link; n + 1: the moving jaw's
+        meshed = {p.link for p in parts if p.shape == "mesh"}
+        assert set(range(1, n + 1)) <= meshed and n + 1 not in meshed
+        q = 0.5 * (r.q_limits[:, 0] + r.q_limits[:, 1]) + 0.1
+        poses = part_poses(r, parts, q)
+        shapes, halves = r.shapes(q)
+        by_name = {b.name: k for k, b in enumerate(r.boxes)}
+        for name, link in (("clamp_body", n), ("fixed_jaw", n), ("moving_jaw", n + 1)):
+            [k] = [k for k, p in enumerate(parts) if p.shape == "box" and p.name.endswith("_" + name)]
+            assert parts[k].link == link
+            b = by_name[name]
+            np.testing.assert_allclose(poses[k], shapes[b], atol=1e-12)
+            np.testing.assert_allclose(parts[k].scale, 2 * np.asarray(halves[b]), atol=1e-12)
+
+
 # ---- the pairs and their plans ----
 
 @pytest.mark.parametrize("which", ARMS)

@@ -44,14 +44,15 @@ WRONG = {
     "lab03-ex5-answer": ("mask.sum(axis=0)", "mask.any(axis=0).astype(int)"),
     "lab03-ex6-answer": ('failing_pred = ["touching"]', 'failing_pred = ["touching", "in_pads"]'),
     "lab04-ex1-answer": ("math.cos(yaw_deg * DEG), math.sin(yaw_deg * DEG)", "math.cos(yaw_deg), math.sin(yaw_deg)"),
-    "lab04-ex2-answer": ('r.log[0].q[int(np.searchsorted(r.log.t, c["failed_at"])), 2]', "r.log[0].q[0, 2]"),
+    "lab04-ex2-answer": ("yaw_design = 300", "yaw_design = 290"),                # 81 mm apart, not 10 cm
+    "lab04-ex3-answer": ('r.log[0].q[int(np.searchsorted(r.log.t, c["failed_at"])), 2]', "r.log[0].q[0, 2]"),
     "lab05-ex1-answer": ("-BAR_M * G", "BAR_M * G"),
     "lab05-ex2-answer": ("D_crit = 2 * np.sqrt(K_crit * M_crit)", "D_crit = np.sqrt(K_crit * M_crit)"),
     "lab05-ex3-answer": ("F_try + BAR_M * G", "F_try - BAR_M * G"),
     "lab05-ex4-answer": ("self.D * s.error_rate + self.K * s.error", "self.K * s.error"),  # no damping
-    "lab06-ex1-answer": ("squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),              # a push, not a pull
-    "lab06-ex2-answer": ("share_cmd = 0.3", "share_cmd = 0.7"),                   # SCARA #1's share
-    "lab06-ex3-answer": ("if p > 1.0)", "if p > 0.1)"),
+    "lab06-ex1-answer": ("(1 - share_cmd) * BAR_M * G", "0.5 * BAR_M * G"),      # half the weight, not 70 %
+    "lab06-ex2-answer": ("if p > 1.0)", "if p > 0.1)"),
+    "lab06-ex3-answer": ("D_follow = 2 * np.sqrt(K_follow * M_follow)", "D_follow = 90.0"),  # rings: too little
     "lab06-ex4-answer": ("part * self.mass * G", "0.0 * part * self.mass * G"),   # the weight forgotten
     "lab07-ex1-answer": (" + model.damping * qd", ""),                             # the jaw's damping left out
     "lab07-ex2-answer": ("2 * (BAR_HALF[1] + 0.005)", "2 * BAR_HALF[1]"),         # the faces on the bar's sides

@@ -312,11 +312,14 @@ WRONG = [
     ("03_collisions_and_grasping", "lab03-ex4-answer", "d3 = 0.0225", "d3 = 0.05"),  # clears, not the smallest
     ("03_collisions_and_grasping", "lab03-ex6-answer", "gap_pred = jaw - 2 * BOX[1] - 2e-4",
      "gap_pred = jaw - 2 * BOX[1]"),  # the box's 0.2 mm off the fixed jaw forgotten
+    ("04_cooperative_task", "lab04-ex2-answer", "yaw_design = 300", "yaw_design = 270"),  # turned the wrong way
     ("05_force_and_impedance", "lab05-ex2-answer", "D_crit = 2 * np.sqrt(K_crit * M_crit)",
      "D_crit = np.sqrt(K_crit * M_crit)"),  # zeta 0.5: it overshoots
-    ("06_cooperative_control", "lab06-ex1-answer", "squeeze_cmd = -2.0", "squeeze_cmd = 2.0"),  # a push, not a pull
-    ("06_cooperative_control", "lab06-ex2-answer", "share_cmd = 0.3", "share_cmd = 0.7"),  # SCARA #1's share
-    ("06_cooperative_control", "lab06-ex3-answer", "if p > 1.0)", "if p > 0.1)"),  # the takeover's 0.1 N peak
+    ("05_force_and_impedance", "lab05-ex3-answer", "F_try + BAR_M * G", "F_try"),  # the bar's weight forgotten
+    ("06_cooperative_control", "lab06-ex1-answer", "(1 - share_cmd) * BAR_M * G", "0.5 * BAR_M * G"),  # half, not 70 %
+    ("06_cooperative_control", "lab06-ex2-answer", "if p > 1.0)", "if p > 0.1)"),  # the takeover's 0.1 N peak
+    ("06_cooperative_control", "lab06-ex3-answer", "D_follow = 2 * np.sqrt(K_follow * M_follow)",
+     "D_follow = 2500.0"),  # too much damping for the 1 ms law: it rings at 500 Hz
     ("07_bring_your_own_arm", "lab07-ex1-answer", " + model.damping * qd", ""),  # the jaw's damping left out
     ("07_bring_your_own_arm", "lab07-ex3-answer", " - r1.tool_jacobian(q_mid).T @ f_bar", ""),  # the bar forgotten
     ("08_linear_models_and_lqr", "lab08-ex2-answer", "Ad = np.linalg.matrix_power(T, steps)", "Ad = T"),  # one step

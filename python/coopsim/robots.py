@@ -470,9 +470,10 @@ def add_clamp(robot: Robot, *, mount=None, **values) -> Robot:
     tcp = Cn.copy()
     tcp[:3, 3] = face[:3, 3]
     boxes = [b if b.link != n else b.moved(n, X @ b.pose) for b in robot.boxes]
-    for link, (centre, size), frame, name in ((n, body, Cn, "clamp_body"), (n, fixed_jaw, Cn, "fixed_jaw"),
-                                              (n + 1, moving_jaw, Cj, "moving_jaw")):
-        boxes.append(LinkBox(link, np.array(size) / 2, frame @ _translation(centre), name))
+    parts = [(link, size, frame @ _translation(centre), name)
+             for link, (centre, size), frame, name in ((n, body, Cn, "clamp_body"), (n, fixed_jaw, Cn, "fixed_jaw"),
+                                                       (n + 1, moving_jaw, Cj, "moving_jaw"))]
+    boxes += [LinkBox(link, np.array(size) / 2, pose, name) for link, size, pose, name in parts]
     jn, ln = list(robot.joint_names), list(robot.link_names)
 
     def fresh(name, taken):
@@ -492,4 +493,7 @@ def add_clamp(robot: Robot, *, mount=None, **values) -> Robot:
         end_stop_damping_ratio=robot.end_stop_damping_ratio, boxes=boxes,
         clamp=Clamp(fixed_link=n, fixed_face=face, moving_joint=n + 1, jaw_length=Lj, pad_width=w),
         dimensions=robot.dimensions, inertia_check="ignore")
-    return out.with_names(jn + [fresh("clamp_jaw", jn)], ln + [fresh("moving_jaw", ln)])
+    out = out.with_names(jn + [fresh("clamp_jaw", jn)], ln + [fresh("moving_jaw", ln)])
+    from .urdf import _follow_visuals  # (urdf imports this module) an imported arm's look follows it
+    _follow_visuals(robot, out, X, parts)
+    return out

@@ -253,6 +253,31 @@ def visuals(robot) -> list:
     return list(_VISUALS.get(_visual_key(robot), ()))
 
 
+def _register_visuals(robot, visual_list) -> None:
+    """Keeps `visual_list` as `robot`'s visuals (none: forgets any kept under its key)."""
+    key = _visual_key(robot)
+    _VISUALS.pop(key, None)
+    if visual_list:
+        _VISUALS[key] = tuple(visual_list)
+        while len(_VISUALS) > _VISUALS_KEPT:
+            _VISUALS.popitem(last=False)
+
+
+def _follow_visuals(old, new, X, parts) -> None:
+    """add_clamp's copy `new` of an imported arm `old` keeps its look: old's visuals, those of its last link n
+    moved by X (4, 4: old frame n -> new frame n, the DH row add_clamp turned), plus the clamp's parts as
+    boxes (`parts`: (link, size (3,) m, pose (4, 4) in that link's frame, name) each). Nothing for a robot
+    without visuals (it is drawn as its boxes, the clamp's among them)."""
+    vis = visuals(old)
+    if not vis:
+        return
+    n = old.dof
+    moved = [v if v.link != n else Visual(n, X @ v.pose, v.shape, v.scale, v.path, v.name) for v in vis]
+    moved += [Visual(link, np.asarray(pose, float), "box", np.asarray(size, float), None, name)
+              for link, size, pose, name in parts]
+    _register_visuals(new, moved)
+
+
 def _mesh_path(filename: str, base_dir: Optional[str]) -> Optional[str]:
     """The file a URDF mesh filename names, or None when it is not found: ``package://pkg/rest`` in a
     directory of ROS_PACKAGE_PATH or a parent of the URDF's directory named pkg (or holding pkg),
@@ -800,17 +825,5 @@ def from_urdf(source, *, tip: str | None = None, locked: dict | None = None, nam
                          friction=K, coulomb=Fc, armature=Ia, q_limits=qlim, tau_limits=tau, boxes=box_list,
                          name=name or root.get("name") or "robot", gravity=gravity, coulomb_width=coulomb_width,
                          inertia_check=inertia_check)
-    clamped = _with_clamp(robot, clamp)
-    if clamped is not robot:
-        # the last link's frame turned: its visuals follow (old frame n -> new frame n)
-        X = np.linalg.solve(dh_transform(*clamped.dh[n - 1]), dh_transform(*robot.dh[n - 1]))
-        visual_list = [v if v.link != n else Visual(n, X @ v.pose, v.shape, v.scale, v.path, v.name)
-                       for v in visual_list]
-        robot = clamped
-    key = _visual_key(robot)
-    _VISUALS.pop(key, None)
-    if visual_list:
-        _VISUALS[key] = tuple(visual_list)
-        while len(_VISUALS) > _VISUALS_KEPT:
-            _VISUALS.popitem(last=False)
-    return robot
+    _register_visuals(robot, visual_list)
+    return _with_clamp(robot, clamp)  # add_clamp: the visuals follow (_follow_visuals)
