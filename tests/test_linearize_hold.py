@@ -274,3 +274,26 @@ def test_bad_input_is_named_in_one_line(point):
     one_line(ValueError, lambda: HoldFeedback(m, np.zeros((10, 10)), constraint_damping=-1.0), "constraint_damping")
     one_line(ValueError, lambda: m.discretize(-1e-3), "dt")
     one_line(ValueError, lambda: m.discretize(1e-3).discretize(1e-3), "dt", "discrete already")
+
+
+def test_a_pair_of_robots_with_the_hold_given_gives_the_simulations_model(point):
+    """linearize_hold((robot_a, robot_b), q=..., points=..., body_pose=..., ...) with what the simulation
+    holds gives the same model as linearize_hold(sim); the roles swapped (a = 1, b = 0) give the same physics:
+    the squeeze's feedthrough and the bar's pose rows with the inputs reordered, and the load share turned
+    to the other arm's."""
+    sim, _, m = point
+    co = sim.cooperation(0, 1)
+    spec = sim.world.body("bar")
+    pair = cs.linearize_hold(tuple(sim.robots), q=m.q0, points=(co.point_a, co.point_b),
+                             body_pose=sim.body_state("bar").pose, body_mass=spec["mass"],
+                             body_inertia=cs.box_inertia(spec["mass"], *(2 * spec["half_extents"])),
+                             gravity=sim.world.gravity, jaw_torques=m.jaw_torques)
+    for name in ("A", "B", "C", "D", "u0", "y0"):
+        np.testing.assert_allclose(getattr(pair, name), getattr(m, name), atol=1e-9, err_msg=name)
+    swapped = cs.linearize_hold(sim, 1, 0)
+    order = np.r_[np.arange(5, 10), np.arange(0, 5)]      # inputs: b's first now
+    k = m.outputs.index("squeeze")
+    np.testing.assert_allclose(swapped.D[k][order], m.D[k], atol=1e-6 * np.abs(m.D[k]).max())
+    np.testing.assert_allclose(swapped.D[:6][:, order], m.D[:6], atol=1e-9)
+    share = m.outputs.index("load_share_a")
+    assert swapped.y0[share] == pytest.approx(1 - m.y0[share], abs=1e-9)
