@@ -43,6 +43,7 @@ import numpy as np
 
 from . import _checks
 from ._core import Clamp, LinkBox, Robot, Tool, box_inertia, compiled_generated_names, dh_transform
+from .visuals import _follow_visuals
 
 __all__ = ["scara1", "scara2", "SCARA1_DEFAULTS", "SCARA2_DEFAULTS", "SCARA1_BOUNDS", "SCARA2_BOUNDS", "Bound",
            "add_clamp", "CLAMP_DEFAULTS"]
@@ -494,6 +495,5 @@ def add_clamp(robot: Robot, *, mount=None, **values) -> Robot:
         clamp=Clamp(fixed_link=n, fixed_face=face, moving_joint=n + 1, jaw_length=Lj, pad_width=w),
         dimensions=robot.dimensions, inertia_check="ignore")
     out = out.with_names(jn + [fresh("clamp_jaw", jn)], ln + [fresh("moving_jaw", ln)])
-    from .urdf import _follow_visuals  # (urdf imports this module) an imported arm's look follows it
-    _follow_visuals(robot, out, X, parts)
+    _follow_visuals(robot, out, X, parts)  # an imported arm's look follows it
     return out

@@ -21,7 +21,7 @@ Which look a robot gets (:func:`look_kind`), decided from the robot's own data, 
   rail, the fixed and the moving jaw, every size from the dimensions (a longer L1 stretches segment 1
   only: housings keep their size, which follows the robot's width and height).
 - ``'urdf'``: a robot :func:`coopsim.urdf.from_urdf` read from a file with ``<visual>`` geometry
-  (:func:`coopsim.urdf.visuals`): each link drawn with its visual meshes, boxes and cylinders; a link
+  (:func:`coopsim.visuals.visuals`): each link drawn with its visual meshes, boxes and cylinders; a link
   without any, with its own collision boxes.
 - ``'boxes'``: any other robot (built from tables): its collision boxes, one box part each.
 """
@@ -36,7 +36,7 @@ import numpy as np
 
 from .._core import dh_transform
 from ..robots import _SCARA1, _SCARA2
-from ..urdf import visuals
+from ..visuals import visuals
 
 __all__ = ["Part", "robot_parts", "look_kind", "part_poses", "part_corners", "mesh_triangles", "UNIT_CUBE",
            "UNIT_CYLINDER"]
