@@ -64,6 +64,7 @@ WRONG = {
     "lab08-ex4-answer": ("dq_ok, dqd_ok = 0.022, 3.0", "dq_ok, dqd_ok = 0.01, 3.0"),  # too stiff: saturates
     "lab08-ex5-answer": ("r.mass_matrix(q0) * kp", "np.eye(n) * kp"),            # the inertia forgotten
     "lab08-ex6-answer": ("np.abs(z_cl).max()", "np.abs(z_cl).min()"),            # the fastest mode, not the slowest
+    "lab08-ex7-answer": ("share_pred = dy[k_share]", "share_pred = -du[2] / (0.3 * 9.81)"),  # the bar's weight alone
 }
 TAMPER = "assert True  # the check, rewritten by the student"
 
