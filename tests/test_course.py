@@ -27,7 +27,7 @@ WRONG = {
     "lab01-ex2-answer": ("g_flat = (0, 0, -9.81)", "g_flat = (0, -9.81, 0)"),     # still in the arm's plane
     "lab01-ex3-answer": ("np.cos(q1[0]), np.sin(q1[0])", "1.0, 0.0"),             # along x, as at q = 0
     "lab01-ex4-answer": ("ratio_pred = 2.0**4", "ratio_pred = 2.0**5"),           # the local error's order
-    "lab01-ex5-answer": ("0.95 * dt *", "0.5 * dt *"),                            # too small a step: 432 steps
+    "lab01-ex5-answer": ("0.95 * dt *", "0.5 * dt *"),                            # too small a step: 411 steps
     "lab01-ex6-answer": ('("revolute", "continuous", "prismatic")', '("revolute", "continuous")'),
     "lab02-ex1-answer": ("opening=0.02", "opening=0.03"),
     "lab02-ex2-answer": ("r2.ik_solutions(T2_try, opening=0.02)", "[]"),
