@@ -1,7 +1,9 @@
 """Two arms holding one body, linearised (coopsim.linearize_hold): the rigid-weld closed chain on its
 constraint manifold against the simulated hold with the engine's soft welds, its statics, the weld
 wrenches' indeterminate part, an LQR that regulates the bar's pose and squeeze against object-level control
-under the same push, and bad input."""
+under the same push, and bad input; the soft-weld model (welds='soft': the bar a free body, each weld the
+engine's spring-damper) against the engine's weld wrenches and the simulated ring, and its LQR against
+object-level control."""
 from __future__ import annotations
 
 import numpy as np
@@ -179,8 +181,9 @@ def test_an_lqr_on_the_held_bar_against_object_control_under_one_push(record_pro
     cooperative law at 1 kHz, and object-level control (the carry's gains: kp 2500, kd 100, kp_force 0.5,
     ki_force 5) at 1 kHz, each holding the bar, then 1 N across it for 0.1 s. Measured: the time after the
     push for the squeeze to stay within 5 % of its peak. Object control's force loop damps the welds' 25 Hz
-    mode, which the rigid model cannot see: it settles in 0.034 s, the LQR in 0.166 s (the issue's target,
-    the LQR faster, is not met; with a 10 N s/m damper between the clamps, 0.131 s). Both keep the bar within 0.15 mm; the LQR spends no more torque (each
+    mode, which the rigid model cannot see: it settles in 0.034 s, the LQR in 0.166 s (with a 10 N s/m
+    damper between the clamps, 0.131 s; the LQR designed on the soft-weld model, which has the mode, settles
+    faster than object control: the soft-weld tests below). Both keep the bar within 0.15 mm; the LQR spends no more torque (each
     joint's largest change at most 10 % above object control's, or 5 mN m above)."""
     sim = held_bar()
     m, K, dm = lqr_law(sim)
@@ -297,3 +300,188 @@ def test_a_pair_of_robots_with_the_hold_given_gives_the_simulations_model(point)
     np.testing.assert_allclose(swapped.D[:6][:, order], m.D[:6], atol=1e-9)
     share = m.outputs.index("load_share_a")
     assert swapped.y0[share] == pytest.approx(1 - m.y0[share], abs=1e-9)
+
+
+# ---- the soft welds: both arms' joints, the bar as a free body, each weld the engine's spring-damper ----
+
+@pytest.fixture(scope="module")
+def soft(point):
+    """The soft-weld model at the settled hold, under the torques that hold it there (the first model's)."""
+    sim, first, rigid = point
+    return cs.linearize_hold(sim, tau=first.torques(first.u0), welds="soft")
+
+
+def test_the_soft_weld_model_has_the_joints_the_body_and_the_engines_welds(point, soft):
+    """welds='soft': the state is both arms' free joints (10), the bar's position and rotation (6) and their
+    speeds (32 in all); the torques do not feed through (D = 0: the weld wrenches are the stretch's); every
+    output is determined (the welds split the twist by their stiffness). The point is the hold's equilibrium
+    under the torques (zd0 ~ 0): no squeeze, the lever rule's share. Each weld's gains are grasp.cpp's at this
+    world step: stiffness omega^2 m, damping 2 omega / holders m, omega = weld_omega_dt / (dt world_every) =
+    1000 rad/s, two holders. The ring: a lightly damped pair of poles between 20 and 35 Hz (the arms swinging
+    against each other through the welds; measured 26.9 Hz, damping ratio 0.13), which the rigid model lacks.
+    Central differences agree with doubled steps to 1e-5 (measured 2.5e-7)."""
+    sim, _, rigid = point
+    m = soft
+    assert m.welds == "soft" and rigid.welds == "rigid"
+    assert m.A.shape == (32, 32) and m.B.shape == (32, 10) and m.C.shape == (15, 32) and m.D.shape == (15, 10)
+    assert m.states[10:16] == ["body.x", "body.y", "body.z", "body.rx", "body.ry", "body.rz"]
+    assert np.all(m.D == 0.0) and np.all(m.determined)
+    assert m.fd_error < 1e-5
+    assert np.abs(m.zd0).max() < 1e-6
+    y0 = dict(zip(m.outputs, m.y0))
+    assert abs(y0["squeeze"]) < 1e-4 and y0["load_share_a"] == pytest.approx(rigid.y0[14], abs=1e-3)
+    opts = sim.options
+    omega = opts["grasp_options"]["weld_omega_dt"] / (opts["dt"] * opts["world_every"])
+    assert omega == pytest.approx(1000.0)
+    for K, Cd in m.weld_gains:
+        # the reduced mass between the 0.3 kg bar and the arm at the weld: below the bar's mass
+        mass = K[:3, :3] / omega ** 2
+        assert np.all(np.linalg.eigvalsh(mass) > 0) and np.linalg.eigvalsh(mass).max() < 0.3
+        np.testing.assert_allclose(Cd, K * (2.0 / omega / 2), rtol=1e-12)
+    ev = np.linalg.eigvals(m.A)
+    ring = ev[(np.abs(ev.imag) > 2 * np.pi * 20) & (np.abs(ev.imag) < 2 * np.pi * 35)]
+    assert len(ring) >= 2 and np.all(-ring.real / np.abs(ring) < 0.2)
+    ev_rigid = np.linalg.eigvals(rigid.A)
+    assert not np.any(np.abs(ev_rigid.imag) > 2 * np.pi * 5)
+
+
+def test_the_soft_welds_give_the_engines_weld_wrenches_for_a_known_stretch():
+    """The welds' rest geometry read back from the weld wrenches at one state; at a later state (the bar
+    pushed sideways and twisted for 20 ms: it moves, the welds stretch by micrometres and turn) the model's
+    welds, with the simulation's weld_omega_dt and world step, give the wrenches the engine applies there to
+    1e-8 N and 1e-8 N m (measured 1e-11)."""
+    from coopsim.hold_model import _holding, _soft_chain
+    sim = held_bar(control_every=1)
+    robots, q, points, pose, mass, inertia, g, _ = _holding(sim, 0, 1)
+    ch = _soft_chain(sim, 0, 1, robots, q, points, pose, mass, inertia, g)
+
+    def wrenches():
+        (qa, qda), (qb, qdb) = sim.state(0), sim.state(1)
+        st = sim.body_state("bar")
+        hs, _, _ = ch.weld_wrenches([np.asarray(qa), np.asarray(qb)], [np.asarray(qda), np.asarray(qdb)],
+                                    np.asarray(st.position), np.asarray(st.pose)[:3, :3], np.asarray(st.velocity),
+                                    np.asarray(st.angular_velocity))
+        return hs
+
+    before = [np.asarray(sim.weld_wrench(k)) for k in (0, 1)]
+    sim.set_body_wrench("bar", np.r_[0.0, 2.0, 0.0, 0.0, 0.0, 0.05])
+    sim.run(sim.time + 0.02, progress=False)
+    for k, h in enumerate(wrenches()):
+        got = np.asarray(sim.weld_wrench(k))
+        assert np.abs(got - before[k]).max() > 0.05          # the stretch changed
+        np.testing.assert_allclose(h, got, rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize("name", PERTURBATIONS)
+def test_the_soft_model_rings_as_the_simulated_hold_does(point, soft, name, record_property):
+    """The held bar at rest under the model's torques, one torque stepped by +-du and held (open loop): the
+    simulated change of the bar's pose, squeeze and load share, (y(+du) - y(-du)) / 2, at each millisecond of
+    the first 50 ms (the ring, not an average), against the soft model's y(t) = C (discretize(t).B) du.
+    Measured: within 0.7-1.1 % of the largest change for the position, 0.8-1.9 % for the rotation, 1.1-5.9 %
+    for the squeeze (the ring's phase right; the engine's weld, a spring-damper evaluated once per 0.2 ms step
+    with omega h = 0.2, damps it a little less than the continuous one), 1.9-5.9 % for the load share.
+    Tolerance: 8 % of the largest change of each kind plus a floor (0.5 um, 5 urad, 1 mN, 0.002). The rigid
+    model misses the squeeze's ring by more than 30 % of its peak over the same window."""
+    sim0, _, rigid = point
+    j, size = PERTURBATIONS[name]
+    du = np.zeros(10)
+    du[j] = size
+    times = np.arange(0.001, 0.0505, 0.001)
+    runs = []
+    R0 = None
+    for sign in (1, -1):
+        sim, m = settled()
+        R0 = sim.body_state("bar").pose[:3, :3] if R0 is None else R0
+        open_loop(sim, m, sign * du)
+        t0, ys = sim.time, []
+        for t in times:
+            sim.run(t0 + t, progress=False)
+            ys.append(outputs(sim, R0))
+        runs.append(np.array(ys))
+    got = (runs[0] - runs[1]) / 2
+    idx = [0, 1, 2, 3, 4, 5, 6, 14]
+    want = np.array([(soft.C @ soft.discretize(t).B @ du)[idx] for t in times])
+    err = np.abs(got - want)
+    groups = [(slice(0, 3), 5e-7), (slice(3, 6), 5e-6), (slice(6, 7), 1e-3), (slice(7, 8), 2e-3)]
+    for part, floor in groups:
+        tol = 0.08 * np.abs(got[:, part]).max() + floor
+        assert np.all(err[:, part] <= tol), (name, part, err[:, part].max(), tol)
+    record_property("largest change (simulated)", np.abs(got).max(axis=0).tolist())
+    record_property("largest error (soft model)", err.max(axis=0).tolist())
+    # the rigid model's squeeze misses the ring
+    rigid_sq = np.array([(rigid.C @ rigid.discretize(t).B @ du + rigid.D @ du)[6] for t in times])
+    assert np.abs(rigid_sq - got[:, 6]).max() > 0.3 * np.abs(got[:, 6]).max()
+    assert np.abs(got[:, 6]).max() > 0.01
+
+
+# the soft-weld LQR's torque weights: 1 / (10 % of each joint's limit)^2, times these factors on the joints
+# that would otherwise move more than under object control in the push (a's quill and wrist, b's quill and
+# last joint; found by raising them until none did)
+SOFT_TORQUE_FACTORS = np.array([1.0, 1.0, 2.0, 2.5, 1.0, 1.0, 1.0, 1.0, 1.5, 35.0])
+SOFT_STATE_WEIGHTS = np.r_[np.full(16, 1e5), np.full(16, 1e-2)]
+
+
+def soft_lqr_law(sim):
+    """The LQR on the soft-weld model: the outputs' weights as lqr_law's (1 mm, 10 mrad, 0.05 N), 1e5 on
+    the joints' and the bar's displacements (1/rad^2, 1/m^2; the directions the outputs leave slow), 0.01
+    on the speeds, the torque weights of lqr_law times SOFT_TORQUE_FACTORS; run with HoldFeedback's
+    observer (the joints measured, the bar's state estimated)."""
+    m = cs.linearize_hold(sim, welds="soft")
+    lim = np.r_[sim.robots[0].tau_limits[m.joints[0]], sim.robots[1].tau_limits[m.joints[1]]]
+    d = m.discretize(PERIOD)
+    Q, R, S = m.lqr_weights(LQR_OUTPUTS, SOFT_TORQUE_FACTORS / (0.1 * lim) ** 2, SOFT_STATE_WEIGHTS)
+    P = sl.solve_discrete_are(d.A, d.B, Q, R, s=S)
+    K = np.linalg.solve(R + d.B.T @ P @ d.B, d.B.T @ P @ d.A + S.T)
+    return m, K, d
+
+
+def test_an_lqr_on_the_soft_weld_model_settles_the_squeeze_faster_than_object_control(record_property):
+    """The LQR designed on the soft-weld model (soft_lqr_law), run at 1 kHz as HoldFeedback with its
+    observer (a steady-state Kalman filter on the joints' measurements: the bar's state is not measured),
+    against object-level control (the carry's gains) at 1 kHz, each holding the bar, then 1 N across it for
+    0.1 s (squeeze_after_push). It sees the welds' 27 Hz ring and damps it: measured, its squeeze peaks at
+    2.2 mN (object control: 101 mN) and settles within 5 % of its peak 0.017 s after the push (object
+    control: 0.034 s); to a common band of 5 mN, 0 s (object control 0.034 s). Effort: each joint's largest
+    torque change at most object control's (measured at most 0.89 of it); the bar moves 0.05 mm (object
+    control 0.10 mm). Asserted: the ordering, as simulated."""
+    sim = held_bar()
+    m, K, d = soft_lqr_law(sim)
+    assert np.abs(np.linalg.eigvals(d.A - d.B @ K)).max() < 1.0
+    lqr = squeeze_after_push(sim, HoldFeedback(m, K), level=5e-3)
+    sim = held_bar()
+    inertia = np.asarray(cs.box_inertia(0.3, 0.35, 0.02, 0.02))
+    obj = squeeze_after_push(sim, cs.ObjectControl(0.3, inertia, kp=2500.0, kd=100.0, kp_force=0.5,
+                                                   ki_force=5.0, integral_limit=50.0), level=5e-3)
+    for name, r in (("soft-weld LQR", lqr), ("object control", obj)):
+        record_property(f"{name}: squeeze peak (N)", r["peak"])
+        record_property(f"{name}: settle to 5 % of the peak (s)", r["settle"])
+        record_property(f"{name}: settle to 5 mN (s)", r["settle_abs"])
+        record_property(f"{name}: bar's displacement (m)", r["bar_peak"])
+        record_property(f"{name}: peak torque change per joint (N m, N)", r["torque_peak"].tolist())
+        assert r["bar_peak"] < 1.5e-4
+        assert abs(r["squeeze"][-1]) < 0.05 * r["peak"]
+    assert lqr["peak"] < 0.1 * obj["peak"]
+    assert lqr["settle"] < obj["settle"]
+    assert lqr["settle_abs"] <= obj["settle_abs"] and obj["settle_abs"] > 0.0
+    assert np.all(lqr["torque_peak"] <= obj["torque_peak"]), (lqr["torque_peak"], obj["torque_peak"])
+
+
+def test_soft_weld_bad_input_is_named_in_one_line(point, soft):
+    sim, _, rigid = point
+
+    def one_line(call, *words):
+        with pytest.raises(ValueError) as e:
+            call()
+        msg = str(e.value)
+        assert "\n" not in msg and all(w in msg for w in words), msg
+
+    one_line(lambda: cs.linearize_hold(sim, welds="springy"), "welds", "'rigid' or 'soft'")
+    co = sim.cooperation(0, 1)
+    one_line(lambda: cs.linearize_hold(tuple(sim.robots), q=rigid.q0, points=(co.point_a, co.point_b),
+                                       body_pose=sim.body_state("bar").pose, body_mass=0.3,
+                                       body_inertia=np.eye(3) * 1e-3, welds="soft"), "welds", "Simulation")
+    one_line(lambda: HoldFeedback(rigid, np.zeros((10, 10)), observer_weights=(1.0, 1.0)), "observer_weights")
+    one_line(lambda: HoldFeedback(soft, np.zeros((10, 32)), observer_weights=(np.ones(3), 1.0)),
+             "observer_weights", "shape")
+    one_line(lambda: HoldFeedback(soft.discretize(1e-3), np.zeros((10, 32))), "model", "continuous")
+    one_line(lambda: squeeze_after_push(sim, HoldFeedback(soft, np.zeros((10, 32))), level=-1.0), "level")

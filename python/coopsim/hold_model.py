@@ -46,6 +46,24 @@ this exact constrained-dynamics function (steps h_state, h_torque); HoldModel.fd
 change of its entries when the steps are doubled, relative to each matrix's largest entry (about 4 times
 the error of the central differences). The analytic derivatives of each arm (forward_dynamics_derivatives)
 do not give the closed chain's directly; the reduction is where the differences are taken.
+
+Soft welds (linearize_hold(sim, welds="soft")): the system as the engine simulates it. The state is
+z = [q_free; c - c0; theta; qd_free; v; w] (2m = 2 (n + 6)): both arms' free joints (the jaws held at the
+width, as in the rigid model), the body's centre of mass (m) and its rotation from R0 (rotation vector,
+rad, world axes), their speeds (rad/s, m/s; the body's velocity and angular velocity, world). Each weld is
+grasp.cpp's spring-damper with the simulation's own values: omega = weld_omega_dt / (dt world_every), the
+reduced mass m = A_lin^-1 and inertia i = A_rot^-1 between the body and the arm at the weld's point
+(A = J M^-1 J^T of the arm, M with its jaw, plus the body's 1/mass - S(r) I_w^-1 S(r) and I_w^-1), the
+stiffness omega^2 (m, i) and the damping 2 omega / holders (m, i), re-evaluated at each state as the engine
+does at each step; weld_moment=False leaves the moments out. The welds' rest geometry (the anchors on the
+clamp link and on the body, the body's orientation in the clamp link as grasped) is not exposed by the
+engine: it is read back from the weld wrenches the simulation applies at the point (the stretch that gives
+them, less the damping's part at the present speeds). The outputs are the rigid model's, from the two weld
+wrenches: D = 0 (the torques reach the welds through the arms' motion only), every output determined. The
+point is the equilibrium under u0 nearest the present state (Newton's least-norm steps: the chain's neutral
+directions stay), so zd0 ~ 0. Its modes include the welds' own: for the two SCARAs' held bar the arms
+swing against each other through the welds at 27 Hz, damping ratio 0.13, the squeeze's ring after a step,
+which the rigid model has not.
 """
 from __future__ import annotations
 
@@ -140,7 +158,11 @@ class HoldModel:
     fd_error: the central differences' measured error (relative, see the module); rank: the constraint's
     rank r; jaw_torques (tau_a_jaw, tau_b_jaw): what the jaws held at the point (N); constraint_jacobian
     J_c (6, n): the clamps' relative twist (b's clamp link less a's, at b's weld point; m/s, rad/s) per
-    free joint speed, zero along the manifold (J_c T = 0)."""
+    free joint speed, zero along the manifold (J_c T = 0). welds: "rigid" or "soft" (the module's
+    docstring: the soft model's state is the free joints, the body's pose and their speeds; T selects the
+    joints, q0 the joints at its equilibrium); weld_gains (soft): each weld's ((6, 6) stiffness N/m, N m/rad;
+    (6, 6) damping N s/m, N m s/rad) at the point; body0 (soft): (c0 (3,) m, R0 (3, 3)), what the body's
+    part of z is measured from."""
 
     A: np.ndarray
     B: np.ndarray
@@ -164,6 +186,9 @@ class HoldModel:
     rank: int
     jaw_torques: Tuple[float, float]
     constraint_jacobian: np.ndarray
+    welds: str = "rigid"
+    weld_gains: Optional[tuple] = None
+    body0: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
     def discretize(self, dt: float) -> "HoldModel":
         """The model of one period dt (s) with the torque held (zero-order hold, exact: the matrix
@@ -213,10 +238,20 @@ class HoldModel:
         C, D = self.C, self.D
         return C.T @ Qy @ C + Qz, R + D.T @ Qy @ D, C.T @ Qy @ D
 
-    def state(self, q_a, qd_a, q_b, qd_b) -> np.ndarray:
+    def state(self, q_a, qd_a, q_b, qd_b, body=None) -> np.ndarray:
         """The model's state z (2m,) nearest (least squares through T) to the arms' joint states (each
-        (n_k,), jaws included and ignored)."""
-        return self.z0 + self.state_map @ (self.joint_state(q_a, qd_a, q_b, qd_b) - self.x0)
+        (n_k,), jaws included and ignored). Soft welds: body = (pose (4, 4), velocity (3,) m/s, angular
+        velocity (3,) rad/s) the body's state, world (e.g. sim.body_state(name)'s); None: the body's part
+        of z left at the point's."""
+        z = self.z0 + self.state_map @ (self.joint_state(q_a, qd_a, q_b, qd_b) - self.x0)
+        if self.welds == "soft" and body is not None:
+            pose, v, w = (np.asarray(x, float) for x in body)
+            n, m = len(self.joints[0]) + len(self.joints[1]), self.A.shape[0] // 2
+            c0, R0 = self.body0
+            z[n:n + 3] = pose[:3, 3] - c0
+            z[n + 3:n + 6] = _rotvec(pose[:3, :3] @ R0.T)
+            z[m + n:m + n + 3], z[m + n + 3:] = v, w
+        return z
 
     def joint_state(self, q_a, qd_a, q_b, qd_b) -> np.ndarray:
         """x = [q_free; qd_free] (2n,) of both arms (jaws left out)."""
@@ -428,6 +463,168 @@ class _Chain:
         return np.concatenate(out), (ha, hb)
 
 
+
+def _rotation(v):
+    """The rotation matrix (3, 3) of a rotation vector v (3,) rad (Rodrigues)."""
+    th = float(np.linalg.norm(v))
+    K = _skew(v)
+    if th < 1e-8:
+        return np.eye(3) + K + 0.5 * K @ K
+    return np.eye(3) + np.sin(th) / th * K + (1.0 - np.cos(th)) / th ** 2 * K @ K
+
+
+class _SoftChain:
+    """The two arms, the body as a free body and each weld the engine's spring-damper (grasp.cpp, welds()):
+    at the weld's point, with the reduced mass m = A_lin^-1, A_lin = 1/mass - S(r) I_w^-1 S(r) + (J M^-1 J^T)_lin
+    and inertia i = A_rot^-1, A_rot = I_w^-1 + (J M^-1 J^T)_rot (J the clamp link's Jacobian at the weld's
+    point, M the arm's mass matrix, jaw included; r from the body's centre to the weld's point; I_w the
+    body's inertia in world axes), force m (omega^2 e_p + 2 omega / holders e_v) and moment
+    i (omega^2 e_r + 2 omega / holders e_w) on the body, opposite on the clamp link (omega = weld_omega_dt / h,
+    h the world step; e the clamp's target less the body's: position, rotation vector, velocities). The
+    stiffness and damping are re-evaluated at each state, as the engine does at each world step. The welds'
+    rest geometry (the anchors and the body's pose in the clamp link as grasped) is read back from the weld
+    wrenches the simulation applies at the point: the stretch is what gives them."""
+
+    def __init__(self, robots, q, qd, body_pose, body_twist, mass, inertia, gravity, points, welds, omega,
+                 holders, moment):
+        self.r = robots
+        self.q0 = [np.array(x, float) for x in q]
+        self.jaw = [r.clamp.moving_joint - 1 for r in robots]
+        self.link = [r.clamp.fixed_link for r in robots]
+        self.free = [np.array([j for j in range(r.dof) if j != jw]) for r, jw in zip(robots, self.jaw)]
+        self.na = len(self.free[0])
+        self.n = self.na + len(self.free[1])
+        self.mass, self.I_body = float(mass), np.asarray(inertia, float)
+        self.g = np.asarray(gravity, float)
+        self.up = -self.g / np.linalg.norm(self.g)
+        self.omega, self.holders, self.moment = float(omega), float(holders), bool(moment)
+        pose = np.asarray(body_pose, float)
+        self.c0, self.R0 = pose[:3, 3].copy(), pose[:3, :3].copy()
+        v, w = (np.asarray(x, float) for x in body_twist)
+        self.anchor_link, self.anchor_body, self.weld_R = [], [], []
+        for k in (0, 1):
+            r, qk, qdk, l = robots[k], self.q0[k], np.asarray(qd[k], float), self.link[k]
+            T = r.frames(qk)[l]
+            p_body = np.asarray(points[k], float)
+            rr = p_body - self.c0
+            h = np.asarray(welds[k], float)
+            cdamp = 2.0 * omega / holders
+            p_target = p_body
+            for _ in range(3):   # the Jacobian at the target, which the stretch moves by micrometres
+                J = r.jacobian(qk, l, np.linalg.solve(T, np.r_[p_target, 1.0])[:3])
+                mk, ik = self._gains(r, qk, J, rr, self.R0)
+                # the stretch that gives the weld's wrench now: h = m (w^2 e_p + c e_v), c = 2 w / holders
+                e_v = J[:3] @ qdk - (v + np.cross(w, rr))
+                e_w = J[3:] @ qdk - w
+                e_p = (np.linalg.solve(mk, h[:3]) - cdamp * e_v) / omega ** 2
+                p_target = p_body + e_p
+            e_r = (np.linalg.solve(ik, h[3:]) - cdamp * e_w) / omega ** 2 if moment else np.zeros(3)
+            self.anchor_link.append(np.linalg.solve(T, np.r_[p_target, 1.0])[:3])
+            self.anchor_body.append(self.R0.T @ (p_body - self.c0))
+            self.weld_R.append(T[:3, :3].T @ _rotation(e_r) @ self.R0)   # the body in the clamp link, as grasped
+        self.qfree0 = np.concatenate([self.q0[0][self.free[0]], self.q0[1][self.free[1]]])
+        self.m = self.n + 6
+
+    def _gains(self, r, q, J, rr, R):
+        M = r.mass_matrix(q)
+        A_robot = J @ np.linalg.solve(M, J.T)
+        I_inv = R @ np.linalg.inv(self.I_body) @ R.T
+        S = _skew(rr)
+        A_lin = np.eye(3) / self.mass - S @ I_inv @ S + A_robot[:3, :3]
+        A_rot = I_inv + A_robot[3:, 3:]
+        return np.linalg.inv(A_lin), np.linalg.inv(A_rot)
+
+    def weld_wrenches(self, qs, qds, c, R, v, w):
+        """Each weld's wrench on the body (force N at the body's weld point, moment N m; world), the body's
+        weld points, and the clamp links' Jacobians at the welds' targets (6, dof)."""
+        out, pts, Js = [], [], []
+        cdamp = 2.0 * self.omega / self.holders
+        for k in (0, 1):
+            r, q, qd, l = self.r[k], qs[k], qds[k], self.link[k]
+            T = r.frames(q)[l]
+            J = r.jacobian(q, l, self.anchor_link[k])
+            p_target = (T @ np.r_[self.anchor_link[k], 1.0])[:3]
+            p_body = c + R @ self.anchor_body[k]
+            rr = p_body - c
+            mk, ik = self._gains(r, q, J, rr, R)
+            e_p = p_target - p_body
+            e_r = _rotvec(T[:3, :3] @ self.weld_R[k] @ R.T)
+            tw = J @ qd
+            e_v = tw[:3] - (v + np.cross(w, rr))
+            e_w = tw[3:] - w
+            f = mk @ (self.omega ** 2 * e_p + cdamp * e_v)
+            mu = ik @ (self.omega ** 2 * e_r + cdamp * e_w) if self.moment else np.zeros(3)
+            out.append(np.r_[f, mu])
+            pts.append(p_body)
+            Js.append(J)
+        return out, pts, Js
+
+    def weld_gains(self):
+        """Each weld's stiffness and damping at the point, ((6, 6), (6, 6)): force and moment on the body per
+        stretch [e_p; e_r] (N/m, N m/rad) and per stretch rate [e_v; e_w] (N s/m, N m s/rad)."""
+        out = []
+        for k in (0, 1):
+            r, q, l = self.r[k], self.q0[k], self.link[k]
+            J = r.jacobian(q, l, self.anchor_link[k])
+            mk, ik = self._gains(r, q, J, self.R0 @ self.anchor_body[k], self.R0)
+            K, Cd = np.zeros((6, 6)), np.zeros((6, 6))
+            K[:3, :3], Cd[:3, :3] = self.omega ** 2 * mk, 2.0 * self.omega / self.holders * mk
+            if self.moment:
+                K[3:, 3:], Cd[3:, 3:] = self.omega ** 2 * ik, 2.0 * self.omega / self.holders * ik
+            out.append((K, Cd))
+        return tuple(out)
+
+    def equilibrium(self, u, h):
+        """z (2m,) at rest under the torques u nearest the present configuration: Newton's steps on the
+        accelerations (the least-norm step: the chain's neutral directions, e.g. the body's horizontal
+        position, stay where they are), with the stiffness's Jacobian by central differences (step h)."""
+        m = self.m
+        z = np.r_[self.qfree0, np.zeros(6), np.zeros(m)]
+        J = np.zeros((m, m))
+        for j in range(m):
+            e = np.zeros(2 * m)
+            e[j] = h
+            J[:, j] = (self.evaluate(z + e, u)[0][m:] - self.evaluate(z - e, u)[0][m:]) / (2 * h)
+        for _ in range(6):
+            acc = self.evaluate(z, u)[0][m:]
+            z[:m] -= np.linalg.lstsq(J, acc, rcond=1e-9)[0]
+        return z
+
+    def split(self, qf):
+        return _Chain.split(self, qf)
+
+    def split_speed(self, qdf):
+        return _Chain.split_speed(self, qdf)
+
+    def evaluate(self, z, u, lam_shift=None):
+        """(zd (2m,), y (q,), the weld wrenches (12,), no indeterminate part) at z = [q_free; c - c0;
+        rotation vector of R R0^T; qd_free; v; w] (2m,), u (n,) the free joints' torques."""
+        n, m = self.n, self.m
+        qs = self.split(z[:n])
+        qds = self.split_speed(z[m:m + n])
+        c = self.c0 + z[n:n + 3]
+        R = _rotation(z[n + 3:n + 6]) @ self.R0
+        v, w = z[m + n:m + n + 3], z[m + n + 3:]
+        hs, pts, Js = self.weld_wrenches(qs, qds, c, R, v, w)
+        qdd = []
+        for k in (0, 1):
+            r, f = self.r[k], self.free[k]
+            tau = np.full(r.dof, 0.0)
+            tau[f] = u[:self.na] if k == 0 else u[self.na:]
+            rhs = tau - r.inverse_dynamics(qs[k], qds[k], np.zeros(r.dof)) - Js[k].T @ hs[k]
+            Mf = r.mass_matrix(qs[k])[np.ix_(f, f)]       # the jaw held at its width
+            qdd.append(np.linalg.solve(Mf, rhs[f]))
+        F = self.mass * self.g + hs[0][:3] + hs[1][:3]
+        Iw = R @ self.I_body @ R.T
+        Mom = hs[0][3:] + hs[1][3:] + np.cross(pts[0] - c, hs[0][:3]) + np.cross(pts[1] - c, hs[1][:3])
+        vd = F / self.mass
+        wd = np.linalg.solve(Iw, Mom - np.cross(w, Iw @ w))
+        zd = np.r_[z[m:], qdd[0], qdd[1], vd, wd]
+        ha, hb = hs
+        y = _Chain.outputs(self, c, R, pts, ha, hb)
+        return zd, y, np.r_[ha, hb], np.zeros((12, 0))
+
+
 def _holding(sim, a, b):
     """(robots, q, points, body pose, mass, inertia, gravity, jaw torques) of a Simulation's robots a and b
     holding one body now; ValueError naming what is wrong otherwise."""
@@ -456,10 +653,26 @@ def _holding(sim, a, b):
     return (sim.robots[a], sim.robots[b]), q, points, pose, spec["mass"], inertia, sim.world.gravity, jaws
 
 
+def _soft_chain(sim, a, b, robots, q, points, body_pose, body_mass, body_inertia, gravity):
+    """The soft-weld chain of a Simulation's robots a and b at the present state: the welds' gains from the
+    simulation's options (weld_omega_dt, the world step dt * world_every, weld_moment), their rest geometry
+    from the weld wrenches it applies now (sim.weld_wrench) and the state's speeds."""
+    opts = sim.options
+    h = opts["dt"] * opts["world_every"]
+    g = opts["grasp_options"]
+    name = sim.holding(a)
+    st = sim.body_state(name)
+    holders = sum(1 for i in range(sim.robot_count) if sim.holding(i) == name)
+    qd = (np.asarray(sim.state(a)[1]), np.asarray(sim.state(b)[1]))
+    return _SoftChain(robots, q, qd, body_pose, (st.velocity, st.angular_velocity), body_mass, body_inertia,
+                      gravity, points, (sim.weld_wrench(a), sim.weld_wrench(b)), g["weld_omega_dt"] / h, holders,
+                      g["weld_moment"])
+
+
 def linearize_hold(source, a: int = 0, b: int = 1, *, q=None, points=None, body_pose=None,
                    body_mass: Optional[float] = None, body_inertia=None, gravity=None, tau=None,
-                   jaw_torques=(0.0, 0.0), dt: Optional[float] = None, h_state: float = 1e-6,
-                   h_torque: float = 1e-4) -> HoldModel:
+                   jaw_torques=(0.0, 0.0), dt: Optional[float] = None, h_state: Optional[float] = None,
+                   h_torque: float = 1e-4, welds: str = "rigid") -> HoldModel:
     """The linear model of two robots welded to one rigid body, on the closed chain's constraint manifold
     (the module's docstring: coordinates, the weld wrenches' indeterminate part, outputs): a HoldModel.
 
@@ -472,12 +685,22 @@ def linearize_hold(source, a: int = 0, b: int = 1, *, q=None, points=None, body_
     or (p,) the free joints'; default: those holding the body at rest with no internal wrench (each arm's
     gravity torque plus J^T of its weld's share as held_body.hpp's metric shares the weight: the lever
     rule along the line between the welds). The point's speeds are zero. dt (s): the model discretized
-    over dt with the torque held (HoldModel.discretize); None: continuous. h_state (rad, m, per s),
-    h_torque (N m, N): the central differences' steps.
+    over dt with the torque held (HoldModel.discretize); None: continuous. h_state (rad, m, per s; default
+    1e-6 rigid, 1e-8 soft), h_torque (N m, N): the central differences' steps. welds: "rigid" (the closed
+    chain on its constraint manifold) or "soft" (the arms, the body as a free body and each weld the
+    engine's spring-damper with the simulation's gains, at the equilibrium under tau nearest the present
+    state; the source must be a Simulation: the module's docstring). The soft model's HoldModel has
+    welds="soft", weld_gains (each weld's stiffness and damping (6, 6) at the point) and body0 (c0, R0).
     """
-    h_state = _checks.positive(h_state, "h_state")
+    h_state = (1e-8 if welds == "soft" else 1e-6) if h_state is None else _checks.positive(h_state, "h_state")
     h_torque = _checks.positive(h_torque, "h_torque")
-    if hasattr(source, "holding") and hasattr(source, "cooperation"):
+    if welds not in ("rigid", "soft"):
+        raise ValueError(f"welds must be 'rigid' or 'soft', got {welds!r}")
+    is_sim = hasattr(source, "holding") and hasattr(source, "cooperation")
+    if welds == "soft" and not is_sim:
+        raise ValueError("welds: 'soft' needs a coopsim.Simulation as the source (the welds' rest geometry, "
+                         "stiffness and damping are the simulation's)")
+    if is_sim:
         robots, q, points, body_pose, body_mass, body_inertia, gravity, jaws = _holding(source, a, b)
     else:
         try:
@@ -518,7 +741,12 @@ def linearize_hold(source, a: int = 0, b: int = 1, *, q=None, points=None, body_
                              f"the clamps do not hold the body there")
     ch = _Chain(robots, q, points, body_pose, body_mass, body_inertia, gravity)
     u0 = _torques(ch, tau)
-    z0 = np.r_[ch.qfree0[ch.ind], np.zeros(ch.m)]
+    rigid = ch
+    if welds == "soft":
+        ch = _soft_chain(source, a, b, robots, q, points, body_pose, body_mass, body_inertia, gravity)
+        z0 = ch.equilibrium(u0, h_state)
+    else:
+        z0 = np.r_[ch.qfree0[ch.ind], np.zeros(ch.m)]
     zd0, y0, lam0, null = ch.evaluate(z0, u0)
 
     def jac(hz, hu):
@@ -551,6 +779,25 @@ def linearize_hold(source, a: int = 0, b: int = 1, *, q=None, points=None, body_
         _, ym, _, _ = ch.evaluate(z0, u0, lam_shift=-scale * v)
         det &= np.abs(yp - ym) <= 2e-3 * scale   # moved by under 1e-3 of the indeterminate part's size
     names = [f"a.q{j + 1}" for j in ch.free[0]] + [f"b.q{j + 1}" for j in ch.free[1]]
+    inputs = [n.replace(".q", ".tau") for n in names]
+    common = dict(A=Jz[:s], B=Ju[:s], C=Jz[s:], D=Ju[s:], z0=z0, u0=u0, y0=y0, zd0=zd0, dt=0.0,
+                  outputs=list(_OUTPUTS), units=list(_UNITS), q0=(ch.q0[0].copy(), ch.q0[1].copy()),
+                  joints=(ch.free[0].copy(), ch.free[1].copy()), fd_error=float(fd_error), rank=rigid.rank,
+                  jaw_torques=(float(jaws[0]), float(jaws[1])),
+                  constraint_jacobian=rigid.constraint_jacobian(rigid.qfree0))
+    if welds == "soft":
+        common["q0"] = tuple(x.copy() for x in ch.split(z0[:ch.n]))   # the joints at the equilibrium
+        body = ["body.x", "body.y", "body.z", "body.rx", "body.ry", "body.rz"]
+        speeds = [n.replace(".q", ".qd") for n in names] + ["body.vx", "body.vy", "body.vz", "body.wx", "body.wy",
+                                                            "body.wz"]
+        # the tangent map selects the joints: [dq_free; dqd_free] = T (z - z0)
+        T = np.zeros((2 * ch.n, 2 * ch.m))
+        T[:ch.n, :ch.n] = np.eye(ch.n)
+        T[ch.n:, ch.m:ch.m + ch.n] = np.eye(ch.n)
+        model = HoldModel(**common, states=names + body + speeds, inputs=inputs, determined=det,
+                          independent=[(0, int(j)) for j in ch.free[0]] + [(1, int(j)) for j in ch.free[1]], T=T,
+                          welds="soft", weld_gains=ch.weld_gains(), body0=(ch.c0.copy(), ch.R0.copy()))
+        return model if dt is None else model.discretize(dt)
     ind_names = [names[j] for j in ch.ind]
     # the tangent map: [dq_free; dqd_free] = T dz at the point
     N0 = ch.null_map(ch.constraint_jacobian(ch.qfree0))
@@ -558,13 +805,9 @@ def linearize_hold(source, a: int = 0, b: int = 1, *, q=None, points=None, body_
     T[:ch.n, :ch.m] = N0
     T[ch.n:, ch.m:] = N0
     model = HoldModel(
-        A=Jz[:s], B=Ju[:s], C=Jz[s:], D=Ju[s:], z0=z0, u0=u0, y0=y0, zd0=zd0, dt=0.0,
-        states=ind_names + [n.replace(".q", ".qd") for n in ind_names], inputs=[n.replace(".q", ".tau") for n in names],
-        outputs=list(_OUTPUTS), units=list(_UNITS), determined=det, q0=(ch.q0[0].copy(), ch.q0[1].copy()),
-        joints=(ch.free[0].copy(), ch.free[1].copy()),
+        **common, states=ind_names + [n.replace(".q", ".qd") for n in ind_names], inputs=inputs, determined=det,
         independent=[(0, int(ch.free[0][j])) if j < ch.na else (1, int(ch.free[1][j - ch.na])) for j in ch.ind],
-        T=T, fd_error=float(fd_error), rank=ch.rank, jaw_torques=(float(jaws[0]), float(jaws[1])),
-        constraint_jacobian=ch.constraint_jacobian(ch.qfree0))
+        T=T)
     return model if dt is None else model.discretize(dt)
 
 
@@ -592,16 +835,24 @@ class HoldFeedback(CooperativeController):
     relative twist, which the rigid model holds at zero (so it changes neither the model nor the LQR's
     design) and the engine's soft welds do not: it damps the welds' own modes. Its work per update is one
     (p x 2n) product in numpy (the law's cross-arm gain needs both arms' states: no per-robot
-    StateFeedback carries it)."""
+    StateFeedback carries it).
 
-    def __init__(self, model: HoldModel, K, *, constraint_damping=0.0):
+    A soft-weld model (linearize_hold(..., welds="soft")): K (p, 2m) on its whole state, the body's part
+    estimated, not measured: a steady-state Kalman filter on the model discretized at the law's period
+    (set at reset) with both arms' joint states as the measurements, x_k = A x_k-1 + B du_k-1 + L (meas -
+    T (A x_k-1 + B du_k-1)), then du = -K x_k. observer_weights = (W, V): the process noise's weights on the
+    state (2m,) or (2m, 2m) and the measurements' (2n,) or (2n, 2n); default 1e-6 on the positions and 1 on
+    the speeds (the unknown forces enter there), 1e-6 on the measurements. The model must be continuous."""
+
+    def __init__(self, model: HoldModel, K, *, constraint_damping=0.0, observer_weights=None):
         super().__init__()
         self.model = model
         K = np.asarray(K, float)
         if K.shape != (model.B.shape[1], model.A.shape[0]):
             raise ValueError(f"K must have shape {(model.B.shape[1], model.A.shape[0])}, got {K.shape}")
+        if model.dt != 0.0:
+            raise ValueError(f"model must be the continuous model (dt = 0), got dt = {model.dt:g} s")
         self.K = K
-        self._Kx = K @ model.state_map         # on [q_free; qd_free] - x0 of both arms
         c = np.broadcast_to(np.asarray(constraint_damping, float), (6,)) if np.ndim(constraint_damping) <= 1 \
             else np.asarray(constraint_damping, float)
         if c.shape != (6,) or not np.all(np.isfinite(c)) or np.any(c < 0):
@@ -609,17 +860,64 @@ class HoldFeedback(CooperativeController):
         self.constraint_damping = c
         Jc = model.constraint_jacobian
         n = Jc.shape[1]
-        self._Kx[:, n:] += Jc.T @ (c[:, None] * Jc)   # the damper between the clamps: zero on the manifold
+        self._Jdamp = Jc.T @ (c[:, None] * Jc)   # the damper between the clamps: zero on the manifold
         self._x0 = model.x0
         fa, fb = model.joints
         self._fa, self._fb = fa, fb
         self._na = len(fa)
+        self._n = n
         self._ta, self._tb = model.torques(model.u0)
+        self.soft = model.welds == "soft"
+        if self.soft:
+            s = model.A.shape[0]
+            # default: the unknown forces enter the speeds (1 per (rad/s)^2, (m/s)^2), the positions follow;
+            # the joints' measurements trusted (1e-6)
+            W = np.r_[np.full(s // 2, 1e-6), np.ones(s // 2)] if observer_weights is None \
+                else np.asarray(observer_weights[0], float)
+            V = np.full(2 * n, 1e-6) if observer_weights is None else np.asarray(observer_weights[1], float)
+            W = np.diag(np.broadcast_to(W, (s,))) if W.ndim == 0 or W.shape == (s,) else W
+            V = np.diag(np.broadcast_to(V, (2 * n,))) if V.ndim == 0 or V.shape == (2 * n,) else V
+            if W.shape != (s, s) or V.shape != (2 * n, 2 * n):
+                raise ValueError(f"observer_weights must be (W ({s},) or ({s}, {s}), V ({2 * n},) or "
+                                 f"({2 * n}, {2 * n})), got shapes {W.shape}, {V.shape}")
+            self._W, self._V = W, V
+        elif observer_weights is not None:
+            raise ValueError("observer_weights: only a model with welds='soft' has an observer")
+        else:
+            self._Kx = K @ model.state_map + np.hstack([np.zeros((len(K), n)), self._Jdamp])
+        self._period = None
+
+    def reset(self, robots, period):
+        """The observer (soft welds) designed at the law's period (s): the model discretized over it, the
+        joints' states measured; a steady-state Kalman filter's gain L (scipy.linalg.solve_discrete_are)."""
+        if not self.soft:
+            return
+        import scipy.linalg as sl
+        d = self.model.discretize(period)
+        Cm = self.model.T
+        P = sl.solve_discrete_are(d.A.T, Cm.T, self._W, self._V)
+        self._L = P @ Cm.T @ np.linalg.inv(Cm @ P @ Cm.T + self._V)
+        self._d = d
+        self._zhat = None
+        self._du = np.zeros(len(self.K))
+        self._period = period
 
     def compute(self, t, members):
         qa, qb = members[0].q, members[1].q
         x = np.concatenate([qa[self._fa], qb[self._fb], members[0].qd[self._fa], members[1].qd[self._fb]])
-        du = -self._Kx @ (x - self._x0)
+        dx = x - self._x0
+        if self.soft:
+            d, Cm = self._d, self.model.T
+            if self._zhat is None:
+                dz = np.linalg.pinv(Cm) @ dx      # the body's part at the point's (the welds relaxed)
+            else:
+                dz = d.A @ self._zhat + d.B @ self._du + d.zd0 * d.dt   # the prediction over the period
+                dz = dz + self._L @ (dx - Cm @ dz)
+            self._zhat = dz
+            du = -self.K @ dz - self._Jdamp @ dx[self._n:]
+            self._du = du
+        else:
+            du = -self._Kx @ dx
         ta, tb = self._ta.copy(), self._tb.copy()
         ta[self._fa] += du[:self._na]
         tb[self._fb] += du[self._na:]
@@ -671,13 +969,14 @@ def held_bar(*, control_every: int = 5, dt: float = 2e-4, log_every: int = 5, ba
 
 
 def squeeze_after_push(sim, law, *, force: float = 1.0, duration: float = 0.1, before: float = 0.5,
-                       after: float = 0.5, a: int = 0, b: int = 1, band: float = 0.05) -> dict:
+                       after: float = 0.5, a: int = 0, b: int = 1, band: float = 0.05, level: float = 0.05) -> dict:
     """Pushes the body robots a and b hold (sim: both hold it, e.g. held_bar()) under a cooperative law:
     the law takes over (sim.add_cooperative(law, [a, b])) and holds it for `before` s, then `force` N,
     horizontal, across the line between the welds, pushes the body's centre for `duration` s; the run goes
     on `after` s past the push. Returns a dict: t (s from the push's start), squeeze (N) per log row,
     peak (N, largest |squeeze| from the push on), settle (s after the push's end, when |squeeze| is last
-    above band * peak, 0 if never), settle_abs (the same for 0.05 N), torque_peak (both arms' largest
+    above band * peak, 0 if never), settle_abs (the same for `level` N, 0.05 N unless given: one band for
+    laws whose peaks differ), torque_peak (both arms' largest
     change of each free joint's torque from the push on against just before it, N m, N; (p,)),
     bar_peak (m, the body's largest displacement from where it was at the push)."""
     force = _checks.number(force, "force", unit="N")
@@ -685,6 +984,7 @@ def squeeze_after_push(sim, law, *, force: float = 1.0, duration: float = 0.1, b
     before = _checks.positive(before, "before", unit="s")
     after = _checks.positive(after, "after", unit="s")
     band = _checks.number(band, "band", 0.0, 1.0)
+    level = _checks.positive(level, "level", unit="N")
     name = sim.holding(a)
     co = sim.cooperation(min(a, b), max(a, b))
     if name is None or not co.holding:
@@ -720,5 +1020,5 @@ def squeeze_after_push(sim, law, *, force: float = 1.0, duration: float = 0.1, b
         taus.append(np.abs(tau[k] - pre).max(axis=0))
     p = np.asarray(log.bodies[name].position)[k]
     bar_peak = float(np.linalg.norm(p - start, axis=1).max())
-    return dict(t=tt, squeeze=sq, peak=peak, settle=settle(band * peak), settle_abs=settle(0.05),
+    return dict(t=tt, squeeze=sq, peak=peak, settle=settle(band * peak), settle_abs=settle(level),
                 torque_peak=np.concatenate(taus), bar_peak=bar_peak)
