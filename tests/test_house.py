@@ -127,10 +127,11 @@ def test_the_package_imports_without_cycles():
 
 
 #: modules a function may import where it needs them: their import is heavy (matplotlib, pandas, the
-#: standard library's importlib.metadata, ...) or optional (dask's distributed), and ``import coopsim``
+#: standard library's importlib.metadata, ...) or optional (dask's distributed; SciPy, for the held bar's
+#: observer), and ``import coopsim``
 #: loads none of them
 LOCAL_IMPORTS = {"matplotlib", "mpl_toolkits", "pandas", "PIL", "imageio_ffmpeg", "tqdm", "xlsxwriter", "distributed",
-                 "importlib.metadata", "viser", "rich", "IPython", "trimesh", "mujoco"}
+                 "importlib.metadata", "viser", "rich", "IPython", "trimesh", "mujoco", "scipy"}
 
 
 def _heavy(name: str) -> bool:
