@@ -65,6 +65,7 @@ WRONG = {
     "lab08-ex5-answer": ("r.mass_matrix(q0) * kp", "np.eye(n) * kp"),            # the inertia forgotten
     "lab08-ex6-answer": ("np.abs(z_cl).max()", "np.abs(z_cl).min()"),            # the fastest mode, not the slowest
     "lab08-ex7-answer": ("share_pred = dy[k_share]", "share_pred = -du[2] / (0.3 * 9.81)"),  # the bar's weight alone
+    "lab08-ex8-answer": ("min(eig_soft[", "max(eig_soft["),                   # the fastest pair, not the welds' ring
 }
 TAMPER = "assert True  # the check, rewritten by the student"
 

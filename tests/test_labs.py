@@ -325,6 +325,8 @@ WRONG = [
     ("08_linear_models_and_lqr", "lab08-ex2-answer", "Ad = np.linalg.matrix_power(T, steps)", "Ad = T"),  # one step
     ("08_linear_models_and_lqr", "lab08-ex4-answer", "dq_ok, dqd_ok = 0.022, 3.0",
      "dq_ok, dqd_ok = 0.01, 3.0"),  # Bryson's rule with 1 cm: too stiff, the first joints saturate
+    ("08_linear_models_and_lqr", "lab08-ex8-answer", "ring_hz_pred = ring.imag / (2 * np.pi)",
+     "ring_hz_pred = ring.imag"),  # rad/s taken for Hz
 ]
 
 
