@@ -123,6 +123,30 @@ PERTURBATIONS = {"a.tau1 0.02 N m": (0, 0.02), "a.tau3 0.5 N": (2, 0.5), "b.tau2
                  "b.tau4 0.5 N": (8, 0.5)}
 
 
+def step_of(name):
+    """The torque step (10,) of PERTURBATIONS[name]."""
+    j, size = PERTURBATIONS[name]
+    du = np.zeros(10)
+    du[j] = size
+    return du
+
+
+def simulated_change(du, times):
+    """(y(+du) - y(-du)) / 2 of the simulated hold (len(times), 8): the settled hold, its torques stepped by +-du
+    (open loop), the outputs read at each of `times` (s) after the step, the bar's rotation about its first pose."""
+    runs, R0 = [], None
+    for sign in (1, -1):
+        sim, m = settled()
+        R0 = sim.body_state("bar").pose[:3, :3] if R0 is None else R0
+        open_loop(sim, m, sign * du)
+        t0, ys = sim.time, []
+        for t in times:
+            sim.run(t0 + t, progress=False)
+            ys.append(outputs(sim, R0))
+        runs.append(np.array(ys))
+    return (runs[0] - runs[1]) / 2
+
+
 @pytest.mark.parametrize("name", PERTURBATIONS)
 def test_the_model_against_finite_differences_of_the_simulated_hold(point, name, record_property):
     """The held bar at rest under the model's torques, one torque stepped by +-du and held (open loop): the
@@ -135,22 +159,8 @@ def test_the_model_against_finite_differences_of_the_simulated_hold(point, name,
     about 25 Hz after a step, lightly damped (its 80-160 ms tail still shows in the squeeze, hence the
     average over that window and not one instant); the rigid model has neither."""
     _, m0, _ = point
-    j, size = PERTURBATIONS[name]
-    du = np.zeros(10)
-    du[j] = size
-    times = np.arange(0.08, 0.161, 0.01)
-    runs = []
-    R0 = None
-    for sign in (1, -1):
-        sim, m = settled()
-        R0 = sim.body_state("bar").pose[:3, :3] if R0 is None else R0
-        open_loop(sim, m, sign * du)
-        t0, ys = sim.time, []
-        for t in times:
-            sim.run(t0 + t, progress=False)
-            ys.append(outputs(sim, R0))
-        runs.append(np.array(ys))
-    got = ((runs[0] - runs[1]) / 2).mean(axis=0)
+    du, times = step_of(name), np.arange(0.08, 0.161, 0.01)
+    got = simulated_change(du, times).mean(axis=0)
     idx = [0, 1, 2, 3, 4, 5, 6, 14]
     want = np.mean([(m0.C @ m0.discretize(t).B @ du + m0.D @ du)[idx] for t in times], axis=0)
     err = np.abs(got - want)
@@ -383,22 +393,8 @@ def test_the_soft_model_rings_as_the_simulated_hold_does(point, soft, name, reco
     Tolerance: 8 % of the largest change of each kind plus a floor (0.5 um, 5 urad, 1 mN, 0.002). The rigid
     model misses the squeeze's ring by more than 30 % of its peak over the same window."""
     sim0, _, rigid = point
-    j, size = PERTURBATIONS[name]
-    du = np.zeros(10)
-    du[j] = size
-    times = np.arange(0.001, 0.0505, 0.001)
-    runs = []
-    R0 = None
-    for sign in (1, -1):
-        sim, m = settled()
-        R0 = sim.body_state("bar").pose[:3, :3] if R0 is None else R0
-        open_loop(sim, m, sign * du)
-        t0, ys = sim.time, []
-        for t in times:
-            sim.run(t0 + t, progress=False)
-            ys.append(outputs(sim, R0))
-        runs.append(np.array(ys))
-    got = (runs[0] - runs[1]) / 2
+    du, times = step_of(name), np.arange(0.001, 0.0505, 0.001)
+    got = simulated_change(du, times)
     idx = [0, 1, 2, 3, 4, 5, 6, 14]
     want = np.array([(soft.C @ soft.discretize(t).B @ du)[idx] for t in times])
     err = np.abs(got - want)

@@ -49,10 +49,12 @@ def _rotvec(R):
     return th / (2.0 * np.sin(th)) * w
 
 
-class _Chain:
-    """The rigid closed chain of two arms and one body at an operating point (see the module)."""
+class _Arms:
+    """What both chains hold of the two arms and the body: the robots, their joints at the point, each jaw's
+    and clamp link's index, the free joints (all but the jaw, held at the grasp width), the body's mass and
+    inertia, gravity and the vertical."""
 
-    def __init__(self, robots, q, points, body_pose, mass, inertia, gravity):
+    def _arms(self, robots, q, mass, inertia, gravity):
         self.r = robots
         self.q0 = [np.array(x, float) for x in q]
         self.jaw = [r.clamp.moving_joint - 1 for r in robots]
@@ -63,6 +65,13 @@ class _Chain:
         self.mass, self.I_body = float(mass), np.asarray(inertia, float)
         self.g = np.asarray(gravity, float)
         self.up = -self.g / np.linalg.norm(self.g)
+
+
+class _Chain(_Arms):
+    """The rigid closed chain of two arms and one body at an operating point (see the module)."""
+
+    def __init__(self, robots, q, points, body_pose, mass, inertia, gravity):
+        self._arms(robots, q, mass, inertia, gravity)
         Ta, Tb = (robots[k].frames(self.q0[k])[self.link[k]] for k in (0, 1))
         self.P = [np.linalg.solve(T, np.r_[p, 1.0])[:3] for T, p in zip((Ta, Tb), points)]  # weld points, link frames
         self.X = np.linalg.solve(Ta, body_pose)        # the body in a's clamp link
@@ -239,7 +248,7 @@ def _rotation(v):
     return np.eye(3) + np.sin(th) / th * K + (1.0 - np.cos(th)) / th ** 2 * K @ K
 
 
-class _SoftChain:
+class _SoftChain(_Arms):
     """The two arms, the body as a free body and each weld the engine's spring-damper (grasp.cpp, welds()):
     at the weld's point, with the reduced mass m = A_lin^-1, A_lin = 1/mass - S(r) I_w^-1 S(r) + (J M^-1 J^T)_lin
     and inertia i = A_rot^-1, A_rot = I_w^-1 + (J M^-1 J^T)_rot (J the clamp link's Jacobian at the weld's
@@ -253,16 +262,7 @@ class _SoftChain:
 
     def __init__(self, robots, q, qd, body_pose, body_twist, mass, inertia, gravity, points, welds, omega,
                  holders, moment):
-        self.r = robots
-        self.q0 = [np.array(x, float) for x in q]
-        self.jaw = [r.clamp.moving_joint - 1 for r in robots]
-        self.link = [r.clamp.fixed_link for r in robots]
-        self.free = [np.array([j for j in range(r.dof) if j != jw]) for r, jw in zip(robots, self.jaw)]
-        self.na = len(self.free[0])
-        self.n = self.na + len(self.free[1])
-        self.mass, self.I_body = float(mass), np.asarray(inertia, float)
-        self.g = np.asarray(gravity, float)
-        self.up = -self.g / np.linalg.norm(self.g)
+        self._arms(robots, q, mass, inertia, gravity)
         self.omega, self.holders, self.moment = float(omega), float(holders), bool(moment)
         pose = np.asarray(body_pose, float)
         self.c0, self.R0 = pose[:3, 3].copy(), pose[:3, :3].copy()
