@@ -84,17 +84,22 @@ def test_derivatives_equal_central_differences(robot):
             np.testing.assert_allclose(Minv @ M, np.eye(robot.dof), atol=1e-10)
 
 
-def test_forward_derivatives_are_minus_minv_times_the_inverse_ones_at_the_forward_acceleration():
-    """dqdd/dx = -M^-1 dtau/dx with the inverse dynamics' derivatives taken at qdd = FD(q, qd, tau)."""
-    robot = _with_drives(SCARAS[0], 3)
+def _forward_is_minus_minv_times_inverse(robot, seed, tol):
+    """At three states (of seed) with a wrench at the tool: dqdd/dx = -M^-1 dtau/dx, the inverse dynamics'
+    derivatives taken at qdd = FD(q, qd, tau), and dqdd/dtau = M^-1, each to tol of its largest entry."""
     f_ext = np.array([1.0, 2.0, -1.0, 0.1, 0.0, 0.2])
-    for q, qd, _, tau in _states(robot, 11, 3):
+    for q, qd, _, tau in _states(robot, seed, 3):
         qdd = robot.forward_dynamics(q, qd, tau, f_ext)
         dq, dqd, M = robot.inverse_dynamics_derivatives(q, qd, qdd, f_ext)
         aq, aqd, Minv = robot.forward_dynamics_derivatives(q, qd, tau, f_ext)
-        np.testing.assert_allclose(aq, -np.linalg.solve(M, dq), rtol=0, atol=1e-10 * np.abs(aq).max())
-        np.testing.assert_allclose(aqd, -np.linalg.solve(M, dqd), rtol=0, atol=1e-10 * np.abs(aqd).max())
-        np.testing.assert_allclose(Minv, np.linalg.inv(M), rtol=0, atol=1e-10 * np.abs(Minv).max())
+        np.testing.assert_allclose(aq, -np.linalg.solve(M, dq), rtol=0, atol=tol * np.abs(aq).max())
+        np.testing.assert_allclose(aqd, -np.linalg.solve(M, dqd), rtol=0, atol=tol * np.abs(aqd).max())
+        np.testing.assert_allclose(Minv, np.linalg.inv(M), rtol=0, atol=tol * np.abs(Minv).max())
+
+
+def test_forward_derivatives_are_minus_minv_times_the_inverse_ones_at_the_forward_acceleration():
+    """dqdd/dx = -M^-1 dtau/dx with the inverse dynamics' derivatives taken at qdd = FD(q, qd, tau)."""
+    _forward_is_minus_minv_times_inverse(_with_drives(SCARAS[0], 3), 11, 1e-10)
 
 
 def test_coulomb_derivative_is_the_smooth_models_at_and_away_from_zero_velocity():
@@ -150,15 +155,7 @@ def test_generated_derivatives_equal_the_recursive_ones(which):
 def test_generated_forward_derivatives_are_taken_at_forward_dynamics_acceleration():
     """The generated path takes qdd from forward_dynamics' own computation (the generated dynamics and
     LDL^T): its forward derivatives equal -M^-1 times its inverse ones at that qdd."""
-    robot = _generated_variants("scara2")[2][0]
-    f_ext = np.array([1.0, 2.0, -1.0, 0.1, 0.0, 0.2])
-    for q, qd, _, tau in _states(robot, 5, 3):
-        qdd = robot.forward_dynamics(q, qd, tau, f_ext)
-        dq, dqd, M = robot.inverse_dynamics_derivatives(q, qd, qdd, f_ext)
-        aq, aqd, Minv = robot.forward_dynamics_derivatives(q, qd, tau, f_ext)
-        np.testing.assert_allclose(aq, -np.linalg.solve(M, dq), rtol=0, atol=1e-11 * np.abs(aq).max())
-        np.testing.assert_allclose(aqd, -np.linalg.solve(M, dqd), rtol=0, atol=1e-11 * np.abs(aqd).max())
-        np.testing.assert_allclose(Minv, np.linalg.inv(M), rtol=0, atol=1e-11 * np.abs(Minv).max())
+    _forward_is_minus_minv_times_inverse(_generated_variants("scara2")[2][0], 5, 1e-11)
 
 
 # ---- out= and the arguments read in place ----
