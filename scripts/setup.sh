@@ -31,5 +31,5 @@ echo "setup: building and installing coopsim (incremental build in build/)"
 # the build tools live in this environment rather than in a fresh isolated one
 # per install, so that include paths stay put and re-builds only compile what changed
 "$PY" -m pip install -q "scikit-build-core>=0.10" "pybind11==3.1.0" cmake ninja
-"$PY" -m pip install -q --no-build-isolation ".[test,data,notebooks,teaching,cluster,live]" -Cbuild-dir=build/{wheel_tag}
+"$PY" -m pip install -q --no-build-isolation ".[test,data,notebooks,teaching,cluster,live,gym]" -Cbuild-dir=build/{wheel_tag}
 "$PY" -c "import coopsim, sys; assert coopsim._core.build_optimised, 'coopsim was not built optimised'; print('setup: coopsim', coopsim.__version__, 'ready')"

@@ -1,0 +1,93 @@
+"""What the environments share: the action check, the control period over the engine's steps, RGB frames
+from the matplotlib view."""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+from gymnasium import spaces
+
+#: the engine's step (s): 0.2 ms, 5 kHz
+DT = 2e-4
+#: the bound of the observations' unbounded quantities (m, rad, m/s, rad/s, N, N m): finite, so that
+#: Gymnasium's checks and wrappers see a bounded space; a state beyond it is clipped to it
+BOUND = 1e4
+
+
+def bounded(shape, low: float = -BOUND, high: float = BOUND) -> spaces.Box:
+    """A float64 Box of `shape` within [low, high]."""
+    return spaces.Box(low, high, shape=shape, dtype=np.float64)
+
+
+def clip(x: np.ndarray, low: float = -BOUND, high: float = BOUND) -> np.ndarray:
+    """`x` as float64 within [low, high], NaN as 0 (a run that diverged)."""
+    return np.clip(np.nan_to_num(np.asarray(x, np.float64), nan=0.0), low, high)
+
+
+def control_period(control_rate, dt: float = DT) -> float:
+    """The control period (s) of `control_rate` (Hz, > 0, at most 1 / dt; a whole number of engine steps of
+    `dt` s per period, rounded): ValueError naming control_rate otherwise."""
+    if isinstance(control_rate, bool) or not isinstance(control_rate, (int, float, np.integer, np.floating)):
+        raise ValueError(f"control_rate must be a number of Hz, got {control_rate!r}")
+    rate = float(control_rate)
+    if not np.isfinite(rate) or rate <= 0.0 or rate > 1.0 / dt:
+        raise ValueError(f"control_rate must be a finite number in (0, {1.0 / dt:g}] Hz, got {control_rate!r}")
+    return max(1, int(round(1.0 / (rate * dt)))) * dt
+
+
+def check_action(action, space: spaces.Box, name: str = "action") -> np.ndarray:
+    """`action` as a float64 array of the Box `space`'s shape, or a one-line ValueError naming `name` and what
+    is wrong: not numbers, the wrong shape, NaN or infinite entries, entries outside [low, high]."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of numbers of shape {space.shape}, got {action!r}") from None
+    if a.shape != space.shape:
+        raise ValueError(f"{name} must have shape {space.shape}, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {np.array2string(a, precision=4, separator=', ')}")
+    low, high = space.low.astype(np.float64), space.high.astype(np.float64)
+    # a float32 space's bounds are the float64 ones rounded: allow that rounding
+    tol = 1e-6 * np.maximum(1.0, np.abs(high - low))
+    bad = (a < low - tol) | (a > high + tol)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad.ravel())[0])
+        raise ValueError(f"{name} must lie in its space's bounds: entry {k} is {a.ravel()[k]:.6g}, outside "
+                         f"[{low.ravel()[k]:.6g}, {high.ravel()[k]:.6g}]")
+    return np.clip(a, low, high)
+
+
+def check_render_mode(render_mode: Optional[str], modes) -> Optional[str]:
+    if render_mode is not None and render_mode not in modes:
+        raise ValueError(f"render_mode must be None or one of {', '.join(modes)}, got {render_mode!r}")
+    return render_mode
+
+
+class Frames:
+    """RGB frames (H, W, 3) uint8 of a simulation now through :func:`coopsim.view.draw` (its robots, its world
+    and extra bodies, e.g. a target) on an off-screen Agg figure, whatever matplotlib's backend is."""
+
+    def __init__(self, width: int = 480, height: int = 360, **draw_options):
+        self.size = (int(width), int(height))
+        self.options = draw_options
+        self.fig = None
+
+    def frame(self, sim, bodies=None, label: Optional[str] = None) -> np.ndarray:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        from .. import view
+
+        if self.fig is None:
+            dpi = 100.0
+            self.fig = Figure(figsize=(self.size[0] / dpi, self.size[1] / dpi), dpi=dpi)
+            FigureCanvasAgg(self.fig)
+        self.fig.clear()
+        ax = self.fig.add_subplot(projection="3d")
+        self.fig.subplots_adjust(0, 0, 1, 1)
+        view.draw(ax, sim, bodies=bodies, label=label, **self.options)
+        self.fig.canvas.draw()
+        return np.asarray(self.fig.canvas.buffer_rgba())[:, :, :3].copy()
+
+    def close(self):
+        self.fig = None

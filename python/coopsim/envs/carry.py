@@ -1,0 +1,355 @@
+"""``coopsim/DualCarry-v0``: the dual carry of :mod:`coopsim.tasks.carry` (docs/carry.md) as an environment
+whose actions are the cooperative law's commands.
+
+``reset(seed=)`` draws the start stands by the seed (:func:`~coopsim.tasks.carry.planning.random_start`, so the
+episode of seed s carries what ``tasks.carry.run(seed=s, controllers="object")`` carries), plans the carry, and
+runs its approach and grasp scripted (the carry's own ``_Runner``); the episode starts at the end of the
+grasp with the bar held by both clamps under object-level control (:class:`coopsim.ObjectControl`, the
+carry's ``"object"`` controllers). Each ``step(action)`` sets the law's commands and advances the engine one
+control period (default 50 Hz: 100 engine steps of 0.2 ms, the controllers at 1 kHz, the world at 1 kHz) in
+one call, along the plan's lift, carry and place (3.6 s: 180 steps at 50 Hz).
+
+Action: Box (5,) float64, the cooperative law's commands: the bar's offset from its planned path (3,) m
+(each within +-``max_offset``, 0.02 m; it ramps from the last one over the period: SCARA #1's joint
+reference, which the law reads the bar's reference from, is moved by it through closed-form IK), the
+squeeze (N, compression positive, in [-5, 10]) and SCARA #1's load share (its part of the bar's vertical
+load, [0, 1]). :attr:`DualCarryEnv.scripted_action` ([0, 0, 0, 0, 0.5]) is the scripted carry's. A change of
+squeeze or load share makes a new law with them (its force integral restarts at zero); the same commands
+keep the law running.
+
+Observation: a Dict (``gymnasium.wrappers.FlattenObservation`` flattens it): q, qd (2, 6) of both arms;
+clamp_pose (2, 7): each TCP's position (m) and quaternion [w, x, y, z]; clamp_twist (2, 6): each TCP's
+velocity (m/s) and angular velocity (rad/s); wrench (2, 6): each clamp's force/torque sensor in world axes
+(N, N m, what its end applies to the bar); bar_pose (7,), bar_twist (6,); bar_error (6,): the plan's bar pose
+less the bar's (position m, rotation vector rad); internal (12,): the internal wrench of the hold
+(:meth:`coopsim.Simulation.cooperation`), squeeze (1,) N, load_share (2,); phase (1,): the fraction of the
+held part of the plan gone by. Each within +-1e4 (clipped).
+
+Reward per step, in [0, 1]: each arm i earns task_i * share_i, task_i = exp(-|its TCP - its planned grip|
+/ 1 cm) and share_i = exp(-((its load share - 1/2) / 0.25)^2) (1 while the bar's vertical load is under a
+fifth of its weight: on the stands); the step's reward is the smaller of the two arms' times
+exp(-|internal force| / 5 N), the squeeze and internal-force penalty. One arm carrying the bar, or
+an arm off its grip, earns the episode little.
+
+Terminated: at the end of the place (``info["success"]`` when the bar is within 5 mm and 0.05 rad of its
+planned pose, moving slower than 1 cm/s), or at a failure of the carry's rules (an unexpected contact, a
+clamp letting go, a divergence) with ``info["failure"]`` (its step, time and reason) and reward 0.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .._core import CubicTrajectory, DivergenceError, IKError, World
+from ..simulation import Simulation
+from ..tasks import scene as _handover_scene
+from ..tasks.carry import controllers as _controllers
+from ..tasks.carry import planning as _planning
+from ..tasks.carry import scene as _scene
+from ..tasks.carry.constants import PLACE_TOL, PLACE_TOL_ANGLE, STAND_FRICTION
+from ..tasks.carry.disturbances import disturbances as _disturbances
+from ..tasks.carry.sequence import CarryError, _Runner
+from ._common import DT, Frames, bounded, check_action, check_render_mode, clip, control_period
+
+__all__ = ["DualCarryEnv"]
+
+#: the scripted carry's commands: no offset, no squeeze, half the load each
+SCRIPTED = np.array([0.0, 0.0, 0.0, 0.0, 0.5])
+SQUEEZE_RANGE = (-5.0, 10.0)      # N
+GRIP_SCALE = 0.01                 # m: the task term's scale
+SHARE_SCALE = 0.25                # the load share's scale
+INTERNAL_SCALE = 5.0              # N: the internal force's scale
+#: the simulation's rates (the carry's for the SCARAs): controllers and world every 5 engine steps, a log row
+#: every 5 ms (the carry's checks read the grasp events from it)
+RATES = dict(dt=DT, world_every=5, control_every=5, log_every=25)
+
+
+def _quaternion(R) -> np.ndarray:
+    """[w, x, y, z] of a rotation matrix (w >= 0)."""
+    m = np.asarray(R, float)
+    w = np.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2.0
+    x = np.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2.0
+    y = np.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2.0
+    z = np.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2.0
+    x = np.copysign(x, m[2, 1] - m[1, 2])
+    y = np.copysign(y, m[0, 2] - m[2, 0])
+    z = np.copysign(z, m[1, 0] - m[0, 1])
+    return np.array([w, x, y, z])
+
+
+def _rotation_vector(R) -> np.ndarray:
+    """The rotation vector (3,) rad of a rotation matrix."""
+    c = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(c))
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s = np.sin(angle)
+    return v / 2.0 if s < 1e-9 else v * (angle / (2.0 * s))
+
+
+def _world(start, end, bar_mass: float) -> World:
+    """The carry's world (:func:`coopsim.tasks.carry.scene.world`) with a bar of `bar_mass` kg."""
+    w = World(floor=True, floor_friction=_handover_scene.FLOOR_FRICTION)
+    for name, he, T in _scene.stands(start, end):
+        w.add_static_box(name, he, T, friction=STAND_FRICTION)
+    w.add_free_box(_scene.BAR, _scene.BAR_HALF_EXTENTS, bar_mass, _scene.bar_pose(*start),
+                   friction=_handover_scene.BAR_FRICTION)
+    return w
+
+
+def _positive(x, name: str) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) \
+            or x <= 0:
+        raise ValueError(f"{name} must be a finite number > 0, got {x!r}")
+    return float(x)
+
+
+class DualCarryEnv(gym.Env):
+    """The dual carry with the cooperative law's commands as actions (see the module's documentation).
+
+    control_rate: Hz (default 50). bar_mass: the world's bar (kg, default the carry's 0.15; the controllers'
+    model keeps the planned 0.15: a mass to randomise over; ``reset(options={"bar_mass": m})`` for one
+    episode). max_offset: m, the bound of the offset's action (0.02). render_mode: None or 'rgb_array'
+    (frames of :func:`coopsim.view.draw`)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+
+    def __init__(self, *, control_rate: float = 50.0, bar_mass: Optional[float] = None, max_offset: float = 0.02,
+                 render_mode: Optional[str] = None):
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
+        self.period = control_period(control_rate)
+        self.metadata = dict(self.metadata, render_fps=int(round(1.0 / self.period)))
+        self.bar_mass = _scene.BAR_MASS if bar_mass is None else _positive(bar_mass, "bar_mass")
+        self.max_offset = _positive(max_offset, "max_offset")
+        m = self.max_offset
+        self.action_space = spaces.Box(np.array([-m, -m, -m, SQUEEZE_RANGE[0], 0.0]),
+                                       np.array([m, m, m, SQUEEZE_RANGE[1], 1.0]), dtype=np.float64)
+        self.scripted_action = SCRIPTED.copy()
+        box = lambda *shape: bounded(shape)  # noqa: E731
+        self.observation_space = spaces.Dict(dict(
+            q=box(2, 6), qd=box(2, 6), clamp_pose=box(2, 7), clamp_twist=box(2, 6), wrench=box(2, 6),
+            bar_pose=box(7), bar_twist=box(6), bar_error=box(6), internal=box(12), squeeze=box(1),
+            load_share=box(2), phase=spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float64)))
+        self.runner: Optional[_Runner] = None
+        self.sim: Optional[Simulation] = None
+        self._frames = None
+        self._done = True
+
+    # ---- the episode's start: the carry's approach and grasp, scripted ----
+
+    def _reset_sim(self, seed=None, options=None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"bar_mass"})
+        if unknown:
+            raise ValueError(f"options may hold bar_mass only, got {', '.join(map(repr, unknown))}")
+        mass = self.bar_mass if options.get("bar_mass") is None else _positive(options["bar_mass"], "bar_mass")
+        draw = int(seed) if seed is not None else int(self.np_random.integers(0, 2 ** 31 - 1))
+        start = _planning.random_start(draw)
+        plan = _planning.make_plan(start, _planning.END)
+        dist = _disturbances(None, plan.start[3])
+        factory = _controllers.object_control
+        runner = _Runner(plan, plan.start, dist, factory, **RATES)
+        if mass != _scene.BAR_MASS:        # the same run in a world whose bar weighs `mass`
+            made = factory(plan.robots, plan)
+            sim = Simulation(dt=RATES["dt"], world=_world(plan.start, plan.end, mass), log_every=RATES["log_every"],
+                             world_every=RATES["world_every"], control_every=RATES["control_every"])
+            for r, c, ref in zip(plan.robots, made.free, plan.references):
+                sim.add_robot(r, c, ref)
+            runner.sim, runner.coop = sim, made
+        self.runner, self.sim, self.plan = runner, runner.sim, plan
+        self.episode_bar_mass = mass
+        S = plan.steps
+        self._failure = None
+        try:
+            runner.mark("approach")
+            runner.run_to(S["approach"][1])
+            runner.done()
+            runner.mark("grasp")
+            runner.wait_grasps(S["grasp"][1])
+            runner.group = self.sim.add_cooperative(runner.coop.law, [0, 1])
+            runner.done()
+            runner.mark("lift")
+        except (CarryError, DivergenceError) as e:    # not seen with the planned carry: said in info
+            self._failure = self._failure_info(e)
+        self.t0, self.t_end = self.sim.time, float(S["place"][1])
+        self.k = 0
+        self.commands = SCRIPTED.copy()
+        self._segment_q = None
+        self._ik_failed = False
+        self._done = self._failure is not None
+
+    # ---- one step: apply, advance (here or by the vector environment), read ----
+
+    def _apply(self, action) -> float:
+        """Checks and applies `action` (the law's commands); returns the time (s) to advance to."""
+        a = check_action(action, self.action_space)
+        sim, plan, runner = self.sim, self.plan, self.runner
+        t_next = min(self.t_end, self.t0 + (self.k + 1) * self.period)
+        if abs(t_next - self.t_end) < 1e-9:
+            t_next = self.t_end
+        # the load share and squeeze: a new law when they change
+        if a[3] != self.commands[3] or a[4] != self.commands[4]:
+            sim.remove_cooperative(runner.group)
+            law = _controllers.object_control(plan.robots, plan, squeeze=float(a[3]), load_share=float(a[4])).law
+            runner.group = sim.add_cooperative(law, [0, 1])
+            runner.coop.law = law
+        # the offset: SCARA #1's reference over the period, from where it is to the plan's moved by it
+        off = a[:3]
+        self._ik_failed = False
+        if np.any(off != 0.0) or self._segment_q is not None:
+            robot, ref = plan.robots[0], plan.references[0]
+            q0, qd0, _ = ref.evaluate(sim.time)
+            q1, qd1, _ = ref.evaluate(t_next)
+            pose = robot.fk(q1)
+            pose[:3, 3] += off
+            try:
+                qa = np.asarray(robot.ik(pose, q_near=q1, opening=q1[-1]), float)
+            except (IKError, ValueError):
+                self._ik_failed = True
+                off = self.commands[:3]
+                pose[:3, 3] += off - a[:3]
+                qa = np.asarray(robot.ik(pose, q_near=q1, opening=q1[-1]), float)
+            qs = q0 if self._segment_q is None else self._segment_q
+            if t_next > sim.time + 1e-12:
+                sim.set_reference(0, CubicTrajectory(np.array([sim.time, t_next]), np.array([qs, qa]),
+                                                     np.array([qd0, qd1])))
+            self._segment_q = qa
+        self.commands = np.r_[off, a[3:]]
+        self.k += 1
+        return t_next
+
+    def _failure_info(self, e) -> dict:
+        if isinstance(e, CarryError):
+            return dict(step=e.step, t=e.t, reason=e.reason)
+        return dict(step=self.runner.step, t=self.sim.time, reason=f"{type(e).__name__}: {str(e).splitlines()[0]}")
+
+    def _checked(self, error: Optional[BaseException]):
+        """The carry's checks after an advance (as ``_Runner.run_to``'s): the failure (dict) or None."""
+        runner = self.runner
+        try:
+            if error is not None:
+                if isinstance(error, ValueError) and any(self.sim.holding(i) != _scene.BAR for i in range(2)):
+                    runner.check_held()
+                raise error
+            runner.check_held()
+            runner.check_contacts()
+        except (CarryError, DivergenceError, ValueError) as e:
+            return self._failure_info(e)
+        return None
+
+    def _phase_marks(self):
+        S, t, runner = self.plan.steps, self.sim.time, self.runner
+        for step, nxt in (("lift", "carry"), ("carry", "place")):
+            if runner.step == step and t >= S[step][1] - 1e-9:
+                runner.done()
+                runner.mark(nxt)
+
+    def _observe(self) -> dict:
+        sim, plan = self.sim, self.plan
+        q = np.empty((2, 6))
+        qd = np.empty((2, 6))
+        pose = np.empty((2, 7))
+        twist = np.empty((2, 6))
+        wrench = np.empty((2, 6))
+        for i, r in enumerate(plan.robots):
+            q[i], qd[i] = sim.state(i)
+            T = r.fk(q[i])
+            pose[i] = np.r_[T[:3, 3], _quaternion(T[:3, :3])]
+            twist[i] = r.tool_jacobian(q[i]) @ qd[i]
+            wrench[i] = sim.sensor(i).ft_world
+        b = sim.body_state(_scene.BAR)
+        want = plan.bar.pose(sim.time)
+        err = np.r_[want[:3, 3] - b.pose[:3, 3], _rotation_vector(want[:3, :3] @ b.pose[:3, :3].T)]
+        c = sim.cooperation(0, 1)
+        held = bool(c.holding)
+        phase = (sim.time - self.t0) / max(self.t_end - self.t0, 1e-12)
+        obs = dict(q=q, qd=qd, clamp_pose=pose, clamp_twist=twist, wrench=wrench,
+                   bar_pose=np.r_[b.pose[:3, 3], _quaternion(b.pose[:3, :3])],
+                   bar_twist=np.r_[b.velocity, b.angular_velocity], bar_error=err,
+                   internal=np.asarray(c.internal, float) if held else np.zeros(12),
+                   squeeze=np.array([c.squeeze if held else 0.0]),
+                   load_share=np.asarray(c.load_share, float) if held else np.zeros(2),
+                   phase=np.array([min(1.0, max(0.0, phase))]))
+        return {k: clip(v) for k, v in obs.items()}
+
+    def _terms(self, obs) -> dict:
+        """The reward's terms: each arm's task and share terms and the internal-force factor."""
+        plan, t = self.plan, self.sim.time
+        bar = plan.bar.pose(t)
+        task, share = np.empty(2), np.ones(2)
+        for i in range(2):
+            planned = (bar @ plan.grips[i])[:3, 3]
+            task[i] = np.exp(-np.linalg.norm(obs["clamp_pose"][i, :3] - planned) / GRIP_SCALE)
+        up = obs["wrench"][:, 2]
+        if np.sum(up) > 0.2 * self.episode_bar_mass * 9.81 and np.all(obs["load_share"] != 0.0):
+            share = np.exp(-((obs["load_share"] - 0.5) / SHARE_SCALE) ** 2)
+        internal = float(np.linalg.norm(obs["internal"][:3]))
+        return dict(task=task, share=share, arms=task * share, internal=internal,
+                    internal_factor=float(np.exp(-internal / INTERNAL_SCALE)))
+
+    def _outcome(self, error: Optional[BaseException] = None):
+        failure = self._checked(error)
+        obs = self._observe()
+        info = dict(time=self.sim.time, step=self.runner.step, commands=self.commands.copy(),
+                    ik_failed=self._ik_failed, success=False, bar_mass=self.episode_bar_mass)
+        if failure is not None:
+            self._done = True
+            info["failure"] = failure
+            return obs, 0.0, True, False, info
+        self._phase_marks()
+        terms = self._terms(obs)
+        info["reward_terms"] = terms
+        reward = float(np.min(terms["arms"]) * terms["internal_factor"])
+        terminated = self.sim.time >= self.t_end - 1e-9
+        if terminated:
+            self.runner.done()
+            b = self.sim.body_state(_scene.BAR)
+            d = float(np.linalg.norm(obs["bar_error"][:3]))
+            ang = float(np.linalg.norm(obs["bar_error"][3:]))
+            speed = float(np.linalg.norm(b.velocity))
+            info["placed"] = dict(position_error=d, angle_error=ang, speed=speed)
+            info["success"] = bool(d <= PLACE_TOL and ang <= PLACE_TOL_ANGLE and speed <= 0.01)
+            if not info["success"]:
+                info["failure"] = dict(step="place", t=self.sim.time, reason=(
+                    f"the bar came to {d * 1e3:.1f} mm and {ang * 1e3:.1f} mrad from its planned pose, moving at "
+                    f"{speed * 1e3:.1f} mm/s (allowed {PLACE_TOL * 1e3:.0f} mm, {PLACE_TOL_ANGLE * 1e3:.0f} mrad, "
+                    f"10 mm/s)"))
+            self._done = True
+        return obs, reward, bool(terminated), False, info
+
+    # ---- Gymnasium ----
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
+        self._reset_sim(seed, options)
+        obs = self._observe()
+        info = dict(time=self.sim.time, step=self.runner.step, success=False, bar_mass=self.episode_bar_mass,
+                    start=tuple(float(x) for x in self.plan.start))
+        if self._failure is not None:
+            info["failure"] = self._failure
+        return obs, info
+
+    def step(self, action):
+        if self._done:
+            raise RuntimeError("step() after the episode ended: call reset() first")
+        t = self._apply(action)
+        error = None
+        try:
+            self.sim.advance(t)
+        except (ValueError, DivergenceError) as e:
+            error = e
+        return self._outcome(error)
+
+    def render(self):
+        if self.render_mode == "rgb_array" and self.sim is not None:
+            if self._frames is None:
+                self._frames = Frames()
+            return self._frames.frame(self.sim, label=f"t = {self.sim.time:.2f} s ({self.runner.step})")
+        return None
+
+    def close(self):
+        if self._frames is not None:
+            self._frames.close()
+            self._frames = None

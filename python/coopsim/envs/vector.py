@@ -1,0 +1,182 @@
+"""Vector environments: N coopsim environments stepped together, their simulations advanced in one engine
+call on a pool of threads with the GIL released (:meth:`coopsim.Simulation.advance_all`).
+
+``gymnasium.make_vec("coopsim/DualCarry-v0", num_envs=N, vectorization_mode="vector_entry_point")`` (and
+``"coopsim/Reach-v0"``) make them. Keywords: ``threads`` (the pool's size, 0: every core),
+``autoreset_mode`` (``gymnasium.vector.AutoresetMode.NEXT_STEP``, Gymnasium's default, or ``SAME_STEP``),
+and the single environment's keywords, each either one value for all or a sequence of N values, one per
+environment (e.g. ``bar_mass=[0.1, 0.15, 0.2, 0.25]`` for domain randomisation). ``reset(seed=s)`` seeds the
+environments s, s + 1, ...; ``reset(seed=[...])`` one seed each.
+
+A step applies each environment's action (all actions are checked first: a bad one is refused, naming
+its index, before any is applied), advances all simulations that end the step at the same time in one
+engine call (environments in step with each other: one call; an environment reset at another time than the
+others makes a second group), and reads each one's outcome, exactly as the single environment does: the
+same seeds and actions give the single environments' episodes bit for bit.
+"""
+from __future__ import annotations
+
+from typing import Any, Optional, Sequence
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
+
+from ..simulation import Simulation
+from ._common import check_action
+
+__all__ = ["CoopsimVectorEnv", "make_carry_vec", "make_reach_vec"]
+
+
+def _per_env(kwargs: dict, n: int, per_env_keys: Sequence[str]) -> list:
+    """The keywords of each of n environments: a key of `per_env_keys` given as a list or tuple (or array)
+    of n values gives each its own; any other value goes to all."""
+    out = [dict() for _ in range(n)]
+    for k, v in kwargs.items():
+        if k in per_env_keys and isinstance(v, (list, tuple, np.ndarray)):
+            if len(v) != n:
+                raise ValueError(f"{k} must be one value or one per environment ({n}), got {len(v)} values")
+            for i in range(n):
+                out[i][k] = v[i].item() if isinstance(v[i], np.generic) else v[i]
+        else:
+            for i in range(n):
+                out[i][k] = v
+    return out
+
+
+class CoopsimVectorEnv(VectorEnv):
+    """N environments of `env_class` (a coopsim environment: ReachEnv, DualCarryEnv) stepped together; see the
+    module's documentation. num_envs >= 1; threads: the engine's pool (0: every core); autoreset_mode:
+    NEXT_STEP or SAME_STEP; per_env_keys: the keywords that may be given one per environment."""
+
+    def __init__(self, env_class, num_envs: int, *, threads: int = 0,
+                 autoreset_mode=AutoresetMode.NEXT_STEP, per_env_keys: Sequence[str] = (), **kwargs):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 0:
+            raise ValueError(f"threads must be an integer >= 0 (0: every core), got {threads!r}")
+        try:
+            mode = autoreset_mode if isinstance(autoreset_mode, AutoresetMode) else AutoresetMode(autoreset_mode)
+        except ValueError:
+            mode = None
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
+        kwargs.pop("max_episode_steps", None)     # the environments end their episodes themselves
+        self.num_envs = int(num_envs)
+        self.threads = int(threads)
+        self.autoreset_mode = mode
+        self.envs = [env_class(**kw) for kw in _per_env(kwargs, self.num_envs, per_env_keys)]
+        first = self.envs[0]
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = dict(first.metadata, autoreset_mode=mode)
+        self.render_mode = first.render_mode
+        self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
+        self._env_obs: list = [None] * self.num_envs
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+
+    # ---- Gymnasium ----
+
+    def reset(self, *, seed=None, options: Optional[dict] = None):
+        n = self.num_envs
+        if seed is None:
+            seeds = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"seed must be None, an int or one per environment ({n}), got {len(seeds)} seeds")
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(n, dtype=bool)
+        else:
+            mask = np.asarray(mask)
+            if mask.shape != (n,) or mask.dtype != np.bool_:
+                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got {mask!r}")
+        infos: dict = {}
+        for i, env in enumerate(self.envs):
+            if mask[i]:
+                self._env_obs[i], info = env.reset(seed=seeds[i], options=options or None)
+                self._autoreset[i] = False
+                infos = self._add_info(infos, info, i)
+        self._obs = concatenate(self.single_observation_space, self._env_obs, self._obs)
+        return self._copy(self._obs), infos
+
+    def step(self, actions):
+        n = self.num_envs
+        acts = list(iterate(self.action_space, actions)) if not isinstance(actions, (list, tuple)) \
+            else list(actions)
+        if len(acts) != n:
+            raise ValueError(f"actions must hold one action per environment ({n}), got {len(acts)}")
+        resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
+            else np.zeros(n, dtype=bool)
+        for i in range(n):           # every action checked before any is applied
+            if not resetting[i]:
+                check_action(acts[i], self.single_action_space, f"actions[{i}]")
+        rewards = np.zeros(n)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        infos: dict = {}
+        results: list = [None] * n
+        t_next: dict = {}
+        for i, env in enumerate(self.envs):
+            if resetting[i]:
+                results[i] = env.reset()
+            else:
+                t_next[i] = env._apply(acts[i])
+        errors: dict = {}
+        for t in sorted(set(t_next.values())):
+            group = [i for i in t_next if t_next[i] == t]
+            got = Simulation.advance_all([self.envs[i].sim for i in group], t, self.threads)
+            errors.update(zip(group, got))
+        for i, env in enumerate(self.envs):
+            if resetting[i]:
+                self._env_obs[i], info = results[i]
+            else:
+                self._env_obs[i], rewards[i], terminated[i], truncated[i], info = env._outcome(errors[i])
+                if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
+                    infos = self._add_info(infos, {"final_obs": self._env_obs[i], "final_info": info}, i)
+                    self._env_obs[i], info = env.reset()
+            infos = self._add_info(infos, info, i)
+        self._autoreset = terminated | truncated
+        self._obs = concatenate(self.single_observation_space, self._env_obs, self._obs)
+        return self._copy(self._obs), rewards, terminated, truncated, infos
+
+    @staticmethod
+    def _copy(obs):
+        if isinstance(obs, dict):
+            return {k: np.array(v) for k, v in obs.items()}
+        return np.array(obs)
+
+    def render(self):
+        return tuple(env.render() for env in self.envs)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for env in self.envs:
+            env.close()
+
+    @property
+    def sims(self) -> list:
+        """The environments' simulations now (:class:`coopsim.Simulation`)."""
+        return [env.sim for env in self.envs]
+
+
+def make_reach_vec(num_envs: int = 1, **kwargs) -> CoopsimVectorEnv:
+    """``coopsim/Reach-v0``'s vector entry point: a :class:`CoopsimVectorEnv` of ReachEnv (per environment:
+    action, control_rate, time_limit, tolerance, max_speed, torque_penalty, max_offset may be sequences)."""
+    from .reach import ReachEnv
+
+    return CoopsimVectorEnv(ReachEnv, num_envs, per_env_keys=("time_limit", "tolerance", "max_speed",
+                                                                "torque_penalty", "max_offset"), **kwargs)
+
+
+def make_carry_vec(num_envs: int = 1, **kwargs) -> CoopsimVectorEnv:
+    """``coopsim/DualCarry-v0``'s vector entry point: a :class:`CoopsimVectorEnv` of DualCarryEnv (per
+    environment: bar_mass may be a sequence, kg)."""
+    from .carry import DualCarryEnv
+
+    return CoopsimVectorEnv(DualCarryEnv, num_envs, per_env_keys=("bar_mass",), **kwargs)

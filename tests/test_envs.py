@@ -1,0 +1,334 @@
+"""The Gymnasium environments (coopsim.envs): Gymnasium's checks, seeds repeating episodes bit for bit, the
+vector environment against the single ones, refused actions, resets after a failure, and rewards one arm
+cannot collect alone."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+import coopsim  # noqa: E402
+import coopsim.envs  # noqa: E402,F401  (registers the environments)
+from coopsim.envs import DualCarryEnv, ReachEnv  # noqa: E402
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+from gymnasium.vector import AutoresetMode  # noqa: E402
+from gymnasium.wrappers import FlattenObservation  # noqa: E402
+
+
+def _episode(env, seed, actions, options=None):
+    """Observations, rewards, terminated and truncated flags of one episode of `actions` (a function of the
+    step number and the observation, or a fixed action) from reset(seed=seed)."""
+    obs, info = env.reset(seed=seed, options=options)
+    out = dict(obs=[obs], rewards=[], done=[], infos=[info])
+    k = 0
+    while True:
+        a = actions(k, obs) if callable(actions) else actions
+        obs, r, term, trunc, info = env.step(a)
+        out["obs"].append(obs)
+        out["rewards"].append(r)
+        out["done"].append((term, trunc))
+        out["infos"].append(info)
+        k += 1
+        if term or trunc:
+            return out
+
+
+def _flat(obs):
+    if isinstance(obs, dict):
+        return np.concatenate([np.ravel(obs[k]) for k in sorted(obs)])
+    return np.ravel(obs)
+
+
+def _same(a, b):
+    assert len(a["obs"]) == len(b["obs"])
+    for x, y in zip(a["obs"], b["obs"]):
+        np.testing.assert_array_equal(_flat(x), _flat(y))
+    assert a["rewards"] == b["rewards"]
+    assert a["done"] == b["done"]
+
+
+def _seeded_torques(env, seed, scale=0.3):
+    rng = np.random.default_rng(seed)
+    high = env.action_space.high
+    return lambda k, obs: scale * high * rng.uniform(-1.0, 1.0, high.shape)
+
+
+def _gentle(k, obs):
+    """A carry policy that moves the commands a little and smoothly: the offset a few mm, the squeeze and the
+    load share around the scripted ones."""
+    s = np.sin(0.1 * k)
+    return np.array([0.002 * s, -0.001 * s, 0.002 * s, 0.5 + 0.5 * s, 0.5 + 0.05 * s])
+
+
+# ---- packaging ----
+
+def test_coopsim_imports_without_gymnasium_and_envs_says_what_is_missing():
+    code = ("import sys; sys.modules['gymnasium'] = None\n"
+            "import coopsim, coopsim.tasks.carry\n"
+            "assert 'coopsim.envs' not in sys.modules\n"
+            "try:\n    import coopsim.envs\nexcept ImportError as e:\n    print('refused:', e)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "refused:" in out.stdout and "gymnasium" in out.stdout
+
+
+def test_the_environments_are_registered_under_their_ids_and_by_module_path():
+    for env_id, cls in (("coopsim/Reach-v0", ReachEnv), ("coopsim/DualCarry-v0", DualCarryEnv)):
+        assert env_id in gym.registry
+        env = gym.make(env_id)
+        assert isinstance(env.unwrapped, cls)
+        env.close()
+    env = gym.make("coopsim.envs:coopsim/Reach-v0", action="setpoint")
+    assert env.unwrapped.mode == "setpoint"
+    env.close()
+
+
+# ---- Gymnasium's checks ----
+
+# the actions are in SI units (N m, m, N), not Gymnasium's advised [-1, 1]: that advice alone is let pass
+# (gymnasium.wrappers.RescaleAction gives the normalised space, docs/envs.md)
+@pytest.mark.filterwarnings("ignore:.*symmetric and normalized space:UserWarning")
+@pytest.mark.parametrize("make", [lambda: ReachEnv(), lambda: ReachEnv(action="setpoint"),
+                                  lambda: DualCarryEnv()], ids=["reach-torque", "reach-setpoint", "carry"])
+def test_check_env_passes(make):
+    env = make()
+    check_env(env, skip_render_check=True)
+    env.close()
+
+
+def test_render_gives_rgb_frames_of_the_scene():
+    for env in (ReachEnv(render_mode="rgb_array"), DualCarryEnv(render_mode="rgb_array")):
+        env.reset(seed=2)
+        env.step(env.action_space.sample() * 0.0 + getattr(env, "scripted_action", 0.0))
+        frame = env.render()
+        assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
+        assert frame.shape[:2] == (360, 480)
+        assert np.unique(frame.reshape(-1, 3), axis=0).shape[0] > 50      # a drawing, not a blank canvas
+        env.close()
+
+
+def test_the_carry_observation_flattens():
+    env = FlattenObservation(DualCarryEnv())
+    obs, _ = env.reset(seed=1)
+    assert obs.shape == env.observation_space.shape and obs.ndim == 1
+    obs, *_ = env.step(env.unwrapped.scripted_action)
+    assert env.observation_space.contains(obs)
+
+
+# ---- the tasks ----
+
+def test_reach_setpoints_towards_the_target_reach_it_and_end_the_episode():
+    env = ReachEnv(action="setpoint")
+    ep = _episode(env, 0, lambda k, obs: np.clip(obs[-3:], -env.max_offset, env.max_offset))
+    last = ep["infos"][-1]
+    assert ep["done"][-1] == (True, False) and last["success"]
+    assert last["distance"] < env.tolerance and last["speed"] < env.max_speed
+    assert ep["rewards"][-1] > ep["rewards"][0]
+
+
+def test_reach_truncates_at_its_time_limit():
+    env = ReachEnv(time_limit=0.2)
+    ep = _episode(env, 1, np.zeros(6))
+    assert len(ep["rewards"]) == 10 and ep["done"][-1] == (False, True)
+    assert ep["infos"][-1]["time"] == pytest.approx(0.2)
+
+
+def test_reach_targets_are_drawn_by_the_seed_within_reach():
+    env = ReachEnv()
+    targets = np.array([env.reset(seed=s)[0][-6:-3] for s in range(50)])
+    assert len({tuple(t) for t in targets}) == 50
+    np.testing.assert_array_equal(env.reset(seed=3)[0], env.reset(seed=3)[0])
+    lo, hi = env.robot.q_limits[:, 0], env.robot.q_limits[:, 1]
+    for seed, t in enumerate(targets):   # each the TCP of a configuration drawn within the limits by the seed
+        rng, _ = gym.utils.seeding.np_random(seed)
+        q = rng.uniform(lo, hi)
+        q[3:] = coopsim.envs.reach.Q0[3:]
+        assert np.all((q >= lo) & (q <= hi))
+        np.testing.assert_array_equal(env.robot.fk(q)[:3, 3], t)
+
+
+def test_the_scripted_carry_succeeds_and_a_one_arm_carry_earns_less_than_half():
+    env = DualCarryEnv()
+    two = _episode(env, 3, env.scripted_action)
+    assert two["done"][-1] == (True, False) and two["infos"][-1]["success"], two["infos"][-1].get("failure")
+    assert len(two["rewards"]) == 180          # 3.6 s of lift, carry and place at 50 Hz
+    one = _episode(env, 3, np.array([0.0, 0.0, 0.0, 0.0, 1.0]))   # SCARA #1 carries the whole bar
+    assert sum(one["rewards"]) < 0.5 * sum(two["rewards"])
+    terms = one["infos"][90]["reward_terms"]
+    assert terms["share"][1] < 0.2 and one["infos"][90]["reward_terms"]["task"].min() > 0.5
+    tense = _episode(env, 3, np.array([0.0, 0.0, 0.0, 8.0, 0.5]))  # squeezing the bar
+    assert sum(tense["rewards"]) < sum(two["rewards"])
+
+
+def test_an_offset_moves_the_bar_off_its_plan_by_it():
+    env = DualCarryEnv()
+    obs, _ = env.reset(seed=1)
+    for _ in range(40):
+        obs, r, term, trunc, info = env.step(np.array([0.0, 0.0, 0.01, 0.0, 0.5]))
+    assert not term
+    assert obs["bar_error"][2] == pytest.approx(-0.01, abs=1.5e-3)     # the plan less the bar: 1 cm up
+    assert np.all(np.abs(obs["bar_error"][:2]) < 2e-3)
+
+
+def test_a_heavier_bar_is_carried_by_the_same_commands():
+    env = DualCarryEnv(bar_mass=0.3)
+    ep = _episode(env, 4, env.scripted_action)
+    assert ep["infos"][-1]["bar_mass"] == 0.3 and ep["infos"][-1]["success"]
+    light = _episode(env, 4, env.scripted_action, options={"bar_mass": 0.1})
+    assert light["infos"][-1]["bar_mass"] == 0.1
+    up = [np.sum(o["wrench"][:, 2]) for o in (ep["obs"][60], light["obs"][60])]
+    assert up[0] == pytest.approx(0.3 * 9.81, rel=0.15) and up[1] == pytest.approx(0.1 * 9.81, rel=0.15)
+
+
+# ---- seeds ----
+
+def test_the_same_seed_gives_the_same_episode_bit_for_bit():
+    for make, actions in ((lambda: ReachEnv(time_limit=0.5), None), (lambda: DualCarryEnv(), _gentle)):
+        a, b = make(), make()
+        pol = [actions or _seeded_torques(a, 9), actions or _seeded_torques(b, 9)]
+        _same(_episode(a, 11, pol[0]), _episode(b, 11, pol[1]))
+        c = make()
+        other = _episode(c, 12, actions or _seeded_torques(c, 9))
+        assert not np.array_equal(_flat(other["obs"][0]), _flat(_episode(a, 11, pol[0])["obs"][0]))
+
+
+# ---- bad actions ----
+
+@pytest.mark.parametrize("make", [ReachEnv, DualCarryEnv], ids=["reach", "carry"])
+def test_bad_actions_are_refused_in_one_line_naming_the_action(make):
+    env = make()
+    env.reset(seed=0)
+    n = env.action_space.shape[0]
+    good = np.clip(np.zeros(n), env.action_space.low, env.action_space.high)
+    nan = good.copy()
+    nan[0] = np.nan
+    out = good.copy()
+    out[-1] = env.action_space.high[-1] * 2.0 + 1.0
+    for bad, words in ((nan, "finite"), (np.zeros(n + 1), "shape"), (out, "bounds"), ("left", "numbers")):
+        with pytest.raises(ValueError, match=words) as e:
+            env.step(bad)
+        msg = str(e.value)
+        assert msg.startswith("action ") and "\n" not in msg
+    obs, r, term, trunc, info = env.step(good)           # nothing was applied: the episode goes on
+    assert not term and info["time"] > 0
+
+
+def test_the_vector_environment_refuses_a_bad_action_before_applying_any():
+    v = gym.make_vec("coopsim/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    v.reset(seed=0)
+    acts = np.zeros((2, 6))
+    acts[1, 2] = np.inf
+    with pytest.raises(ValueError, match=r"^actions\[1\] must be finite"):
+        v.step(acts)
+    assert all(s.time == 0.0 for s in v.unwrapped.sims)
+    v.close()
+
+
+# ---- failures and resets ----
+
+def test_an_episode_after_a_failure_resets_cleanly():
+    env = DualCarryEnv()
+    env.reset(seed=5)
+    env.action_space.seed(5)
+    for k in range(180):                               # random commands: the offset jumps by cm a step
+        obs, r, term, trunc, info = env.step(env.action_space.sample())
+        if term:
+            break
+    assert term and "failure" in info and r == 0.0
+    assert info["failure"]["step"] in ("lift", "carry", "place") and info["failure"]["reason"]
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(env.scripted_action)
+    _same(_episode(env, 6, _gentle), _episode(DualCarryEnv(), 6, _gentle))
+
+
+# ---- the vector environment ----
+
+def _vector_episodes(env_id, n, seeds, actions, steps, **kwargs):
+    v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", threads=2, **kwargs)
+    obs, _ = v.reset(seed=seeds)
+    out = [obs]
+    rewards, dones, infos = [], [], []
+    for k in range(steps):
+        obs, r, term, trunc, info = v.step(np.stack([actions(i, k) for i in range(n)]))
+        out.append(obs)
+        rewards.append(r)
+        dones.append((term, trunc))
+        infos.append(info)
+    v.close()
+    return out, rewards, dones, infos
+
+
+def _obs_i(obs, i):
+    return {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
+
+
+def test_vector_reach_equals_the_single_environments_with_autoresets():
+    n, steps, seeds = 3, 24, [4, 7, 9]
+    rngs = [np.random.default_rng(100 + i) for i in range(n)]
+    high = ReachEnv().action_space.high
+    acts = [[0.3 * high * rngs[i].uniform(-1, 1, 6) for _ in range(steps)] for i in range(n)]
+    limits = [0.2, 0.3, 0.5]                         # episodes of 10, 15 and 25 steps: resets out of step
+    obs, rewards, dones, _ = _vector_episodes("coopsim/Reach-v0", n, seeds, lambda i, k: acts[i][k], steps,
+                                              time_limit=limits)
+    for i in range(n):
+        env = ReachEnv(time_limit=limits[i])
+        o, _ = env.reset(seed=seeds[i])
+        np.testing.assert_array_equal(obs[0][i], o)
+        reset_next = False
+        for k in range(steps):
+            if reset_next:                           # NEXT_STEP: this step resets, its action unused
+                o, _ = env.reset()
+                r, term, trunc = 0.0, False, False
+            else:
+                o, r, term, trunc, _ = env.step(acts[i][k])
+            np.testing.assert_array_equal(obs[k + 1][i], o)
+            assert rewards[k][i] == r and (dones[k][0][i], dones[k][1][i]) == (term, trunc)
+            reset_next = term or trunc
+    assert any(d[1][0] for d in dones) and any(d[1][1] for d in dones)
+
+
+def test_vector_carry_equals_the_single_environments_with_a_bar_mass_each():
+    n, steps, seeds, masses = 2, 30, [1, 2], [0.12, 0.2]
+    obs, rewards, dones, infos = _vector_episodes("coopsim/DualCarry-v0", n, seeds, lambda i, k: _gentle(k + i, None),
+                                                  steps, bar_mass=masses)
+    np.testing.assert_array_equal(infos[-1]["bar_mass"], masses)
+    for i in range(n):
+        env = DualCarryEnv(bar_mass=masses[i])
+        o, _ = env.reset(seed=seeds[i])
+        np.testing.assert_array_equal(_flat(_obs_i(obs[0], i)), _flat(o))
+        for k in range(steps):
+            o, r, term, trunc, _ = env.step(_gentle(k + i, None))
+            np.testing.assert_array_equal(_flat(_obs_i(obs[k + 1], i)), _flat(o))
+            assert rewards[k][i] == r and not term
+
+
+def test_vector_same_step_autoreset_returns_the_final_observation():
+    v = gym.make_vec("coopsim/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     autoreset_mode=AutoresetMode.SAME_STEP, time_limit=[0.1, 0.2])
+    assert v.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    v.reset(seed=[0, 1])
+    for k in range(5):
+        obs, r, term, trunc, info = v.step(np.zeros((2, 6)))
+    assert trunc[0] and not trunc[1]
+    assert info["_final_obs"][0] and not info["_final_obs"][1]
+    final = info["final_obs"][0]
+    assert final[-3:] @ final[-3:] > 0 and not np.array_equal(final, obs[0])
+    assert v.unwrapped.sims[0].time == 0.0           # reset in the same step
+    v.close()
+
+
+def test_vector_keywords_are_checked():
+    with pytest.raises(ValueError, match="bar_mass must be one value or one per environment"):
+        gym.make_vec("coopsim/DualCarry-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     bar_mass=[0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        gym.make_vec("coopsim/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     autoreset_mode=AutoresetMode.DISABLED)
+    with pytest.raises(ValueError, match="bar_mass must be a finite number > 0"):
+        DualCarryEnv(bar_mass=-1.0)
+    with pytest.raises(ValueError, match="control_rate"):
+        ReachEnv(control_rate=0.0)
+    with pytest.raises(ValueError, match="action must be one of"):
+        ReachEnv(action="velocity")
