@@ -326,9 +326,9 @@ def test_vector_keywords_are_checked():
     with pytest.raises(ValueError, match="autoreset_mode"):
         gym.make_vec("coopsim/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point",
                      autoreset_mode=AutoresetMode.DISABLED)
-    with pytest.raises(ValueError, match="bar_mass must be a finite number > 0"):
+    with pytest.raises(ValueError, match="bar_mass must be finite and > 0 kg"):
         DualCarryEnv(bar_mass=-1.0)
     with pytest.raises(ValueError, match="control_rate"):
         ReachEnv(control_rate=0.0)
-    with pytest.raises(ValueError, match="action must be one of"):
+    with pytest.raises(ValueError, match="action must be .torque. or .setpoint."):
         ReachEnv(action="velocity")

@@ -7,6 +7,8 @@ from typing import Optional
 import numpy as np
 from gymnasium import spaces
 
+from .. import _checks, view
+
 #: the engine's step (s): 0.2 ms, 5 kHz
 DT = 2e-4
 #: the bound of the observations' unbounded quantities (m, rad, m/s, rad/s, N, N m): finite, so that
@@ -27,21 +29,17 @@ def clip(x: np.ndarray, low: float = -BOUND, high: float = BOUND) -> np.ndarray:
 def control_period(control_rate, dt: float = DT) -> float:
     """The control period (s) of `control_rate` (Hz, > 0, at most 1 / dt; a whole number of engine steps of
     `dt` s per period, rounded): ValueError naming control_rate otherwise."""
-    if isinstance(control_rate, bool) or not isinstance(control_rate, (int, float, np.integer, np.floating)):
-        raise ValueError(f"control_rate must be a number of Hz, got {control_rate!r}")
-    rate = float(control_rate)
-    if not np.isfinite(rate) or rate <= 0.0 or rate > 1.0 / dt:
-        raise ValueError(f"control_rate must be a finite number in (0, {1.0 / dt:g}] Hz, got {control_rate!r}")
+    rate = _checks.number(control_rate, "control_rate", 0.0, 1.0 / dt, lo_open=True, unit="Hz")
     return max(1, int(round(1.0 / (rate * dt)))) * dt
 
 
 def check_action(action, space: spaces.Box, name: str = "action") -> np.ndarray:
     """`action` as a float64 array of the Box `space`'s shape, or a one-line ValueError naming `name` and what
     is wrong: not numbers, the wrong shape, NaN or infinite entries, entries outside [low, high]."""
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of numbers of shape {space.shape}, got {action!r}") from None
+    a = np.asarray(action)
+    if a.dtype.kind not in "biuf":
+        raise ValueError(f"{name} must be an array of numbers of shape {space.shape}, got {action!r}")
+    a = a.astype(np.float64)
     if a.shape != space.shape:
         raise ValueError(f"{name} must have shape {space.shape}, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
@@ -58,8 +56,8 @@ def check_action(action, space: spaces.Box, name: str = "action") -> np.ndarray:
 
 
 def check_render_mode(render_mode: Optional[str], modes) -> Optional[str]:
-    if render_mode is not None and render_mode not in modes:
-        raise ValueError(f"render_mode must be None or one of {', '.join(modes)}, got {render_mode!r}")
+    if render_mode is not None:
+        _checks.one_of(render_mode, "render_mode", modes)
     return render_mode
 
 
@@ -75,8 +73,6 @@ class Frames:
     def frame(self, sim, bodies=None, label: Optional[str] = None) -> np.ndarray:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
-
-        from .. import view
 
         if self.fig is None:
             dpi = 100.0

@@ -43,6 +43,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from .. import _checks
 from .._core import CubicTrajectory, DivergenceError, IKError, World
 from ..simulation import Simulation
 from ..tasks import scene as _handover_scene
@@ -99,13 +100,6 @@ def _world(start, end, bar_mass: float) -> World:
     return w
 
 
-def _positive(x, name: str) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not np.isfinite(x) \
-            or x <= 0:
-        raise ValueError(f"{name} must be a finite number > 0, got {x!r}")
-    return float(x)
-
-
 class DualCarryEnv(gym.Env):
     """The dual carry with the cooperative law's commands as actions (see the module's documentation).
 
@@ -121,8 +115,8 @@ class DualCarryEnv(gym.Env):
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.period = control_period(control_rate)
         self.metadata = dict(self.metadata, render_fps=int(round(1.0 / self.period)))
-        self.bar_mass = _scene.BAR_MASS if bar_mass is None else _positive(bar_mass, "bar_mass")
-        self.max_offset = _positive(max_offset, "max_offset")
+        self.bar_mass = _scene.BAR_MASS if bar_mass is None else _checks.positive(bar_mass, "bar_mass", unit="kg")
+        self.max_offset = _checks.positive(max_offset, "max_offset", unit="m")
         m = self.max_offset
         self.action_space = spaces.Box(np.array([-m, -m, -m, SQUEEZE_RANGE[0], 0.0]),
                                        np.array([m, m, m, SQUEEZE_RANGE[1], 1.0]), dtype=np.float64)
@@ -145,7 +139,7 @@ class DualCarryEnv(gym.Env):
         unknown = sorted(set(options) - {"bar_mass"})
         if unknown:
             raise ValueError(f"options may hold bar_mass only, got {', '.join(map(repr, unknown))}")
-        mass = self.bar_mass if options.get("bar_mass") is None else _positive(options["bar_mass"], "bar_mass")
+        mass = self.bar_mass if options.get("bar_mass") is None else _checks.positive(options["bar_mass"], "bar_mass", unit="kg")
         draw = int(seed) if seed is not None else int(self.np_random.integers(0, 2 ** 31 - 1))
         start = _planning.random_start(draw)
         plan = _planning.make_plan(start, _planning.END)

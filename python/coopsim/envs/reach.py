@@ -28,7 +28,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from .. import _checks
 from .. import robots as _robots
+from ..view import Body, live
 from .._core import ComputedTorque, DivergenceError, IKError, PID
 from ..simulation import Simulation
 from ._common import DT, Frames, bounded, check_action, check_render_mode, clip, control_period
@@ -57,16 +59,12 @@ class ReachEnv(gym.Env):
     def __init__(self, *, action: str = "torque", control_rate: float = 50.0, time_limit: float = 4.0,
                  tolerance: float = 0.01, max_speed: float = 0.05, torque_penalty: float = 1e-3,
                  max_offset: float = 0.05, render_mode: Optional[str] = None):
-        if action not in ACTIONS:
-            raise ValueError(f"action must be one of {', '.join(ACTIONS)}, got {action!r}")
-        for name, v in (("time_limit", time_limit), ("tolerance", tolerance), ("max_speed", max_speed),
-                        ("max_offset", max_offset)):
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or \
-                    not np.isfinite(v) or v <= 0:
-                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        if isinstance(torque_penalty, bool) or not isinstance(torque_penalty, (int, float)) or \
-                not np.isfinite(torque_penalty) or torque_penalty < 0:
-            raise ValueError(f"torque_penalty must be a finite number >= 0, got {torque_penalty!r}")
+        _checks.one_of(action, "action", ACTIONS)
+        time_limit = _checks.positive(time_limit, "time_limit", unit="s")
+        tolerance = _checks.positive(tolerance, "tolerance", unit="m")
+        max_speed = _checks.positive(max_speed, "max_speed", unit="m/s")
+        max_offset = _checks.positive(max_offset, "max_offset", unit="m")
+        torque_penalty = _checks.positive(torque_penalty, "torque_penalty", zero=True)
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.mode = action
         self.period = control_period(control_rate)
@@ -184,8 +182,6 @@ class ReachEnv(gym.Env):
 
     def render(self):
         if self.render_mode == "rgb_array":
-            from ..view import Body
-
             if self._frames is None:
                 self._frames = Frames()
             T = np.eye(4)
@@ -198,8 +194,6 @@ class ReachEnv(gym.Env):
 
     def _human(self):
         if self._live is None:
-            from ..view import live
-
             self._live = live(self.sim, start=False, resettable=False, title="coopsim/Reach-v0")
             print(f"coopsim/Reach-v0: {self._live.url}")
         return self._live

@@ -22,8 +22,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
+from .. import _checks
 from ..simulation import Simulation
 from ._common import check_action
+from .carry import DualCarryEnv
+from .reach import ReachEnv
 
 __all__ = ["CoopsimVectorEnv", "make_carry_vec", "make_reach_vec"]
 
@@ -51,10 +54,8 @@ class CoopsimVectorEnv(VectorEnv):
 
     def __init__(self, env_class, num_envs: int, *, threads: int = 0,
                  autoreset_mode=AutoresetMode.NEXT_STEP, per_env_keys: Sequence[str] = (), **kwargs):
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 0:
-            raise ValueError(f"threads must be an integer >= 0 (0: every core), got {threads!r}")
+        num_envs = _checks.integer(num_envs, "num_envs", 1, 1 << 20)
+        threads = _checks.integer(threads, "threads", 0, 4096)
         try:
             mode = autoreset_mode if isinstance(autoreset_mode, AutoresetMode) else AutoresetMode(autoreset_mode)
         except ValueError:
@@ -168,8 +169,6 @@ class CoopsimVectorEnv(VectorEnv):
 def make_reach_vec(num_envs: int = 1, **kwargs) -> CoopsimVectorEnv:
     """``coopsim/Reach-v0``'s vector entry point: a :class:`CoopsimVectorEnv` of ReachEnv (per environment:
     action, control_rate, time_limit, tolerance, max_speed, torque_penalty, max_offset may be sequences)."""
-    from .reach import ReachEnv
-
     return CoopsimVectorEnv(ReachEnv, num_envs, per_env_keys=("time_limit", "tolerance", "max_speed",
                                                                 "torque_penalty", "max_offset"), **kwargs)
 
@@ -177,6 +176,4 @@ def make_reach_vec(num_envs: int = 1, **kwargs) -> CoopsimVectorEnv:
 def make_carry_vec(num_envs: int = 1, **kwargs) -> CoopsimVectorEnv:
     """``coopsim/DualCarry-v0``'s vector entry point: a :class:`CoopsimVectorEnv` of DualCarryEnv (per
     environment: bar_mass may be a sequence, kg)."""
-    from .carry import DualCarryEnv
-
     return CoopsimVectorEnv(DualCarryEnv, num_envs, per_env_keys=("bar_mass",), **kwargs)
