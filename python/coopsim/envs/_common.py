@@ -23,7 +23,8 @@ def bounded(shape, low: float = -BOUND, high: float = BOUND) -> spaces.Box:
 
 def clip(x: np.ndarray, low: float = -BOUND, high: float = BOUND) -> np.ndarray:
     """`x` as float64 within [low, high], NaN as 0 (a run that diverged)."""
-    return np.clip(np.nan_to_num(np.asarray(x, np.float64), nan=0.0), low, high)
+    x = np.asarray(x, np.float64)
+    return np.clip(np.where(np.isnan(x), 0.0, x), low, high)
 
 
 def control_period(control_rate, dt: float = DT) -> float:

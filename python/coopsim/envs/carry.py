@@ -126,6 +126,10 @@ class DualCarryEnv(gym.Env):
             q=box(2, 6), qd=box(2, 6), clamp_pose=box(2, 7), clamp_twist=box(2, 6), wrench=box(2, 6),
             bar_pose=box(7), bar_twist=box(6), bar_error=box(6), internal=box(12), squeeze=box(1),
             load_share=box(2), phase=spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float64)))
+        #: the order of the observation's parts in _observe's flat vector
+        self._layout = [("q", (2, 6)), ("qd", (2, 6)), ("clamp_pose", (2, 7)), ("clamp_twist", (2, 6)),
+                        ("wrench", (2, 6)), ("bar_pose", (7,)), ("bar_twist", (6,)), ("bar_error", (6,)),
+                        ("internal", (12,)), ("squeeze", (1,)), ("load_share", (2,)), ("phase", (1,))]
         self.runner: Optional[_Runner] = None
         self.sim: Optional[Simulation] = None
         self._frames = None
@@ -243,36 +247,38 @@ class DualCarryEnv(gym.Env):
 
     def _observe(self) -> dict:
         sim, plan = self.sim, self.plan
-        q = np.empty((2, 6))
-        qd = np.empty((2, 6))
-        pose = np.empty((2, 7))
-        twist = np.empty((2, 6))
-        wrench = np.empty((2, 6))
+        parts = []
+        poses, twists, wrenches, qs, qds = [], [], [], [], []
         for i, r in enumerate(plan.robots):
-            q[i], qd[i] = sim.state(i)
-            T = r.fk(q[i])
-            pose[i] = np.r_[T[:3, 3], _quaternion(T[:3, :3])]
-            twist[i] = r.tool_jacobian(q[i]) @ qd[i]
-            wrench[i] = sim.sensor(i).ft_world
+            q, qd = sim.state(i)
+            T = r.fk(q)
+            qs.append(q)
+            qds.append(qd)
+            poses += [T[:3, 3], _quaternion(T[:3, :3])]
+            twists.append(r.tool_jacobian(q) @ qd)
+            wrenches.append(sim.sensor(i).ft_world)
         b = sim.body_state(_scene.BAR)
-        want = plan.bar.pose(sim.time)
-        err = np.r_[want[:3, 3] - b.pose[:3, 3], _rotation_vector(want[:3, :3] @ b.pose[:3, :3].T)]
+        want = self._planned_bar = plan.bar.pose(sim.time)
         c = sim.cooperation(0, 1)
         held = bool(c.holding)
         phase = (sim.time - self.t0) / max(self.t_end - self.t0, 1e-12)
-        obs = dict(q=q, qd=qd, clamp_pose=pose, clamp_twist=twist, wrench=wrench,
-                   bar_pose=np.r_[b.pose[:3, 3], _quaternion(b.pose[:3, :3])],
-                   bar_twist=np.r_[b.velocity, b.angular_velocity], bar_error=err,
-                   internal=np.asarray(c.internal, float) if held else np.zeros(12),
-                   squeeze=np.array([c.squeeze if held else 0.0]),
-                   load_share=np.asarray(c.load_share, float) if held else np.zeros(2),
-                   phase=np.array([min(1.0, max(0.0, phase))]))
-        return {k: clip(v) for k, v in obs.items()}
+        parts = qs + qds + poses + twists + wrenches + [
+            b.pose[:3, 3], _quaternion(b.pose[:3, :3]), b.velocity, b.angular_velocity,
+            want[:3, 3] - b.pose[:3, 3], _rotation_vector(want[:3, :3] @ b.pose[:3, :3].T),
+            np.asarray(c.internal, float) if held else np.zeros(12), [c.squeeze if held else 0.0],
+            np.asarray(c.load_share, float) if held else np.zeros(2), [min(1.0, max(0.0, phase))]]
+        flat = clip(np.concatenate(parts))
+        out, k = {}, 0
+        for name, shape in self._layout:
+            n = int(np.prod(shape))
+            out[name] = flat[k:k + n].reshape(shape)
+            k += n
+        return out
 
     def _terms(self, obs) -> dict:
         """The reward's terms: each arm's task and share terms and the internal-force factor."""
-        plan, t = self.plan, self.sim.time
-        bar = plan.bar.pose(t)
+        plan = self.plan
+        bar = self._planned_bar
         task, share = np.empty(2), np.ones(2)
         for i in range(2):
             planned = (bar @ plan.grips[i])[:3, 3]
