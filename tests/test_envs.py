@@ -332,3 +332,38 @@ def test_vector_keywords_are_checked():
         ReachEnv(control_rate=0.0)
     with pytest.raises(ValueError, match="action must be .torque. or .setpoint."):
         ReachEnv(action="velocity")
+
+
+# ---- the live page ----
+
+@pytest.mark.slow
+def test_reach_in_human_mode_runs_through_the_live_page():
+    pytest.importorskip("viser")
+    from test_live import live_page, open_live
+    from test_replay import _browser_or_skip, CHROMIUM
+
+    sync_playwright = _browser_or_skip()
+    env = ReachEnv(action="setpoint", render_mode="human")
+    obs, _ = env.reset(seed=0)
+    env.render()                                   # opens the page before the first step
+    view = env._live
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--use-angle=swiftshader",
+                                                               "--enable-unsafe-swiftshader"])
+        try:
+            open_live(live_page(b, 900, 560), view.url)
+            ep = []
+            while True:
+                obs, r, term, trunc, info = env.step(np.clip(obs[-3:], -0.05, 0.05))
+                ep.append(info)
+                if term or trunc:
+                    break
+        finally:
+            b.close()
+    assert ep[-1]["success"] and view.sim is env.sim and env.sim.time == pytest.approx(ep[-1]["time"])
+    # the paced run is the same run as the headless one
+    assert [i["distance"] for i in ep] == [i["distance"] for i in
+                                          _episode(ReachEnv(action="setpoint"), 0,
+                                                   lambda k, o: np.clip(o[-3:], -0.05, 0.05))["infos"][1:]]
+    env.close()
+    assert env._live is None
