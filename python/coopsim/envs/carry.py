@@ -203,13 +203,14 @@ class DualCarryEnv(gym.Env):
             q1, qd1, _ = ref.evaluate(t_next)
             pose = robot.fk(q1)
             pose[:3, 3] += off
-            try:
-                qa = np.asarray(robot.ik(pose, q_near=q1, opening=q1[-1]), float)
-            except (IKError, ValueError):
+            qa = self._ik(robot, pose, q1)
+            if qa is None:                  # out of reach: the last offset kept (else none)
                 self._ik_failed = True
                 off = self.commands[:3]
                 pose[:3, 3] += off - a[:3]
-                qa = np.asarray(robot.ik(pose, q_near=q1, opening=q1[-1]), float)
+                qa = self._ik(robot, pose, q1)
+                if qa is None:
+                    off, qa = np.zeros(3), q1
             qs = q0 if self._segment_q is None else self._segment_q
             if t_next > sim.time + 1e-12:
                 sim.set_reference(0, CubicTrajectory(np.array([sim.time, t_next]), np.array([qs, qa]),
@@ -218,6 +219,14 @@ class DualCarryEnv(gym.Env):
         self.commands = np.r_[off, a[3:]]
         self.k += 1
         return t_next
+
+    @staticmethod
+    def _ik(robot, pose, q_near):
+        """The closed-form IK of `pose` near `q_near` (its jaw kept), or None out of reach."""
+        try:
+            return np.asarray(robot.ik(pose, q_near=q_near, opening=q_near[-1]), float)
+        except (IKError, ValueError):
+            return None
 
     def _failure_info(self, e) -> dict:
         if isinstance(e, CarryError):
@@ -345,7 +354,7 @@ class DualCarryEnv(gym.Env):
     def render(self):
         if self.render_mode == "rgb_array" and self.sim is not None:
             if self._frames is None:
-                self._frames = Frames()
+                self._frames = Frames(elev=30, azim=-60, zoom=1.6, names=False)   # the carry report's camera
             return self._frames.frame(self.sim, label=f"t = {self.sim.time:.2f} s ({self.runner.step})")
         return None
 
