@@ -74,6 +74,22 @@ def test_coopsim_imports_without_gymnasium_and_envs_says_what_is_missing():
     assert "refused:" in out.stdout and "gymnasium" in out.stdout
 
 
+def test_the_gym_extra_is_declared_installed_by_setup_and_in_the_test_extra():
+    import os
+    import re
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    with open(os.path.join(root, "pyproject.toml"), encoding="utf-8") as f:
+        toml = f.read()
+    gym_extra = re.search(r"^gym = \[(.*?)\]", toml, flags=re.M).group(1)
+    test_extra = re.search(r"^test = \[(.*?)\]\s*(#[^\n]*)?\n\S", toml, flags=re.M | re.S).group(1)
+    for req in ('"gymnasium>=1.0"', '"pettingzoo>=1.24"'):
+        assert req in gym_extra and req in test_extra
+    with open(os.path.join(root, "scripts", "setup.sh"), encoding="utf-8") as f:
+        extras = re.search(r'pip install -q --no-build-isolation "\.\[([a-z,]+)\]"', f.read()).group(1).split(",")
+    assert "gym" in extras
+
+
 def test_the_environments_are_registered_under_their_ids_and_by_module_path():
     for env_id, cls in (("coopsim/Reach-v0", ReachEnv), ("coopsim/DualCarry-v0", DualCarryEnv)):
         assert env_id in gym.registry
