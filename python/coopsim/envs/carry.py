@@ -130,6 +130,7 @@ class DualCarryEnv(gym.Env):
         self._layout = [("q", (2, 6)), ("qd", (2, 6)), ("clamp_pose", (2, 7)), ("clamp_twist", (2, 6)),
                         ("wrench", (2, 6)), ("bar_pose", (7,)), ("bar_twist", (6,)), ("bar_error", (6,)),
                         ("internal", (12,)), ("squeeze", (1,)), ("load_share", (2,)), ("phase", (1,))]
+        self._layout = [(name, shape, int(np.prod(shape))) for name, shape in self._layout]
         self.runner: Optional[_Runner] = None
         self.sim: Optional[Simulation] = None
         self._frames = None
@@ -278,8 +279,7 @@ class DualCarryEnv(gym.Env):
             np.asarray(c.load_share, float) if held else np.zeros(2), [min(1.0, max(0.0, phase))]]
         flat = clip(np.concatenate(parts))
         out, k = {}, 0
-        for name, shape in self._layout:
-            n = int(np.prod(shape))
+        for name, shape, n in self._layout:
             out[name] = flat[k:k + n].reshape(shape)
             k += n
         return out
