@@ -259,6 +259,23 @@ def test_an_episode_after_a_failure_resets_cleanly():
     _same(_episode(env, 6, _gentle), _episode(DualCarryEnv(), 6, _gentle))
 
 
+def test_a_start_that_fails_ends_the_episode_at_its_first_step():
+    env = DualCarryEnv(bar_mass=2.0)          # too heavy: the grasp step fails, scripted
+    obs, info = env.reset(seed=1)
+    assert info["failure"]["step"] == "grasp" and info["failure"]["reason"]
+    obs2, r, term, trunc, info2 = env.step(env.scripted_action)
+    assert (r, term, trunc) == (0.0, True, False) and info2["failure"] == info["failure"]
+    np.testing.assert_array_equal(_flat(obs2), _flat(obs))          # nothing advanced
+    ok = _episode(env, 1, env.scripted_action, options={"bar_mass": 0.15})
+    assert ok["infos"][-1]["success"]
+    v = gym.make_vec("coopsim/DualCarry-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     bar_mass=[0.15, 2.0])
+    v.reset(seed=[1, 1])
+    _, r, term, _, info = v.step(np.tile(env.scripted_action, (2, 1)))
+    assert list(term) == [False, True] and r[1] == 0.0 and r[0] > 0.5 and info["failure"]["step"][1] == "grasp"
+    v.close()
+
+
 # ---- the vector environment ----
 
 def _vector_episodes(env_id, n, seeds, actions, steps, **kwargs):

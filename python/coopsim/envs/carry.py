@@ -33,7 +33,9 @@ an arm off its grip, earns the episode little.
 
 Terminated: at the end of the place (``info["success"]`` when the bar is within 5 mm and 0.05 rad of its
 planned pose, moving slower than 1 cm/s), or at a failure of the carry's rules (an unexpected contact, a
-clamp letting go, a divergence) with ``info["failure"]`` (its step, time and reason) and reward 0.
+clamp letting go, a divergence) with ``info["failure"]`` (its step, time and reason) and reward 0; a start
+whose scripted approach or grasp failed (a bar too heavy for the clamps) says so in reset's ``info["failure"]``
+and ends at the first step so.
 """
 from __future__ import annotations
 
@@ -178,7 +180,7 @@ class DualCarryEnv(gym.Env):
         self.commands = SCRIPTED.copy()
         self._segment_q = None
         self._ik_failed = False
-        self._done = self._failure is not None
+        self._done = False       # a failed start ends the episode at its first step
 
     # ---- one step: apply, advance (here or by the vector environment), read ----
 
@@ -186,6 +188,8 @@ class DualCarryEnv(gym.Env):
         """Checks and applies `action` (the law's commands); returns the time (s) to advance to."""
         a = check_action(action, self.action_space)
         sim, plan, runner = self.sim, self.plan, self.runner
+        if self._failure is not None:      # the approach or grasp failed: nothing to advance
+            return sim.time
         t_next = min(self.t_end, self.t0 + (self.k + 1) * self.period)
         if abs(t_next - self.t_end) < 1e-9:
             t_next = self.t_end
@@ -300,7 +304,7 @@ class DualCarryEnv(gym.Env):
                     internal_factor=float(np.exp(-internal / INTERNAL_SCALE)))
 
     def _outcome(self, error: Optional[BaseException] = None):
-        failure = self._checked(error)
+        failure = self._failure if self._failure is not None else self._checked(error)
         obs = self._observe()
         info = dict(time=self.sim.time, step=self.runner.step, commands=self.commands.copy(),
                     ik_failed=self._ik_failed, success=False, bar_mass=self.episode_bar_mass)
