@@ -54,6 +54,54 @@ void stage_dynamics(const Robot& robot, int stage, const VecN& q, const VecN& qd
   }
 }
 
+// RK4's stages 2 to 4 and the update, on x = [q; qd], the robot's dof N known at compile time (N > 0, the loops
+// unroll) or not (N = 0: n). Element by element the same operations in the same order as the vector
+// expressions q + (dt / 2) qd, ..., q + (dt / 6) (qd + 2 k2q + 2 k3q + k4q): the same results to the bit.
+// Nothing is allocated; q and qd change only once every stage succeeded.
+template <int N>
+void rk4_stages(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const double* tau, const double* tau_ext,
+                double dt, bool end_stops, const VecN& k1v, int n_any) {
+  const int n = N > 0 ? N : n_any;
+  VecN k2v, k3v, k4v, qs(n), vs(n);
+  double k2q[kMaxDof], k3q[kMaxDof], k4q[kMaxDof];
+  const double* x = q.data();
+  const double* v = qd.data();
+  double* xs = qs.data();
+  double* ys = vs.data();
+  const double h2 = 0.5 * dt;
+  const double* k1 = k1v.data();
+  for (int j = 0; j < n; ++j) {
+    xs[j] = x[j] + h2 * v[j];
+    ys[j] = v[j] + h2 * k1[j];
+    k2q[j] = ys[j];
+  }
+  stage_dynamics(robot, 2, qs, vs, tau, tau_ext, ws, k2v, end_stops);
+  const double* k2 = k2v.data();
+  for (int j = 0; j < n; ++j) {
+    xs[j] = x[j] + h2 * k2q[j];
+    ys[j] = v[j] + h2 * k2[j];
+    k3q[j] = ys[j];
+  }
+  stage_dynamics(robot, 3, qs, vs, tau, tau_ext, ws, k3v, end_stops);
+  const double* k3 = k3v.data();
+  for (int j = 0; j < n; ++j) {
+    xs[j] = x[j] + dt * k3q[j];
+    ys[j] = v[j] + dt * k3[j];
+    k4q[j] = ys[j];
+  }
+  stage_dynamics(robot, 4, qs, vs, tau, tau_ext, ws, k4v, end_stops);
+  const double* k4 = k4v.data();
+  const double h6 = dt / 6.0;
+  double* xo = q.data();
+  double* vo = qd.data();
+  for (int j = 0; j < n; ++j) {
+    const double dq = h6 * (((v[j] + 2.0 * k2q[j]) + 2.0 * k3q[j]) + k4q[j]);
+    const double dv = h6 * (((k1[j] + 2.0 * k2[j]) + 2.0 * k3[j]) + k4[j]);
+    xo[j] += dq;
+    vo[j] += dv;
+  }
+}
+
 }  // namespace
 
 void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, const double* tau,
@@ -66,23 +114,15 @@ void step(const Robot& robot, Workspace& ws, Method method, VecN& q, VecN& qd, c
     q += dt * qd;
     return;
   }
-  // classic RK4 on x = [q; qd]; q and qd change only once every stage succeeded
+  // classic RK4; the common sizes with their loops unrolled
   const int n = robot.dof();
-  VecN k2v, k3v, k4v, qs(n), vs(n), k2q, k3q, k4q;
-  qs = q + 0.5 * dt * qd;
-  vs = qd + 0.5 * dt * k1v;
-  k2q = vs;
-  stage_dynamics(robot, 2, qs, vs, tau, tau_ext, ws, k2v, end_stops);
-  qs = q + 0.5 * dt * k2q;
-  vs = qd + 0.5 * dt * k2v;
-  k3q = vs;
-  stage_dynamics(robot, 3, qs, vs, tau, tau_ext, ws, k3v, end_stops);
-  qs = q + dt * k3q;
-  vs = qd + dt * k3v;
-  k4q = vs;
-  stage_dynamics(robot, 4, qs, vs, tau, tau_ext, ws, k4v, end_stops);
-  q += (dt / 6.0) * (qd + 2.0 * k2q + 2.0 * k3q + k4q);
-  qd += (dt / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+  switch (n) {
+    case 2: rk4_stages<2>(robot, ws, q, qd, tau, tau_ext, dt, end_stops, k1v, n); break;
+    case 3: rk4_stages<3>(robot, ws, q, qd, tau, tau_ext, dt, end_stops, k1v, n); break;
+    case 6: rk4_stages<6>(robot, ws, q, qd, tau, tau_ext, dt, end_stops, k1v, n); break;
+    case 7: rk4_stages<7>(robot, ws, q, qd, tau, tau_ext, dt, end_stops, k1v, n); break;
+    default: rk4_stages<0>(robot, ws, q, qd, tau, tau_ext, dt, end_stops, k1v, n); break;
+  }
 }
 
 void rk4_step(const Robot& robot, Workspace& ws, VecN& q, VecN& qd, const double* tau, const double* tau_ext,

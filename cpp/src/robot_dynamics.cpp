@@ -314,14 +314,23 @@ void Robot::forward_dynamics(const double* q, const double* qd, const double* ta
     b.resize(n_);
     rnea_kin_(qd, nullptr, ws, b, 1.0, true);
   }
-  VecN rhs = Eigen::Map<const VecN>(tau, n_) - b;
-  if (tau_ext) rhs += Eigen::Map<const VecN>(tau_ext, n_);
-  if (end_stops) add_end_stop_torques_(q, qd, M, rhs);
+  // rhs = tau - b (+ tau_ext) (+ the end stops' torques), element by element; with generated code
+  // it is solved in place in qdd, nothing copied
+  auto right_side = [&](VecN& r) {
+    r.resize(n_);
+    for (int j = 0; j < n_; ++j) r[j] = tau[j] - b[j];
+    if (tau_ext)
+      for (int j = 0; j < n_; ++j) r[j] += tau_ext[j];
+    if (end_stops) add_end_stop_torques_(q, qd, M, r);
+  };
+  VecN rhs;
   bool ok;
   if (uses_generated() && generated_->solve) {
-    qdd = rhs;  // generated LDL^T that skips M's structural zeros
+    right_side(qdd);  // generated LDL^T that skips M's structural zeros
     ok = generated_->solve(M.data(), qdd.data());
+    if (!ok) right_side(rhs);  // M is unchanged: the right side again, for the message
   } else {
+    right_side(rhs);
     ok = solve_spd(M, rhs, qdd);
   }
   if (!ok) {
