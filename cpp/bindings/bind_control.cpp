@@ -5,6 +5,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "py_clone.hpp"
 #include "coopsim/controller.hpp"
@@ -23,12 +24,12 @@ class PyController : public Controller {
  public:
   std::shared_ptr<Controller> clone() const override { return python_clone<Controller>(this); }
   void reset(const Robot& robot, double period) override {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const Controller*>(this), "reset");
     if (f) f(robot, period);
   }
   void compute(const ControlInput& in, double* tau) override {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const Controller*>(this), "compute");
     if (!f) throw py::type_error("Controller subclass must define compute(t, q, qd, q_ref, qd_ref, qdd_ref) -> tau");
     auto arr = [&](const double* p) {

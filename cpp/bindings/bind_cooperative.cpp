@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "py_clone.hpp"
 #include "coopsim/cooperative_laws.hpp"
@@ -38,7 +39,7 @@ class PyCooperative : public CooperativeController {
  public:
   std::shared_ptr<CooperativeController> clone() const override { return python_clone<CooperativeController>(this); }
   void reset(const std::vector<const Robot*>& robots, double period) override {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const CooperativeController*>(this), "reset");
     if (!f) return;
     py::list rs;
@@ -46,7 +47,7 @@ class PyCooperative : public CooperativeController {
     f(rs, period);
   }
   void compute(double t, const std::vector<CoopMember>& members, const std::vector<double*>& tau) override {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const CooperativeController*>(this), "compute");
     if (!f) throw py::type_error("CooperativeController subclass must define compute(t, members) -> list of tau");
     py::list ms;

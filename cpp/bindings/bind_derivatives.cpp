@@ -10,6 +10,7 @@
 
 #include <pybind11/stl.h>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/linearize.hpp"
 #include "coopsim/robot.hpp"
@@ -175,7 +176,7 @@ void bind_derivatives(py::module_& m) {
          py::array_t<double> dq({N, nn, nn}), dqd({N, nn, nn}), dtau({N, nn, nn});
          double *a = dq.mutable_data(), *b = dqd.mutable_data(), *c = dtau.mutable_data();
          {
-           py::gil_scoped_release nogil;
+           coopsim::py_nogil::NoGil nogil;
            forward_dynamics_derivatives_batch(r, q.data(), qd.data(), tau.data(), static_cast<int>(N), a, b, c,
                                               threads);
          }

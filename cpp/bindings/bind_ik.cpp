@@ -2,6 +2,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/ik.hpp"
 
@@ -80,7 +81,7 @@ py::object py_ik(const Robot& r, const py::object& pose_obj, const py::object& o
   o.seed = seed;
   IKResult res;
   {
-    py::gil_scoped_release nogil;
+    coopsim::py_nogil::NoGil nogil;
     res = coopsim::ik(r, target, o);
   }
   if (!info) return to_numpy(res.q);

@@ -1,6 +1,7 @@
 // Integrators and batch evaluation; long loops release the GIL.
 #include <pybind11/pybind11.h>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/integrator.hpp"
 
@@ -64,7 +65,7 @@ void bind_integrator(py::module_& m) {
          if (end_stops) warn_if(end_stop_step_warning(r, dt));
          IntegrationResult res;
          {
-           py::gil_scoped_release nogil;
+           coopsim::py_nogil::NoGil nogil;
            res = integrate(r, qv.data(), qdv.data(), T.data(), rows, dt, static_cast<int>(steps), meth, end_stops,
                            static_cast<int>(record_every));
          }
@@ -99,7 +100,7 @@ q (links without mass or inertia).)doc");
          py::array_t<double> out({N, static_cast<py::ssize_t>(n)});
          double* o = out.mutable_data();
          {
-           py::gil_scoped_release nogil;
+           coopsim::py_nogil::NoGil nogil;
            forward_dynamics_batch(r, q.data(), qd.data(), tau.data(), static_cast<int>(N), o, threads);
          }
          return out;

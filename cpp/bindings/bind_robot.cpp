@@ -2,6 +2,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/generated.hpp"
 #include "coopsim/robot.hpp"
@@ -109,7 +110,7 @@ py::array_t<double> poses_of_states(const Robot& r, const py::object& q, bool bo
   Arr Q = array(q, {-1, r.dof()}, "q");
   std::vector<Eigen::Isometry3d> T;
   {
-    py::gil_scoped_release nogil;
+    coopsim::py_nogil::NoGil nogil;
     r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), boxes, T);
   }
   py::array_t<double> out = poses(T);

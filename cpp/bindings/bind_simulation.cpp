@@ -9,6 +9,7 @@
 #include <string>
 #include <thread>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "generated/docstrings.hpp"
 #include "struct_binding.hpp"
@@ -375,7 +376,7 @@ torques between controller updates, the log and tracking metrics.)doc")
              return py::make_tuple(label, thread_object(text.str()));
            }, doc_Simulation_holder)
       .def("advance", [](Simulation& s, long n) {
-             py::gil_scoped_release nogil;
+             coopsim::py_nogil::NoGil nogil;
              s.advance(n);
            }, py::arg("n"), doc_Simulation_advance)
       .def("run", [](Simulation& s, double t_end, const py::object& callback, long chunk) {
@@ -393,15 +394,27 @@ torques between controller updates, the log and tracking metrics.)doc")
              }
              // between chunks: Ctrl-C stops the run with the log kept, then the progress callback
              auto between = [&callback](long done, long all) {
-               py::gil_scoped_acquire gil;
+               coopsim::py_nogil::GilAgain gil;
                if (PyErr_CheckSignals() != 0) throw py::error_already_set();
                if (!callback.is_none()) callback(done, all);
                return true;
              };
-             py::gil_scoped_release nogil;
+             coopsim::py_nogil::NoGil nogil;
              return s.run(t_end, chunk, between);
            },
            py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096, doc_Simulation_run)
+      .def("run_until", [](Simulation& s, double t_end, int until, double every, long chunk) {
+             s.reserve(s.steps_until(t_end));   // a MemoryError here, with the GIL held (run's message)
+             // every `chunk` steps: Ctrl-C stops the run with the log kept
+             auto between = [](long, long) {
+               coopsim::py_nogil::GilAgain gil;
+               if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+               return true;
+             };
+             coopsim::py_nogil::NoGil nogil;
+             return s.run_until(t_end, until, every, chunk, between);
+           },
+           py::arg("t_end"), py::arg("until"), py::arg("every"), py::arg("chunk") = 4096, doc_Simulation_run_until)
       .def("steps_until", &Simulation::steps_until, py::arg("t_end"), doc_Simulation_steps_until)
       .def("reset", &Simulation::reset, doc_Simulation_reset)
       .def_property_readonly("time", &Simulation::time, doc_Simulation_time)
@@ -616,7 +629,7 @@ torques between controller updates, the log and tracking metrics.)doc")
          std::vector<std::exception_ptr> errs;
          std::vector<double> seconds;
          {
-           py::gil_scoped_release nogil;
+           coopsim::py_nogil::NoGil nogil;
            errs = run_batch(ptrs, t_end, threads, &seconds);
          }
          py::list out;
@@ -627,4 +640,7 @@ torques between controller updates, the log and tracking metrics.)doc")
          }
          return py::make_tuple(out, secs);
        }, py::arg("sims"), py::arg("t_end"), py::arg("threads") = 0, doc_run_batch);
+  m.def("gil_released_seconds", &coopsim::py_nogil::released_seconds,
+        "Wall seconds the calling thread spent in the engine's calls with the GIL released (a running total; "
+        "coopsim.gil_released_seconds).");
 }

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "py_clone.hpp"
 #include "coopsim/task.hpp"
@@ -25,12 +26,12 @@ class PyTaskController : public TaskController {
   using TaskController::TaskController;
   void reset(const Robot& robot, double period) override {
     TaskController::reset(robot, period);
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const TaskController*>(this), "reset");
     if (f) f(robot, period);
   }
   void compute_task(const TaskState& s, double* tau) override {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const TaskController*>(this), "compute_task");
     if (!f) throw py::type_error("TaskController subclass must define compute_task(state) -> tau");
     py::object out = f(s);  // a copy: the state stays valid after the call

@@ -7,6 +7,7 @@
 #include <string>
 #include <stdexcept>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/reference.hpp"
 #include "coopsim/trajectory.hpp"
@@ -27,7 +28,7 @@ class PyReference : public Reference {
   double t_start() const override { return attr_("t_start").cast<double>(); }
   double t_end() const override { return attr_("t_end").cast<double>(); }
   void evaluate(double t, double* q, double* qd, double* qdd) const override {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::function f = py::get_override(static_cast<const Reference*>(this), "evaluate");
     if (!f) throw std::runtime_error("Reference subclass must define evaluate(t) -> (q, qd, qdd)");
     py::object out = f(t);
@@ -47,7 +48,7 @@ class PyReference : public Reference {
   // the subclass's own attribute (method, property or value), never the
   // base binding's property, which would call back here
   py::object attr_(const char* name) const {
-    py::gil_scoped_acquire gil;
+    coopsim::py_nogil::GilAgain gil;
     py::object self = py::cast(static_cast<const Reference*>(this));
     py::object base = py::type::of<Reference>();
     bool found = py::hasattr(self, "__dict__") && self.attr("__dict__").contains(name);
@@ -83,7 +84,7 @@ py::tuple evaluate_ref(const Reference& r, const py::object& t, Extrapolate extr
   double *pq = q.mutable_data(), *pqd = qd.mutable_data(), *pqdd = qdd.mutable_data();
   const double* pt = ta.data();
   if (auto* c = dynamic_cast<const CubicTrajectory*>(&r)) {
-    py::gil_scoped_release nogil;
+    coopsim::py_nogil::NoGil nogil;
     c->evaluate_many(pt, static_cast<long>(m), pq, pqd, pqdd, extrapolate);
   } else {
     for (py::ssize_t i = 0; i < m; ++i) r.evaluate(pt[i], pq + i * n, pqd + i * n, pqdd + i * n);

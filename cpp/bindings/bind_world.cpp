@@ -3,6 +3,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include "nogil.hpp"
 #include "convert.hpp"
 #include "generated/docstrings.hpp"
 #include "struct_binding.hpp"
@@ -76,7 +77,7 @@ void bind_world(py::module_& m) {
           const Array A = table(pa, "poses_a"), x = table(ha, "half_a"), B = table(pb, "poses_b"), y = table(hb, "half_b");
           BoxClearances c;
           {
-            py::gil_scoped_release nogil;
+            coopsim::py_nogil::NoGil nogil;
             c = box_clearances(A, x, B, y);
           }
           const auto n = static_cast<py::ssize_t>(c.d.size());
@@ -93,7 +94,7 @@ void bind_world(py::module_& m) {
         "and separating axes rule the others out): rows in time order are fastest. GIL released.");
   m.def("shape_distance", [](const LinkBox& a, const py::object& pa, const LinkBox& b, const py::object& pb) {
           const Eigen::Isometry3d A = rigid_pose(table(pa, "pose_a"), "pose_a"), B = rigid_pose(table(pb, "pose_b"), "pose_b");
-          py::gil_scoped_release nogil;
+          coopsim::py_nogil::NoGil nogil;
           return shape_distance(a, A, b, B);
         }, py::arg("shape_a"), py::arg("pose_a"), py::arg("shape_b"), py::arg("pose_b"),
         "Distance between two convex shapes of any kind (LinkBox: box, sphere, cylinder, hull), m: the gap "
@@ -107,7 +108,7 @@ void bind_world(py::module_& m) {
           const std::vector<Shape> x(sa.begin(), sa.end()), y(sb.begin(), sb.end());
           BoxClearances c;
           {
-            py::gil_scoped_release nogil;
+            coopsim::py_nogil::NoGil nogil;
             c = shape_clearances(A, x, B, y);
           }
           const auto n = static_cast<py::ssize_t>(c.d.size());
@@ -125,7 +126,7 @@ void bind_world(py::module_& m) {
           const Array A = table(pa, "poses_a"), x = table(ha, "half_a"), B = table(pb, "poses_b"), y = table(hb, "half_b");
           Array d;
           {
-            py::gil_scoped_release nogil;
+            coopsim::py_nogil::NoGil nogil;
             d = box_distances(A, x, B, y, pairwise);
           }
           return to_numpy(d);

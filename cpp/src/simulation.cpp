@@ -543,6 +543,37 @@ long Simulation::run(double t_end, long chunk, const std::function<bool(long, lo
   return done;
 }
 
+int Simulation::run_until(double t_end, int until, double every_s, long chunk,
+                          const std::function<bool(long, long)>& progress) {
+  const Entry driving = enter_();  // one driver at a time
+  if (!(std::isfinite(every_s) && every_s > 0.0))
+    throw std::invalid_argument("every must be a finite time > 0 s, got " + std::to_string(every_s));
+  const long every = std::max(1L, static_cast<long>(std::floor(every_s / model_->options.dt + 1e-9)));
+  if (chunk < 1) throw std::invalid_argument("chunk must be >= 1, got " + std::to_string(chunk));
+  if (until <= 0 || (until & ~(kUntilGrasp | kUntilContact)) != 0)
+    throw std::invalid_argument("until must be a combination of kUntilGrasp and kUntilContact, got " +
+                                std::to_string(until));
+  const long total = steps_until(t_end);
+  reserve(total);
+  const World* w = data_.world.get();
+  const size_t grasps = data_.grasp_events.size(), contacts = w ? w->events().size() : 0;
+  long done = 0, reported = 0;
+  while (done < total) {
+    const long c = std::min(every, total - done);
+    advance(c);
+    done += c;
+    int found = 0;
+    if ((until & kUntilGrasp) && data_.grasp_events.size() != grasps) found |= kUntilGrasp;
+    if ((until & kUntilContact) && w && w->events().size() != contacts) found |= kUntilContact;
+    if (progress && (found || done == total || done - reported >= chunk)) {
+      reported = done;
+      if (!progress(done, total)) return found;
+    }
+    if (found) return found;
+  }
+  return 0;
+}
+
 // ---- replacing a robot's controller in a run ----
 
 void Simulation::set_controller(int i, std::shared_ptr<Controller> controller) {

@@ -39,7 +39,7 @@ from . import analysis, grasp, robots
 from .urdf import from_urdf, to_urdf
 from .mjcf import from_mjcf
 from .planning import clamp_pose, plan_cartesian
-from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation, SimulationBusyError
+from .simulation import ComputedTorque, Controller, DivergenceError, PID, Simulation, SimulationBusyError, gil_released_seconds
 from ._core import (
     CooperativeController,
     CoopMember,
@@ -119,6 +119,6 @@ __all__ = [
     "view",
     "CooperativeController", "CoopMember", "LeaderFollower", "ObjectControl",
     "TASK_AXES", "HybridForce", "Impedance", "Payload", "TaskController", "TaskState", "commandable_directions", "task_axes",  # noqa: E501
-    "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationBusyError", "SimulationLog", "run_batch", "simulate",  # noqa: E501
+    "BodyLog", "ComputedTorque", "Controller", "DivergenceError", "PID", "Pacer", "RobotLog", "RunStats", "Simulation", "SimulationBusyError", "SimulationLog", "gil_released_seconds", "run_batch", "simulate",  # noqa: E501
     "sweep", "sweeps", "TaskRun", "HoldModel", "linearize_hold",
 ]

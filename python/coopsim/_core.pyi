@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -2454,6 +2454,18 @@ class SimulationCore:
         throwing, stops the run there (the state and log stay consistent).
         Returns the steps taken.
         """
+    def run_until(self, t_end: typing.SupportsFloat | typing.SupportsIndex, until: typing.SupportsInt | typing.SupportsIndex, every: typing.SupportsFloat | typing.SupportsIndex, chunk: typing.SupportsInt | typing.SupportsIndex = 4096) -> int:
+        """
+        Advances toward t_end as run() does, in pieces of `every` s counted from now (rounded down to
+        whole steps, at least one; the last piece shorter), and stops after the first piece in which an
+        event of `until` happened. The steps
+        are those of run(): where it stops is where a caller advancing piece by piece and looking for
+        the event between pieces would look, so such a caller can hand the waiting to the engine and
+        get the same run. progress(done, total) is called at most every `chunk` steps and at the end,
+        as run() calls it (false or throwing stops there). Returns the events found in the last piece
+        (flags of `until`; 0: t_end reached, or progress stopped the run). Throws
+        std::invalid_argument for an `every` not finite and > 0, chunk < 1 or until without a known flag.
+        """
     def sensor(self, i: typing.SupportsInt | typing.SupportsIndex) -> SensorReading:
         """
         Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the
@@ -2758,6 +2770,10 @@ def generated_cache_dir() -> str:
 def generated_info(robot: Robot) -> typing.Any:
     """
     The generated dynamics attached to `robot` as a dict (name, dof, joint_types, angles, generator_version, operation_count, in_use, derivatives: whether it carries the dynamics' derivatives), or None.
+    """
+def gil_released_seconds() -> float:
+    """
+    Wall seconds the calling thread spent in the engine's calls with the GIL released (a running total; coopsim.gil_released_seconds).
     """
 def integrate(robot: Robot, q0: typing.Any, qd0: typing.Any, tau: typing.Any, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, steps: typing.SupportsInt | typing.SupportsIndex = 1, method: str = 'rk4', end_stops: bool = True, record_every: typing.SupportsInt | typing.SupportsIndex = 1) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
     """

@@ -17,7 +17,7 @@ import re
 import time
 from collections.abc import Mapping
 from contextlib import contextmanager
-from typing import Callable, Iterator, List, Optional, Sequence, Tuple
+from typing import Callable, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -30,12 +30,15 @@ from .pacing import Pacer, RunStats
 #: signature below shows; grasp_options=None takes the engine's defaults of the grasp options
 _DEFAULTS = _core.simulation_defaults()
 
-__all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation", "SimulationBusyError"]
+__all__ = ["ComputedTorque", "Controller", "DivergenceError", "PID", "Simulation", "SimulationBusyError",
+           "gil_released_seconds"]
 
 # by default a headless run of at least this many steps shows a progress bar
 # once it has lasted _PROGRESS_DELAY s of wall time
 _PROGRESS_MIN_STEPS = 10_000
 _PROGRESS_DELAY = 1.0
+# Simulation.advance_until's events: the engine's flags (Simulation::Until)
+_UNTIL = {"grasp": 1, "contact": 2}
 
 
 class Simulation:
@@ -503,6 +506,32 @@ class Simulation:
         self._run(t_end, None)
         return self.time
 
+    def advance_until(self, t_end: float, until: Union[str, Sequence[str]] = ("grasp", "contact"), *,
+                      every: Optional[float] = None) -> Optional[str]:
+        """Advances toward time t_end (s) as :meth:`advance` does, in one engine call with the GIL
+        released, and stops early after an event of `until`: 'grasp' (a grasp or a release: a row of
+        :attr:`SimulationLog.grasps` appeared), 'contact' (a contact began between two bodies of the
+        world: an entry of :meth:`contact_events` appeared), or both (a sequence).
+
+        The engine looks for the events after every `every` s of steps counted from now (None: every
+        step; rounded down to whole steps, at least one), as a caller advancing in pieces of `every`
+        and looking between them would; it stops at the end of the first piece with one, so handing
+        such a wait to the engine gives the same run, stopped at the same time. Returns 'grasp',
+        'contact' or 'grasp+contact' (what the last piece had), or None when t_end was reached.
+        ValueError naming the argument for an unknown event, a non-positive or non-finite `every`,
+        or a t_end before now.
+        """
+        names = (until,) if isinstance(until, str) else tuple(until)
+        flags = 0
+        for name in names:
+            if name not in _UNTIL:
+                raise ValueError(f"until must name events of {', '.join(map(repr, _UNTIL))}, got {name!r}")
+            flags |= _UNTIL[name]
+        if not names:
+            raise ValueError("until must name at least one event ('grasp', 'contact')")
+        found = self._timed(self._core.run_until, t_end, flags, self.dt if every is None else every)
+        return "+".join(n for n, f in _UNTIL.items() if found & f) or None
+
     @staticmethod
     def advance_all(sims: Sequence["Simulation"], t_end: float, threads: int = 0) -> list:
         """Advances each of `sims` up to time t_end (s) as :meth:`advance` does, all in one engine call on
@@ -520,18 +549,19 @@ class Simulation:
     def _run(self, t_end: float, callback) -> None:
         self._timed(self._core.run, t_end, callback)
 
-    def _timed(self, call, *args) -> None:
-        """call(*args), its run's statistics to :attr:`stats` (also when it fails, but for a
-        SimulationBusyError: that run is another thread's, and so are the statistics)."""
+    def _timed(self, call, *args):
+        """call(*args) and what it returns, its run's statistics to :attr:`stats` (also when it fails,
+        but for a SimulationBusyError: that run is another thread's, and so are the statistics)."""
         t0, s0, w0 = self.time, self.steps, time.perf_counter()
         try:
-            call(*args)
+            out = call(*args)
         except SimulationBusyError:
             raise
         except BaseException:
             self._record(t0, s0, w0)
             raise
         self._record(t0, s0, w0)
+        return out
 
     def _record(self, t0: float, s0: int, w0: float) -> None:
         w = time.perf_counter() - w0
@@ -681,3 +711,14 @@ def _index(i, n):
     if not isinstance(i, (int, np.integer)) or isinstance(i, bool) or not -n <= i < n:
         raise ValueError(f"robot must be an index in [0, {n}), got {i!r}")
     return int(i) % n
+
+
+def gil_released_seconds() -> float:
+    """Wall seconds (s) the calling thread has spent inside the engine's calls with the GIL released, since it
+    started: a running total, so take its growth over what you measure. Every engine call that releases the
+    GIL counts (a simulation's stepping, :func:`coopsim.run_batch`, the batch dynamics, IK, the clearances);
+    a Python controller, reference, cooperative law or progress callback that takes the GIL back inside such
+    a call pauses the count while it holds it. Threads the engine starts itself (the pools of run_batch and
+    the batch functions) are not counted; the calling thread's call is. ``benchmarks/bench_scaling.py``
+    divides its growth over a task run by the run's wall time."""
+    return _core.gil_released_seconds()

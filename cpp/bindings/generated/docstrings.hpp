@@ -695,6 +695,17 @@ constexpr const char* doc_Simulation_run = "Advances to time t_end (steps_until)
     "calling progress(done, total) after each; progress returning false, or\n"
     "throwing, stops the run there (the state and log stay consistent).\n"
     "Returns the steps taken.";
+constexpr const char* doc_Simulation_int = "What run_until watches for (flags, combined with |): a grasp or a release (grasp_events()\n"
+    "grew), a contact beginning between two bodies of the world (world()->events() grew).";
+constexpr const char* doc_Simulation_run_until = "Advances toward t_end as run() does, in pieces of `every` s counted from now (rounded down to\n"
+    "whole steps, at least one; the last piece shorter), and stops after the first piece in which an\n"
+    "event of `until` happened. The steps\n"
+    "are those of run(): where it stops is where a caller advancing piece by piece and looking for\n"
+    "the event between pieces would look, so such a caller can hand the waiting to the engine and\n"
+    "get the same run. progress(done, total) is called at most every `chunk` steps and at the end,\n"
+    "as run() calls it (false or throwing stops there). Returns the events found in the last piece\n"
+    "(flags of `until`; 0: t_end reached, or progress stopped the run). Throws\n"
+    "std::invalid_argument for an `every` not finite and > 0, chunk < 1 or until without a known flag.";
 constexpr const char* doc_Simulation_log_rows = "Rows in the log (one per log_every-th step, the start included).";
 constexpr const char* doc_Simulation_body_log = "Free bodies' log, one column each (world.free_bodies() order): 13 values\n"
     "per row, position (3) m, quaternion w x y z (4), velocity (3) m/s,\n"

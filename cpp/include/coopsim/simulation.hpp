@@ -302,6 +302,20 @@ class Simulation {
   // throwing, stops the run there (the state and log stay consistent).
   // Returns the steps taken.
   long run(double t_end, long chunk = 4096, const std::function<bool(long, long)>& progress = nullptr);
+  // What run_until watches for (flags, combined with |): a grasp or a release (grasp_events()
+  // grew), a contact beginning between two bodies of the world (world()->events() grew).
+  enum Until : int { kUntilGrasp = 1, kUntilContact = 2 };
+  // Advances toward t_end as run() does, in pieces of `every` s counted from now (rounded down to
+  // whole steps, at least one; the last piece shorter), and stops after the first piece in which an
+  // event of `until` happened. The steps
+  // are those of run(): where it stops is where a caller advancing piece by piece and looking for
+  // the event between pieces would look, so such a caller can hand the waiting to the engine and
+  // get the same run. progress(done, total) is called at most every `chunk` steps and at the end,
+  // as run() calls it (false or throwing stops there). Returns the events found in the last piece
+  // (flags of `until`; 0: t_end reached, or progress stopped the run). Throws
+  // std::invalid_argument for an `every` not finite and > 0, chunk < 1 or until without a known flag.
+  int run_until(double t_end, int until, double every, long chunk = 4096,
+                const std::function<bool(long, long)>& progress = nullptr);
 
   // ---- log and metrics ----
   // Rows in the log (one per log_every-th step, the start included).

@@ -15,7 +15,7 @@ from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
 from .controllers import CONTROLLERS, Cooperative, Phased, check_options, computed_torque, controller_factory, grip_point
 from .disturbances import Disturbances, disturbances
 from .pairs import pair as make_pair
-from .planning import STEPS, Plan, make_plan, random_start
+from .planning import STEPS, Plan, _pose4, make_plan, random_start
 from .scoring import score
 
 __all__ = ["CarryError", "CarryResult", "run"]
@@ -93,11 +93,16 @@ class _Runner:
 
     def run_to(self, t_end, chunk=None, held=False):
         """Advances to t_end (in chunks of `chunk` s), checking contacts and, with `held`, that both clamps
-        still hold the bar after each chunk."""
+        still hold the bar after each chunk. The engine does the chunks' waiting (Simulation.advance_until):
+        it stops after a chunk in which a contact began or, with `held`, a clamp let go (a grasp event), the
+        only chunks whose checks can find anything, so the checks see what they would see after every chunk."""
+        until = ("grasp", "contact") if held else "contact"
         while self.sim.time < t_end - 1e-12:
-            t = t_end if chunk is None else min(t_end, self.sim.time + chunk)
             try:
-                self.sim.advance(t)
+                if chunk is None:
+                    self.sim.advance(t_end)
+                else:
+                    self.sim.advance_until(t_end, until, every=chunk)
             except ValueError:
                 # a cooperative law refuses robots that no longer hold one body: a clamp let go
                 if self.group is not None and any(self.sim.holding(i) != scene.BAR for i in range(2)):
@@ -128,7 +133,7 @@ class _Runner:
         """Runs to t_end in CHUNK steps, recording each weld's anchor when it appears; CarryError('grasp') if
         either clamp does not hold the bar at t_end, naming the clamp rule's conditions that failed."""
         while self.sim.time < t_end - 1e-12:
-            self.sim.advance(min(t_end, self.sim.time + CHUNK))
+            self.sim.advance_until(t_end, ("grasp", "contact"), every=CHUNK)
             self.check_contacts()
             for i in range(2):
                 if self.anchors[i] is None and self.sim.holding(i) == scene.BAR:
@@ -207,9 +212,7 @@ class _Runner:
             self.group = None
             for i, ref in enumerate(self.plan.references):
                 sim.set_reference(i, ref)
-        t_open = S["release"][1]
-        while sim.time < t_open - 1e-12:
-            self.run_to(min(t_open, sim.time + CHUNK))
+        self.run_to(S["release"][1], CHUNK)
         for i in range(2):
             if sim.holding(i) is not None:
                 raise CarryError("release", sim.time, f"{self.names[i]} did not let go of the bar")
@@ -385,14 +388,14 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     control_every = int(rates.get("control_every", 5)) if control_every is None else control_every
     if log_every is None:
         log_every = max(1, int(round(5e-3 / dt))) if isinstance(dt, (int, float)) and dt > 0 else 25
-    plan0 = make_plan(start, end, robots=pair)  # checks start and end; the disturbances need the start's yaw
-    dist = disturbances(disturbance, plan0.start[3])
+    start, end = _pose4(start, "start"), _pose4(end, "end")
+    dist = disturbances(disturbance, start[3])        # the push is across the bar: its direction needs the yaw
     if mass_factor is not None:
         if dist.mass_factor != 1.0:
             raise ValueError(f"mass_factor {mass_factor!r} and the disturbance's mass factor {dist.mass_factor} both "
                              f"given: give one of them")
         dist = dataclasses.replace(dist, mass_factor=mass_factor)
-    plan = make_plan(plan0.start, plan0.end, robots=pair, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
+    plan = make_plan(start, end, robots=pair, grip_offsets=dist.grip_offset, close=tuple(jaws_close),
                      mass_factor=dist.mass_factor)
     runner = _Runner(plan, plan.start, dist, factory, dt=dt, log_every=log_every, world_every=world_every,
                      control_every=control_every)

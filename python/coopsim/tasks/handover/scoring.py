@@ -4,7 +4,6 @@ force and moment, and the clamps' relative pose error (the engine's ``log.cooper
 grasp events."""
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from typing import List
 
 import numpy as np
@@ -38,11 +37,10 @@ def score_cycles(runner, results: List[dict]) -> dict:
     walls = [w[0] for w in runner.walls]
     PW = np.array([w[2] for w in runner.walls])
     HW = np.array([w[1] for w in runner.walls])
-    # the three clearance series at once: the engine releases the GIL
-    with ThreadPoolExecutor(max_workers=3) as pool:
-        jobs = [pool.submit(clearances, shapes[0], halves[0], shapes[1], halves[1])]
-        jobs += [pool.submit(clearances, P, H, PW, HW) for P, H in zip(shapes, halves)]
-        (d_rr, i_rr, j_rr), *cont = [j.result() for j in jobs]
+    # the three clearance series one after the other, each one engine call with the GIL released (a sweep of
+    # runs on threads runs them side by side)
+    d_rr, i_rr, j_rr = clearances(shapes[0], halves[0], shapes[1], halves[1])
+    cont = [clearances(P, H, PW, HW) for P, H in zip(shapes, halves)]
     d_rc = np.minimum(cont[0][0], cont[1][0])
     tcp_err = np.column_stack([np.linalg.norm(r.fk(rl.q)[:, :3, 3] - r.fk(rl.q_ref)[:, :3, 3], axis=1)
                                for r, rl in zip(robots, log.robots)])

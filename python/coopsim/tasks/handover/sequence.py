@@ -24,6 +24,9 @@ from .scoring import score_cycles
 from .summary import summary
 
 
+_WAIT_CHUNK = 0.01   # s: a wait for a grasp or release looks for it after every such chunk
+
+
 class TaskError(RuntimeError):
     """A cycle of the task failed: `step` (name), `t` (s), `reason`, and the bodies involved."""
 
@@ -157,12 +160,19 @@ class _Runner(Planner):
         self.check_contacts()
 
     def wait_for(self, predicate, timeout, what):
-        """Runs in 10 ms chunks until predicate() holds, at most `timeout` s; TaskError with `what` if not."""
+        """Runs in 10 ms chunks until predicate() holds, at most `timeout` s; TaskError with `what` if not.
+        predicate: of the clamps' holds, which change only at a grasp or release. Headless, the engine does the
+        chunks' waiting (Simulation.advance_until): it stops after a chunk in which a grasp event happened or a
+        contact began, the only chunks after which the predicate or the contacts' check can find anything new."""
         t_end = self.sim.time + timeout
         while not predicate():
             if self.sim.time >= t_end - 1e-12:
                 raise TaskError(self.step, self.sim.time, what)
-            self.run_to(min(self.sim.time + 0.01, t_end))
+            if self.live is None and t_end <= self.t_limit:   # (else chunk by chunk: the limit's check in each)
+                self.sim.advance_until(t_end, ("grasp", "contact"), every=_WAIT_CHUNK)
+                self.check_contacts()
+            else:
+                self.run_to(min(self.sim.time + _WAIT_CHUNK, t_end))
 
     def wait_grasp(self, i, name):
         """Runs until robot i holds `name` (GRASP_TIMEOUT s at most); else TaskError naming the clamp
