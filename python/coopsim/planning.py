@@ -80,20 +80,6 @@ def _log_so3(R: np.ndarray) -> np.ndarray:
     return angle / (2.0 * math.sin(angle)) * v
 
 
-def _exp_so3(w: np.ndarray) -> np.ndarray:
-    angle = float(np.linalg.norm(w))
-    if angle < 1e-12:
-        return np.eye(3)
-    k = w / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
-
-
-def _roty(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
 def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
     """Poses (len(s), 4, 4) on the straight line from T0 to T1, s in [0, 1].
 
@@ -108,29 +94,59 @@ def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
     """
     T0, T1 = np.asarray(T0, dtype=float), np.asarray(T1, dtype=float)
     s = np.atleast_1d(np.asarray(s, dtype=float))
+    if mode not in ("geodesic", "clamp"):
+        raise ValueError(f"mode must be 'geodesic' or 'clamp', got {mode!r}")
+    if np.all((s == 0.0) | (s == 1.0)):      # the end poses themselves (plan_cartesian's knots without poses between)
+        return np.where((s == 1.0)[:, None, None], T1, T0)
     R0, R1 = T0[:3, :3], T1[:3, :3]
     if mode == "geodesic":
         w = _log_so3(R0.T @ R1)
-        rot = lambda si: R0 @ _exp_so3(si * w)  # noqa: E731
+        R = R0 @ _exp_so3_many(s[:, None] * w)
     elif mode == "clamp":
         # yaw: turn of the jaw axis about the vertical; pitch: what is left, about the jaw axis
         y0, y1 = R0[:, 1], R1[:, 1]
         dpsi = math.atan2(y0[0] * y1[1] - y0[1] * y1[0], y0[0] * y1[0] + y0[1] * y1[1])
         M = R0.T @ rotz(-dpsi) @ R1
         dphi = math.atan2(M[0, 2], M[0, 0])
-        rot = lambda si: rotz(si * dpsi) @ R0 @ _roty(si * dphi)  # noqa: E731
-    else:
-        raise ValueError(f"mode must be 'geodesic' or 'clamp', got {mode!r}")
-    out = np.repeat(np.eye(4)[None], len(s), axis=0)
-    for i, si in enumerate(s):
-        if si == 0.0:
-            out[i] = T0
-        elif si == 1.0:
-            out[i] = T1
-        else:
-            out[i, :3, :3] = rot(si)
-            out[i, :3, 3] = (1.0 - si) * T0[:3, 3] + si * T1[:3, 3]
+        R = _rotz_many(s * dpsi) @ R0 @ _roty_many(s * dphi)
+    # all samples at once (one set of array operations, whatever their number)
+    out = np.zeros((len(s), 4, 4))
+    out[:, 3, 3] = 1.0
+    out[:, :3, :3] = R
+    out[:, :3, 3] = (1.0 - s)[:, None] * T0[:3, 3] + s[:, None] * T1[:3, 3]
+    out[s == 0.0] = T0
+    out[s == 1.0] = T1
     return out
+
+
+def _rotz_many(a: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) by the angles a (N,) rad about z."""
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros((len(a), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
+def _roty_many(a: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) by the angles a (N,) rad about y."""
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros((len(a), 3, 3))
+    R[:, 0, 0], R[:, 0, 2], R[:, 1, 1], R[:, 2, 0], R[:, 2, 2] = c, s, 1.0, -s, c
+    return R
+
+
+def _exp_so3_many(w: np.ndarray) -> np.ndarray:
+    """Rotations (N, 3, 3) of the rotation vectors w (N, 3) (Rodrigues' formula)."""
+    angle = np.linalg.norm(w, axis=1)
+    small = angle < 1e-12
+    k = w / np.where(small, 1.0, angle)[:, None]
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 0], K[:, 1, 2], K[:, 2, 0], K[:, 2, 1] = \
+        -k[:, 2], k[:, 1], k[:, 2], -k[:, 0], -k[:, 1], k[:, 0]
+    sa, ca = np.sin(angle)[:, None, None], (1.0 - np.cos(angle))[:, None, None]
+    R = np.eye(3) + sa * K + ca * (K @ K)
+    R[small] = np.eye(3)
+    return R
 
 
 #: the time laws of plan_cartesian: the fraction of a segment's way reached at the fraction tau of its time
