@@ -1,6 +1,7 @@
 """The Gymnasium environments (coopsim.envs): Gymnasium's checks, seeds repeating episodes bit for bit, the
-vector environment against the single ones, refused actions, resets after a failure, and rewards one arm
-cannot collect alone."""
+vector environment against the single ones, refused actions, resets after a failure, rewards one arm
+cannot collect alone, the cooperative law's commands set during a run, and the dual carry with one
+PettingZoo agent per arm."""
 import subprocess
 import sys
 
@@ -11,7 +12,8 @@ gym = pytest.importorskip("gymnasium")
 
 import coopsim  # noqa: E402
 import coopsim.envs  # noqa: E402,F401  (registers the environments)
-from coopsim.envs import DualCarryEnv, ReachEnv  # noqa: E402
+from coopsim.envs import DualCarryEnv, HandoverEnv, ReachEnv  # noqa: E402
+import coopsim.tasks.handover  # noqa: E402,F401
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 from gymnasium.vector import AutoresetMode  # noqa: E402
 from gymnasium.wrappers import FlattenObservation  # noqa: E402
@@ -47,6 +49,10 @@ def _same(a, b):
         np.testing.assert_array_equal(_flat(x), _flat(y))
     assert a["rewards"] == b["rewards"]
     assert a["done"] == b["done"]
+
+
+#: the scripted carry's commands
+SCRIPTED_CARRY = np.array([0.0, 0.0, 0.0, 0.0, 0.5])
 
 
 def _seeded_torques(env, seed, scale=0.3):
@@ -400,3 +406,193 @@ def test_reach_in_human_mode_runs_through_the_live_page():
                                                    lambda k, o: np.clip(o[-3:], -0.05, 0.05))["infos"][1:]]
     env.close()
     assert env._live is None
+
+
+# ---- the law's commands set during a run ----
+
+def _law_from_start(env, seed, **built):
+    """env reset at `seed` (the bar held under the carry's law), its law replaced by a new one (the carry's,
+    with `built` at construction): (env, the new law)."""
+    from coopsim.tasks.carry import controllers
+
+    env.reset(seed=seed)
+    sim, runner = env.sim, env.runner
+    sim.remove_cooperative(runner.group)
+    law = controllers.object_control(env.plan.robots, env.plan, **built).law
+    return law, lambda: sim.add_cooperative(law, [0, 1])
+
+
+def test_commands_set_before_the_first_update_equal_a_law_built_with_them():
+    a, b = DualCarryEnv(), DualCarryEnv()
+    law_a, start_a = _law_from_start(a, 2, squeeze=3.0, load_share=0.3)
+    law_b, start_b = _law_from_start(b, 2)
+    start_a()
+    start_b()
+    law_b.squeeze, law_b.load_share = 3.0, 0.3        # set at the start: before the law's first update
+    assert (law_b.squeeze, law_b.load_share) == (3.0, 0.3)
+    t = a.sim.time + 0.4
+    a.sim.advance(t)
+    b.sim.advance(t)
+    for i in (0, 1):
+        np.testing.assert_array_equal(np.concatenate(a.sim.state(i)), np.concatenate(b.sim.state(i)))
+    np.testing.assert_array_equal(a.sim.log.cooperation(0, 1)["squeeze"], b.sim.log.cooperation(0, 1)["squeeze"])
+    c = b.sim.cooperation(0, 1)
+    assert c.squeeze == pytest.approx(3.0, abs=0.3)          # the bar being lifted off the stands
+
+
+def test_the_squeeze_and_load_share_follow_a_step_change_in_the_running_law():
+    env = DualCarryEnv()
+    env.reset(seed=3)
+    law, group = env.runner.coop.law, env.runner.group
+    for _ in range(15):
+        obs, *_ = env.step(env.scripted_action)
+    assert abs(obs["squeeze"][0]) < 0.2 and obs["load_share"][0] == pytest.approx(0.5, abs=0.03)
+    share = []
+    for _ in range(25):                                  # SCARA #1's share down to 0.35 for 0.5 s
+        obs, r, term, trunc, info = env.step(np.array([0.0, 0.0, 0.0, 0.0, 0.35]))
+        share.append(obs["load_share"][0])
+        assert not term
+    # under way within the first period; from 0.2 s on around the command, swinging with the lift's motion
+    share = np.array(share)
+    assert share[0] < 0.45 and np.mean(share[10:]) == pytest.approx(0.35, abs=0.05), share
+    assert np.all(np.abs(share[10:] - 0.35) < 0.1), share
+    squeeze = []
+    for _ in range(25):                                  # then a step of the squeeze to 4 N for 0.5 s
+        obs, r, term, trunc, info = env.step(np.array([0.0, 0.0, 0.0, 4.0, 0.35]))
+        squeeze.append(obs["squeeze"][0])
+        assert not term
+    squeeze = np.array(squeeze)
+    assert squeeze[0] > 1.0                              # within the first period (20 ms) under way
+    # from 0.2 s on around the command, the welds' squeeze swinging with the carry's motion
+    assert np.mean(squeeze[10:]) == pytest.approx(4.0, abs=0.3) and np.all(np.abs(squeeze[10:] - 4.0) < 1.0), squeeze
+    # the same law all along, its commands changed: no law rebuilt
+    assert env.runner.coop.law is law and env.runner.group == group
+    assert [g["controller"] for g in env.sim.cooperatives] == [law] and (law.squeeze, law.load_share) == (4.0, 0.35)
+
+
+def _offset_errors(ramp, updates=40):
+    """The law's vertical object error (m) at each of `updates` updates (1 ms) after a 1 cm offset up is set
+    on the running law of DualCarry's seed 1 with offset_ramp `ramp` s (None: the environment's)."""
+    env = DualCarryEnv()
+    env.reset(seed=1)
+    law = env.runner.coop.law
+    assert law.offset_ramp == pytest.approx(0.02) and np.array_equal(law.offset, np.zeros(3))
+    if ramp is not None:
+        law.offset_ramp = ramp
+    law.offset = [0.0, 0.0, 0.01]
+    sim, t0, errors = env.sim, env.sim.time, []
+    for k in range(1, updates + 1):
+        sim.advance(t0 + k * 1e-3)
+        errors.append(law.object_error[2])
+    np.testing.assert_array_equal(law.offset, [0.0, 0.0, 0.01])
+    return np.array(errors)
+
+
+def test_an_offset_set_on_the_law_ramps_over_its_offset_ramp():
+    e = _offset_errors(None)
+    # the reference rises 0.5 mm per update for 20 ms, the bar following behind: the error grows while the
+    # ramp lasts, then the bar catches up
+    assert abs(e[0]) < 2e-4 and np.all(np.diff(e[:19]) > 0) and 18 <= int(np.argmax(e)) <= 21
+    assert e.max() < 5e-3 and e[30] < 0.5 * e.max()
+    step = _offset_errors(0.0, updates=2)                  # no ramp: the whole centimetre at the next update
+    assert step[0] == pytest.approx(0.01, abs=3e-4)
+
+
+@pytest.mark.parametrize("name,value,match", [
+    ("load_share", 1.5, r"^load_share must be in \[0, 1\], got 1.5$"),
+    ("load_share", float("nan"), r"^load_share must be in \[0, 1\]"),
+    ("squeeze", float("inf"), r"^squeeze must be finite, got inf$"),
+    ("offset", [0.0, float("nan"), 0.0], r"^offset must be finite"),
+    ("offset", [0.0, 0.0], r"^wrong shape for offset: expected \(3,\), got \(2,\)$"),
+    ("offset_ramp", -0.1, r"^offset_ramp must be finite and >= 0, got -0.1$")])
+def test_bad_commands_are_refused_by_the_law_with_the_constructors_rules(name, value, match):
+    law = coopsim.ObjectControl(0.15, np.eye(3) * 1e-4)
+    before = getattr(law, name)
+    with pytest.raises(ValueError, match=match):
+        setattr(law, name, value)
+    np.testing.assert_array_equal(getattr(law, name), before)     # unchanged
+    if name in ("load_share", "squeeze"):
+        with pytest.raises(ValueError, match=match.split(",")[0].split(" must")[0]):
+            coopsim.ObjectControl(0.15, np.eye(3) * 1e-4, **{name: value})
+
+
+# ---- one agent per arm (PettingZoo) ----
+
+def test_the_parallel_carry_passes_pettingzoo_s_api_test():
+    from pettingzoo.test import parallel_api_test
+
+    env = coopsim.envs.dual_carry_parallel()
+    env.action_space("scara_1").seed(0)
+    env.action_space("scara_2").seed(1)
+    parallel_api_test(env, num_cycles=200)
+    env.close()
+
+
+def test_the_parallel_carry_with_the_scripted_actions_is_the_single_carry_and_each_arm_earns_its_term():
+    par = coopsim.envs.dual_carry_parallel()
+    obs, infos = par.reset(seed=3)
+    single = _episode(DualCarryEnv(), 3, SCRIPTED_CARRY)
+    assert set(obs) == {"scara_1", "scara_2"} and par.agents == ["scara_1", "scara_2"]
+    for k in range(len(single["rewards"])):
+        assert par.observation_space("scara_1").contains(obs["scara_1"])
+        obs, rewards, term, trunc, infos = par.step({a: par.scripted_action for a in par.agents})
+        s = single["obs"][k + 1]
+        for i, a in enumerate(("scara_1", "scara_2")):
+            np.testing.assert_array_equal(obs[a]["q"], s["q"][i])
+            np.testing.assert_array_equal(obs[a]["wrench"], s["wrench"][i])
+            np.testing.assert_array_equal(obs[a]["bar_pose"], s["bar_pose"])
+            assert obs[a]["load_share"][0] == s["load_share"][i]
+            terms = single["infos"][k + 1]["reward_terms"]
+            assert rewards[a] == terms["arms"][i] * terms["internal_factor"]
+        assert min(rewards.values()) == single["rewards"][k]
+    assert all(term.values()) and par.agents == [] and infos["scara_1"]["success"]
+    with pytest.raises(RuntimeError, match="reset"):
+        par.step({})
+
+
+def test_the_parallel_carry_merges_the_agents_commands_and_names_a_bad_one():
+    par = coopsim.envs.dual_carry_parallel()
+    par.reset(seed=0)
+    got = par.commands({"scara_1": [0.01, 0.0, 0.002, 1.0, 0.6], "scara_2": [0.0, -0.01, 0.0, 2.0, 0.2]})
+    np.testing.assert_allclose(got, [0.005, -0.005, 0.001, 3.0, 0.75])
+    assert par.commands({"scara_1": np.zeros(5), "scara_2": np.zeros(5)})[4] == 0.5   # no claims: halves
+    for bad, match in (({"scara_1": np.zeros(5)}, "missing 'scara_2'"),
+                       ({"scara_1": np.zeros(5), "scara_2": [0, 0, 0, 0, np.nan]}, r"actions\['scara_2'\] must be finite"),
+                       ({"scara_1": np.zeros(4), "scara_2": np.zeros(5)}, r"actions\['scara_1'\] must have shape"),
+                       ({"scara_1": np.zeros(5), "scara_2": np.zeros(5), "arm_3": np.zeros(5)}, "'arm_3'")):
+        with pytest.raises(ValueError, match=match) as e:
+            par.step(bad)
+        assert "\n" not in str(e.value)
+    obs, r, term, trunc, info = par.step({a: par.scripted_action for a in par.agents})   # nothing was applied
+    assert not any(term.values()) and info["scara_1"]["time"] > 0
+
+
+# ---- coopsim/Handover-v0 ----
+
+@pytest.mark.filterwarnings("ignore:.*symmetric and normalized space:UserWarning")
+def test_handover_passes_check_env_and_is_registered():
+    env = gym.make("coopsim/Handover-v0")
+    assert isinstance(env.unwrapped, HandoverEnv)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_handover_rewards_the_task_s_outcome_of_the_handover_yaw():
+    env = HandoverEnv()
+    obs, info = env.reset(seed=1)
+    bar = coopsim.tasks.handover.random_bar(1)
+    np.testing.assert_allclose(obs, [bar[0, 3], bar[1, 3], np.arctan2(bar[1, 0], bar[0, 0])])
+    assert env.observation_space.contains(obs) and info["seed"] == 1
+    _, r, term, trunc, info = env.step(env.scripted_action)          # the task's 285 deg: the bar goes in
+    assert (r, term, trunc) == (1.0, True, False) and info["success"] and "failure" not in info
+    assert env.result.report["handover_yaw"] == pytest.approx(np.radians(285))
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(env.scripted_action)
+    for deg, step in ((320, None), (250, "plan")):   # too fast a clamp at #2's grasp; no grip reachable
+        env.reset(seed=1)
+        _, r, term, _, info = env.step([np.radians(deg)])
+        assert r == 0.0 and term and not info["success"] and info["failure"]["reason"]
+        assert step is None or info["failure"]["step"] == step
+    with pytest.raises(ValueError, match=r"^action must lie in its space's bounds"):
+        env.reset(seed=1)
+        env.step([np.radians(340)])

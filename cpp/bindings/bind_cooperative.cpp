@@ -125,8 +125,15 @@ limits. The built-in laws: ObjectControl, LeaderFollower.)doc")
                              "(6,) m, rad: the impedance's offset from the reference at the last update (world).")
       .def_property_readonly("push_estimate", [](const ObjectControl& c) { return to_numpy(c.push_estimate()); },
                              "(6,) N, N m: the push on the object estimated at the last update (impedance).")
-      .def_property_readonly("load_share", &ObjectControl::load_share)
-      .def_property_readonly("squeeze", &ObjectControl::squeeze)
+      .def_property("load_share", &ObjectControl::load_share, &ObjectControl::set_load_share,
+                    "Clamp 0's part of the vertical load, [0, 1]; settable during a run (the next update).")
+      .def_property("squeeze", &ObjectControl::squeeze, &ObjectControl::set_squeeze,
+                    "N, compression positive; settable during a run (the next update).")
+      .def_property("offset", [](const ObjectControl& c) { return to_numpy(c.offset()); },
+                    [](ObjectControl& c, const py::object& v) { c.set_offset(vector_arg<Eigen::Vector3d>(v, 3, "offset")); },
+                    "(3,) m, world: the object's reference moved by it; settable during a run (reached over offset_ramp).")
+      .def_property("offset_ramp", &ObjectControl::offset_ramp, &ObjectControl::set_offset_ramp,
+                    "s, >= 0: a new offset is reached over it from the last update's (0: at once).")
       .def_property_readonly("object_error", [](const ObjectControl& c) { return to_numpy(c.object_error()); },
                              "(6,) m, rad: the object's pose error at the last update (world).")
       .def_property_readonly("object_wrench", [](const ObjectControl& c) { return to_numpy(c.object_wrench()); },

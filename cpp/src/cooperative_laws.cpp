@@ -75,8 +75,8 @@ Vec6 checked_vec6(const Vec6& v, const char* name, bool positive) {
 ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains gains, double load_share,
                              double squeeze, bool impedance, Vec6 stiffness, Vec6 damping, Vec6 imp_mass,
                              double accel_filter)
-    : mass_(mass), inertia_(inertia), gains_(gains), share_(load_share), squeeze_(squeeze), impedance_(impedance),
-      K_(stiffness), D_(damping), Md_(imp_mass), accel_filter_(accel_filter) {
+    : mass_(mass), inertia_(inertia), gains_(gains), impedance_(impedance), K_(stiffness), D_(damping),
+      Md_(imp_mass), accel_filter_(accel_filter) {
   checked_vec6(K_, "stiffness", false);
   checked_vec6(D_, "damping", false);
   checked_vec6(Md_, "impedance mass", true);
@@ -90,9 +90,29 @@ ObjectControl::ObjectControl(double mass, const Eigen::Matrix3d& inertia, Gains 
   detail::require_nonnegative(gains_.kp_force, "kp_force");
   detail::require_nonnegative(gains_.ki_force, "ki_force");
   detail::require_nonnegative(gains_.integral_limit, "integral_limit");
-  if (!std::isfinite(share_) || share_ < 0 || share_ > 1)
-    throw std::invalid_argument("load_share must be in [0, 1], got " + detail::num(share_));
-  if (!std::isfinite(squeeze_)) throw std::invalid_argument("squeeze must be finite");
+  set_load_share(load_share);
+  set_squeeze(squeeze);
+}
+
+void ObjectControl::set_load_share(double load_share) {
+  if (!std::isfinite(load_share) || load_share < 0 || load_share > 1)
+    throw std::invalid_argument("load_share must be in [0, 1], got " + detail::num(load_share));
+  share_ = load_share;
+}
+
+void ObjectControl::set_squeeze(double squeeze) {
+  if (!std::isfinite(squeeze)) throw std::invalid_argument("squeeze must be finite, got " + detail::num(squeeze));
+  squeeze_ = squeeze;
+}
+
+void ObjectControl::set_offset(const Eigen::Vector3d& offset) {
+  check_finite(offset.data(), 3, "offset");
+  offset_ = offset;
+}
+
+void ObjectControl::set_offset_ramp(double seconds) {
+  detail::require_nonnegative(seconds, "offset_ramp");
+  ramp_ = seconds;
 }
 
 void ObjectControl::check(const std::vector<const Robot*>& robots) const {
@@ -117,6 +137,8 @@ void ObjectControl::reset(const std::vector<const Robot*>& robots, double period
   ac_.setZero();
   acc_f_.setZero();
   push_.setZero();
+  off_now_ = ramp_from_ = ramp_to_ = offset_;  // a run starts at the commanded offset
+  ramp_t0_ = -std::numeric_limits<double>::infinity();
   has_prev_ = false;
   acc_alpha_ = accel_filter_ > 0 ? -std::expm1(-period / accel_filter_) : 1.0;
 }
@@ -134,9 +156,24 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
   carry(to_world(s0, s0.velocity), Vec6::Zero(), c - s0.pose.translation(), tw, unused);
   carry(to_world(s0, s0.velocity_ref), to_world(s0, s0.accel_ref), Tr.translation() - s0.pose_ref.translation(),
         tw_ref, acc_ref);
-  err_.head<3>() = Tr.translation() - c;
+  // the reference's offset: a new one ramps from the offset of the last update at a constant rate
+  if (offset_ != ramp_to_) {
+    ramp_from_ = off_now_;
+    ramp_to_ = offset_;
+    ramp_t0_ = t;
+  }
+  Eigen::Vector3d off_rate = Eigen::Vector3d::Zero();
+  const double along = ramp_ > 0 ? (t - ramp_t0_) / ramp_ : 1.0;
+  if (along < 1.0 - 1e-9) {
+    off_now_ = ramp_from_ + along * (ramp_to_ - ramp_from_);
+    off_rate = (ramp_to_ - ramp_from_) / ramp_;
+  } else {
+    off_now_ = ramp_to_;
+  }
+  err_.head<3>() = Tr.translation() + off_now_ - c;
   err_.tail<3>() = detail::rotation_vector(Tr.linear() * To.linear().transpose());
   Vec6 rate = tw_ref - tw;
+  rate.head<3>() += off_rate;
   const Eigen::Matrix3d Iw = To.linear() * inertia_ * To.linear().transpose();
   const Eigen::Vector3d w = tw.tail<3>();
   if (impedance_) {
@@ -229,7 +266,6 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
     }
     arms_[k]->torques(*s[k], to_task(*s[k], ak), apply, tau[k]);
   }
-  (void)t;
 }
 
 // ---- leader-follower ----

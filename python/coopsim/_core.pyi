@@ -1460,7 +1460,12 @@ class ObjectControl(CooperativeController):
        h_k + kp_force (h_k - h_k,sensed) + ki_force * integral(h_k - h_k,sensed) through J^T, with its own
        inverse dynamics (TaskController.torques; the jaw position-controlled).
     The object's pose is the reference member's (robot 0 of the group) grip applied to its TCP; its
-    reference the same grip on its TCP at its joint reference.
+    reference the same grip on its TCP at its joint reference, moved by `offset` ((3,) m, world; 0 at first).
+    
+    The commands load_share, squeeze and offset may be set during a run (the constructor's rules), taken at
+    the next control update; a new offset is reached over `offset_ramp` s (0, the default: at once) along a
+    straight line from the offset of the last update, at a constant rate that the reference's velocity
+    carries.
     """
     def __init__(self, mass: typing.SupportsFloat | typing.SupportsIndex, inertia: typing.Any, *, kp: typing.Any = 400.0, kd: typing.Any = 40.0, load_share: typing.SupportsFloat | typing.SupportsIndex = 0.5, squeeze: typing.SupportsFloat | typing.SupportsIndex = 0.0, kp_force: typing.SupportsFloat | typing.SupportsIndex = 0.5, ki_force: typing.SupportsFloat | typing.SupportsIndex = 10.0, integral_limit: typing.SupportsFloat | typing.SupportsIndex = 50.0, impedance: typing.Any = None, accel_filter: typing.SupportsFloat | typing.SupportsIndex = 0.002) -> None:
         ...
@@ -1476,6 +1481,11 @@ class ObjectControl(CooperativeController):
         """
     @property
     def load_share(self) -> float:
+        """
+        Clamp 0's part of the vertical load, [0, 1]; settable during a run (the next update).
+        """
+    @load_share.setter
+    def load_share(self, arg1: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
     def object_error(self) -> numpy.typing.NDArray[numpy.float64]:
@@ -1488,12 +1498,33 @@ class ObjectControl(CooperativeController):
         (6,) N, N m: the wrench commanded on the object, about its centre.
         """
     @property
+    def offset(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        (3,) m, world: the object's reference moved by it; settable during a run (reached over offset_ramp).
+        """
+    @offset.setter
+    def offset(self, arg1: typing.Any) -> None:
+        ...
+    @property
+    def offset_ramp(self) -> float:
+        """
+        s, >= 0: a new offset is reached over it from the last update's (0: at once).
+        """
+    @offset_ramp.setter
+    def offset_ramp(self, arg1: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
     def push_estimate(self) -> numpy.typing.NDArray[numpy.float64]:
         """
         (6,) N, N m: the push on the object estimated at the last update (impedance).
         """
     @property
     def squeeze(self) -> float:
+        """
+        N, compression positive; settable during a run (the next update).
+        """
+    @squeeze.setter
+    def squeeze(self, arg1: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
 class LeaderFollower(CooperativeController):
     """

@@ -110,6 +110,10 @@ constexpr const char* doc_CooperativeController_compute = "Writes each member's 
 constexpr const char* doc_CooperativeController_clone = "A copy with its configuration and state, for another run of the same model; null when it\n"
     "cannot be copied (the default).";
 constexpr const char* doc_ObjectControl = "Object-level control of two arms holding one object (documentation, Python's too).";
+constexpr const char* doc_ObjectControl_set_load_share = "The commands during a run, taken at the next update (std::invalid_argument, the constructor's rules):\n"
+    "clamp 0's part of the vertical load in [0, 1]; the squeeze N, finite; the offset of the object's\n"
+    "reference (3, world, m, finite), reached over offset_ramp s (finite, >= 0; 0: at once) from the\n"
+    "offset of the last update.";
 constexpr const char* doc_ObjectControl_compliant_offset = "After the last update (impedance): the compliant offset from the reference (6, world: m, rad) and\n"
     "the estimated push on the object (6, N and N m about its centre).";
 constexpr const char* doc_ObjectControl_object_error = "After the last update: the object's pose error (6, world: m, rad), the wrench commanded on it\n"

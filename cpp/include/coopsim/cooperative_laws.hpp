@@ -74,7 +74,12 @@ load share and internal squeeze, closed on the sensed wrenches, and each arm's t
    h_k + kp_force (h_k - h_k,sensed) + ki_force * integral(h_k - h_k,sensed) through J^T, with its own
    inverse dynamics (TaskController.torques; the jaw position-controlled).
 The object's pose is the reference member's (robot 0 of the group) grip applied to its TCP; its
-reference the same grip on its TCP at its joint reference.)doc";
+reference the same grip on its TCP at its joint reference, moved by `offset` ((3,) m, world; 0 at first).
+
+The commands load_share, squeeze and offset may be set during a run (the constructor's rules), taken at
+the next control update; a new offset is reached over `offset_ramp` s (0, the default: at once) along a
+straight line from the offset of the last update, at a constant rate that the reference's velocity
+carries.)doc";
   struct Gains {
     Vec6 kp = Vec6::Constant(400.0), kd = Vec6::Constant(40.0);
     double kp_force = 0.5, ki_force = 10.0, integral_limit = 50.0;
@@ -91,6 +96,16 @@ reference the same grip on its TCP at its joint reference.)doc";
   const Gains& gains() const { return gains_; }
   double load_share() const { return share_; }
   double squeeze() const { return squeeze_; }
+  // The commands during a run, taken at the next update (std::invalid_argument, the constructor's rules):
+  // clamp 0's part of the vertical load in [0, 1]; the squeeze N, finite; the offset of the object's
+  // reference (3, world, m, finite), reached over offset_ramp s (finite, >= 0; 0: at once) from the
+  // offset of the last update.
+  void set_load_share(double load_share);
+  void set_squeeze(double squeeze);
+  void set_offset(const Eigen::Vector3d& offset);
+  void set_offset_ramp(double seconds);
+  const Eigen::Vector3d& offset() const { return offset_; }
+  double offset_ramp() const { return ramp_; }
   bool impedance() const { return impedance_; }
   // After the last update (impedance): the compliant offset from the reference (6, world: m, rad) and
   // the estimated push on the object (6, N and N m about its centre).
@@ -106,7 +121,11 @@ reference the same grip on its TCP at its joint reference.)doc";
   double mass_;
   Eigen::Matrix3d inertia_;
   Gains gains_;
-  double share_, squeeze_;
+  double share_ = 0.5, squeeze_ = 0.0;
+  // the offset commanded and its ramp (s); the run's: the offset of the last update, the ramp under way
+  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero(), off_now_ = Eigen::Vector3d::Zero(),
+                  ramp_from_ = Eigen::Vector3d::Zero(), ramp_to_ = Eigen::Vector3d::Zero();
+  double ramp_ = 0.0, ramp_t0_ = 0.0;
   bool impedance_ = false;
   Vec6 K_, D_, Md_;
   double accel_filter_ = 0.002;

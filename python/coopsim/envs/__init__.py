@@ -7,8 +7,11 @@ Importing this module registers them with Gymnasium (Gymnasium 1.x loads no plug
   target; joint torques or TCP set-points as actions.
 - ``coopsim/DualCarry-v0`` (:class:`~coopsim.envs.carry.DualCarryEnv`): the dual carry of
   :mod:`coopsim.tasks.carry` from the grasp on, the cooperative law's commands as actions.
+- ``coopsim/Handover-v0`` (:class:`~coopsim.envs.handover.HandoverEnv`): one cycle of the handover of
+  :mod:`coopsim.tasks.handover`, scripted, the bar's yaw at the handover as the one action; reward the outcome.
 
-Each has a vector entry point (:mod:`coopsim.envs.vector`): ``gymnasium.make_vec(id, num_envs=N,
+``coopsim.envs.dual_carry_parallel()`` (:mod:`coopsim.envs.parallel`, PettingZoo) is the dual carry with one
+agent per arm. Each Gymnasium environment has a vector entry point (:mod:`coopsim.envs.vector`): ``gymnasium.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point")`` steps N simulations in one engine call on threads. See
 docs/envs.md.
 """
@@ -17,17 +20,21 @@ from __future__ import annotations
 import gymnasium as gym
 
 from .carry import DualCarryEnv
+from .handover import HandoverEnv
+from .parallel import DualCarryParallelEnv, dual_carry_parallel
 from .reach import ReachEnv
 from .vector import CoopsimVectorEnv
 
-__all__ = ["CoopsimVectorEnv", "DualCarryEnv", "ENV_IDS", "ReachEnv"]
+__all__ = ["CoopsimVectorEnv", "DualCarryEnv", "DualCarryParallelEnv", "ENV_IDS", "HandoverEnv", "ReachEnv",
+           "dual_carry_parallel"]
 
 #: the registered ids
-ENV_IDS = ("coopsim/Reach-v0", "coopsim/DualCarry-v0")
+ENV_IDS = ("coopsim/Reach-v0", "coopsim/DualCarry-v0", "coopsim/Handover-v0")
 
 _ENTRIES = {
     "coopsim/Reach-v0": ("coopsim.envs.reach:ReachEnv", "coopsim.envs.vector:make_reach_vec"),
     "coopsim/DualCarry-v0": ("coopsim.envs.carry:DualCarryEnv", "coopsim.envs.vector:make_carry_vec"),
+    "coopsim/Handover-v0": ("coopsim.envs.handover:HandoverEnv", None),     # one step: Gymnasium's vectors
 }
 
 for _id, (_entry, _vector) in _ENTRIES.items():

@@ -10,12 +10,12 @@ control period (default 50 Hz: 100 engine steps of 0.2 ms, the controllers at 1 
 one call, along the plan's lift, carry and place (3.6 s: 180 steps at 50 Hz).
 
 Action: Box (5,) float64, the cooperative law's commands: the bar's offset from its planned path (3,) m
-(each within +-``max_offset``, 0.02 m; it ramps from the last one over the period: SCARA #1's joint
-reference, which the law reads the bar's reference from, is moved by it through closed-form IK), the
-squeeze (N, compression positive, in [-5, 10]) and SCARA #1's load share (its part of the bar's vertical
-load, [0, 1]). :attr:`DualCarryEnv.scripted_action` ([0, 0, 0, 0, 0.5]) is the scripted carry's. A change of
-squeeze or load share makes a new law with them (its force integral restarts at zero); the same commands
-keep the law running.
+(each within +-``max_offset``, 0.02 m; the law's reference moves to it along a straight line over the period
+from the last one: :attr:`coopsim.ObjectControl.offset` with ``offset_ramp`` the period), the squeeze (N,
+compression positive, in [-5, 10]) and SCARA #1's load share (its part of the bar's vertical load, [0, 1]).
+:attr:`DualCarryEnv.scripted_action` ([0, 0, 0, 0, 0.5]) is the scripted carry's. The commands are set on
+the one law of the episode (:class:`coopsim.ObjectControl`'s ``squeeze``, ``load_share``, ``offset``) and
+taken at its next update, the start of the period: no law rebuilt, its force integral running on.
 
 Observation: a Dict (``gymnasium.wrappers.FlattenObservation`` flattens it): q, qd (2, 6) of both arms;
 clamp_pose (2, 7): each TCP's position (m) and quaternion [w, x, y, z]; clamp_twist (2, 6): each TCP's
@@ -46,7 +46,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .. import _checks
-from .._core import CubicTrajectory, DivergenceError, IKError, World
+from .._core import DivergenceError, World
 from ..simulation import Simulation
 from ..tasks import scene as _handover_scene
 from ..tasks.carry import controllers as _controllers
@@ -170,6 +170,7 @@ class DualCarryEnv(gym.Env):
             runner.done()
             runner.mark("grasp")
             runner.wait_grasps(S["grasp"][1])
+            runner.coop.law.offset_ramp = self.period     # the offset's action ramps over a period
             runner.group = self.sim.add_cooperative(runner.coop.law, [0, 1])
             runner.done()
             runner.mark("lift")
@@ -178,8 +179,6 @@ class DualCarryEnv(gym.Env):
         self.t0, self.t_end = self.sim.time, float(S["place"][1])
         self.k = 0
         self.commands = SCRIPTED.copy()
-        self._segment_q = None
-        self._ik_failed = False
         self._done = False       # a failed start ends the episode at its first step
 
     # ---- one step: apply, advance (here or by the vector environment), read ----
@@ -187,51 +186,21 @@ class DualCarryEnv(gym.Env):
     def _apply(self, action) -> float:
         """Checks and applies `action` (the law's commands); returns the time (s) to advance to."""
         a = check_action(action, self.action_space)
-        sim, plan, runner = self.sim, self.plan, self.runner
+        sim = self.sim
         if self._failure is not None:      # the approach or grasp failed: nothing to advance
             return sim.time
         t_next = min(self.t_end, self.t0 + (self.k + 1) * self.period)
         if abs(t_next - self.t_end) < 1e-9:
             t_next = self.t_end
-        # the load share and squeeze: a new law when they change
-        if a[3] != self.commands[3] or a[4] != self.commands[4]:
-            sim.remove_cooperative(runner.group)
-            law = _controllers.object_control(plan.robots, plan, squeeze=float(a[3]), load_share=float(a[4])).law
-            runner.group = sim.add_cooperative(law, [0, 1])
-            runner.coop.law = law
-        # the offset: SCARA #1's reference over the period, from where it is to the plan's moved by it
-        off = a[:3]
-        self._ik_failed = False
-        if np.any(off != 0.0) or self._segment_q is not None:
-            robot, ref = plan.robots[0], plan.references[0]
-            q0, qd0, _ = ref.evaluate(sim.time)
-            q1, qd1, _ = ref.evaluate(t_next)
-            pose = robot.fk(q1)
-            pose[:3, 3] += off
-            qa = self._ik(robot, pose, q1)
-            if qa is None:                  # out of reach: the last offset kept (else none)
-                self._ik_failed = True
-                off = self.commands[:3]
-                pose[:3, 3] += off - a[:3]
-                qa = self._ik(robot, pose, q1)
-                if qa is None:
-                    off, qa = np.zeros(3), q1
-            qs = q0 if self._segment_q is None else self._segment_q
-            if t_next > sim.time + 1e-12:
-                sim.set_reference(0, CubicTrajectory(np.array([sim.time, t_next]), np.array([qs, qa]),
-                                                     np.array([qd0, qd1])))
-            self._segment_q = qa
-        self.commands = np.r_[off, a[3:]]
+        # the law's commands, taken at its next update (the one at the period's start): one law all the
+        # episode, its force integral running on; the offset ramps over the period from the last one
+        law = self.runner.coop.law
+        law.squeeze = float(a[3])
+        law.load_share = float(a[4])
+        law.offset = a[:3]
+        self.commands = a.copy()
         self.k += 1
         return t_next
-
-    @staticmethod
-    def _ik(robot, pose, q_near):
-        """The closed-form IK of `pose` near `q_near` (its jaw kept), or None out of reach."""
-        try:
-            return np.asarray(robot.ik(pose, q_near=q_near, opening=q_near[-1]), float)
-        except (IKError, ValueError):
-            return None
 
     def _failure_info(self, e) -> dict:
         if isinstance(e, CarryError):
@@ -307,7 +276,7 @@ class DualCarryEnv(gym.Env):
         failure = self._failure if self._failure is not None else self._checked(error)
         obs = self._observe()
         info = dict(time=self.sim.time, step=self.runner.step, commands=self.commands.copy(),
-                    ik_failed=self._ik_failed, success=False, bar_mass=self.episode_bar_mass)
+                    success=False, bar_mass=self.episode_bar_mass)
         if failure is not None:
             self._done = True
             info["failure"] = failure
