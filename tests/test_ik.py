@@ -443,3 +443,73 @@ def test_plan_bad_input():
     far[1, :3, 3] = [3.0, 0.0, 0.2]
     with pytest.raises(cs.IKError, match="pose 1.*out of reach"):
         cs.plan_cartesian(robot, far, [0.0, 1.0, 2.0])
+
+
+# ---- the IK along a path in one call (Robot.ik_path, plan_cartesian's knots) ----
+
+def _path_poses(robot, n, rng, spread=0.05):
+    """n poses along a smooth joint path inside the limits, by forward kinematics."""
+    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
+    a = lo + (hi - lo) * (0.3 + 0.4 * rng.random(robot.dof))
+    b = np.clip(a + spread * (hi - lo) * rng.standard_normal(robot.dof), lo, hi)
+    return np.array([robot.fk(a + (b - a) * s) for s in np.linspace(0.0, 1.0, n)])
+
+
+@pytest.mark.parametrize("name, method", [("scara1", "auto"), ("scara2", "auto"), ("scara1", "numeric")])
+def test_ik_path_equals_the_ik_of_each_pose_near_the_one_before(name, method):
+    """Robot.ik_path gives, bit for bit, what a loop of Robot.ik calls gives: each pose solved near the solution of
+    the one before, the first pose's branch kept (closed forms), no restarts after the first (numeric, local)."""
+    robot = getattr(cs.robots, name)()
+    rng = np.random.default_rng(5)
+    poses = _path_poses(robot, 12, rng)
+    openings = np.linspace(0.02, 0.03, len(poses))
+    q0 = robot.ik(poses[0], opening=openings[0], method=method)
+    later = 0 if method == "numeric" else 10
+    Q, branch, failed, error = robot.ik_path(poses, openings=openings, q_start=q0, method=method,
+                                             later_restarts=later)
+    assert failed is None and error == ""
+    q, first = q0, None
+    for i, T in enumerate(poses):
+        kw = dict(opening=openings[i], q_near=q, method=method)
+        if method == "numeric":
+            kw["restarts"] = 10 if i == 0 else 0
+        else:
+            kw.update(branch=first, info=True)
+        res = robot.ik(T, **kw)
+        if method != "numeric":
+            res, info = res
+            if i == 0:
+                first = info.get("branch")
+        np.testing.assert_array_equal(Q[i], res)
+        q = res
+    assert branch == (first if method != "numeric" else None)
+
+
+def test_ik_path_stops_at_the_first_pose_out_of_reach_and_names_it():
+    robot = cs.robots.scara1()
+    rng = np.random.default_rng(2)
+    poses = _path_poses(robot, 6, rng)
+    far = poses[3].copy()
+    far[:3, 3] = [3.0, 0.0, 0.3]          # beyond the arm's reach
+    poses[3] = far
+    Q, branch, failed, error = robot.ik_path(poses, q_start=robot.ik(poses[0]))
+    assert failed == 3 and Q.shape == (3, robot.dof)
+    with pytest.raises(cs.IKError) as e:
+        robot.ik(far, q_near=Q[-1], branch=branch)
+    assert error == str(e.value)
+    # plan_cartesian names it among its poses
+    with pytest.raises(cs.IKError, match=r"^pose 3 on elbow branch [+-]1: "):
+        cs.plan_cartesian(robot, poses, np.arange(6.0), q_start=Q[0])
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(openings=[0.02, 0.03]), "openings must have one value per pose \\(4\\), got 2"),
+    (dict(later_restarts=-1), "later_restarts must be >= 0, got -1"),
+    (dict(poses=np.zeros((2, 3, 3))), "poses"),
+])
+def test_ik_path_refuses_bad_arguments_in_one_line(kw, match):
+    robot = cs.robots.scara1()
+    poses = kw.pop("poses", _path_poses(robot, 4, np.random.default_rng(1)))
+    with pytest.raises(ValueError, match=match) as e:
+        robot.ik_path(poses, **kw)
+    assert "\n" not in str(e.value)

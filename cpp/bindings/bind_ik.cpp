@@ -5,6 +5,7 @@
 #include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/ik.hpp"
+#include "generated/docstrings.hpp"
 
 namespace py = pybind11;
 using namespace coopsim;
@@ -97,6 +98,33 @@ py::object py_ik(const Robot& r, const py::object& pose_obj, const py::object& o
   return py::make_tuple(to_numpy(res.q), d);
 }
 
+py::tuple py_ik_path(const Robot& r, const py::object& poses_obj, const py::object& openings, const py::object& q_start,
+                     const py::object& branch, const std::string& method, bool keep_branch, const py::object& weights,
+                     const py::object& locked, const py::object& tol, int restarts, int later_restarts,
+                     int max_iterations, unsigned long seed) {
+  const std::vector<Eigen::Isometry3d> targets = rigid_poses(table(poses_obj, "poses"), "poses");
+  std::optional<std::vector<double>> op;
+  if (!openings.is_none()) op = table(openings, "openings").values;
+  IKOptions o;
+  o.q_near = q_near_arg(r, q_start);
+  o.method = ik_method(method);
+  o.tol = tol_arg(tol);
+  o.branch = branch_arg(branch);
+  o.weights = weights_arg(weights);
+  o.locked = locked_arg(r, locked);
+  o.restarts = restarts;
+  o.max_iterations = max_iterations;
+  o.seed = seed;
+  IKPath p;
+  {
+    coopsim::py_nogil::NoGil nogil;
+    p = ik_path(r, targets, op ? &*op : nullptr, o, keep_branch, later_restarts);
+  }
+  const py::object br = p.branch ? py::object(py::int_(*p.branch)) : py::object(py::none());
+  return py::make_tuple(py::array_t<double>({p.q.rows(), p.q.cols()}, p.q.data()), br,
+                        p.failed < 0 ? py::object(py::none()) : py::object(py::int_(p.failed)), p.error);
+}
+
 py::list py_ik_solutions(const Robot& r, const py::object& pose_obj, const py::object& opening,
                          const py::object& q_near, const py::object& tol) {
   const Eigen::Isometry3d target = pose(pose_obj, "pose");
@@ -122,6 +150,11 @@ void bind_ik(py::module_& m) {
         py::arg("locked") = py::none(), py::arg("tol") = py::none(), py::arg("restarts") = 10,
         py::arg("max_iterations") = 100, py::arg("seed") = 0, py::arg("info") = false,
         kIkDoc);
+  R.def("ik_path", &py_ik_path, py::arg("poses"), py::kw_only(), py::arg("openings") = py::none(),
+        py::arg("q_start") = py::none(), py::arg("branch") = py::none(), py::arg("method") = "auto",
+        py::arg("keep_branch") = true, py::arg("weights") = py::none(), py::arg("locked") = py::none(),
+        py::arg("tol") = py::none(), py::arg("restarts") = 10, py::arg("later_restarts") = 10,
+        py::arg("max_iterations") = 100, py::arg("seed") = 0, coopsim::docs::doc_ik_path);
   R.def("ik_solutions", &py_ik_solutions, py::arg("pose"), py::kw_only(), py::arg("opening") = py::none(),
         py::arg("q_near") = py::none(), py::arg("tol") = py::none(),
         "Every closed-form solution within the limits as a list of (q (n,), branch), nearest q_near first "

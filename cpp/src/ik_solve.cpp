@@ -198,4 +198,42 @@ std::vector<IKSolution> ik_solutions(const Robot& robot, const Eigen::Isometry3d
   return analytic_ik_all(robot, target, analytic_options(robot, kind, o));
 }
 
+IKPath ik_path(const Robot& robot, const std::vector<Eigen::Isometry3d>& targets,
+               const std::vector<double>* openings, const IKOptions& options, bool keep_branch,
+               int later_restarts) {  // targets: the header's poses
+  const size_t N = targets.size();
+  if (openings && openings->size() != N)
+    throw std::invalid_argument("openings must have one value per pose (" + std::to_string(N) + "), got " +
+                                std::to_string(openings->size()));
+  if (later_restarts < 0)
+    throw std::invalid_argument("later_restarts must be >= 0, got " + std::to_string(later_restarts));
+  const bool closed = options.method != IKMethod::Numeric && analytic_kind(robot) != AnalyticKind::None;
+  IKPath out;
+  out.q.resize(static_cast<Eigen::Index>(N), robot.dof());
+  IKOptions o = options;
+  std::optional<int> branch = options.branch;
+  for (size_t i = 0; i < N; ++i) {
+    if (openings) o.opening = (*openings)[i];
+    if (closed) {
+      o.branch = (i == 0 || keep_branch) ? branch : std::nullopt;
+    } else if (i > 0) {
+      o.restarts = later_restarts;
+    }
+    IKResult r;
+    try {
+      r = ik(robot, targets[i], o);
+    } catch (const IKError& e) {
+      out.failed = static_cast<int>(i);
+      out.error = e.what();
+      out.q.conservativeResize(static_cast<Eigen::Index>(i), robot.dof());
+      break;
+    }
+    if (closed && i == 0 && !branch && r.method != "numeric") branch = r.branch;
+    out.q.row(static_cast<Eigen::Index>(i)) = r.q.transpose();
+    o.q_near = r.q;
+  }
+  if (closed) out.branch = branch;
+  return out;
+}
+
 }  // namespace coopsim

@@ -474,6 +474,21 @@ class Robot:
         """
         Why the closed-form IK does not fit (empty when it does).
         """
+    def ik_path(self, poses: typing.Any, *, openings: typing.Any = None, q_start: typing.Any = None, branch: typing.Any = None, method: str = 'auto', keep_branch: bool = True, weights: typing.Any = None, locked: typing.Any = None, tol: typing.Any = None, restarts: typing.SupportsInt | typing.SupportsIndex = 10, later_restarts: typing.SupportsInt | typing.SupportsIndex = 10, max_iterations: typing.SupportsInt | typing.SupportsIndex = 100, seed: typing.SupportsInt | typing.SupportsIndex = 0) -> tuple:
+        """
+        The IK along a path of poses (N, 4, 4), in one call with the GIL released: pose i solved as ik()
+        solves it, near the solution of pose i - 1 (pose 0 near q_start), with the jaw at openings[i]
+        (openings: (N,) m, or none: ik()'s default). With a closed form in use (the robot has one and the
+        method is not 'numeric') and keep_branch, every pose after the first is solved on the first one's
+        elbow branch (`branch`, else the one the first solution took; none when SCARA #2's closed form gave
+        way to the numeric solver); without keep_branch each later pose takes ik()'s own choice. The numeric
+        solver makes `restarts` random restarts on pose 0 and later_restarts after it (0: each pose from the
+        one before alone, which keeps the arm on that pose's branch); weights, locked, tol, max_iterations
+        and seed as ik() takes them. Returns (q (N, n), the first pose's branch with a closed form (given, or
+        the one its solution took) or None, the index of the first pose
+        out of reach or None, ik()'s message for it): the path stops there, q holding the rows before it.
+        ValueError for openings of another length or options ik() refuses.
+        """
     def ik_solutions(self, pose: typing.Any, *, opening: typing.Any = None, q_near: typing.Any = None, tol: typing.Any = None) -> list:
         """
         Every closed-form solution within the limits as a list of (q (n,), branch), nearest q_near first (else +1 first). Raises IKError when there is none.

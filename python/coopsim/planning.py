@@ -260,40 +260,24 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
     analytic = robot.ik_kind is not None and method in ("auto", "analytic")
     if branch is not None and not analytic:
         raise ValueError("branch applies to the closed-form IK (SCARA robots, method 'auto' or 'analytic')")
-    q_prev = q_start
-    first_branch = branch
-    Q = np.empty((len(knot_t), robot.dof))
-    for i, (T, o) in enumerate(zip(knot_T, knot_op)):
-        kw = dict(ik_options)
-        if o is not None:
-            kw["opening"] = o
-        local = not analytic and keep_branch and i > 0 and "restarts" not in ik_options
-        if analytic:
-            b = first_branch if (i == 0 or keep_branch) else None
-            kw["branch"] = b
-            kw["info"] = True
-        elif local:
-            # the numeric IK from the previous knot only: it stays on that knot's branch; a random restart
-            # could land on another one, and the tool would swing off the path between the knots
-            kw["restarts"] = 0
-        try:
-            res = robot.ik(T, q_near=q_prev, method=method, **kw)
-        except IKError as e:
-            which = f"pose {given[:i + 1].count(True) - 1}" if given[i] else \
-                f"the straight-line pose at t = {knot_t[i]:.6g} s"
-            extra = f" on elbow branch {first_branch:+d}" if analytic and keep_branch and first_branch else ""
-            hint = (" (solved from the previous knot only, to keep its branch: the path leaves that branch's reach; "
-                    "a solution on another branch would flip the arm between the knots. Move the path, add "
-                    "poses, or pass keep_branch=False to allow the jump)") if local else ""
-            raise IKError(f"{which}{extra}: {e}{hint}") from None
-        if analytic:
-            q, d = res
-            if i == 0 and first_branch is None:
-                first_branch = d.get("branch")  # None when SCARA #2's closed form gave way to the numeric IK
-        else:
-            q = res
-        Q[i] = q
-        q_prev = q
+    # every knot in one engine call: each solved near the one before; a numeric solver kept to the previous knot's
+    # branch (no random restarts after the first) unless restarts are asked for
+    local = not analytic and keep_branch and "restarts" not in ik_options
+    options = dict(ik_options)
+    restarts = options.pop("restarts", 10)
+    Q, first_branch, failed, error = robot.ik_path(
+        np.array(knot_T), openings=None if op is None else np.array(knot_op, dtype=float), q_start=q_start,
+        branch=branch, method=method, keep_branch=keep_branch, restarts=restarts,
+        later_restarts=0 if local else restarts, **options)
+    if failed is not None:
+        i = failed
+        which = f"pose {given[:i + 1].count(True) - 1}" if given[i] else \
+            f"the straight-line pose at t = {knot_t[i]:.6g} s"
+        extra = f" on elbow branch {first_branch:+d}" if analytic and keep_branch and first_branch else ""
+        hint = (" (solved from the previous knot only, to keep its branch: the path leaves that branch's reach; "
+                "a solution on another branch would flip the arm between the knots. Move the path, add "
+                "poses, or pass keep_branch=False to allow the jump)") if local and i > 0 else ""
+        raise IKError(f"{which}{extra}: {error}{hint}")
     traj = CubicTrajectory(np.array(knot_t), Q, spline=spline, qd_start=qd_start, qd_end=qd_end)
     if info:
         return traj, dict(times=np.array(knot_t), poses=np.array(knot_T), q_points=Q,

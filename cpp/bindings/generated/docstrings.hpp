@@ -280,6 +280,23 @@ constexpr const char* doc_kIkDoc = "Inverse kinematics of the TCP pose `target` 
     "here (Python's docstring too); IKError (a ValueError in Python) when no\n"
     "configuration within the limits reaches the target, std::invalid_argument\n"
     "for options that are invalid or do not apply.";
+constexpr const char* doc_IKPath = "What ik_path returns.";
+constexpr const char* doc_IKPath_q = "(N, n): row i, pose i's solution";
+constexpr const char* doc_IKPath_branch = "closed forms: the first pose's branch (given or taken), else none";
+constexpr const char* doc_IKPath_failed = "the first pose out of reach, -1: none";
+constexpr const char* doc_IKPath_error = "ik()'s message for it";
+constexpr const char* doc_ik_path = "The IK along a path of poses (N, 4, 4), in one call with the GIL released: pose i solved as ik()\n"
+    "solves it, near the solution of pose i - 1 (pose 0 near q_start), with the jaw at openings[i]\n"
+    "(openings: (N,) m, or none: ik()'s default). With a closed form in use (the robot has one and the\n"
+    "method is not 'numeric') and keep_branch, every pose after the first is solved on the first one's\n"
+    "elbow branch (`branch`, else the one the first solution took; none when SCARA #2's closed form gave\n"
+    "way to the numeric solver); without keep_branch each later pose takes ik()'s own choice. The numeric\n"
+    "solver makes `restarts` random restarts on pose 0 and later_restarts after it (0: each pose from the\n"
+    "one before alone, which keeps the arm on that pose's branch); weights, locked, tol, max_iterations\n"
+    "and seed as ik() takes them. Returns (q (N, n), the first pose's branch with a closed form (given, or\n"
+    "the one its solution took) or None, the index of the first pose\n"
+    "out of reach or None, ik()'s message for it): the path stops there, q holding the rows before it.\n"
+    "ValueError for openings of another length or options ik() refuses.";
 constexpr const char* doc_ik_solutions = "Every closed-form solution within the limits (analytic_ik_all), with the\n"
     "opening, q_near, tol and branch of the options and their defaults as in\n"
     "ik(); the numeric solver's options are not used. std::invalid_argument when\n"

@@ -193,6 +193,29 @@ joint limit, an orientation the structure cannot take, a singular target;
 the numeric solver's message ends naming the robot and the target pose.)doc";
 IKResult ik(const Robot& robot, const Eigen::Isometry3d& target, const IKOptions& options);
 
+// What ik_path returns.
+struct IKPath {
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> q;  // (N, n): row i, pose i's solution
+  std::optional<int> branch;  // closed forms: the first pose's branch (given or taken), else none
+  int failed = -1;            // the first pose out of reach, -1: none
+  std::string error;          // ik()'s message for it
+};
+// The IK along a path of poses (N, 4, 4), in one call with the GIL released: pose i solved as ik()
+// solves it, near the solution of pose i - 1 (pose 0 near q_start), with the jaw at openings[i]
+// (openings: (N,) m, or none: ik()'s default). With a closed form in use (the robot has one and the
+// method is not 'numeric') and keep_branch, every pose after the first is solved on the first one's
+// elbow branch (`branch`, else the one the first solution took; none when SCARA #2's closed form gave
+// way to the numeric solver); without keep_branch each later pose takes ik()'s own choice. The numeric
+// solver makes `restarts` random restarts on pose 0 and later_restarts after it (0: each pose from the
+// one before alone, which keeps the arm on that pose's branch); weights, locked, tol, max_iterations
+// and seed as ik() takes them. Returns (q (N, n), the first pose's branch with a closed form (given, or
+// the one its solution took) or None, the index of the first pose
+// out of reach or None, ik()'s message for it): the path stops there, q holding the rows before it.
+// ValueError for openings of another length or options ik() refuses.
+IKPath ik_path(const Robot& robot, const std::vector<Eigen::Isometry3d>& poses,
+               const std::vector<double>* openings, const IKOptions& options, bool keep_branch,
+               int later_restarts);
+
 // Every closed-form solution within the limits (analytic_ik_all), with the
 // opening, q_near, tol and branch of the options and their defaults as in
 // ik(); the numeric solver's options are not used. std::invalid_argument when

@@ -13,6 +13,7 @@ the SCARAs' default dimensions (the checks are in tests/test_task.py):
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -32,8 +33,10 @@ CONTAINER = dict(mouth=np.array([-0.25, 0.35, 0.22]), slope=math.radians(25.0), 
                  wall=0.005, friction=0.2)
 
 
+@functools.lru_cache(maxsize=None)
 def scaras():
-    """SCARA #1 and SCARA #2 as placed in the scene."""
+    """SCARA #1 and SCARA #2 as placed in the scene. Built once and shared (a Robot is immutable: its changed
+    copies are new robots), so each run of a task or a sweep does not build them again."""
     return robots.scara1(L_base=0.52), robots.scara2(L_base=0.38, base_position=(0.75, 0.0, 0.0))
 
 
