@@ -103,9 +103,9 @@ def main():
     steps, repeats = (200, 1) if args.quick else (args.steps, args.repeats)
     n = args.envs
     warnings.simplefilter("ignore")
-    print(f"coopsim/DualCarry-v0, random and scripted actions, 50 Hz control (100 engine steps of 0.2 ms a step, the world at "
-          f"1 kHz); {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
-          f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}; best of {repeats}")
+    print(f"coopsim/DualCarry-v0, random and scripted actions, 50 Hz control (100 engine steps of 0.2 ms a "
+          f"step, the world at 1 kHz); {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+          f"load average {', '.join(f'{x:.1f}' for x in os.getloadavg())}; best of {repeats}")
     vsteps = max(1, steps // n)
     rows = {}
     for policy in ("random", "scripted"):

@@ -557,7 +557,8 @@ def test_the_parallel_carry_merges_the_agents_commands_and_names_a_bad_one():
     np.testing.assert_allclose(got, [0.005, -0.005, 0.001, 3.0, 0.75])
     assert par.commands({"scara_1": np.zeros(5), "scara_2": np.zeros(5)})[4] == 0.5   # no claims: halves
     for bad, match in (({"scara_1": np.zeros(5)}, "missing 'scara_2'"),
-                       ({"scara_1": np.zeros(5), "scara_2": [0, 0, 0, 0, np.nan]}, r"actions\['scara_2'\] must be finite"),
+                       ({"scara_1": np.zeros(5), "scara_2": [0, 0, 0, 0, np.nan]},
+                        r"actions\['scara_2'\] must be finite"),
                        ({"scara_1": np.zeros(4), "scara_2": np.zeros(5)}, r"actions\['scara_1'\] must have shape"),
                        ({"scara_1": np.zeros(5), "scara_2": np.zeros(5), "arm_3": np.zeros(5)}, "'arm_3'")):
         with pytest.raises(ValueError, match=match) as e:
@@ -596,3 +597,16 @@ def test_handover_rewards_the_task_s_outcome_of_the_handover_yaw():
     with pytest.raises(ValueError, match=r"^action must lie in its space's bounds"):
         env.reset(seed=1)
         env.step([np.radians(340)])
+
+
+def test_handover_the_same_seed_and_yaw_give_the_same_run_bit_for_bit():
+    a, b = HandoverEnv(), HandoverEnv()
+    runs = []
+    for env in (a, b):
+        obs, _ = env.reset(seed=4)
+        _, r, *_ = env.step([np.radians(290)])
+        runs.append((obs, r, env.result.log.to_array()))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    assert runs[0][1] == runs[1][1]
+    np.testing.assert_array_equal(runs[0][2], runs[1][2])
+    assert not np.array_equal(HandoverEnv().reset(seed=5)[0], runs[0][0])

@@ -11,9 +11,9 @@ Importing this module registers them with Gymnasium (Gymnasium 1.x loads no plug
   :mod:`coopsim.tasks.handover`, scripted, the bar's yaw at the handover as the one action; reward the outcome.
 
 ``coopsim.envs.dual_carry_parallel()`` (:mod:`coopsim.envs.parallel`, PettingZoo) is the dual carry with one
-agent per arm. Each Gymnasium environment has a vector entry point (:mod:`coopsim.envs.vector`): ``gymnasium.make_vec(id, num_envs=N,
-vectorization_mode="vector_entry_point")`` steps N simulations in one engine call on threads. See
-docs/envs.md.
+agent per arm. Reach-v0 and DualCarry-v0 have a vector entry point (:mod:`coopsim.envs.vector`):
+``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` steps N simulations in one
+engine call on threads. See docs/envs.md.
 """
 from __future__ import annotations
 
