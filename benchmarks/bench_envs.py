@@ -133,9 +133,9 @@ def main():
           f"cores {v2['cores']:.2f})")
     sv1, sv2 = rows["scripted"][1:]
     print(f"(scripted actions: vector 2 threads / 1 = {sv2['rate'] / sv1['rate']:.2f}x, cores {sv2['cores']:.2f})")
-    print(f"against robosuite's {ROBOSUITE[1]} steps/s: one environment {one['rate'] / ROBOSUITE[1]:.0f}x, vector on "
-          f"2 threads {v2['rate'] / ROBOSUITE[1]:.0f}x")
-
+    per = lambda rate: f"{rate / ROBOSUITE[1]:.2f}x"  # noqa: E731
+    print(f"against robosuite's {ROBOSUITE[1]} steps/s, random actions: one environment {per(one['rate'])}, vector "
+          f"on 2 threads {per(v2['rate'])}; scripted: {per(rows['scripted'][0]['rate'])}, {per(sv2['rate'])}")
 
 if __name__ == "__main__":
     main()
