@@ -1,4 +1,4 @@
-"""``coopsim/Handover-v0``: the handover of :mod:`coopsim.tasks.handover` (docs/task.md) with the bar's yaw at the
+"""``coopsim/Handover-v0``: the handover of :mod:`coopsim.tasks.handover` (docs/handover.md) with the bar's yaw at the
 handover as the agent's one decision.
 
 An episode is one handover cycle of one bar: ``reset(seed=)`` draws the bar's start on the floor from the
