@@ -404,7 +404,6 @@ torques between controller updates, the log and tracking metrics.)doc")
            },
            py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096, doc_Simulation_run)
       .def("run_until", [](Simulation& s, double t_end, int until, double every, long chunk) {
-             s.reserve(s.steps_until(t_end));   // a MemoryError here, with the GIL held (run's message)
              // every `chunk` steps: Ctrl-C stops the run with the log kept
              auto between = [](long, long) {
                coopsim::py_nogil::GilAgain gil;

@@ -96,7 +96,7 @@ def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
     s = np.atleast_1d(np.asarray(s, dtype=float))
     if mode not in ("geodesic", "clamp"):
         raise ValueError(f"mode must be 'geodesic' or 'clamp', got {mode!r}")
-    if np.all((s == 0.0) | (s == 1.0)):      # the end poses themselves (plan_cartesian's knots without poses between)
+    if ((s == 0.0) | (s == 1.0)).all():      # the end poses themselves (plan_cartesian's knots without poses between)
         return np.where((s == 1.0)[:, None, None], T1, T0)
     R0, R1 = T0[:3, :3], T1[:3, :3]
     if mode == "geodesic":
@@ -246,7 +246,7 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
     s = np.linspace(0.0, 1.0, intermediate + 2)
     way = _TIME_LAWS[time_law](s)
     for k in range(N - 1):
-        seg = interpolate_poses(P[k], P[k + 1], way[:-1], mode)
+        seg = P[k:k + 1] if intermediate == 0 else interpolate_poses(P[k], P[k + 1], way[:-1], mode)
         for j, sj in enumerate(s[:-1]):
             knot_t.append(t[k] + sj * (t[k + 1] - t[k]))
             knot_T.append(seg[j])
