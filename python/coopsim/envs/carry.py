@@ -36,6 +36,14 @@ planned pose, moving slower than 1 cm/s), or at a failure of the carry's rules (
 clamp letting go, a divergence) with ``info["failure"]`` (its step, time and reason) and reward 0; a start
 whose scripted approach or grasp failed (a bar too heavy for the clamps) says so in reset's ``info["failure"]``
 and ends at the first step so.
+
+Disturbances: ``disturbance=`` takes what ``tasks.carry.run(disturbance=)`` takes (None, a name of
+:data:`coopsim.tasks.carry.disturbances.DISTURBANCES` such as ``"push"``, several names, or a
+:class:`~coopsim.tasks.carry.disturbances.Disturbances`), made for each episode's start as the carry makes it.
+The push (2 N horizontal on the bar's centre, across its start axis, 0.2 s in the middle of the carry) acts
+over the control periods that start within its window (at 50 Hz exactly its 0.2 s: ten periods from
+t = 3.7 s); ``info["push"]`` is the force (3,) N on the bar during the step. A grip offset and a model mass
+factor change the plan, sensor noise the force/torque sensors, as in the carry.
 """
 from __future__ import annotations
 
@@ -53,6 +61,7 @@ from ..tasks.carry import controllers as _controllers
 from ..tasks.carry import planning as _planning
 from ..tasks.carry import scene as _scene
 from ..tasks.carry.constants import PLACE_TOL, PLACE_TOL_ANGLE, STAND_FRICTION
+from ..tasks.carry.disturbances import Disturbances
 from ..tasks.carry.disturbances import disturbances as _disturbances
 from ..tasks.carry.sequence import CarryError, _Runner
 from ._common import DT, Frames, bounded, check_action, check_render_mode, clip, control_period
@@ -107,18 +116,24 @@ class DualCarryEnv(gym.Env):
 
     control_rate: Hz (default 50). bar_mass: the world's bar (kg, default the carry's 0.15; the controllers'
     model keeps the planned 0.15: a mass to randomise over; ``reset(options={"bar_mass": m})`` for one
-    episode). max_offset: m, the bound of the offset's action (0.02). render_mode: None or 'rgb_array'
+    episode). max_offset: m, the bound of the offset's action (0.02). disturbance: what the carry's
+    ``disturbance=`` takes (None, ``"push"``, names, a Disturbances; see the module's documentation). render_mode: None or 'rgb_array'
     (frames of :func:`coopsim.view.draw`)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
 
     def __init__(self, *, control_rate: float = 50.0, bar_mass: Optional[float] = None, max_offset: float = 0.02,
-                 render_mode: Optional[str] = None):
+                 disturbance=None, render_mode: Optional[str] = None):
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.period = control_period(control_rate)
         self.metadata = dict(self.metadata, render_fps=int(round(1.0 / self.period)))
         self.bar_mass = _scene.BAR_MASS if bar_mass is None else _checks.positive(bar_mass, "bar_mass", unit="kg")
         self.max_offset = _checks.positive(max_offset, "max_offset", unit="m")
+        if not (disturbance is None or isinstance(disturbance, (str, list, tuple, Disturbances))):
+            raise ValueError(f"disturbance must be None, a disturbance's name, a list of names or a Disturbances, "
+                             f"got {disturbance!r}")
+        _disturbances(disturbance, 0.0)           # an unknown name is refused here, not at reset
+        self.disturbance = disturbance
         m = self.max_offset
         self.action_space = spaces.Box(np.array([-m, -m, -m, SQUEEZE_RANGE[0], 0.0]),
                                        np.array([m, m, m, SQUEEZE_RANGE[1], 1.0]), dtype=np.float64)
@@ -149,8 +164,8 @@ class DualCarryEnv(gym.Env):
         mass = self.bar_mass if options.get("bar_mass") is None else _checks.positive(options["bar_mass"], "bar_mass", unit="kg")
         draw = int(seed) if seed is not None else int(self.np_random.integers(0, 2 ** 31 - 1))
         start = _planning.random_start(draw)
-        plan = _planning.make_plan(start, _planning.END)
-        dist = _disturbances(None, plan.start[3])
+        dist = _disturbances(self.disturbance, start[3])     # the push is across the bar: made for the start
+        plan = _planning.make_plan(start, _planning.END, grip_offsets=dist.grip_offset, mass_factor=dist.mass_factor)
         factory = _controllers.object_control
         runner = _Runner(plan, plan.start, dist, factory, **RATES)
         if mass != _scene.BAR_MASS:        # the same run in a world whose bar weighs `mass`
@@ -159,8 +174,18 @@ class DualCarryEnv(gym.Env):
                              world_every=RATES["world_every"], control_every=RATES["control_every"])
             for r, c, ref in zip(plan.robots, made.free, plan.references):
                 sim.add_robot(r, c, ref)
+            if dist.sensor_noise is not None:       # as the carry's runner sets them
+                for i in range(2):
+                    sim.set_sensor(i, noise_force=dist.sensor_noise[0], noise_moment=dist.sensor_noise[1], seed=i + 1)
             runner.sim, runner.coop = sim, made
-        self.runner, self.sim, self.plan = runner, runner.sim, plan
+        self.runner, self.sim, self.plan, self.dist = runner, runner.sim, plan, dist
+        self._push_window = None
+        self._push_now = np.zeros(3)
+        if dist.push is not None:       # the push's window (s), in the middle of the carry as the carry puts it
+            force, at, T = dist.push
+            c0, c1 = plan.steps["carry"]
+            mid = float(c0) + at * (float(c1) - float(c0))
+            self._push_window = (mid - T / 2.0, mid + T / 2.0, np.asarray(force, float))
         self.episode_bar_mass = mass
         S = plan.steps
         self._failure = None
@@ -199,6 +224,13 @@ class DualCarryEnv(gym.Env):
         law.load_share = float(a[4])
         law.offset = a[:3]
         self.commands = a.copy()
+        if self._push_window is not None:   # on over the periods that start within the push's window
+            lo, hi, force = self._push_window
+            t = sim.time
+            push = force if lo - 1e-9 <= t < hi - 1e-9 else np.zeros(3)
+            if np.any(push != self._push_now):
+                sim.set_body_wrench(_scene.BAR, np.r_[push, 0.0, 0.0, 0.0])
+                self._push_now = push
         self.k += 1
         return t_next
 
@@ -276,7 +308,7 @@ class DualCarryEnv(gym.Env):
         failure = self._failure if self._failure is not None else self._checked(error)
         obs = self._observe()
         info = dict(time=self.sim.time, step=self.runner.step, commands=self.commands.copy(),
-                    success=False, bar_mass=self.episode_bar_mass)
+                    success=False, bar_mass=self.episode_bar_mass, push=self._push_now.copy())
         if failure is not None:
             self._done = True
             info["failure"] = failure
@@ -308,7 +340,7 @@ class DualCarryEnv(gym.Env):
         self._reset_sim(seed, options)
         obs = self._observe()
         info = dict(time=self.sim.time, step=self.runner.step, success=False, bar_mass=self.episode_bar_mass,
-                    start=tuple(float(x) for x in self.plan.start))
+                    start=tuple(float(x) for x in self.plan.start), disturbance=self.dist.names)
         if self._failure is not None:
             info["failure"] = self._failure
         return obs, info
