@@ -16,8 +16,9 @@ call per step on `threads` threads, the GIL released).
   the middle of the carry) with the cooperative law's commands as actions; action = the scripted carry's
   commands + scale * (M z + b) within the action space, z the normalised bar error's position (3,) m and
   internal force (3,) N, scale = (2 mm, 2 mm, 2 mm, 0.5 N, 0.05) for the offset, squeeze and load share.
-  From the scripted carry (M = 0) to commands that keep the clamps on their grips, the load shared and the
-  internal force low under the push (the environment's reward); the peak internal force is printed too.
+  From the scripted carry (M = 0), trained on the environment's reward (each clamp on its planned grip, the
+  load shared, the internal force low: the smaller arm's term times exp(-|internal force| / 5 N)); the peak
+  internal force of the evaluation episodes is printed beside the return, before and after.
 
 Each iteration's starts are drawn from the seed and shared by all its directions (common random numbers:
 `episodes` per direction and way); the normaliser starts from the states of the initial policy's episodes.
@@ -25,7 +26,7 @@ Each iteration's starts are drawn from the seed and shared by all its directions
 Writes into --out: learn_reach.png and learn_carry.png (the mean return of the unperturbed policy over the
 evaluation episodes per iteration, its spread: the band from the lowest to the highest, and +- one standard
 deviation), learn_to_cooperate.json (the curves). Prints the returns before and after. The same --seed
-gives the same curves bit for bit. --quick runs a few iterations of each (under a minute).
+gives the same curves bit for bit. --quick runs a few iterations of each (about a minute).
 
     python examples/learn_to_cooperate.py --out out            # both, the default budget (a few minutes)
     python examples/learn_to_cooperate.py --task reach --iterations 30 --directions 8 --seed 1
@@ -166,12 +167,14 @@ def rollouts(venv, problem: Problem, weights: np.ndarray, norm: Normaliser, seed
 
 
 def ars(problem: Problem, *, iterations: int, directions: int, top: int, eval_episodes: int, episodes: int = 1,
-        seed: int = 0, threads: int = 2, step: Optional[float] = None, noise: Optional[float] = None, verbose: bool = True) -> dict:
+        seed: int = 0, threads: int = 2, step: Optional[float] = None, noise: Optional[float] = None,
+        verbose: bool = True) -> dict:
     """Trains problem's linear policy by ARS v2 for `iterations` iterations of `directions` directions (each
     both ways, each way's return the mean of `episodes` episodes from starts drawn for the iteration and
-    shared by all directions), keeping the `top` best, the curve's point the mean return of `eval_episodes` episodes of the
-    unperturbed policy on fixed seeds. Returns the curve: 'mean', 'std', 'min', 'max' (iterations + 1,) (the
-    last after the last update), the returns of every evaluation, the weights, wall times (s)."""
+    shared by all directions), keeping the `top` best, the curve's point the mean return of `eval_episodes`
+    episodes of the unperturbed policy on fixed seeds. Returns the curve: 'mean', 'std', 'min', 'max', 'peak'
+    (the mean of the episodes' peaks of problem.measure) (iterations + 1,) (the last after the last update),
+    the returns of every evaluation, the weights (a, f + 1) and the normaliser, wall times (s)."""
     import gymnasium as gym
 
     import coopsim.envs  # noqa: F401  (registers the environments)

@@ -117,8 +117,8 @@ class DualCarryEnv(gym.Env):
     control_rate: Hz (default 50). bar_mass: the world's bar (kg, default the carry's 0.15; the controllers'
     model keeps the planned 0.15: a mass to randomise over; ``reset(options={"bar_mass": m})`` for one
     episode). max_offset: m, the bound of the offset's action (0.02). disturbance: what the carry's
-    ``disturbance=`` takes (None, ``"push"``, names, a Disturbances; see the module's documentation). render_mode: None or 'rgb_array'
-    (frames of :func:`coopsim.view.draw`)."""
+    ``disturbance=`` takes (None, ``"push"``, names, a Disturbances; see the module's documentation).
+    render_mode: None or 'rgb_array' (frames of :func:`coopsim.view.draw`)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
 
