@@ -589,11 +589,13 @@ def test_handover_rewards_the_task_s_outcome_of_the_handover_yaw():
     assert env.result.report["handover_yaw"] == pytest.approx(np.radians(285))
     with pytest.raises(RuntimeError, match="reset"):
         env.step(env.scripted_action)
-    for deg, step in ((320, None), (250, "plan")):   # too fast a clamp at #2's grasp; no grip reachable
-        env.reset(seed=1)
-        _, r, term, _, info = env.step([np.radians(deg)])
-        assert r == 0.0 and term and not info["success"] and info["failure"]["reason"]
-        assert step is None or info["failure"]["step"] == step
+    # a yaw whose grips are out of reach fails at planning. (From 310 deg on, seed 1's SCARA #2 comes to its pick
+    # at 2.9 m/s and fails the grasp in the optimised build, while the sanitizers' build, rounding otherwise, has
+    # one of them succeed: the plan there sits on an edge, so no such run is asserted here.)
+    env.reset(seed=1)
+    _, r, term, _, info = env.step([np.radians(250)])
+    assert r == 0.0 and term and not info["success"] and info["failure"]["reason"]
+    assert info["failure"]["step"] == "plan"
     with pytest.raises(ValueError, match=r"^action must lie in its space's bounds"):
         env.reset(seed=1)
         env.step([np.radians(340)])
