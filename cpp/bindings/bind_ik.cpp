@@ -64,22 +64,30 @@ std::optional<double> tol_arg(const py::object& tol) {
   return scalar_arg(tol, "tol");
 }
 
-py::object py_ik(const Robot& r, const py::object& pose_obj, const py::object& opening, const py::object& branch,
-                 const py::object& q_near, const std::string& method, const py::object& weights,
-                 const py::object& locked, const py::object& tol, int restarts, int max_iterations,
-                 unsigned long seed, bool info) {
-  const Eigen::Isometry3d target = pose(pose_obj, "pose");
+// The options Robot.ik and Robot.ik_path share, from their keywords.
+IKOptions ik_options(const Robot& r, const py::object& q_near, const std::string& method, const py::object& branch,
+                     const py::object& weights, const py::object& locked, const py::object& tol, int restarts,
+                     int max_iterations, unsigned long seed) {
   IKOptions o;
   o.q_near = q_near_arg(r, q_near);
   o.method = ik_method(method);
   o.tol = tol_arg(tol);
   o.branch = branch_arg(branch);
-  o.opening = opening_arg(opening);
   o.weights = weights_arg(weights);
   o.locked = locked_arg(r, locked);
   o.restarts = restarts;
   o.max_iterations = max_iterations;
   o.seed = seed;
+  return o;
+}
+
+py::object py_ik(const Robot& r, const py::object& pose_obj, const py::object& opening, const py::object& branch,
+                 const py::object& q_near, const std::string& method, const py::object& weights,
+                 const py::object& locked, const py::object& tol, int restarts, int max_iterations,
+                 unsigned long seed, bool info) {
+  const Eigen::Isometry3d target = pose(pose_obj, "pose");
+  IKOptions o = ik_options(r, q_near, method, branch, weights, locked, tol, restarts, max_iterations, seed);
+  o.opening = opening_arg(opening);
   IKResult res;
   {
     coopsim::py_nogil::NoGil nogil;
@@ -105,16 +113,7 @@ py::tuple py_ik_path(const Robot& r, const py::object& poses_obj, const py::obje
   const std::vector<Eigen::Isometry3d> targets = rigid_poses(table(poses_obj, "poses"), "poses");
   std::optional<std::vector<double>> op;
   if (!openings.is_none()) op = table(openings, "openings").values;
-  IKOptions o;
-  o.q_near = q_near_arg(r, q_start);
-  o.method = ik_method(method);
-  o.tol = tol_arg(tol);
-  o.branch = branch_arg(branch);
-  o.weights = weights_arg(weights);
-  o.locked = locked_arg(r, locked);
-  o.restarts = restarts;
-  o.max_iterations = max_iterations;
-  o.seed = seed;
+  const IKOptions o = ik_options(r, q_start, method, branch, weights, locked, tol, restarts, max_iterations, seed);
   IKPath p;
   {
     coopsim::py_nogil::NoGil nogil;
