@@ -644,7 +644,7 @@ class Simulation:
 FORWARDED: Tuple[str, ...] = (
     "dt", "integrator", "control_every", "log_every", "world", "robot_count", "time", "steps", "diverged",
     "log_rows", "steps_until", "contacts", "contact_events", "body_state", "set_body_wrench", "body_wrench",
-    "profile", "model")
+    "profile", "model", "grasp_events")
 
 
 def _signature(doc: str) -> Optional[inspect.Signature]:

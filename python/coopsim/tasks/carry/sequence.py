@@ -115,9 +115,10 @@ class _Runner:
     def check_held(self):
         for i in range(2):
             if self.sim.holding(i) != scene.BAR:
-                g = self.sim.log.grasps
-                e = g[(g.robot == i) & (g.event == "release")]
-                why = f" ({e.reason.iloc[-1]} at t = {e.t.iloc[-1]:.4f} s)" if len(e) else ""
+                # the engine's grasp events (no log tables built): robot i's last release, if any
+                g = self.sim.grasp_events()
+                last = [k for k in range(len(g["t"])) if g["robot"][k] == i and g["event"][k] == "release"]
+                why = f" ({g['reason'][last[-1]]} at t = {float(g['t'][last[-1]]):.4f} s)" if last else ""
                 raise CarryError(self.step, self.sim.time, f"{self.names[i]} let go of the bar{why}")
 
     def record_anchor(self, i):
