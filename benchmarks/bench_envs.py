@@ -3,25 +3,29 @@ environment (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")`
 
 Each step is one control period at 50 Hz (the default): 100 engine steps of 0.2 ms, the controllers and the world
 (Bullet: the bar, the stands, the clamps' welds) every 5 engine steps, the observation, the reward and the carry's
-checks. Random actions (``action_space.sample()``, seeded) make the offset jump by centimetres a step, so most
-episodes end early at a failure of the carry's rules and are reset: a reset runs the scripted 2 s approach and
-grasp. Two figures per row:
+checks. Random actions (``action_space.sample()``, seeded) run whole episodes of 180 steps in the bounded action
+space (the squeeze 0 to 3 N, offsets of +-1 cm reached over 0.2 s), most ending at the place with the bar a few
+mm off (a failure of the place, not of the carry's rules); an episode's reset plans the carry and simulates its
+grasp (1 s), as for scripted actions. Two figures per row:
 
 - steps/s: environment steps over the wall time of the whole loop, the resets included (the vector
   environment resets inside its step, Gymnasium's next-step autoreset);
 - steps/s without resets (one environment only): the same steps over the time spent inside ``step()``.
 
-The same rows with the scripted carry's actions (``scripted_action``: whole episodes of 180 steps, a reset
-each) show the step when episodes do not end early. The targets are read on the random rows.
+The same rows with the scripted carry's actions (``scripted_action``) show the step with the plan's commands.
+The targets are read on the random rows. The default 2,880 steps are 16 episodes: one environment runs 16 in a
+row, the vector environment of 8 runs 360 steps each (two episodes each, the second's reset inside a step).
+Each run also prints the mean wall time of a reset (ms) of the one environment.
 
 "cores" is the process's CPU time over the wall time of the row: the cores the figure had (on a shared machine a
-ratio on 2 threads means something only when cores came near 2). Each figure is the best of ``--repeats``.
+ratio on 2 threads means something only when cores came near 2); "per CPU s" is steps/s over cores, the steps
+per second of CPU time (what one core would give if it were the row's alone, contention aside). Each figure is the best of ``--repeats``.
 
 Beside them: robosuite's two-arm tasks, 20-100 environment steps/s with no batched step (robosuite's issue 256),
 and the targets of the project's issue 36: 2,000 steps/s on one core, the vector environment at least 1.8x on 2
 threads against 1. Printed, never asserted.
 
-    python benchmarks/bench_envs.py [--steps 1000] [--envs 8] [--repeats 2] [--quick]
+    python benchmarks/bench_envs.py [--steps 2880] [--envs 8] [--repeats 2] [--quick]
 """
 from __future__ import annotations
 
@@ -55,7 +59,7 @@ def single(steps: int, seed: int = 0, scripted: bool = False) -> dict:
     env = DualCarryEnv()
     env.action_space.seed(seed)
     env.reset(seed=seed)
-    episodes, in_step = 1, 0.0
+    episodes, in_step, in_reset = 1, 0.0, 0.0
     c0, t0 = _cpu(), time.perf_counter()
     for _ in range(steps):
         a = env.scripted_action if scripted else env.action_space.sample()
@@ -63,11 +67,14 @@ def single(steps: int, seed: int = 0, scripted: bool = False) -> dict:
         _, _, term, trunc, _ = env.step(a)
         in_step += time.perf_counter() - s
         if term or trunc:
+            s = time.perf_counter()
             env.reset()
+            in_reset += time.perf_counter() - s
             episodes += 1
     wall = time.perf_counter() - t0
     env.close()
-    return dict(rate=steps / wall, rate_steps=steps / in_step, cores=(_cpu() - c0) / wall, episodes=episodes)
+    return dict(rate=steps / wall, rate_steps=steps / in_step, cores=(_cpu() - c0) / wall, episodes=episodes,
+                reset_ms=1e3 * in_reset / max(1, episodes - 1))
 
 
 def vector(n_envs: int, threads: int, steps: int, seed: int = 0, scripted: bool = False) -> dict:
@@ -95,12 +102,12 @@ def best(fn, repeats: int) -> dict:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=1000, help="environment steps per row (default 1000)")
+    ap.add_argument("--steps", type=int, default=2880, help="environment steps per row (default 2880)")
     ap.add_argument("--envs", type=int, default=8, help="environments of the vector environment (default 8)")
     ap.add_argument("--repeats", type=int, default=2, help="repeats per row, the best kept (default 2)")
-    ap.add_argument("--quick", action="store_true", help="200 steps, one repeat")
+    ap.add_argument("--quick", action="store_true", help="400 steps, one repeat")
     args = ap.parse_args()
-    steps, repeats = (200, 1) if args.quick else (args.steps, args.repeats)
+    steps, repeats = (400, 1) if args.quick else (args.steps, args.repeats)
     n = args.envs
     warnings.simplefilter("ignore")
     print(f"coopsim/DualCarry-v0, random and scripted actions, 50 Hz control (100 engine steps of 0.2 ms a "
@@ -114,13 +121,15 @@ def main():
                         best(lambda: vector(n, 1, vsteps, scripted=sc), repeats),
                         best(lambda: vector(n, 2, vsteps, scripted=sc), repeats))
     print()
-    print(f"{'':52s} {'steps/s':>9s} {'cores':>6s} {'episodes':>9s}")
+    print(f"{'':52s} {'steps/s':>9s} {'cores':>6s} {'episodes':>9s} {'per CPU s':>10s}")
     for policy, (one, v1, v2) in rows.items():
-        print(f"{f'{policy} actions: one environment':52s} {one['rate']:9.0f} {one['cores']:6.2f} {one['episodes']:9d}")
+        print(f"{f'{policy} actions: one environment':52s} {one['rate']:9.0f} {one['cores']:6.2f} {one['episodes']:9d} "
+              f"{one['rate'] / one['cores']:10.0f}")
         print(f"{f'{policy} actions: one environment, time in step() only':52s} {one['rate_steps']:9.0f}")
+        print(f"{f'{policy} actions: one environment, a reset (ms)':52s} {one['reset_ms']:9.1f}")
         for threads, v in ((1, v1), (2, v2)):
             label = f"{policy} actions: vector, {n} environments, {threads} thread{'s' if threads > 1 else ''}"
-            print(f"{label:52s} {v['rate']:9.0f} {v['cores']:6.2f} {v['episodes']:9d}")
+            print(f"{label:52s} {v['rate']:9.0f} {v['cores']:6.2f} {v['episodes']:9d} {v['rate'] / v['cores']:10.0f}")
     print(f"{'robosuite two-arm tasks (their figures)':52s} {f'{ROBOSUITE[0]}-{ROBOSUITE[1]}':>9s}")
     one, v1, v2 = rows["random"]
     print()
@@ -133,6 +142,7 @@ def main():
           f"cores {v2['cores']:.2f})")
     sv1, sv2 = rows["scripted"][1:]
     print(f"(scripted actions: vector 2 threads / 1 = {sv2['rate'] / sv1['rate']:.2f}x, cores {sv2['cores']:.2f})")
+    print(f"load average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
     per = lambda rate: f"{rate / ROBOSUITE[1]:.2f}x"  # noqa: E731
     print(f"against robosuite's {ROBOSUITE[1]} steps/s, random actions: one environment {per(one['rate'])}, vector "
           f"on 2 threads {per(v2['rate'])}; scripted: {per(rows['scripted'][0]['rate'])}, {per(sv2['rate'])}")

@@ -284,8 +284,8 @@ def test_a_start_that_fails_ends_the_episode_at_its_first_step():
 
 # ---- the vector environment ----
 
-def _vector_episodes(env_id, n, seeds, actions, steps, **kwargs):
-    v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", threads=2, **kwargs)
+def _vector_episodes(env_id, n, seeds, actions, steps, threads=2, **kwargs):
+    v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", threads=threads, **kwargs)
     obs, _ = v.reset(seed=seeds)
     out = [obs]
     rewards, dones, infos = [], [], []
@@ -303,14 +303,17 @@ def _obs_i(obs, i):
     return {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
 
 
-def test_vector_reach_equals_the_single_environments_with_autoresets():
+@pytest.mark.parametrize("threads", [1, 2], ids=["one-thread", "two-halves-pipelined"])
+def test_vector_reach_equals_the_single_environments_with_autoresets(threads):
+    """On one thread the step runs every environment in turn; on more, its two halves in a pipeline (one half's
+    engine call while Python applies or reads the other): the same episodes either way."""
     n, steps, seeds = 3, 24, [4, 7, 9]
     rngs = [np.random.default_rng(100 + i) for i in range(n)]
     high = ReachEnv().action_space.high
     acts = [[0.3 * high * rngs[i].uniform(-1, 1, 6) for _ in range(steps)] for i in range(n)]
     limits = [0.2, 0.3, 0.5]                         # episodes of 10, 15 and 25 steps: resets out of step
     obs, rewards, dones, _ = _vector_episodes("coopsim/Reach-v0", n, seeds, lambda i, k: acts[i][k], steps,
-                                              time_limit=limits)
+                                              threads=threads, time_limit=limits)
     for i in range(n):
         env = ReachEnv(time_limit=limits[i])
         o, _ = env.reset(seed=seeds[i])

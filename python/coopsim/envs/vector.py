@@ -13,9 +13,16 @@ its index, before any is applied), advances all simulations that end the step at
 engine call (environments in step with each other: one call; an environment reset at another time than the
 others makes a second group), and reads each one's outcome, exactly as the single environment does: the
 same seeds and actions give the single environments' episodes bit for bit.
+
+With ``threads`` of 2 or more (or 0) the step runs its environments' two halves in a pipeline: a worker thread
+resets and advances one half (the engine's calls, the GIL released) while the caller's thread applies the
+other half's actions or reads its outcomes (Python, holding the GIL), so the Python of one half overlaps the
+engine of the other; each environment goes through the same calls in the same order. With ``threads=1`` the
+step runs them in turn on the caller's thread alone (one core).
 """
 from __future__ import annotations
 
+import concurrent.futures
 from typing import Any, Optional, Sequence
 
 import numpy as np
@@ -77,6 +84,7 @@ class CoopsimVectorEnv(VectorEnv):
         self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
         self._env_obs: list = [None] * self.num_envs
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._executor: Optional[concurrent.futures.ThreadPoolExecutor] = None
 
     # ---- Gymnasium ----
 
@@ -123,29 +131,64 @@ class CoopsimVectorEnv(VectorEnv):
         truncated = np.zeros(n, dtype=bool)
         infos: dict = {}
         results: list = [None] * n
-        t_next: dict = {}
-        for i, env in enumerate(self.envs):
-            if resetting[i]:
-                results[i] = env.reset()
-            else:
-                t_next[i] = env._apply(acts[i])
         errors: dict = {}
-        for t in sorted(set(t_next.values())):
-            group = [i for i in t_next if t_next[i] == t]
-            got = Simulation.advance_all([self.envs[i].sim for i in group], t, self.threads)
-            errors.update(zip(group, got))
-        for i, env in enumerate(self.envs):
-            if resetting[i]:
-                self._env_obs[i], info = results[i]
-            else:
-                self._env_obs[i], rewards[i], terminated[i], truncated[i], info = env._outcome(errors[i])
-                if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
-                    infos = self._add_info(infos, {"final_obs": self._env_obs[i], "final_info": info}, i)
-                    self._env_obs[i], info = env.reset()
-            infos = self._add_info(infos, info, i)
+
+        def apply(part):             # Python: each environment's commands (holds the GIL)
+            t_next = {}
+            for i in part:
+                if not resetting[i]:
+                    t_next[i] = self.envs[i]._apply(acts[i])
+            return t_next
+
+        def engine(part, t_next):    # the engine: resets, then the part's simulations in one call per end time
+            for i in part:
+                if resetting[i]:
+                    results[i] = self.envs[i].reset()
+            for t in sorted(set(t_next.values())):
+                group = [i for i in t_next if t_next[i] == t]
+                got = Simulation.advance_all([self.envs[i].sim for i in group], t, self.threads)
+                errors.update(zip(group, got))
+
+        def outcome(part):           # Python: each environment's observation, reward and checks
+            nonlocal infos
+            for i in part:
+                env = self.envs[i]
+                if resetting[i]:
+                    self._env_obs[i], info = results[i]
+                else:
+                    self._env_obs[i], rewards[i], terminated[i], truncated[i], info = env._outcome(errors[i])
+                    if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
+                        infos = self._add_info(infos, {"final_obs": self._env_obs[i], "final_info": info}, i)
+                        self._env_obs[i], info = env.reset()
+                results[i] = info
+
+        if self.threads == 1 or n == 1:
+            whole = range(n)
+            engine(whole, apply(whole))
+            outcome(whole)
+        else:
+            # two halves in a pipeline: the engine runs one half (GIL released) while Python applies or reads
+            # the other; each environment goes through the same calls in the same order as on one thread
+            halves = (range(0, n // 2), range(n // 2, n))
+            pool = self._pool()
+            first = pool.submit(engine, halves[0], apply(halves[0]))
+            t_second = apply(halves[1])
+            first.result()
+            second = pool.submit(engine, halves[1], t_second)
+            outcome(halves[0])
+            second.result()
+            outcome(halves[1])
+        for i in range(n):
+            infos = self._add_info(infos, results[i], i)
         self._autoreset = terminated | truncated
         self._obs = concatenate(self.single_observation_space, self._env_obs, self._obs)
         return self._copy(self._obs), rewards, terminated, truncated, infos
+
+    def _pool(self):
+        """The one worker thread that runs half of a step's engine work while the caller's thread runs Python."""
+        if self._executor is None:
+            self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="coopsim-vector")
+        return self._executor
 
     @staticmethod
     def _copy(obs):
@@ -157,6 +200,9 @@ class CoopsimVectorEnv(VectorEnv):
         return tuple(env.render() for env in self.envs)
 
     def close_extras(self, **kwargs: Any) -> None:
+        if self._executor is not None:
+            self._executor.shutdown()
+            self._executor = None
         for env in self.envs:
             env.close()
 
