@@ -304,14 +304,16 @@ def _obs_i(obs, i):
 
 
 @pytest.mark.parametrize("threads", [1, 2], ids=["one-thread", "two-halves-pipelined"])
-def test_vector_reach_equals_the_single_environments_with_autoresets(threads):
+@pytest.mark.parametrize("limits", [[0.2, 0.3, 0.5], [0.2, 0.2, 0.2]], ids=["out-of-step", "together"])
+def test_vector_reach_equals_the_single_environments_with_autoresets(threads, limits):
     """On one thread the step runs every environment in turn; on more, its two halves in a pipeline (one half's
-    engine call while Python applies or reads the other): the same episodes either way."""
+    engine call while Python applies or reads the other) and the resets of one step side by side on the pool:
+    the same episodes either way. limits: episodes of 10, 15 and 25 steps (resets out of step), or of 10 each
+    (all three reset in the same step)."""
     n, steps, seeds = 3, 24, [4, 7, 9]
     rngs = [np.random.default_rng(100 + i) for i in range(n)]
     high = ReachEnv().action_space.high
     acts = [[0.3 * high * rngs[i].uniform(-1, 1, 6) for _ in range(steps)] for i in range(n)]
-    limits = [0.2, 0.3, 0.5]                         # episodes of 10, 15 and 25 steps: resets out of step
     obs, rewards, dones, _ = _vector_episodes("coopsim/Reach-v0", n, seeds, lambda i, k: acts[i][k], steps,
                                               threads=threads, time_limit=limits)
     for i in range(n):

@@ -23,8 +23,10 @@ def bounded(shape, low: float = -BOUND, high: float = BOUND) -> spaces.Box:
 
 def clip(x: np.ndarray, low: float = -BOUND, high: float = BOUND) -> np.ndarray:
     """`x` as float64 within [low, high], NaN as 0 (a run that diverged)."""
-    x = np.asarray(x, np.float64)
-    return np.clip(np.where(np.isnan(x), 0.0, x), low, high)
+    x = np.minimum(np.maximum(np.asarray(x, np.float64), low), high)     # NaN stays NaN here
+    if not (x == x).all():
+        x[np.isnan(x)] = 0.0
+    return x
 
 
 def control_period(control_rate, dt: float = DT) -> float:

@@ -98,26 +98,23 @@ INTERNAL_SCALE = 5.0              # N: the internal force's scale
 RATES = dict(dt=DT, world_every=5, control_every=5, log_every=25)
 
 
-def _quaternion(R) -> list:
-    """[w, x, y, z] of a rotation matrix (w >= 0), in floats."""
-    m00, m01, m02 = float(R[0, 0]), float(R[0, 1]), float(R[0, 2])
-    m10, m11, m12 = float(R[1, 0]), float(R[1, 1]), float(R[1, 2])
-    m20, m21, m22 = float(R[2, 0]), float(R[2, 1]), float(R[2, 2])
+def _quaternion(m) -> list:
+    """[w, x, y, z] of the rotation in the top-left 3 x 3 of `m` (nested lists or an array; w >= 0), in floats."""
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m[0][:3], m[1][:3], m[2][:3]
     w = math.sqrt(max(0.0, 1.0 + m00 + m11 + m22)) / 2.0
     x = math.copysign(math.sqrt(max(0.0, 1.0 + m00 - m11 - m22)) / 2.0, m21 - m12)
     y = math.copysign(math.sqrt(max(0.0, 1.0 - m00 + m11 - m22)) / 2.0, m02 - m20)
     z = math.copysign(math.sqrt(max(0.0, 1.0 - m00 - m11 + m22)) / 2.0, m10 - m01)
-    return [w, x, y, z]
+    return [float(w), float(x), float(y), float(z)]
 
 
-def _rotation_vector(R) -> list:
-    """The rotation vector (3,) rad of a rotation matrix, in floats."""
-    c = min(1.0, max(-1.0, (float(R[0, 0]) + float(R[1, 1]) + float(R[2, 2]) - 1.0) / 2.0))
+def _rotation_vector(m) -> list:
+    """The rotation vector (3,) rad of the rotation matrix `m` (nested lists or an array), in floats."""
+    c = min(1.0, max(-1.0, (m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0))
     angle = math.acos(c)
-    v = [float(R[2, 1] - R[1, 2]), float(R[0, 2] - R[2, 0]), float(R[1, 0] - R[0, 1])]
     s = math.sin(angle)
     f = 0.5 if s < 1e-9 else angle / (2.0 * s)
-    return [f * x for x in v]
+    return [float(f * (m[2][1] - m[1][2])), float(f * (m[0][2] - m[2][0])), float(f * (m[1][0] - m[0][1]))]
 
 
 def _shifted(trajectory: CubicTrajectory, t_cut: float) -> CubicTrajectory:
@@ -245,7 +242,8 @@ class DualCarryEnv(gym.Env):
             self._failure = self._failure_info(e)
         self.t0, self.t_end = self.sim.time, float(S["place"][1])
         self._bar_path = (list(map(float, plan.bar.times)), plan.bar)
-        self._grips = np.array([np.asarray(G, float)[:3, 3] for G in plan.grips])    # (2, 3) m, in the bar's frame
+        self._grips = [np.asarray(G, float)[:3, 3].tolist() for G in plan.grips]    # (2, 3) m, in the bar's frame
+        self._waypoints = np.asarray(plan.bar.waypoints, float).tolist()
         self.k = 0
         self.commands = SCRIPTED.copy()
         self._done = False       # a failed start ends the episode at its first step
@@ -305,35 +303,41 @@ class DualCarryEnv(gym.Env):
                 runner.mark(nxt)
 
     def _planned_bar(self, t: float):
-        """The plan's bar pose at t (s): (R (3, 3), p (3,)), as :meth:`BarPath.pose` gives it."""
+        """The plan's bar pose at t (s), as :meth:`BarPath.pose` gives it: (cos yaw, sin yaw, position (3,) m)."""
         times, path = self._bar_path
         k = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
         u = min(1.0, max(0.0, (t - times[k]) / (times[k + 1] - times[k])))
         u = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
-        a, b = path.waypoints[k], path.waypoints[k + 1]
-        x = a + u * (b - a)
-        c, s = math.cos(x[3]), math.sin(x[3])
-        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), x[:3]
+        a, b = self._waypoints[k], self._waypoints[k + 1]
+        x = [a[j] + u * (b[j] - a[j]) for j in range(4)]
+        return math.cos(x[3]), math.sin(x[3]), x[:3]
 
     def _observe(self) -> dict:
         sim, plan = self.sim, self.plan
+        t = sim.time
         q0, qd0 = sim.state(0)
         q1, qd1 = sim.state(1)
         r0, r1 = plan.robots
-        T0, T1 = r0.fk(q0), r1.fk(q1)
+        T0, T1 = r0.fk(q0).tolist(), r1.fk(q1).tolist()
         b = sim.body_state(_scene.BAR)
-        B = b.pose
-        R, p = self._planned_bar(sim.time)
-        self._planned = (R, p)
-        c = sim.cooperation(0, 1)
-        held = bool(c.holding)
-        phase = (sim.time - self.t0) / max(self.t_end - self.t0, 1e-12)
-        flat = np.concatenate([
-            q0, q1, qd0, qd1, T0[:3, 3], _quaternion(T0), T1[:3, 3], _quaternion(T1),
-            r0.tool_jacobian(q0) @ qd0, r1.tool_jacobian(q1) @ qd1, sim.sensor(0).ft_world, sim.sensor(1).ft_world,
-            B[:3, 3], _quaternion(B), b.velocity, b.angular_velocity, p - B[:3, 3], _rotation_vector(R @ B[:3, :3].T),
-            c.internal if held else np.zeros(12), [c.squeeze if held else 0.0],
-            c.load_share if held else np.zeros(2), [min(1.0, max(0.0, phase))]])
+        B = b.pose.tolist()
+        c, s, p = self._planned_bar(t)
+        self._planned = (c, s, p)
+        # the plan's bar rotation R (the yaw's) times the bar's transposed: R B^T, rows
+        Rb = [[c * B[j][0] - s * B[j][1] for j in range(3)], [s * B[j][0] + c * B[j][1] for j in range(3)],
+              [B[j][2] for j in range(3)]]
+        h = sim.cooperation(0, 1)
+        held = bool(h.holding)
+        phase = (t - self.t0) / max(self.t_end - self.t0, 1e-12)
+        flat = np.array(
+            q0.tolist() + q1.tolist() + qd0.tolist() + qd1.tolist()
+            + [T0[0][3], T0[1][3], T0[2][3]] + _quaternion(T0) + [T1[0][3], T1[1][3], T1[2][3]] + _quaternion(T1)
+            + (r0.tool_jacobian(q0) @ qd0).tolist() + (r1.tool_jacobian(q1) @ qd1).tolist()
+            + sim.sensor(0).ft_world.tolist() + sim.sensor(1).ft_world.tolist()
+            + [B[0][3], B[1][3], B[2][3]] + _quaternion(B) + b.velocity.tolist() + b.angular_velocity.tolist()
+            + [p[0] - B[0][3], p[1] - B[1][3], p[2] - B[2][3]] + _rotation_vector(Rb)
+            + (h.internal.tolist() if held else [0.0] * 12) + [h.squeeze if held else 0.0]
+            + (h.load_share.tolist() if held else [0.0, 0.0]) + [min(1.0, max(0.0, phase))])
         flat = clip(flat)
         out, k = {}, 0
         for name, shape, n in self._layout:
@@ -343,17 +347,22 @@ class DualCarryEnv(gym.Env):
 
     def _terms(self, obs) -> dict:
         """The reward's terms: each arm's task and share terms and the internal-force factor."""
-        R, p = self._planned
-        grips = p + self._grips @ R.T                       # each clamp's planned grip point (2, 3), m
-        d = obs["clamp_pose"][:, :3] - grips
-        task = np.exp(-np.sqrt((d * d).sum(axis=1)) / GRIP_SCALE)
-        ls, up = obs["load_share"], obs["wrench"][:, 2]
-        if up[0] + up[1] > 0.2 * self.episode_bar_mass * 9.81 and ls[0] != 0.0 and ls[1] != 0.0:
-            share = np.exp(-((ls - 0.5) / SHARE_SCALE) ** 2)
+        c, s, p = self._planned
+        pose, (ls0, ls1) = obs["clamp_pose"].tolist(), obs["load_share"].tolist()
+        task = []
+        for i, (g0, g1, g2) in enumerate(self._grips):     # each clamp's planned grip point, m
+            d0 = pose[i][0] - (p[0] + c * g0 - s * g1)
+            d1 = pose[i][1] - (p[1] + s * g0 + c * g1)
+            d2 = pose[i][2] - (p[2] + g2)
+            task.append(math.exp(-math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / GRIP_SCALE))
+        up = float(obs["wrench"][0, 2] + obs["wrench"][1, 2])
+        if up > 0.2 * self.episode_bar_mass * 9.81 and ls0 != 0.0 and ls1 != 0.0:
+            share = [math.exp(-(((x - 0.5) / SHARE_SCALE) ** 2)) for x in (ls0, ls1)]
         else:
-            share = np.ones(2)
+            share = [1.0, 1.0]
         f = obs["internal"]
         internal = math.sqrt(float(f[0]) ** 2 + float(f[1]) ** 2 + float(f[2]) ** 2)
+        task, share = np.array(task), np.array(share)
         return dict(task=task, share=share, arms=task * share, internal=internal,
                     internal_factor=math.exp(-internal / INTERNAL_SCALE))
 
@@ -369,7 +378,7 @@ class DualCarryEnv(gym.Env):
         self._phase_marks()
         terms = self._terms(obs)
         info["reward_terms"] = terms
-        reward = float(np.min(terms["arms"]) * terms["internal_factor"])
+        reward = float(min(terms["arms"][0], terms["arms"][1]) * terms["internal_factor"])
         terminated = self.sim.time >= self.t_end - 1e-9
         if terminated:
             self.runner.done()

@@ -23,6 +23,7 @@ step runs them in turn on the caller's thread alone (one core).
 from __future__ import annotations
 
 import concurrent.futures
+import os
 from typing import Any, Optional, Sequence
 
 import numpy as np
@@ -133,6 +134,9 @@ class CoopsimVectorEnv(VectorEnv):
         results: list = [None] * n
         errors: dict = {}
 
+        parallel = self.threads != 1 and n > 1
+        ended: list = []             # SAME_STEP: the environments whose episode ended this step
+
         def apply(part):             # Python: each environment's commands (holds the GIL)
             t_next = {}
             for i in part:
@@ -140,29 +144,36 @@ class CoopsimVectorEnv(VectorEnv):
                     t_next[i] = self.envs[i]._apply(acts[i])
             return t_next
 
-        def engine(part, t_next):    # the engine: resets, then the part's simulations in one call per end time
-            for i in part:
-                if resetting[i]:
-                    results[i] = self.envs[i].reset()
+        def engine(part, t_next):    # the engine: the part's simulations in one call per end time
             for t in sorted(set(t_next.values())):
                 group = [i for i in t_next if t_next[i] == t]
                 got = Simulation.advance_all([self.envs[i].sim for i in group], t, self.threads)
                 errors.update(zip(group, got))
 
         def outcome(part):           # Python: each environment's observation, reward and checks
-            nonlocal infos
             for i in part:
-                env = self.envs[i]
                 if resetting[i]:
-                    self._env_obs[i], info = results[i]
-                else:
-                    self._env_obs[i], rewards[i], terminated[i], truncated[i], info = env._outcome(errors[i])
-                    if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
-                        infos = self._add_info(infos, {"final_obs": self._env_obs[i], "final_info": info}, i)
-                        self._env_obs[i], info = env.reset()
-                results[i] = info
+                    continue
+                self._env_obs[i], rewards[i], terminated[i], truncated[i], results[i] = \
+                    self.envs[i]._outcome(errors[i])
+                if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
+                    ended.append(i)
 
-        if self.threads == 1 or n == 1:
+        def reset(indices):          # each environment's reset (its grasp in the engine, the GIL released)
+            def one(i):
+                return self.envs[i].reset()
+            done = self._pool().map(one, indices) if parallel and len(indices) > 1 else map(one, indices)
+            for i, got in zip(indices, list(done)):
+                if resetting[i]:
+                    results[i] = got[1]
+                    self._env_obs[i] = got[0]
+                else:            # SAME_STEP: the final observation and info kept in this step's info
+                    results[i] = ({"final_obs": self._env_obs[i], "final_info": results[i]}, got[1])
+                    self._env_obs[i] = got[0]
+
+        # the resets first, side by side on the pool when there is one (episodes of equal length end together)
+        reset([i for i in range(n) if resetting[i]])
+        if not parallel:
             whole = range(n)
             engine(whole, apply(whole))
             outcome(whole)
@@ -178,16 +189,22 @@ class CoopsimVectorEnv(VectorEnv):
             outcome(halves[0])
             second.result()
             outcome(halves[1])
+        reset(ended)
         for i in range(n):
+            if isinstance(results[i], tuple):
+                infos = self._add_info(infos, results[i][0], i)
+                results[i] = results[i][1]
             infos = self._add_info(infos, results[i], i)
         self._autoreset = terminated | truncated
         self._obs = concatenate(self.single_observation_space, self._env_obs, self._obs)
         return self._copy(self._obs), rewards, terminated, truncated, infos
 
     def _pool(self):
-        """The one worker thread that runs half of a step's engine work while the caller's thread runs Python."""
+        """The worker threads: one runs half of a step's engine work while the caller's thread runs Python;
+        resets run side by side on `threads` of them (0: every core)."""
         if self._executor is None:
-            self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="coopsim-vector")
+            workers = max(2, self.threads or (os.cpu_count() or 2))
+            self._executor = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="coopsim-vector")
         return self._executor
 
     @staticmethod
