@@ -13,12 +13,16 @@ call per step on `threads` threads, the GIL released).
   z the normalised target less the TCP (3,), the last three of the observation. From the policy that does
   nothing (M = 0) to one that reaches.
 - ``carry``: ``coopsim/DualCarry-v0`` under a push (``disturbance="push"``: 2 N across the bar for 0.2 s in
-  the middle of the carry) with the cooperative law's commands as actions; action = the scripted carry's
-  commands + scale * (M z + b) within the action space, z the normalised bar error's position (3,) m and
-  internal force (3,) N, scale = (2 mm, 2 mm, 2 mm, 0.5 N, 0.05) for the offset, squeeze and load share.
-  From the scripted carry (M = 0), trained on the environment's reward (each clamp on its planned grip, the
-  load shared, the internal force low: the smaller arm's term times exp(-|internal force| / 5 N)); the peak
-  internal force of the evaluation episodes is printed beside the return, before and after.
+  the middle of the carry), its squeeze commanded: squeeze = 0.5 N + 0.05 N x (M z + b) within the action
+  space, z the normalised swing s - 0.5 N of the measured squeeze s (N, along the bar: the one part of the
+  internal force the squeeze command acts on, the same whatever the bar's yaw), the offset and load share
+  the scripted carry's. The squeeze is held at 0.5 N because DualCarry-v0 commands compression only (from
+  0 N): about a held squeeze the command can both raise and lower it. ARS maximises the environment's
+  reward less (swing / 0.1 N)^2 per step over the push and the second after it (the environment's own
+  internal-force factor, exp(-|f| / 5 N), weighs the push's 0.2 N at 4 % of a step: too little against the
+  grips). From M = 0 (the squeeze held at 0.5 N whatever happens) it learns to lower the command while the
+  bar is squeezed and raise it while it is pulled: the swing's peak and its integral over the push, printed
+  before and after on the same evaluation starts, fall.
 
 Each iteration's starts are drawn from the seed and shared by all its directions (common random numbers:
 `episodes` per direction and way); the normaliser starts from the states of the initial policy's episodes.
@@ -42,10 +46,24 @@ from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
-#: the scripted carry's commands: no offset, no squeeze, half the load each (DualCarry-v0's scripted_action)
-CARRY_BASE = np.array([0.0, 0.0, 0.0, 0.0, 0.5])
-#: the carry policy's output scale: offset (3,) m, squeeze N, load share
-CARRY_SCALE = np.array([0.002, 0.002, 0.002, 0.5, 0.05])
+#: the squeeze (N, compression) the carry's policy holds and commands about: DualCarry-v0's squeeze is
+#: compression only (its action's range starts at 0 N), so a command that must both raise and lower the
+#: squeeze works about a held one
+CARRY_SQUEEZE = 0.5
+#: the carry's commands with M = 0: no offset, the held squeeze, half the load each (DualCarry-v0's
+#: scripted_action but for the squeeze)
+CARRY_BASE = np.array([0.0, 0.0, 0.0, CARRY_SQUEEZE, 0.5])
+#: the carry policy's output scale: N of squeeze command per unit of M z + b
+SQUEEZE_ACTION_SCALE = 0.05
+#: the carry's objective: the environment's reward per step less SQUEEZE_PENALTY x (swing / SQUEEZE_PENALTY_SCALE)^2,
+#: the swing the squeeze less the one held (a swing of 0.1 N for one step costs a whole step's reward, whose
+#: largest value is 1; the push's swings, near 0.2 N, four; the carry's swings outside the push, under 0.05 N,
+#: a quarter at most)
+SQUEEZE_PENALTY = 1.0
+SQUEEZE_PENALTY_SCALE = 0.1
+#: control periods (50 Hz) from the push's start over which the swing is penalised and measured: the push's
+#: 0.2 s and the second after it
+PUSH_WINDOW_STEPS = 60
 
 
 # ---- the two problems ----
@@ -66,9 +84,16 @@ class Problem:
     step: float
     noise: float
     defaults: dict = field(default_factory=dict)
-    #: a quantity (n,) of a batch of observations whose peak over each episode is recorded, and its name
+    #: a quantity (n,) of a batch of observations whose peak and integral over each episode are recorded, its name
     measure: Optional[Callable[[object], np.ndarray]] = None
     measure_name: str = ""
+    #: what ARS maximises per step, (obs, rewards (n,), window (n,) bool) -> (n,): None for the environment's reward
+    objective: Optional[Callable[[object, np.ndarray, np.ndarray], np.ndarray]] = None
+    #: the steps from the start of a push (info["push"] not zero) over which the measure is taken and `window`
+    #: is True (0: every step of the episode)
+    window_steps: int = 0
+    #: s: the control period (the measure's integral is its sum times this)
+    period: float = 0.02
 
 
 def reach_problem() -> Problem:
@@ -85,22 +110,52 @@ def reach_problem() -> Problem:
                    defaults=dict(iterations=12, directions=8, top=4, episodes=2, eval_episodes=8))
 
 
-def carry_problem(low: Optional[np.ndarray] = None, high: Optional[np.ndarray] = None) -> Problem:
-    low = np.array([-0.02, -0.02, -0.02, -5.0, 0.0]) if low is None else low
-    high = np.array([0.02, 0.02, 0.02, 10.0, 1.0]) if high is None else high
+def carry_problem(low: Optional[np.ndarray] = None, high: Optional[np.ndarray] = None,
+                  squeeze_penalty: Optional[float] = None) -> Problem:
+    """The pushed dual carry, its squeeze commanded about the held CARRY_SQUEEZE: feature the swing s - 0.5 N (1,),
+    action squeeze = 0.5 N + SQUEEZE_ACTION_SCALE x (M z + b) within the action space (low, high: its bounds,
+    DualCarry-v0's), the offset and load share the scripted carry's; ARS maximises the environment's reward
+    less squeeze_penalty (default SQUEEZE_PENALTY) x |s - 0.5 N| per step; the measure is |s - 0.5 N| (N)."""
+    env_space = gym_space("coopsim/DualCarry-v0")
+    low = env_space.low if low is None else np.asarray(low, float)
+    high = env_space.high if high is None else np.asarray(high, float)
+    penalty = SQUEEZE_PENALTY if squeeze_penalty is None else float(squeeze_penalty)
 
-    def features(obs):
-        return np.concatenate([obs["bar_error"][:, :3], obs["internal"][:, :3]], axis=1)
+    def swing(obs):              # (n,) N: the squeeze less the one held, signed
+        return np.asarray(obs["squeeze"], float).reshape(-1) - CARRY_SQUEEZE
 
-    def action(u):
-        return np.clip(CARRY_BASE + CARRY_SCALE * u, low, high)
+    def features(obs):           # the swing (n, 1) N: along the bar, whatever its yaw
+        return swing(obs)[:, None]
 
-    def internal_force(obs):     # N: the hold's internal force
-        return np.linalg.norm(obs["internal"][:, :3], axis=1)
+    def action(u):               # the squeeze's command; the offset and the load share the scripted carry's
+        a = np.repeat(CARRY_BASE[None], len(u), axis=0)
+        a[:, 3] += SQUEEZE_ACTION_SCALE * u[:, 0]
+        return np.clip(a, low, high)
 
-    return Problem("carry", "coopsim/DualCarry-v0", dict(disturbance="push"), 6, 5, features, action,
+    def measure(obs):            # N: the swing's size
+        return np.abs(swing(obs))
+
+    def objective(obs, rewards, window):  # the environment's reward less the push's swing's penalty
+        return rewards - penalty * window * (swing(obs) / SQUEEZE_PENALTY_SCALE) ** 2
+
+    return Problem("carry", "coopsim/DualCarry-v0", dict(disturbance="push"), 1, 1, features, action,
                    step=0.1, noise=0.2, defaults=dict(iterations=8, directions=4, top=2, episodes=1, eval_episodes=4),
-                   measure=internal_force, measure_name="peak internal force (N)")
+                   measure=measure, measure_name="squeeze swing |s - 0.5 N| (N) over the push and the second after it",
+                   objective=objective,
+                   period=0.02, window_steps=PUSH_WINDOW_STEPS)
+
+
+def gym_space(env_id: str):
+    """The action space of one environment of env_id (its bounds as the environment declares them now)."""
+    import gymnasium as gym
+
+    import coopsim.envs  # noqa: F401  (registers the environments)
+
+    env = gym.make(env_id)
+    try:
+        return env.action_space
+    finally:
+        env.close()
 
 
 PROBLEMS = {"reach": reach_problem, "carry": carry_problem}
@@ -140,30 +195,56 @@ class Normaliser:
         return (x - self.mean) / self.std
 
 
-def rollouts(venv, problem: Problem, weights: np.ndarray, norm: Normaliser, seeds: List[int]):
+def rollouts(venv, problem: Problem, weights: np.ndarray, norm: Normaliser, seeds: List[int]) -> dict:
     """One episode per environment of `venv` from reset(seed=seeds), environment i acting with the linear policy
     weights[i] ((a, f + 1): M and the bias) on the states normalised by `norm` (frozen during the episodes).
-    Returns the returns (n,), the episodes' lengths (n,), the features seen (m, f) and the peak of
-    problem.measure over each episode (n,) (zeros without one)."""
+    Returns a dict: 'returns' (n,) of problem.objective (the environment's reward without one), 'env_returns'
+    (n,) of the environment's reward, 'lengths' (n,), 'seen' the features seen (m, f), and of problem.measure
+    (zeros without one) 'peak' (n,), its largest value over each episode, and 'integral' (n,), its sum over
+    the episode's steps times problem.period (unit s)."""
     n = venv.num_envs
     obs, _ = venv.reset(seed=list(seeds))
-    returns = np.zeros(n)
+    returns, env_returns = np.zeros(n), np.zeros(n)
     lengths = np.zeros(n, dtype=int)
     active = np.ones(n, dtype=bool)
-    peak = np.zeros(n)
+    peak, integral = np.zeros(n), np.zeros(n)
+    since = np.full(n, -1)            # steps since the push started (-1: not yet)
     seen = []
     while active.any():
         x = problem.features(obs)
         seen.append(x[active])
         z = np.concatenate([norm(x), np.ones((n, 1))], axis=1)
         u = np.einsum("naf,nf->na", weights, z)
-        obs, rewards, terminated, truncated, _ = venv.step(problem.action(u))
-        returns[active] += rewards[active]
+        obs, rewards, terminated, truncated, infos = venv.step(problem.action(u))
+        if problem.window_steps > 0:
+            pushed = np.any(np.asarray(infos.get("push", np.zeros((n, 3))), float) != 0.0, axis=1)
+            since = np.where(since >= 0, since + 1, np.where(pushed, 0, -1))
+            window = (since >= 0) & (since < problem.window_steps)
+        else:
+            window = np.ones(n, dtype=bool)
+        objective = rewards if problem.objective is None else problem.objective(obs, rewards, window)
+        returns[active] += objective[active]
+        env_returns[active] += rewards[active]
         if problem.measure is not None:
-            peak[active] = np.maximum(peak[active], problem.measure(obs)[active])
+            m = np.where(window, problem.measure(obs), 0.0)
+            peak[active] = np.maximum(peak[active], m[active])
+            integral[active] += problem.period * m[active]
         lengths[active] += 1
         active &= ~(terminated | truncated)     # an ended environment resets at its next step: not counted
-    return returns, lengths, np.concatenate(seen), peak
+    return dict(returns=returns, env_returns=env_returns, lengths=lengths, seen=np.concatenate(seen), peak=peak,
+                integral=integral)
+
+
+def ars_update(M: np.ndarray, deltas: np.ndarray, r_plus: np.ndarray, r_minus: np.ndarray, top: int,
+               step: float) -> np.ndarray:
+    """ARS v2's step: M (a, f + 1) plus step / (top x sigma) x sum over the `top` directions whose better way
+    returned most of (r_plus - r_minus) x delta; deltas (d, a, f + 1), r_plus and r_minus (d,) the returns of
+    M + noise x delta and M - noise x delta, sigma the standard deviation of the 2 x top returns kept (1 when
+    they are all equal). Ties keep the earlier direction."""
+    best = np.argsort(-np.maximum(r_plus, r_minus), kind="stable")[:top]
+    sigma = np.std(np.concatenate([r_plus[best], r_minus[best]]))
+    sigma = sigma if sigma > 1e-12 else 1.0
+    return M + step / (top * sigma) * np.einsum("k,kaf->af", r_plus[best] - r_minus[best], deltas[best])
 
 
 def ars(problem: Problem, *, iterations: int, directions: int, top: int, eval_episodes: int, episodes: int = 1,
@@ -172,9 +253,11 @@ def ars(problem: Problem, *, iterations: int, directions: int, top: int, eval_ep
     """Trains problem's linear policy by ARS v2 for `iterations` iterations of `directions` directions (each
     both ways, each way's return the mean of `episodes` episodes from starts drawn for the iteration and
     shared by all directions), keeping the `top` best, the curve's point the mean return of `eval_episodes`
-    episodes of the unperturbed policy on fixed seeds. Returns the curve: 'mean', 'std', 'min', 'max', 'peak'
-    (the mean of the episodes' peaks of problem.measure) (iterations + 1,) (the last after the last update),
-    the returns of every evaluation, the weights (a, f + 1) and the normaliser, wall times (s)."""
+    episodes of the unperturbed policy on fixed seeds, ARS maximising problem.objective's return (the
+    environment's without one). Returns the curve: 'mean', 'std', 'min', 'max' of the evaluation's returns
+    (iterations + 1,) (the last after the last update); per evaluation and episode 'returns' (the objective's),
+    'env_returns' (the environment's reward), 'peak' and 'integral' of problem.measure (rollouts'); the
+    weights (a, f + 1) and the normaliser, wall times (s)."""
     import gymnasium as gym
 
     import coopsim.envs  # noqa: F401  (registers the environments)
@@ -192,7 +275,8 @@ def ars(problem: Problem, *, iterations: int, directions: int, top: int, eval_ep
     M = np.zeros(shape)
     norm = Normaliser(problem.n_features)
     eval_seeds = [1_000_000 + k for k in range(eval_episodes)]
-    curve: Dict[str, list] = dict(mean=[], std=[], min=[], max=[], returns=[], peak=[], wall=[])
+    curve: Dict[str, list] = dict(mean=[], std=[], min=[], max=[], returns=[], env_returns=[], peak=[], integral=[],
+                                  wall=[])
 
     def record(r):
         curve["returns"].append(r.tolist())
@@ -206,7 +290,7 @@ def ars(problem: Problem, *, iterations: int, directions: int, top: int, eval_ep
         warm = rollouts(venv, problem, np.repeat(M[None], n, axis=0), norm,
                         [int(s) for s in np.random.default_rng([seed, 1]).integers(0, 2 ** 31 - 1, size=n_train)]
                         + eval_seeds)
-        norm.update(warm[2])
+        norm.update(warm["seen"])
         for it in range(iterations + 1):
             t0 = time.perf_counter()
             deltas = rng.standard_normal((directions,) + shape)
@@ -220,16 +304,14 @@ def ars(problem: Problem, *, iterations: int, directions: int, top: int, eval_ep
                 venv.close()
                 venv = gym.make_vec(problem.env_id, num_envs=eval_episodes, vectorization_mode="vector_entry_point",
                                     threads=threads, **problem.env_kwargs)
-            returns, lengths, seen, peak = rollouts(venv, problem, weights, norm, seeds)
+            out = rollouts(venv, problem, weights, norm, seeds)
+            returns, seen = out["returns"], out["seen"]
             record(returns[-eval_episodes:])
-            curve["peak"].append(float(np.mean(peak[-eval_episodes:])))
+            for k in ("env_returns", "peak", "integral"):
+                curve[k].append(out[k][-eval_episodes:].tolist())
             if it < iterations:
                 r = returns[:n_train].reshape(2, directions, episodes).mean(axis=2)
-                r_plus, r_minus = r[0], r[1]
-                best = np.argsort(-np.maximum(r_plus, r_minus), kind="stable")[:top]
-                sigma = np.std(np.concatenate([r_plus[best], r_minus[best]]))
-                sigma = sigma if sigma > 1e-12 else 1.0
-                M = M + step / (top * sigma) * np.einsum("k,kaf->af", r_plus[best] - r_minus[best], deltas[best])
+                M = ars_update(M, deltas, r[0], r[1], top, step)
                 norm.update(seen)         # every state of the iteration's episodes
             curve["wall"].append(time.perf_counter() - t0)
             if verbose:
@@ -306,8 +388,13 @@ def main(argv=None):
               f"{curve['mean'][-1]:.3f} (min {curve['min'][-1]:.3f}) over {budget['eval_episodes']} episodes; "
               f"{curve['total_wall']:.1f} s; {path}", flush=True)
         if problem.measure is not None:
-            print(f"{name}: {problem.measure_name}, mean over the evaluation episodes: before {curve['peak'][0]:.3f}, "
-                  f"after {curve['peak'][-1]:.3f}", flush=True)
+            p0, p1 = np.mean(curve["peak"][0]), np.mean(curve["peak"][-1])
+            i0, i1 = np.mean(curve["integral"][0]), np.mean(curve["integral"][-1])
+            e0, e1 = np.mean(curve["env_returns"][0]), np.mean(curve["env_returns"][-1])
+            print(f"{name}: {problem.measure_name} over the evaluation episodes (mean): peak before {p0:.4f}, after "
+                  f"{p1:.4f} ({100 * (p1 / p0 - 1):+.0f} %); integral (N s) before {i0:.4f}, after {i1:.4f} "
+                  f"({100 * (i1 / i0 - 1):+.0f} %); the environment's return before {e0:.3f}, after {e1:.3f}",
+                  flush=True)
     with open(os.path.join(args.out, "learn_to_cooperate.json"), "w") as f:
         json.dump(results, f, indent=1)
     return results
