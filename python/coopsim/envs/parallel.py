@@ -7,7 +7,7 @@ arm's reward term.
 
 Action of each agent: Box (5,) float64: [offset (3,) m, squeeze part N, load claim]: the bar's offset is the
 mean of the two agents' offsets (each within +-``max_offset``), the squeeze the sum of their parts (each in
-[-2.5, 5] N: the single environment's [-5, 10] when both agree), and SCARA #1's load share its claim over
+[0, 1.5] N: the single environment's [0, 3] when both agree), and SCARA #1's load share its claim over
 the two claims (each in [0, 1]; 1/2 when both claim nothing). :attr:`DualCarryParallelEnv.scripted_action`
 ([0, 0, 0, 0, 0.5] each) is the scripted carry's.
 
