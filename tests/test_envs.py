@@ -348,6 +348,29 @@ def test_vector_carry_equals_the_single_environments_with_a_bar_mass_each():
             assert rewards[k][i] == r and not term
 
 
+def test_vector_carry_resets_side_by_side_as_the_single_environments():
+    """Two carries end together at the place (180 steps) and reset in the same step, side by side on the pool
+    (each planning and simulating its grasp on a worker thread): the single environments' episodes bit for bit."""
+    n, steps, seeds = 2, 184, [1, 2]
+    obs, rewards, dones, _ = _vector_episodes("coopsim/DualCarry-v0", n, seeds, lambda i, k: _gentle(k + i, None),
+                                              steps)
+    assert [bool(d[0].all()) for d in dones].index(True) == 179          # both end at the 180th step
+    for i in range(n):
+        env = DualCarryEnv()
+        o, _ = env.reset(seed=seeds[i])
+        np.testing.assert_array_equal(_flat(_obs_i(obs[0], i)), _flat(o))
+        reset_next = False
+        for k in range(steps):
+            if reset_next:                           # NEXT_STEP: this step resets (the next seed of the env)
+                o, _ = env.reset()
+                r, term = 0.0, False
+            else:
+                o, r, term, _, _ = env.step(_gentle(k + i, None))
+            np.testing.assert_array_equal(_flat(_obs_i(obs[k + 1], i)), _flat(o))
+            assert rewards[k][i] == r and dones[k][0][i] == term
+            reset_next = term
+
+
 def test_vector_same_step_autoreset_returns_the_final_observation():
     v = gym.make_vec("coopsim/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point",
                      autoreset_mode=AutoresetMode.SAME_STEP, time_limit=[0.1, 0.2])
