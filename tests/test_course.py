@@ -66,6 +66,9 @@ WRONG = {
     "lab08-ex6-answer": ("np.abs(z_cl).max()", "np.abs(z_cl).min()"),            # the fastest mode, not the slowest
     "lab08-ex7-answer": ("share_pred = dy[k_share]", "share_pred = -du[2] / (0.3 * 9.81)"),  # the bar's weight alone
     "lab08-ex8-answer": ("min(eig_soft[", "max(eig_soft["),                   # the fastest pair, not the welds' ring
+    "lab09-ex1-answer": ("return np.min(arms, axis=1)", "return np.mean(arms, axis=1)"),  # a lazy partner earns half
+    "lab09-ex2-answer": ("r_plus[best] - r_minus[best]", "r_minus[best] - r_plus[best]"),  # a step downhill
+    "lab09-ex3-answer": ("k_two_worse = True ", "k_two_worse = False "),         # a loop gain of 2, a period late
 }
 TAMPER = "assert True  # the check, rewritten by the student"
 

@@ -327,6 +327,11 @@ WRONG = [
      "dq_ok, dqd_ok = 0.01, 3.0"),  # Bryson's rule with 1 cm: too stiff, the first joints saturate
     ("08_linear_models_and_lqr", "lab08-ex8-answer", "ring_hz_pred = ring.imag / (2 * np.pi)",
      "ring_hz_pred = ring.imag"),  # rad/s taken for Hz
+    ("09_learning_to_cooperate", "lab09-ex1-answer", "return np.min(arms, axis=1)",
+     "return np.mean(arms, axis=1)"),  # the mean: a partner that does nothing still earns half
+    ("09_learning_to_cooperate", "lab09-ex2-answer", "r_plus[best] - r_minus[best]",
+     "r_minus[best] - r_plus[best]"),  # a step downhill
+    ("09_learning_to_cooperate", "lab09-ex3-answer", "k_two_worse = True ", "k_two_worse = False "),
 ]
 
 
