@@ -28,7 +28,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
+from gymnasium.vector.utils import batch_space, iterate
 
 from .. import _checks
 from ..simulation import Simulation
@@ -82,7 +82,6 @@ class CoopsimVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.metadata = dict(first.metadata, autoreset_mode=mode)
         self.render_mode = first.render_mode
-        self._obs = create_empty_array(self.single_observation_space, n=self.num_envs, fn=np.zeros)
         self._env_obs: list = [None] * self.num_envs
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._executor: Optional[concurrent.futures.ThreadPoolExecutor] = None
@@ -113,8 +112,7 @@ class CoopsimVectorEnv(VectorEnv):
                 self._env_obs[i], info = env.reset(seed=seeds[i], options=options or None)
                 self._autoreset[i] = False
                 infos = self._add_info(infos, info, i)
-        self._obs = concatenate(self.single_observation_space, self._env_obs, self._obs)
-        return self._copy(self._obs), infos
+        return self._batched(), infos
 
     def step(self, actions):
         n = self.num_envs
@@ -196,8 +194,7 @@ class CoopsimVectorEnv(VectorEnv):
                 results[i] = results[i][1]
             infos = self._add_info(infos, results[i], i)
         self._autoreset = terminated | truncated
-        self._obs = concatenate(self.single_observation_space, self._env_obs, self._obs)
-        return self._copy(self._obs), rewards, terminated, truncated, infos
+        return self._batched(), rewards, terminated, truncated, infos
 
     def _pool(self):
         """The worker threads: one runs half of a step's engine work while the caller's thread runs Python;
@@ -207,11 +204,13 @@ class CoopsimVectorEnv(VectorEnv):
             self._executor = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="coopsim-vector")
         return self._executor
 
-    @staticmethod
-    def _copy(obs):
-        if isinstance(obs, dict):
-            return {k: np.array(v) for k, v in obs.items()}
-        return np.array(obs)
+    def _batched(self):
+        """The environments' observations batched, new arrays (each key's (N, ...) for a Dict space): one
+        np.stack per key, what gymnasium's concatenate and a copy give."""
+        obs = self._env_obs
+        if isinstance(obs[0], dict):
+            return {k: np.stack([o[k] for o in obs]) for k in self.single_observation_space.spaces}
+        return np.stack(obs)
 
     def render(self):
         return tuple(env.render() for env in self.envs)
