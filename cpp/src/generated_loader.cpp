@@ -89,6 +89,10 @@ std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::strin
   g->solve = library_symbol<decltype(g->solve)>(h, path, "coopsim_gen_solve");
   // optional: emitted where the derivatives are tractable (the collected form)
   g->derivatives = reinterpret_cast<decltype(g->derivatives)>(dlsym(h, "coopsim_gen_derivatives"));
+  g->forward_derivatives =
+      reinterpret_cast<decltype(g->forward_derivatives)>(dlsym(h, "coopsim_gen_forward_derivatives"));
+  g->forward_derivatives4 =
+      reinterpret_cast<decltype(g->forward_derivatives4)>(dlsym(h, "coopsim_gen_forward_derivatives4"));
   return g;
 }
 

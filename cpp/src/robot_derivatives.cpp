@@ -20,7 +20,9 @@
 //
 // A robot whose generated code carries the derivatives (GeneratedDynamics::derivatives: the symbolic
 // model's d(M qdd + b)/dq, db/dqd and M, emitted by coopsim.codegen) takes them from there instead, the
-// wrenches' term added as on the recursive path.
+// wrenches' term added as on the recursive path; without wrenches the forward ones come from the
+// generated code's own straight-line pass (GeneratedDynamics::forward_derivatives), four states at once
+// in the batch (forward_derivatives4).
 #include "coopsim/robot.hpp"
 
 #include <algorithm>
@@ -359,6 +361,23 @@ void Robot::forward_dynamics_derivatives(const double* q, const double* qd, cons
                                          MatN& dqdd_dq, MatN& dqdd_dqd, MatN& Minv, VecN* qdd_out,
                                          const double* tau_ext) const {
   const bool gen = uses_generated() && generated_->derivatives && generated_->dynamics;
+  if (gen && wrenches.empty() && generated_->forward_derivatives) {
+    // the generated code's one straight-line pass (dynamics, LDL^T factor, qdd, derivatives, 3n solves)
+    const double* t = tau;
+    VecN tt;
+    if (tau_ext) {
+      tt = Eigen::Map<const VecN>(tau, n_) + Eigen::Map<const VecN>(tau_ext, n_);
+      t = tt.data();
+    }
+    dqdd_dq.resize(n_, n_);
+    dqdd_dqd.resize(n_, n_);
+    Minv.resize(n_, n_);
+    if (qdd_out) qdd_out->resize(n_);
+    if (generated_->forward_derivatives(gen_params_.data(), q, qd, t, dqdd_dq.data(), dqdd_dqd.data(), Minv.data(),
+                                        qdd_out ? qdd_out->data() : nullptr))
+      return;
+    // a pivot lost: the path below raises forward_dynamics' own error
+  }
   if (!gen) kinematics(q, ws);
   else if (!wrenches.empty()) kinematics(q, ws, false);  // the frames, where the wrenches act
   VecN te, qdd;
@@ -411,14 +430,34 @@ void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, con
                                         int N, double* dqdd_dq, double* dqdd_dqd, double* dqdd_dtau, int threads) {
   const int n = robot.dof();
   const std::vector<ExternalWrench> none;
+  // generated code with the four-lane pass: four consecutive states at once, written straight into the
+  // rows of the results; a state whose group of four cannot (the last ones, a pivot lost in a lane) by the
+  // single-state path, which names it when it fails
+  const GeneratedDynamics* gen = robot.uses_generated() ? robot.generated().get() : nullptr;
+  const auto four = gen && gen->derivatives && gen->constants ? gen->forward_derivatives4 : nullptr;
+  std::vector<double> p;
+  if (four) {
+    p = robot.parameter_vector();
+    const size_t base = p.size();
+    p.resize(base + gen->constant_count);
+    gen->constants(p.data(), p.data() + base);
+  }
   struct State {
     Workspace ws;
     MatN A, B, C;
+    int done = 0;  // the states before this one are written (by a group of four)
   };
   using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
-  // as forward_dynamics_batch (batch_rows.hpp), in chunks of 64 states
+  // as forward_dynamics_batch (batch_rows.hpp), in chunks of 64 states (a multiple of four: a group lies
+  // in one chunk, done by one thread in order)
   detail::batch_rows(N, 64, threads, [] { return State(); }, [&](State& st, int i) {
+    if (i < st.done) return;
     const size_t o = static_cast<size_t>(i) * n, oo = o * n;
+    if (four && i % 4 == 0 && i + 4 <= N &&
+        four(p.data(), Q + o, QD + o, TAU + o, dqdd_dq + oo, dqdd_dqd + oo, dqdd_dtau + oo)) {
+      st.done = i + 4;
+      return;
+    }
     robot.forward_dynamics_derivatives(Q + o, QD + o, TAU + o, none, st.ws, st.A, st.B, st.C);
     RowMap(dqdd_dq + oo, n, n) = st.A;
     RowMap(dqdd_dqd + oo, n, n) = st.B;

@@ -47,6 +47,16 @@ struct GeneratedDynamics {
   // generator did not emit them (the engine's recursive algorithm is used then)
   void (*derivatives)(const double* p, const double* q, const double* qd, const double* qdd, double* dtau_dq,
                       double* dtau_dqd, double* M) = nullptr;
+  // optional, with derivatives: the forward dynamics' derivatives at (q, qd, tau) in one straight-line
+  // pass (M and h, M's LDL^T factor, qdd = M^-1 (tau - h), the derivatives above at qdd, the 3n
+  // right-hand sides [-dtau_dq, -dtau_dqd, 1] solved with the same factor): dqdd_dq, dqdd_dqd, Minv
+  // n x n column-major, qdd (n) unless null; false where a pivot is not above 1e-13 of M's diagonal
+  // entry (forward_dynamics' rule: results undefined). forward_derivatives4: four states at once, one
+  // per lane of a vector, q, qd, tau (4, n) row-major and the results (4, n, n) row-major (numpy's)
+  bool (*forward_derivatives)(const double* p, const double* q, const double* qd, const double* tau,
+                              double* dqdd_dq, double* dqdd_dqd, double* Minv, double* qdd) = nullptr;
+  bool (*forward_derivatives4)(const double* p, const double* q, const double* qd, const double* tau,
+                               double* dqdd_dq, double* dqdd_dqd, double* Minv) = nullptr;
   // optional: x <- M^-1 x by an unrolled LDL^T that skips M's structural
   // zeros; false if M is not positive definite (x is then undefined)
   bool (*solve)(const double* M, double* x) = nullptr;

@@ -15,10 +15,10 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.precedence import precedence
 
-from .symbolic import PARAMS_PER_LINK, Coulomb, SymbolicModel, _cse_ops
+from .symbolic import PARAMS_PER_LINK, Coulomb, CoulombSlope, SymbolicModel, _cse_ops
 
-__all__ = ["EmittedFunction", "emit_functions", "emit_derivatives", "emit_constants", "emit_solve", "FUNCTIONS",
-           "DERIVATIVES", "SIN_COS", "COULOMB_SLOPE"]
+__all__ = ["EmittedFunction", "emit_functions", "emit_derivatives", "emit_forward_derivatives", "emit_constants",
+           "emit_solve", "FUNCTIONS", "DERIVATIVES", "FORWARD", "FORWARD4", "SIN_COS", "COULOMB_SLOPE", "LANES"]
 
 # name, arguments (after p), outputs
 FUNCTIONS = (
@@ -36,9 +36,11 @@ DERIVATIVES = ("derivatives",
 class _Printer(C99CodePrinter):
     """C++ printer: symbols to array reads, small integer powers as products, floats round-trip."""
 
-    def __init__(self, names):
+    def __init__(self, names, lanes=False):
         super().__init__({"strict": False})
         self._names = names
+        self._lanes = lanes  # for the templates: the Coulomb terms are variables computed before (calls)
+        self.calls = {}      # Coulomb or CoulombSlope term -> the name of its variable
 
     def _print_Symbol(self, expr):
         return self._names.get(expr, expr.name)
@@ -65,10 +67,14 @@ class _Printer(C99CodePrinter):
         return super()._print_Mul(expr)
 
     def _print_Coulomb(self, expr):
+        if self._lanes:
+            return self.calls[expr]
         Fc, qd, vc = (self._print(a) for a in expr.args)
         return f"({Fc} > 0.0 ? {Fc}*std::tanh({qd}/{vc}) : 0.0)"
 
     def _print_CoulombSlope(self, expr):
+        if self._lanes:
+            return self.calls[expr]
         Fc, qd, vc = (self._print(a) for a in expr.args)
         return f"coulomb_slope({Fc}, {qd}, {vc})"
 
@@ -137,12 +143,52 @@ static inline double coulomb_slope(double Fc, double qd, double vc) {
 """
 
 
+#: What the templates need beside sin_cos and coulomb_slope: four states in the lanes of a vector
+#: (GCC's vector extensions: AVX2 registers in the x86-64-v3 clones, pairs of SSE2 ones in the
+#: baseline), sin/cos and the friction's tanh lane by lane (by reference: a vector returned by value
+#: has another ABI in each clone's target), the pivots' test.
+LANES = """\
+typedef double d4 __attribute__((vector_size(32)));  // four states, one per lane
+
+static inline void sin_cos(const d4& x, d4& s, d4& c) {
+  for (int l = 0; l < 4; ++l) {
+    double sl, cl;
+    sin_cos(x[l], sl, cl);
+    s[l] = sl;
+    c[l] = cl;
+  }
+}
+
+static inline void coulomb(double Fc, double qd, double vc, double& r) { r = Fc > 0.0 ? Fc*std::tanh(qd/vc) : 0.0; }
+static inline void coulomb(double Fc, const d4& qd, double vc, d4& r) {
+  for (int l = 0; l < 4; ++l) {
+    double rl;
+    coulomb(Fc, qd[l], vc, rl);
+    r[l] = rl;
+  }
+}
+static inline void coulomb_slope(double Fc, double qd, double vc, double& r) { r = coulomb_slope(Fc, qd, vc); }
+static inline void coulomb_slope(double Fc, const d4& qd, double vc, d4& r) {
+  for (int l = 0; l < 4; ++l) r[l] = coulomb_slope(Fc, qd[l], vc);
+}
+
+// a pivot of the LDL^T factor against M's diagonal entry, as forward_dynamics' Cholesky: every lane
+static inline bool pivot_ok(double d, double m) { return d > 1e-13 * m; }
+static inline bool pivot_ok(const d4& d, const d4& m) {
+  const auto k = d > 1e-13 * m;
+  return k[0] && k[1] && k[2] && k[3];
+}
+"""
+
+
 @dataclass
 class EmittedFunction:
     name: str        # e.g. "mass_matrix"
     signature: str   # arguments after p
     body: str        # statements, indented
     operations: int  # arithmetic operations after cse (sympy count_ops), plus one per sin/cos
+    template: str = ""    # a template on the state's scalar type the body calls (emitted before the functions)
+    returns: str = "void"
 
 
 class _SharedCse:
@@ -167,11 +213,15 @@ class _SharedCse:
         return [(sym, e) for sym, e in self.reps if sym in need]
 
 
-def _body(model: SymbolicModel, outputs, names, out_cse):
+def _body(model: SymbolicModel, outputs, names, out_cse, scalar=None):
     """Statements computing [(target, expr)]: sin/cos of the joints used, the parameter
-    polynomials (kappa) used, read from p, then the outputs with kappa, sin/cos and qd as inputs."""
+    polynomials (kappa) used, read from p, then the outputs with kappa, sin/cos and qd as inputs.
+    scalar="T": the body of a template on the state's scalar type T (double, or four states in the
+    lanes of a vector): what depends on the state is a T, what depends on the parameters only a
+    double, an output of the parameters only is T{} + (...)."""
     exprs = [e for _, e in outputs]
-    printer = _Printer(names)
+    lanes = scalar is not None
+    printer = _Printer(names, lanes=lanes)
     lines, ops = [], 0
     temps = out_cse.needed(exprs)
     used = set()
@@ -179,6 +229,8 @@ def _body(model: SymbolicModel, outputs, names, out_cse):
         used |= out_cse.reduced[e].free_symbols
     for _, e in temps:
         used |= e.free_symbols
+    state = set(model.q) | set(model.qd) | set(model.qdd) | set(model.trig) | set(model.slides)
+    st = scalar or "double"
     # sin and cos of each revolute joint used, together, once, in joint order
     for i in range(model.n):
         syms = sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name)
@@ -187,21 +239,38 @@ def _body(model: SymbolicModel, outputs, names, out_cse):
         (c,), (sn,) = ([t for t in syms if t.name.startswith(k)] for k in ("c_", "s_"))
         theta = model.trig[c][1]
         arg = f"q[{i}]" if theta == 0.0 else f"q[{i}] + {repr(theta)}"
-        lines.append(f"  double {sn.name}, {c.name};")
+        lines.append(f"  {st} {sn.name}, {c.name};")
         lines.append(f"  sin_cos({arg}, {sn.name}, {c.name});")
         ops += sum(sym in used for sym in syms)
     # displacement of each prismatic joint, offset included
     for sym, (i, d) in model.slides.items():
         if sym in used:
-            lines.append(f"  const double {sym.name} = {names[d]} + q[{i}];")
+            lines.append(f"  const {st} {sym.name} = {names[d]} + q[{i}];")
             ops += 1
     # parameter polynomials: computed once by `constants`, read after the parameters
     base = _constants_offset(model)
     for j, k in enumerate(model.kappa):
         if k in used:
             lines.append(f"  const double {k.name} = p[{base + j}];")
+    if lanes:
+        # the friction's tanh terms as variables, by overloads with an output argument (no vector returned
+        # by value: its ABI differs between the clones' targets)
+        terms = set()
+        for e in [out_cse.reduced[x] for x in exprs] + [e for _, e in temps]:
+            terms |= e.atoms(Coulomb, CoulombSlope)
+        for t in sorted(terms, key=lambda t: (t.func.__name__, str(t.args))):
+            name = f"{'cf' if t.func is Coulomb else 'cs'}_{len(printer.calls)}"
+            printer.calls[t] = name
+            fn = "coulomb" if t.func is Coulomb else "coulomb_slope"
+            args = ", ".join(printer.doprint(a) for a in t.args)
+            lines.append(f"  {scalar} {name};")
+            lines.append(f"  {fn}({args}, {name});")
+            state.add(sp.Symbol(name))
     for sym, e in temps:
-        lines.append(f"  const double {sym.name} = {printer.doprint(e)};")
+        varies = bool(e.free_symbols & state)
+        if varies:
+            state.add(sym)
+        lines.append(f"  const {st if varies else 'double'} {sym.name} = {printer.doprint(e)};")
         ops += int(sp.count_ops(e))
     # an output equal to an earlier one (M's mirror entries) is copied from it
     first = {}
@@ -211,7 +280,10 @@ def _body(model: SymbolicModel, outputs, names, out_cse):
             lines.append(f"  {target} = {first[red]};")
             continue
         first.setdefault(red, target)
-        lines.append(f"  {target} = {printer.doprint(red)};")
+        text = printer.doprint(red)
+        if lanes and not (red.free_symbols & state):
+            text = f"{scalar}{{}} + ({text})"  # a parameter's value in every lane
+        lines.append(f"  {target} = {text};")
         ops += int(sp.count_ops(red))
     return "\n".join(lines), ops
 
@@ -264,11 +336,19 @@ def emit_functions(model: SymbolicModel) -> list:
     out_cse = _SharedCse([e for fname, _ in FUNCTIONS for _, e in outputs[fname]], "x")
     out = []
     for fname, sig in FUNCTIONS:
+        if fname == "dynamics":
+            # a template on the scalar type: the forward derivatives evaluate it on four states at once
+            body, ops = _body(model, outputs[fname], names, out_cse, scalar="T")
+            template = (f"template <class T>\n{_INLINE} void dynamics_t(const double* p, const T* q, const T* qd, "
+                        f"T* M, T* h) {{\n{body}\n}}\n")
+            out.append(EmittedFunction(fname, sig, "  dynamics_t(p, q, qd, M, h);", ops, template))
+            continue
         body, ops = _body(model, outputs[fname], names, out_cse)
         out.append(EmittedFunction(fname, sig, body, ops))
     deriv = emit_derivatives(model)
     if deriv is not None:
         out.append(deriv)
+        out.extend(emit_forward_derivatives(model))
     return out
 
 
@@ -285,12 +365,133 @@ def emit_derivatives(model: SymbolicModel):
     dq, dqd = model.inverse_dynamics_derivatives
     M = model.M_kappa + model.armature
 
-    def mat(target, A):
-        return [(f"{target}[{i + n * j}]", sp.sympify(A[i, j])) for j in range(n) for i in range(n)]
+    def mat(target, A, strided):
+        at = (lambda i, j: f"{i}*RS + {j}*CS") if strided else (lambda i, j: f"{i + n * j}")
+        return [(f"{target}[{at(i, j)}]", sp.sympify(A[i, j])) for j in range(n) for i in range(n)]
 
-    outputs = mat("dtau_dq", dq) + mat("dtau_dqd", dqd) + mat("M", M)
-    body, ops = _body(model, outputs, _names(model), _SharedCse([e for _, e in outputs], "x"))
-    return EmittedFunction(DERIVATIVES[0], DERIVATIVES[1], body, ops)
+    # a template on the scalar type and on the layout of dtau_dq and dtau_dqd ([i RS + k CS]): the
+    # forward derivatives write them into the rows they solve in place
+    outputs = mat("dtau_dq", dq, True) + mat("dtau_dqd", dqd, True) + mat("M", M, False)
+    body, ops = _body(model, outputs, _names(model), _SharedCse([e for _, e in outputs], "x"), scalar="T")
+    template = (f"template <class T, int RS, int CS>\n{_INLINE} void derivatives_t(const double* p, const T* q, "
+                f"const T* qd, const T* qdd, T* dtau_dq, T* dtau_dqd, T* M) {{\n{body}\n}}\n")
+    return EmittedFunction(DERIVATIVES[0], DERIVATIVES[1],
+                           f"  derivatives_t<double, 1, {n}>(p, q, qd, qdd, dtau_dq, dtau_dqd, M);", ops, template)
+
+
+#: the templates are inlined into each entry point (and so compiled for each target of its clones)
+_INLINE = "static inline __attribute__((always_inline))"
+
+# the forward dynamics' derivatives, one state and four states at once
+FORWARD = ("forward_derivatives", "const double* q, const double* qd, const double* tau, double* dqdd_dq, "
+                                  "double* dqdd_dqd, double* Minv, double* qdd")
+FORWARD4 = ("forward_derivatives4", "const double* q, const double* qd, const double* tau, double* dqdd_dq, "
+                                    "double* dqdd_dqd, double* Minv")
+
+
+def _ldl_lines(model, typ, ok):
+    """LDL^T of M (n x n column-major in M) unrolled, skipping M's structural zeros and their
+    fill-in, as emit_solve: pivots d_j, their reciprocals r_j, L's entries l_i_j (typ each); a pivot
+    not above 1e-13 M_jj (forward_dynamics' rule) clears `ok` (false when M is not positive
+    definite). Returns (lines, {(i, j): name of L_ij}, operation count)."""
+    n, Ms = model.n, model.M_kappa
+    nz = {(i, j) for i in range(n) for j in range(n) if Ms[i, j] != 0}
+    lines, L, ops = [], {}, 0
+    for j in range(n):
+        ks = [k for k in range(j) if (j, k) in L]
+        lines.append(f"  const {typ} d_{j} = " + " - ".join([f"M[{j + n * j}]"] + [f"l_{j}_{k}*u_{j}_{k}" for k in ks])
+                     + ";")
+        lines.append(f"  {ok} &= pivot_ok(d_{j}, M[{j + n * j}]);")
+        lines.append(f"  const {typ} r_{j} = 1.0/d_{j};")
+        ops += 2 * len(ks) + 1
+        for i in range(j + 1, n):
+            ki = [k for k in ks if (i, k) in L]
+            if (i, j) not in nz and not ki:
+                continue
+            terms = [f"l_{i}_{k}*u_{j}_{k}" for k in ki]
+            expr = (" - ".join([f"M[{i + n * j}]"] + terms) if (i, j) in nz else "-(" + " + ".join(terms) + ")")
+            L[i, j] = f"l_{i}_{j}"
+            lines.append(f"  const {typ} u_{i}_{j} = {expr};")
+            lines.append(f"  const {typ} l_{i}_{j} = u_{i}_{j}*r_{j};")
+            ops += 2 * len(ki) + 1
+    return lines, L, ops
+
+
+def _substitution_lines(n, L, row, scale, loop=""):
+    """x <- L^-T D^-1 L^-1 x on rows row(i) (text), the scaling by D^-1 between the sweeps the
+    lines scale(i) give."""
+    lines = []
+    for i in range(n):
+        ks = [k for k in range(i) if (i, k) in L]
+        if ks:
+            lines.append(f"{loop}{row(i)} -= " + " + ".join(f"{L[i, k]}*{row(k)}" for k in ks) + ";")
+    lines += [line for i in range(n) for line in scale(i)]
+    for i in reversed(range(n)):
+        ks = [k for k in range(i + 1, n) if (k, i) in L]
+        if ks:
+            lines.append(f"{loop}{row(i)} -= " + " + ".join(f"{L[k, i]}*{row(k)}" for k in ks) + ";")
+    return lines
+
+
+def emit_forward_derivatives(model: SymbolicModel):
+    """The forward dynamics' derivatives in one straight-line pass, as two EmittedFunctions:
+    ``forward_derivatives(p, q, qd, tau, dqdd_dq, dqdd_dqd, Minv, qdd)`` (one state; results n x n
+    column-major, qdd (n) written unless null) and ``forward_derivatives4(p, q, qd, tau, dqdd_dq,
+    dqdd_dqd, Minv)`` (four states, one per lane of a vector: q, qd, tau (4, n) row-major, results
+    (4, n, n) row-major as numpy's), both returning false when M is not positive definite (results
+    undefined). One template on the scalar type does both: M and h (dynamics_t), M's LDL^T factor
+    (structural zeros skipped), qdd = M^-1 (tau - h), the inverse dynamics' derivatives at qdd
+    (derivatives_t) written into the rows of [dtau/dq, dtau/dqd, 1] (n x 3n), and the 3n right-hand
+    sides solved with the same factor, -M^-1 folded into the scaling: [dqdd/dq, dqdd/dqd, M^-1]."""
+    n = model.n
+    W = 3 * n
+    fac, L, ops = _ldl_lines(model, "T", "ok")
+    sub_x = _substitution_lines(n, L, lambda i: f"x[{i}]", lambda i: [f"x[{i}] *= r_{i};"])
+    # the rows of the 3n columns, a loop over the columns each (vectorised across them); dtau/dq and
+    # dtau/dqd scaled by -D^-1: the minus sign of -M^-1 dtau/dx
+    sub_z = _substitution_lines(n, L, lambda i: f"Z[{i}][c]", lambda i: [
+        f"for (int c = 0; c < {2 * n}; ++c) Z[{i}][c] *= -r_{i};",
+        f"for (int c = {2 * n}; c < {W}; ++c) Z[{i}][c] *= r_{i};"], loop=f"for (int c = 0; c < {W}; ++c) ")
+    body = [f"  T M[{n * n}], h[{n}], x[{n}];", "  dynamics_t(p, q, qd, M, h);", "  bool ok = true;"] + fac
+    body += ["  if (!ok) return false;", f"  for (int i = 0; i < {n}; ++i) x[i] = tau[i] - h[i];"]
+    body += ["  " + line for line in sub_x]
+    body += [f"  derivatives_t<T, {W}, 1>(p, q, qd, x, &Z[0][0], &Z[0][{n}], M);",
+             f"  for (int i = 0; i < {n}; ++i)", f"    for (int c = 0; c < {n}; ++c) Z[i][{2 * n} + c] = "
+             "T{} + (i == c ? 1.0 : 0.0);"]
+    body += ["  " + line for line in sub_z]
+    body += [f"  for (int i = 0; i < {n}; ++i) qdd[i] = x[i];", "  return true;"]
+    template = (f"template <class T>\n{_INLINE} bool forward_derivatives_t(const double* p, const T* q, const T* qd, "
+                f"const T* tau, T (*Z)[{W}], T* qdd) {{\n" + "\n".join(body) + "\n}\n")
+    one = "\n".join([
+        f"  double Z[{n}][{W}], x[{n}];",
+        "  if (!forward_derivatives_t(p, q, qd, tau, Z, qdd ? qdd : x)) return false;",
+        f"  for (int c = 0; c < {n}; ++c)",
+        f"    for (int i = 0; i < {n}; ++i) {{",
+        f"      dqdd_dq[i + {n} * c] = Z[i][c];",
+        f"      dqdd_dqd[i + {n} * c] = Z[i][{n} + c];",
+        f"      Minv[i + {n} * c] = Z[i][{2 * n} + c];",
+        "    }",
+        "  return true;"])
+    four = "\n".join([
+        f"  d4 Q[{n}], QD[{n}], TAU[{n}], Z[{n}][{W}], x[{n}];",
+        f"  for (int i = 0; i < {n}; ++i)",
+        "    for (int l = 0; l < 4; ++l) {",
+        f"      Q[i][l] = q[l * {n} + i];",
+        f"      QD[i][l] = qd[l * {n} + i];",
+        f"      TAU[i][l] = tau[l * {n} + i];",
+        "    }",
+        "  if (!forward_derivatives_t(p, Q, QD, TAU, Z, x)) return false;",
+        "  for (int l = 0; l < 4; ++l)",
+        f"    for (int i = 0; i < {n}; ++i)",
+        f"      for (int c = 0; c < {n}; ++c) {{",
+        f"        dqdd_dq[(l * {n} + i) * {n} + c] = Z[i][c][l];",
+        f"        dqdd_dqd[(l * {n} + i) * {n} + c] = Z[i][{n} + c][l];",
+        f"        Minv[(l * {n} + i) * {n} + c] = Z[i][{2 * n} + c][l];",
+        "      }",
+        "  return true;"])
+    sub_ops = sum(line.count("*") + line.count("-=") for line in sub_z) * W
+    return [EmittedFunction(FORWARD[0], FORWARD[1], one, ops + sub_ops, template, "bool"),
+            EmittedFunction(FORWARD4[0], FORWARD4[1], four, ops + sub_ops, "", "bool")]
 
 
 def _constants_offset(model: SymbolicModel) -> int:

@@ -3,14 +3,14 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .emit import COULOMB_SLOPE, SIN_COS, emit_constants, emit_functions, emit_solve
+from .emit import COULOMB_SLOPE, LANES, SIN_COS, emit_constants, emit_functions, emit_solve
 from .symbolic import PARAMS_PER_LINK, Structure, SymbolicModel
 
 __all__ = ["GENERATOR_VERSION", "COMMAND", "SYMPY_VERSION", "builtin_sources", "registry_source", "runtime_source",
            "header_line"]
 
 #: Bump when the emitted code changes for the same structure.
-GENERATOR_VERSION = "1.4.0"
+GENERATOR_VERSION = "1.5.0"
 #: The documented command that regenerates cpp/generated.
 COMMAND = "python -m coopsim.codegen"
 #: The sympy version the committed files were generated with (pyproject pins it).
@@ -36,12 +36,15 @@ def _describe(s: Structure, funcs, solve_ops, n_const, const_ops) -> str:
             f"// constants() computes from them once ({const_ops} operations).\n"
             f"// Operations per function (after cse, sin/cos counted once): {ops}.\n"
             + ("// derivatives: d(M qdd + C qd + G + friction)/dq and /dqd at qdd, and M, in one pass.\n"
+               "// forward_derivatives: dqdd/dq, dqdd/dqd and M^-1 at (q, qd, tau) in one straight-line pass\n"
+               "// (forward_derivatives4: four states at once, one per lane of a vector).\n"
                if any(f.name == "derivatives" for f in funcs) else ""))
 
 
 def _helpers(funcs) -> str:
-    """sin_cos, and coulomb_slope where the derivatives are emitted."""
-    return SIN_COS + ("\n" + COULOMB_SLOPE if any(f.name == "derivatives" for f in funcs) else "")
+    """sin_cos, coulomb_slope, the lanes' helpers, then the templates the functions call."""
+    return (SIN_COS + "\n" + COULOMB_SLOPE + "\n" + LANES
+            + "".join("\n" + f.template for f in funcs if f.template))
 
 
 def _operation_count(funcs) -> int:
@@ -58,13 +61,13 @@ def builtin_sources(s: Structure, model: SymbolicModel | None = None) -> dict:
     const_body, n_const, const_ops = emit_constants(model)
     top = header_line(ops) + "\n" + _describe(s, funcs, solve_ops, n_const, const_ops)
     decls = f"void {s.name}_constants(const double* p, double* k);\n"
-    decls += "\n".join(f"void {s.name}_{f.name}(const double* p, {f.signature});" for f in funcs)
+    decls += "\n".join(f"{f.returns} {s.name}_{f.name}(const double* p, {f.signature});" for f in funcs)
     decls += f"\nbool {s.name}_solve(const double* M, double* x);"
     hpp = (f"{top}#pragma once\n\n#include \"coopsim/generated.hpp\"\n\nnamespace coopsim::generated {{\n\n"
            f"{decls}\n\n// The functions above with the structure they were generated for.\n"
            f"const GeneratedDynamics& {s.name}();\n\n}}  // namespace coopsim::generated\n")
     defs = f"void {s.name}_constants(const double* p, double* k) {{\n{const_body}\n}}\n\n"
-    defs += "\n\n".join(f"COOPSIM_GENERATED_TARGETS\nvoid {s.name}_{f.name}(const double* p, {f.signature}) {{\n"
+    defs += "\n\n".join(f"COOPSIM_GENERATED_TARGETS\n{f.returns} {s.name}_{f.name}(const double* p, {f.signature}) {{\n"
                         f"{f.body}\n}}" for f in funcs)
     defs += f"\n\nCOOPSIM_GENERATED_TARGETS\nbool {s.name}_solve(const double* M, double* x) {{\n{solve_body}\n}}"
     cpp = (f"{top}#include \"{s.name}_dynamics.hpp\"\n\n#include <cmath>\n\nnamespace coopsim::generated {{\n\n"
@@ -105,8 +108,8 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
     ops = _operation_count(funcs)
     const_body, n_const, const_ops = emit_constants(model)
     defs = f"void coopsim_gen_constants(const double* p, double* k) {{\n{const_body}\n}}\n\n"
-    defs += "\n\n".join(f"COOPSIM_GENERATED_TARGETS\nvoid coopsim_gen_{f.name}(const double* p, {f.signature}) {{\n"
-                        f"{f.body}\n}}" for f in funcs)
+    defs += "\n\n".join(f"COOPSIM_GENERATED_TARGETS\n{f.returns} coopsim_gen_{f.name}(const double* p, "
+                        f"{f.signature}) {{\n{f.body}\n}}" for f in funcs)
     solve_body, solve_ops = emit_solve(model)
     defs += f"\n\nCOOPSIM_GENERATED_TARGETS\nbool coopsim_gen_solve(const double* M, double* x) {{\n{solve_body}\n}}"
     meta = (f"const char* coopsim_gen_name() {{ return \"{s.name}\"; }}\n"
@@ -118,6 +121,7 @@ def runtime_source(s: Structure, model: SymbolicModel | None = None):
             f"int coopsim_gen_params_per_link() {{ return {PARAMS_PER_LINK}; }}\n"
             f"long coopsim_gen_operation_count() {{ return {ops}; }}\n"
             f"int coopsim_gen_constant_count() {{ return {n_const}; }}\n")
-    text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops, n_const, const_ops)}#include <cmath>\n\nextern \"C\" {{\n\n"
-            f"{_helpers(funcs)}\n{meta}\n{defs}\n\n}}  // extern \"C\"\n")
+    text = (f"{header_line(ops)}\n{_describe(s, funcs, solve_ops, n_const, const_ops)}#include <cmath>\n\n"
+            f"namespace {{\n\n{_helpers(funcs)}\n}}  // namespace\n\nextern \"C\" {{\n\n"
+            f"{meta}\n{defs}\n\n}}  // extern \"C\"\n")
     return text, ops
