@@ -317,6 +317,29 @@ def test_batch_equals_the_single_call_on_one_and_on_several_threads():
     assert all(x.shape == (0, 6, 6) for x in empty)
 
 
+@pytest.mark.parametrize("which", ["scara1", "scara2"])
+def test_generated_batch_takes_four_states_at_once_as_the_single_call_takes_one(which):
+    """The generated robots' batch evaluates four states at once (one per lane of a vector), the rest and
+    the leftover states one by one: every row equals the single call's result (to rounding of another
+    instruction order) and the recursive algorithm's to 1e-12, on one and two threads; a bad state inside a
+    group of four is named by its own row."""
+    for gen, num in _generated_variants(which):
+        rng = np.random.default_rng(21)
+        N = 11  # two groups of four and three states alone
+        lim = np.clip(gen.q_limits, -np.pi, np.pi)
+        Q = rng.uniform(lim[:, 0], lim[:, 1], size=(N, 6))
+        QD, TAU = 2 * rng.normal(size=(N, 6)), 5 * rng.normal(size=(N, 6))
+        one = cs.forward_dynamics_derivatives_batch(gen, Q, QD, TAU, threads=1)
+        two = cs.forward_dynamics_derivatives_batch(gen, Q, QD, TAU, threads=2)
+        rec = cs.forward_dynamics_derivatives_batch(num, Q, QD, TAU, threads=1)
+        for a, b, c in zip(one, two, rec):
+            np.testing.assert_array_equal(a, b)
+            assert _rel(a, c) <= 1e-12
+        for i in range(N):
+            for a, b in zip(one, gen.forward_dynamics_derivatives(Q[i], QD[i], TAU[i])):
+                assert np.abs(a[i] - b).max() <= 1e-14 * np.abs(b).max()
+
+
 # ---- bad input ----
 
 def _one_line(excinfo, *words):

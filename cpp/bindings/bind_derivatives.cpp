@@ -10,6 +10,11 @@
 
 #include <pybind11/stl.h>
 
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
 #include "nogil.hpp"
 #include "convert.hpp"
 #include "coopsim/linearize.hpp"
@@ -136,6 +141,40 @@ py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object
   return PyTuple_Check(out.ptr()) ? out : py::object(py::tuple(out));
 }
 
+bool finite(const double* p, int n) {
+  for (int i = 0; i < n; ++i)
+    if (!std::isfinite(p[i])) return false;
+  return true;
+}
+
+// Robot.forward_dynamics_derivatives(q, qd, tau) of three float64 (n,) arrays by CPython's fast call
+// (METH_FASTCALL): the call of iLQR's and MPC's loops without pybind11's dispatcher (about a fifth of
+// it). Any other call (f_ext, out=, other arguments) and any failure go to the pybind11 overload
+// (g_forward_slow), which does the same or raises its one-line error.
+PyObject* g_forward_slow = nullptr;
+PyObject* forward_fast(PyObject* self, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
+  if (nargs == 3 && !kwnames) {
+    try {
+      const Robot& r = py::handle(self).cast<const Robot&>();
+      const int n = r.dof();
+      const double *q = direct(args[0], n, 0, false), *qd = direct(args[1], n, 0, false),
+                   *tau = direct(args[2], n, 0, false);
+      if (q && qd && tau && finite(q, n) && finite(qd, n) && finite(tau, n)) {
+        Workspace ws;
+        MatN a, b, c;
+        r.forward_dynamics_derivatives(q, qd, tau, {}, ws, a, b, c);
+        return results(a, b, c, py::none(), "forward_dynamics_derivatives").release().ptr();
+      }
+    } catch (...) {
+    }
+  }
+  const Py_ssize_t total = nargs + (kwnames ? PyTuple_GET_SIZE(kwnames) : 0);
+  std::vector<PyObject*> all(1 + total);
+  all[0] = self;
+  std::copy(args, args + total, all.begin() + 1);
+  return PyObject_Vectorcall(g_forward_slow, all.data(), nargs + 1, kwnames);
+}
+
 }  // namespace
 
 void bind_derivatives(py::module_& m) {
@@ -152,9 +191,9 @@ void bind_derivatives(py::module_& m) {
          return results(dq, dqd, M, out, "inverse_dynamics_derivatives");
        }, py::arg("q"), py::arg("qd"), py::arg("qdd"), py::arg("f_ext") = py::none(), py::kw_only(),
        py::arg("out") = py::none(), docs::doc_Robot_inverse_dynamics_derivatives);
-  robot.def("forward_dynamics_derivatives", [](const Robot& r, const py::object& q, const py::object& qd,
-                                                const py::object& tau, const py::object& f_ext,
-                                                const py::object& out) {
+  // the pybind11 overload, kept out of the class: the method is the fast call, which hands it the rest
+  py::cpp_function slow([](const Robot& r, const py::object& q, const py::object& qd, const py::object& tau,
+                           const py::object& f_ext, const py::object& out) {
          const int n = r.dof();
          const VecArg qv(q, n, "q"), qdv(qd, n, "qd"), tv(tau, n, "tau");
          const std::vector<ExternalWrench> w = wrenches_or_none(f_ext);
@@ -162,8 +201,15 @@ void bind_derivatives(py::module_& m) {
          MatN dq, dqd, Minv;
          r.forward_dynamics_derivatives(qv.data(), qdv.data(), tv.data(), w, ws, dq, dqd, Minv);
          return results(dq, dqd, Minv, out, "forward_dynamics_derivatives");
-       }, py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("f_ext") = py::none(), py::kw_only(),
-       py::arg("out") = py::none(), docs::doc_Robot_forward_dynamics_derivatives);
+       }, py::name("forward_dynamics_derivatives"), py::is_method(robot), py::arg("q"), py::arg("qd"), py::arg("tau"),
+       py::arg("f_ext") = py::none(), py::kw_only(), py::arg("out") = py::none(),
+       docs::doc_Robot_forward_dynamics_derivatives);
+  static const std::string doc = py::str(slow.attr("__doc__"));  // pybind11's signature line and the text
+  g_forward_slow = slow.release().ptr();
+  static PyMethodDef fast = {"forward_dynamics_derivatives", reinterpret_cast<PyCFunction>(
+                                 reinterpret_cast<void (*)()>(forward_fast)), METH_FASTCALL | METH_KEYWORDS, doc.c_str()};
+  robot.attr("forward_dynamics_derivatives") = py::reinterpret_steal<py::object>(
+      PyDescr_NewMethod(reinterpret_cast<PyTypeObject*>(robot.ptr()), &fast));
   m.def("forward_dynamics_derivatives_batch", [](const Robot& r, const py::object& Q, const py::object& QD,
                                                  const py::object& TAU, const py::object& threads_obj) {
          const int threads = static_cast<int>(index_arg(threads_obj, "threads", 0, 4096));

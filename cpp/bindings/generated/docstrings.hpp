@@ -127,8 +127,12 @@ constexpr const char* doc_GeneratedDynamics_angles = "structural angles per link
 constexpr const char* doc_GeneratedDynamics_operation_count = "arithmetic operations of dynamics() after cse, sin/cos counted once";
 constexpr const char* doc_GeneratedDynamics_constant_count = "values constants() writes after the parameters";
 constexpr const char* doc_GeneratedDynamics_void = "k[0..constant_count) <- the parameter polynomials of p (the plain parameter vector)";
-constexpr const char* doc_GeneratedDynamics_bool = "optional: x <- M^-1 x by an unrolled LDL^T that skips M's structural\n"
-    "zeros; false if M is not positive definite (x is then undefined)";
+constexpr const char* doc_GeneratedDynamics_bool = "optional, with derivatives: the forward dynamics' derivatives at (q, qd, tau) in one straight-line\n"
+    "pass (M and h, M's LDL^T factor, qdd = M^-1 (tau - h), the derivatives above at qdd, the 3n\n"
+    "right-hand sides [-dtau_dq, -dtau_dqd, 1] solved with the same factor): dqdd_dq, dqdd_dqd, Minv\n"
+    "n x n column-major, qdd (n) unless null; false where a pivot is not above 1e-13 of M's diagonal\n"
+    "entry (forward_dynamics' rule: results undefined). forward_derivatives4: four states at once, one\n"
+    "per lane of a vector, q, qd, tau (4, n) row-major and the results (4, n, n) row-major (numpy's)";
 constexpr const char* doc_kParamsPerLink = "Per link parameter block length and offsets into the parameter vector.";
 constexpr const char* doc_find_generated = "Generated code by name, null if none: compiled into the engine, registered\n"
     "at run time (register_generated), or a library of the build cache\n"
