@@ -147,13 +147,15 @@ bool finite(const double* p, int n) {
   return true;
 }
 
-// Robot.forward_dynamics_derivatives(q, qd, tau) of three float64 (n,) arrays by CPython's fast call
-// (METH_FASTCALL): the call of iLQR's and MPC's loops without pybind11's dispatcher (about a fifth of
-// it). Any other call (f_ext, out=, other arguments) and any failure go to the pybind11 overload
+// Robot.forward_dynamics_derivatives(q, qd, tau[, out=]) of three float64 (n,) arrays by CPython's fast
+// call (METH_FASTCALL): the call of iLQR's and MPC's loops without pybind11's dispatcher (about a fifth
+// of it). Any other call (f_ext, other arguments) and any failure go to the pybind11 overload
 // (g_forward_slow), which does the same or raises its one-line error.
 PyObject* g_forward_slow = nullptr;
 PyObject* forward_fast(PyObject* self, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
-  if (nargs == 3 && !kwnames) {
+  const bool with_out = kwnames && PyTuple_GET_SIZE(kwnames) == 1 &&
+                        PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, 0), "out") == 0;
+  if (nargs == 3 && (!kwnames || with_out)) {
     try {
       const Robot& r = py::handle(self).cast<const Robot&>();
       const int n = r.dof();
@@ -163,7 +165,8 @@ PyObject* forward_fast(PyObject* self, PyObject* const* args, Py_ssize_t nargs, 
         Workspace ws;
         MatN a, b, c;
         r.forward_dynamics_derivatives(q, qd, tau, {}, ws, a, b, c);
-        return results(a, b, c, py::none(), "forward_dynamics_derivatives").release().ptr();
+        const py::object out = with_out ? py::reinterpret_borrow<py::object>(args[3]) : py::none();
+        return results(a, b, c, out, "forward_dynamics_derivatives").release().ptr();
       }
     } catch (...) {
     }
