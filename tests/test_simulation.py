@@ -986,6 +986,10 @@ def test_a_robot_replaced_in_a_run_brings_its_new_boxes_into_the_world():
         np.testing.assert_array_equal(world.body(f"scara1/{name}")["half_extents"], longer.boxes[b].half_extents)
     after = sim.body_state("crate")
     np.testing.assert_array_equal(after.position, crate.position)
+    # at the same q, bit for bit, as the last step's: the new robot's frames, not those kept of the old
+    Pq, _ = longer.shapes(sim.state(0)[0])
+    for b in range(len(names)):
+        np.testing.assert_allclose(sim.link_state(0, b).pose, Pq[b], atol=1e-12)
     sim.step(1)
     Pn, _ = longer.shapes(sim.state(0)[0])
     for b in range(len(names)):
@@ -1160,3 +1164,24 @@ def test_a_runaway_past_raised_limits_is_reported_with_its_state_and_step():
     assert "(a joint beyond 10000 rad/s or 1e+06 rad (m/s, m))" in msg
     assert "links without mass" not in msg and "not positive definite" not in msg
     assert np.all(np.isfinite(sim.log.q)) and len(sim.log) == e.step
+
+
+def test_the_kinematics_kept_between_stages_give_the_steps_of_a_fresh_evaluation_bit_for_bit():
+    # each robot's kinematics and mass matrix at q are kept in its workspace between the stages of a step (the
+    # controller's, the world's, the integrator's first stage) and evaluated once: every step must be the one
+    # RK4 and the controller give evaluated afresh, bit for bit (a numeric robot: the recursive algorithms)
+    robot = cs.robots.scara1(backend="numeric")
+    traj = trajectory(robot)
+    world = cs.World(floor=True)
+    sim = cs.Simulation(dt=DT, world=world)
+    sim.add_robot(robot, cs.ComputedTorque(400.0, 40.0), traj)
+    log = sim.run(0.05, progress=False)
+    assert len(log) > 200 and not sim.contacts()
+    fresh = cs.ComputedTorque(400.0, 40.0)
+    fresh.reset(robot, DT)
+    for k in range(len(log) - 1):
+        tau = fresh.compute(log.t[k], log.q[k], log.qd[k], log.q_ref[k], log.qd_ref[k], log.qdd_ref[k])
+        np.testing.assert_array_equal(tau, log.tau[k], err_msg=f"row {k}")
+        q1, qd1 = cs.rk4_step(robot, log.q[k], log.qd[k], log.tau[k], DT)
+        np.testing.assert_array_equal(q1, log.q[k + 1], err_msg=f"row {k}")
+        np.testing.assert_array_equal(qd1, log.qd[k + 1], err_msg=f"row {k}")

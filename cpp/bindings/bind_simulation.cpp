@@ -554,7 +554,7 @@ torques between controller updates, the log and tracking metrics.)doc")
                  {"depth", [](const L& c) { return c.contact.depth; }, nullptr}});
            }, doc_ContactPoint)
       .def_static("excluded_pairs", [](const Robot& r, int samples) { return Simulation::excluded_pairs(r, samples); },
-                  py::arg("robot"), py::arg("samples") = 200, doc_Simulation_excluded_pairs)
+                  py::arg("robot"), py::arg("samples") = Simulation::kExclusionSamples, doc_Simulation_excluded_pairs)
       .def("set_profiling", &Simulation::set_profiling, py::arg("on"))
       .def("profile", [](const Simulation& s) { return s.profile(); }, doc_StepProfile)
       .def("robot", [](const Simulation& s, int i) { return s.robot(i); }, py::arg("i"),

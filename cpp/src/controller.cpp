@@ -136,7 +136,7 @@ void PID::compute(const ControlInput& in, double* tau) {
     for (int i = 0; i < n; ++i) v_[i] = a * v_[i] + (1.0 - a) * ((in.q[i] - q_prev_[i]) / h_);
   }
   for (int i = 0; i < n; ++i) q_prev_[i] = in.q[i];
-  if (gmodel_) gmodel_->gravity(in.q, ws_, g_);
+  if (gmodel_) gmodel_->gravity(in.q, workspace(in, *gmodel_, ws_), g_);
   for (int i = 0; i < n; ++i) {
     const double e = in.q_ref[i] - in.q[i];
     double u0 = Kp_[i] * e + Kd_[i] * (in.qd_ref[i] - v_[i]);
@@ -186,7 +186,7 @@ void ComputedTorque::compute(const ControlInput& in, double* tau) {
   for (int i = 0; i < n_; ++i)
     v_[i] = in.qdd_ref[i] + Kd_[i] * (in.qd_ref[i] - in.qd[i]) + Kp_[i] * (in.q_ref[i] - in.q[i]);
   // M v + C + G + K qd in one Newton-Euler pass
-  run_model_->rnea(in.q, in.qd, v_.data(), ws_, out_, 1.0, true);
+  run_model_->rnea(in.q, in.qd, v_.data(), workspace(in, *run_model_, ws_), out_, 1.0, true);
   for (int i = 0; i < n_; ++i) tau[i] = out_[i];
   saturate(n_, tau_max_.data(), tau);
 }
@@ -375,7 +375,7 @@ void StateFeedback::law_(const Robot* gm, const double* q, const double* qd, con
 
 void StateFeedback::compute(const ControlInput& in, double* tau) {
   if (n_ == 0 || in.n != n_) throw std::logic_error("StateFeedback.compute called before reset() for this robot");
-  law_(gmodel_.get(), in.q, in.qd, in.q_ref, in.qd_ref, ws_, out_);
+  law_(gmodel_.get(), in.q, in.qd, in.q_ref, in.qd_ref, gmodel_ ? workspace(in, *gmodel_, ws_) : ws_, out_);
   for (int i = 0; i < n_; ++i) tau[i] = out_[i];
   saturate(n_, tau_max_.data(), tau);
 }

@@ -89,7 +89,7 @@ void cooperate(const Model& m, Data& d) {
       CoopMember& mb = d.members[a];
       mb.robot = i;
       mb.in = ControlInput{r.dof(), t, s.state.q.data(), s.state.qd.data(), c.q_ref.data(), c.qd_ref.data(),
-                           c.qdd_ref.data(), s.sensor.world.data(), &s.ws};
+                           c.qdd_ref.data(), s.sensor.world.data(), &s.ws, r.kinematics_id()};
       mb.held = s.grasp.held;
       if (mb.held >= 0) {
         mb.grip = r.tool_pose(s.ws).inverse() * (r.frame(s.ws, r.clamp().fixed_link) * s.grasp.weld_X);

@@ -165,6 +165,7 @@ std::vector<LinkBox> Robot::default_boxes() const {
 }
 
 void Robot::build_geometry_() {
+  geometry_memo_ = std::make_shared<GeometryMemo>();  // what the old geometry's copies computed is theirs
   if (default_boxes_) boxes_ = default_boxes();
   for (size_t b = 0; b < boxes_.size(); ++b) {
     const LinkBox& box = boxes_[b];

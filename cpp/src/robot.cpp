@@ -7,6 +7,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include <atomic>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -224,6 +225,8 @@ Robot::Robot(std::vector<Link> links, Eigen::Vector3d gravity, Eigen::Vector3d b
 }
 
 void Robot::build_() {
+  static std::atomic<std::uint64_t> next_id{1};
+  kinematics_id_ = next_id.fetch_add(1, std::memory_order_relaxed);  // what a Workspace held is not ours
   n_ = static_cast<int>(links_.size());
   {
     std::ostringstream s;

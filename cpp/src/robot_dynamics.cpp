@@ -38,6 +38,10 @@ void Robot::mass_matrix(const double* q, Workspace& ws, MatN& M) const {
 }
 
 void Robot::mass_matrix_kin_(Workspace& ws, MatN& M) const {
+  if (ws.M_valid) {  // computed at these kinematics already (see Workspace)
+    M = ws.M;
+    return;
+  }
   // composite rigid bodies: links k..n-1, mass, CoM and inertia about the CoM
   for (int k = n_ - 1; k >= 0; --k) {
     const double m = links_[k].mass;
@@ -84,6 +88,8 @@ void Robot::mass_matrix_kin_(Workspace& ws, MatN& M) const {
     }
     M(k, k) += links_[k].armature;
   }
+  ws.M = M;
+  ws.M_valid = true;
 }
 
 void Robot::rnea(const double* q, const double* qd, const double* qdd, Workspace& ws, VecN& tau,

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstring>
 
 #include "internal.hpp"
 
@@ -16,6 +17,24 @@ using detail::require;
 }  // namespace
 
 void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
+  const int level = inertia ? 2 : 1;
+  const bool same = ws.kin_robot == kinematics_id_ && ws.n == n_ &&
+                    std::memcmp(q, ws.kin_q.data(), sizeof(double) * static_cast<size_t>(n_)) == 0;
+  if (same && ws.kin_level >= level) return;  // already there, bit for bit
+  if (same) {                                 // the frames are there: add the inertias
+    for (int k = 0; k < n_; ++k) {
+      const Pre& P = pre_[k];
+      ws.c[k].noalias() = ws.o[k + 1] + ws.R[k + 1] * P.p_com;
+      const Eigen::Matrix3d RI = ws.R[k + 1] * P.I_local;
+      ws.Iw[k].noalias() = RI * ws.R[k + 1].transpose();
+    }
+    ws.kin_level = 2;
+    return;
+  }
+  ws.kin_robot = kinematics_id_;
+  ws.kin_level = level;
+  ws.M_valid = false;
+  std::memcpy(ws.kin_q.data(), q, sizeof(double) * static_cast<size_t>(n_));
   ws.n = n_;
   ws.R[0] = base_.linear();
   ws.o[0] = base_.translation();

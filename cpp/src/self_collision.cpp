@@ -9,7 +9,9 @@
 
 namespace coopsim {
 
-std::vector<std::pair<int, int>> Simulation::excluded_pairs(const Robot& r, int samples) {
+namespace {
+
+std::vector<std::pair<int, int>> sampled_exclusions(const Robot& r, int samples) {
   const std::vector<LinkBox>& boxes = r.boxes();
   const int k = static_cast<int>(boxes.size()), n = r.dof();
   std::vector<std::pair<int, int>> out, candidates;
@@ -45,6 +47,16 @@ std::vector<std::pair<int, int>> Simulation::excluded_pairs(const Robot& r, int 
   for (size_t c = 0; c < candidates.size(); ++c)
     if (always[c]) out.push_back(candidates[c]);
   return out;
+}
+
+}  // namespace
+
+std::vector<std::pair<int, int>> Simulation::excluded_pairs(const Robot& r, int samples) {
+  if (samples != kExclusionSamples) return sampled_exclusions(r, samples);
+  // the default sampling's pairs: once per geometry, every simulation of the robot's copies reads them
+  Robot::GeometryMemo& memo = r.geometry_memo();
+  std::call_once(memo.excluded_once, [&] { memo.excluded = sampled_exclusions(r, samples); });
+  return memo.excluded;
 }
 
 }  // namespace coopsim

@@ -280,12 +280,12 @@ bool control(const Model& m, Data& d) {
       in.qd_ref = c.qd_ref.data();
       in.qdd_ref = c.qdd_ref.data();
       in.wrench = nullptr;
-      in.frames = nullptr;
+      in.workspace = &s.ws;  // the robot's kinematics at q: computed once for the controller and the step
+      in.robot = rm.robot.kinematics_id();
       if (c.controller->senses()) {  // the sensor at t_k: the contact and weld wrenches of the last world step
-        rm.robot.kinematics(s.state.q.data(), s.ws, false);  // the frames, for the sensor and the controller
+        rm.robot.kinematics(s.state.q.data(), s.ws, false);  // the frames, for the sensor
         sense_robot(m, d, static_cast<int>(i), true, true);
         in.wrench = s.sensor.world.data();
-        in.frames = &s.ws;
       }
       VecN u(n);
       c.controller->compute(in, u.data());

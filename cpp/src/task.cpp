@@ -283,8 +283,10 @@ const TaskState& TaskController::observe(const ControlInput& in, const TaskRefer
       accel_ref.head<3>() += 2.0 * dd * wu + d * (al.cross(u) + w.cross(wu));
     }
   }
-  if (!in.frames) r.kinematics(in.q, ws_, false);
-  const Workspace& wk = in.frames ? *in.frames : ws_;  // the caller's frames at q, when it has them
+  shared_.workspace = in.workspace;
+  shared_.robot = in.robot;
+  Workspace& wk = workspace(in, r, ws_);  // the simulation's, whose frames at q one of its stages may have
+  r.kinematics(in.q, wk, false);
   s.pose = r.tool_pose(wk);
   s.axes = task_axes(s.pose);
   r.tool_jacobian(wk, Jg);
@@ -385,11 +387,13 @@ void TaskController::torques(const TaskState& s, const Vec6& accel, const Vec6& 
     correction = qdd_[jaw] - s.qdd_ref[jaw];
     qdd_[jaw] = s.qdd_ref[jaw];
   }
-  run_model_->rnea(s.q.data(), s.qd.data(), qdd_.data(), ws_, out_, 1.0, true);
+  Workspace& w = workspace(shared_, *run_model_, ws_);  // observe()'s caller's, for this update only
+  shared_ = ControlInput();
+  run_model_->rnea(s.q.data(), s.qd.data(), qdd_.data(), w, out_, 1.0, true);
   if (jaw >= 0) {
     if (jaw != n - 1) {  // links beyond the jaw: its inertia depends on q
       MatN M;
-      run_model_->mass_matrix(s.q.data(), ws_, M);
+      run_model_->mass_matrix(s.q.data(), w, M);
       jaw_inertia_ = M(jaw, jaw);
     }
     out_[jaw] += jaw_inertia_ * correction;

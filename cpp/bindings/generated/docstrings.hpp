@@ -58,7 +58,10 @@ constexpr const char* doc_ControlInput_wrench = "The force/torque sensor's readi
     "axes, [force N; moment N m about the TCP], the wrench the robot's end applies to its\n"
     "environment (see SensorOptions). In a simulation it is read at the start of the step, from\n"
     "the contact and weld wrenches of the last world step.";
-constexpr const char* doc_ControlInput_frames = "The robot's frames at q (Robot::kinematics, frames only) when the caller has them, else null.";
+constexpr const char* doc_ControlInput_workspace = "The simulated robot's workspace (a Workspace keeps the kinematics at q it last computed) and that\n"
+    "robot's kinematics_id(), when the caller has them (a simulation's stages), else null and 0. A\n"
+    "controller evaluates a model with that kinematics_id at q there (Controller::workspace): the\n"
+    "kinematics one stage computed at q serve the others, with the same numbers, bit for bit.";
 constexpr const char* doc_ControllerJacobians = "A controller's linearisation at one update (Controller::linearize). With c its internal state (m values),\n"
     "the update gives tau = g(q, qd, c) and leaves c+ = h(q, qd, c); a saturated output's row is zero.";
 constexpr const char* doc_ControllerJacobians_tau = "(n,) the output at this update (N m or N)";
@@ -474,6 +477,11 @@ constexpr const char* doc_kDefaultLinkThickness = "Thickness (m) of the default 
     "Robot::default_boxes).";
 constexpr const char* doc_Workspace = "Fixed-size scratch memory for evaluating a robot: kinematics of every frame\n"
     "and CoM, and recursion buffers. One per thread; reused across calls.";
+constexpr const char* doc_Workspace_kin_robot = "What R, o (level 1) and c, Iw (level 2) hold: Robot::kinematics at kin_q of the robot whose\n"
+    "kinematics_id() is kin_robot (0: nothing). Only Robot::kinematics writes them; a second call at the\n"
+    "same q (bit for bit) returns at once, one asking for the inertias after the frames adds them.";
+constexpr const char* doc_Workspace_M_valid = "The recursive mass matrix (armature in) at those kinematics, once computed (M_valid): each new q or\n"
+    "robot clears it.";
 constexpr const char* doc_Workspace_R = "world rotation of DH frames 0..n";
 constexpr const char* doc_Workspace_o = "world origin of DH frames 0..n";
 constexpr const char* doc_Workspace_c = "world CoM of links 1..n (index i-1)";
@@ -494,6 +502,11 @@ constexpr const char* doc_Robot_from_tables = "A robot from tables (Robot.from_d
 constexpr const char* doc_Robot_tables = "The tables this robot is (from_tables(tables()) is this robot, bar\n"
     "attached generated code): CoM rows (n, 4), inertias (n, 3, 3).";
 constexpr const char* doc_Robot_name = "the robot's label, e.g. \"scara1\"";
+constexpr const char* doc_Robot_kinematics_id = "The identity of this robot's kinematics and inertias: new for every robot built (build_), shared by\n"
+    "its copies, which have the same; a Workspace remembers whose kinematics it holds by it.";
+constexpr const char* doc_Robot_GeometryMemo = "What is computed once per geometry (the boxes, links and clamp) and shared by the robot's copies:\n"
+    "made anew whenever the geometry is (build_geometry_), so a robot with other boxes or links never\n"
+    "reads another's. Simulation::excluded_pairs keeps its default sampling's result here.";
 constexpr const char* doc_Robot_gravity_acceleration = "The world's gravitational acceleration (3), m/s^2 (G(q) is gravity()).";
 constexpr const char* doc_Robot_base_orientation = "Fixed rotation after the yaw (identity unless the first joint axis is tilted).";
 constexpr const char* doc_Robot_friction_torques = "Friction torques K qd + F_c tanh(qd / v_c) (n), N m or N.";
@@ -676,7 +689,8 @@ constexpr const char* doc_Simulation_world = "The run's World (null without one)
 constexpr const char* doc_Simulation_link_body = "The world body of robot i's box b (-1 without a world or before the first step).";
 constexpr const char* doc_Simulation_excluded_pairs = "Box index pairs of robot i that never collide: boxes of one link, of\n"
     "adjacent links (the base is link 0), and pairs that overlap at every\n"
-    "one of `samples` random poses within the joint limits.";
+    "one of `samples` random poses within the joint limits (from a fixed\n"
+    "seed; with the default samples computed once per robot geometry).";
 constexpr const char* doc_Simulation_body_state = "The state of a free or static body at the simulation's time (free bodies\n"
     "as sampled at the last world step).";
 constexpr const char* doc_Simulation_holding = "The free body robot i holds (world id), or -1.";

@@ -9,6 +9,7 @@
 // robot in one simulation at a time.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -31,8 +32,12 @@ struct ControlInput {
   // environment (see SensorOptions). In a simulation it is read at the start of the step, from
   // the contact and weld wrenches of the last world step.
   const double* wrench = nullptr;
-  // The robot's frames at q (Robot::kinematics, frames only) when the caller has them, else null.
-  const Workspace* frames = nullptr;
+  // The simulated robot's workspace (a Workspace keeps the kinematics at q it last computed) and that
+  // robot's kinematics_id(), when the caller has them (a simulation's stages), else null and 0. A
+  // controller evaluates a model with that kinematics_id at q there (Controller::workspace): the
+  // kinematics one stage computed at q serve the others, with the same numbers, bit for bit.
+  Workspace* workspace = nullptr;
+  std::uint64_t robot = 0;
 };
 
 // A controller's linearisation at one update (Controller::linearize). With c its internal state (m values),
@@ -67,6 +72,13 @@ class Controller {
   // controller that does not give its linearisation (the default).
   virtual bool linearize(const Robot& robot, double period, const ControlInput& in, ControllerJacobians& J) const {
     return false;
+  }
+
+ protected:
+  // Where to evaluate `model` at in.q: the simulated robot's workspace when the model has its kinematics
+  // (the robot or a copy of it), else `own`.
+  static Workspace& workspace(const ControlInput& in, const Robot& model, Workspace& own) {
+    return in.workspace && in.robot == model.kinematics_id() ? *in.workspace : own;
   }
 };
 

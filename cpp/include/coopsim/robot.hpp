@@ -19,9 +19,11 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -180,6 +182,16 @@ constexpr double kDefaultLinkThickness = 0.02;
 // and CoM, and recursion buffers. One per thread; reused across calls.
 struct Workspace {
   int n = 0;
+  // What R, o (level 1) and c, Iw (level 2) hold: Robot::kinematics at kin_q of the robot whose
+  // kinematics_id() is kin_robot (0: nothing). Only Robot::kinematics writes them; a second call at the
+  // same q (bit for bit) returns at once, one asking for the inertias after the frames adds them.
+  std::uint64_t kin_robot = 0;
+  int kin_level = 0;
+  std::array<double, kMaxDof> kin_q{};
+  // The recursive mass matrix (armature in) at those kinematics, once computed (M_valid): each new q or
+  // robot clears it.
+  bool M_valid = false;
+  MatN M;
   std::array<Eigen::Matrix3d, kMaxDof + 1> R;   // world rotation of DH frames 0..n
   std::array<Eigen::Vector3d, kMaxDof + 1> o;   // world origin of DH frames 0..n
   std::array<Eigen::Vector3d, kMaxDof> c;       // world CoM of links 1..n (index i-1)
@@ -212,6 +224,17 @@ class Robot {
 
   int dof() const { return n_; }
   const std::string& name() const { return name_; }  // the robot's label, e.g. "scara1"
+  // The identity of this robot's kinematics and inertias: new for every robot built (build_), shared by
+  // its copies, which have the same; a Workspace remembers whose kinematics it holds by it.
+  std::uint64_t kinematics_id() const { return kinematics_id_; }
+  // What is computed once per geometry (the boxes, links and clamp) and shared by the robot's copies:
+  // made anew whenever the geometry is (build_geometry_), so a robot with other boxes or links never
+  // reads another's. Simulation::excluded_pairs keeps its default sampling's result here.
+  struct GeometryMemo {
+    std::once_flag excluded_once;
+    std::vector<std::pair<int, int>> excluded;
+  };
+  GeometryMemo& geometry_memo() const { return *geometry_memo_; }
   std::vector<std::string> joint_names() const;
   std::vector<std::string> link_names() const;
   std::string joint_types() const;
@@ -401,6 +424,7 @@ to the base frame's origin.)doc";
                                     MatN& d) const;
 
   std::vector<Link> links_;
+  std::uint64_t kinematics_id_ = 0;
   int n_ = 0;
   Eigen::Vector3d gravity_;
   Eigen::Vector3d base_p_;
@@ -418,6 +442,7 @@ to the base frame's origin.)doc";
   std::vector<double> gen_params_;
   std::vector<LinkBox> boxes_;
   bool default_boxes_ = true;  // boxes_ are default_boxes() (re-made with the base)
+  std::shared_ptr<GeometryMemo> geometry_memo_ = std::make_shared<GeometryMemo>();
   Clamp clamp_;
   std::map<std::string, double> dimensions_;
   std::vector<std::string> joint_names_, link_names_;  // empty: the defaults

@@ -211,10 +211,12 @@ class Simulation {
   const std::shared_ptr<World>& world() const { return data_.world; }
   // The world body of robot i's box b (-1 without a world or before the first step).
   int link_body(int i, int box) const;
+  static constexpr int kExclusionSamples = 200;
   // Box index pairs of robot i that never collide: boxes of one link, of
   // adjacent links (the base is link 0), and pairs that overlap at every
-  // one of `samples` random poses within the joint limits.
-  static std::vector<std::pair<int, int>> excluded_pairs(const Robot& robot, int samples = 200);
+  // one of `samples` random poses within the joint limits (from a fixed
+  // seed; with the default samples computed once per robot geometry).
+  static std::vector<std::pair<int, int>> excluded_pairs(const Robot& robot, int samples = kExclusionSamples);
   // The state of a free or static body at the simulation's time (free bodies
   // as sampled at the last world step).
   BodyState body_state(int id) const;

@@ -163,6 +163,8 @@ class TaskController : public Controller {
   // run state
   std::shared_ptr<const Robot> robot_, run_model_;
   Workspace ws_, wsr_;
+  // observe()'s caller's workspace and robot (ControlInput), for torques() at the same update
+  ControlInput shared_;
   TaskState s_;
   Vec6 prev_accel_ = Vec6::Zero();  // world [a; alpha] commanded at the last update (payload inertia)
   // the reference's image at the last update, reused while the joint reference stays the same

@@ -160,6 +160,14 @@ def _arm(which: str) -> Robot:
     return add_clamp(arm, mount=PANDA_MOUNT)
 
 
+@functools.lru_cache(maxsize=None)
+def _placed(which: str, distance: float) -> Tuple[Robot, Robot]:
+    """The two clamped arms of `which` facing each other `distance` m from the path's centre (:func:`facing`),
+    built once per process and distance: every run's simulation holds copies of the same robots, which share
+    what the engine computes once per robot (its self-collision exclusions)."""
+    return facing(_arm(which), distance)
+
+
 def flange_mount(arm: Robot) -> np.ndarray:
     """The mount (4, 4, in the arm's tool frame) of a clamp on the arm's flange: its approach (z) along the last
     joint's axis, pointing away from the wrist, its origin on that axis at the face of the last link's shapes
@@ -229,9 +237,8 @@ def ur5() -> Pair:
     """Two UR5s of example-robot-data with the paper's clamp on their tool flanges (its defaults), facing each
     other UR5["distance"] m either side of the bar's path, the approach solved from UR5["posture"] (elbow up,
     the wrist above the clamp) and every later knot near the one before."""
-    arm = _arm("ur5")
     q = np.r_[UR5["posture"], 0.035]
-    return Pair(facing(arm, UR5["distance"]), name="ur5", names=("UR5 #1", "UR5 #2"), posture=(q, q),
+    return Pair(_placed("ur5", float(UR5["distance"])), name="ur5", names=("UR5 #1", "UR5 #2"), posture=(q, q),
                 simulation=dict(SIMULATION), object_gains=dict(ARM_OBJECT_GAINS))
 
 
@@ -240,9 +247,8 @@ def panda() -> Pair:
     last link) with the paper's clamp, facing each other PANDA["distance"] m either side of the bar's path.
     Seven arm joints for a six-dimensional pose: the plan's IK draws each knot's null space to PANDA["posture"]
     (:func:`~.planning.make_plan`)."""
-    arm = _arm("panda")
     q = np.r_[PANDA["posture"], 0.035]
-    return Pair(facing(arm, PANDA["distance"]), name="panda", names=("Panda #1", "Panda #2"), posture=(q, q),
+    return Pair(_placed("panda", float(PANDA["distance"])), name="panda", names=("Panda #1", "Panda #2"), posture=(q, q),
                 redundant=True, simulation=dict(SIMULATION), object_gains=dict(ARM_OBJECT_GAINS))
 
 
