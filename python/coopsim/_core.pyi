@@ -2346,7 +2346,8 @@ class SimulationCore:
         """
         Box index pairs of robot i that never collide: boxes of one link, of
         adjacent links (the base is link 0), and pairs that overlap at every
-        one of `samples` random poses within the joint limits.
+        one of `samples` random poses within the joint limits (from a fixed
+        seed; with the default samples computed once per robot geometry).
         """
     @staticmethod
     def from_model(model: SimulationModel) -> SimulationCore:
