@@ -389,11 +389,11 @@ FORWARD4 = ("forward_derivatives4", "const double* q, const double* qd, const do
                                     "double* dqdd_dqd, double* Minv")
 
 
-def _ldl_lines(model, typ, ok):
+def _ldl_lines(model, typ, ok, pivot=None):
     """LDL^T of M (n x n column-major in M) unrolled, skipping M's structural zeros and their
     fill-in, as emit_solve: pivots d_j, their reciprocals r_j, L's entries l_i_j (typ each); a pivot
     not above 1e-13 M_jj (forward_dynamics' rule) clears `ok` (false when M is not positive
-    definite). Returns (lines, {(i, j): name of L_ij}, operation count)."""
+    definite), or pivot(j) gives the line that checks d_j. Returns (lines, {(i, j): name of L_ij}, operation count)."""
     n, Ms = model.n, model.M_kappa
     nz = {(i, j) for i in range(n) for j in range(n) if Ms[i, j] != 0}
     lines, L, ops = [], {}, 0
@@ -401,7 +401,7 @@ def _ldl_lines(model, typ, ok):
         ks = [k for k in range(j) if (j, k) in L]
         lines.append(f"  const {typ} d_{j} = " + " - ".join([f"M[{j + n * j}]"] + [f"l_{j}_{k}*u_{j}_{k}" for k in ks])
                      + ";")
-        lines.append(f"  {ok} &= pivot_ok(d_{j}, M[{j + n * j}]);")
+        lines.append(pivot(j) if pivot else f"  {ok} &= pivot_ok(d_{j}, M[{j + n * j}]);")
         lines.append(f"  const {typ} r_{j} = 1.0/d_{j};")
         ops += 2 * len(ks) + 1
         for i in range(j + 1, n):
@@ -527,44 +527,10 @@ def emit_solve(model: SymbolicModel):
     factorisation that skips M's structural zeros and their fill-in; returns false (x
     undefined) when a pivot is not positive, i.e. M is not positive definite.
     Returns (body, operation count)."""
-    n, M = model.n, model.M_kappa
-    nz = {(i, j) for i in range(n) for j in range(n) if M[i, j] != 0}
-    lines, ops = [], 0
-    # u_ij = L_ij d_j (before the division), so L_ik L_jk d_k = l_ik u_jk
-    L = {}  # (i, j), i > j -> name of L_ij when structurally nonzero
-    for j in range(n):
-        ks = [k for k in range(j) if (j, k) in L]
-        lines.append(f"  const double d_{j} = " + " - ".join([f"M[{j + n * j}]"] + [f"l_{j}_{k}*u_{j}_{k}" for k in ks])
-                     + ";")
-        lines.append(f"  if (!(d_{j} > 0.0)) return false;")
-        lines.append(f"  const double r_{j} = 1.0/d_{j};")
-        ops += 2 * len(ks) + 1
-        for i in range(j + 1, n):
-            ki = [k for k in ks if (i, k) in L]
-            if (i, j) not in nz and not ki:
-                continue
-            terms = [f"l_{i}_{k}*u_{j}_{k}" for k in ki]
-            if (i, j) in nz:
-                expr = " - ".join([f"M[{i + n * j}]"] + terms)
-            else:
-                expr = "-(" + " + ".join(terms) + ")"
-            L[i, j] = f"l_{i}_{j}"
-            lines.append(f"  const double u_{i}_{j} = {expr};")
-            lines.append(f"  const double l_{i}_{j} = u_{i}_{j}*r_{j};")
-            ops += 2 * len(ki) + 1
+    n = model.n
+    lines, L, ops = _ldl_lines(model, "double", None, pivot=lambda j: f"  if (!(d_{j} > 0.0)) return false;")
     # L y = b, then x = L^-T D^-1 y, in place
-    for i in range(n):
-        ks = [k for k in range(i) if (i, k) in L]
-        if ks:
-            lines.append(f"  x[{i}] -= " + " + ".join(f"{L[i, k]}*x[{k}]" for k in ks) + ";")
-            ops += 2 * len(ks)
-    for i in range(n):
-        lines.append(f"  x[{i}] *= r_{i};")
-        ops += 1
-    for i in reversed(range(n)):
-        ks = [k for k in range(i + 1, n) if (k, i) in L]
-        if ks:
-            lines.append(f"  x[{i}] -= " + " + ".join(f"{L[k, i]}*x[{k}]" for k in ks) + ";")
-            ops += 2 * len(ks)
+    lines += _substitution_lines(n, L, lambda i: f"x[{i}]", lambda i: [f"  x[{i}] *= r_{i};"], loop="  ")
+    ops += 4 * len(L) + n   # a multiply and an add per entry of L in each sweep, and the scaling
     lines.append("  return true;")
     return "\n".join(lines), ops
