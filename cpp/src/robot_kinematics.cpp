@@ -21,43 +21,39 @@ void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
   const bool same = ws.kin_robot == kinematics_id_ && ws.n == n_ &&
                     std::memcmp(q, ws.kin_q.data(), sizeof(double) * static_cast<size_t>(n_)) == 0;
   if (same && ws.kin_level >= level) return;  // already there, bit for bit
-  if (same) {                                 // the frames are there: add the inertias
+  if (!same) {                                // the frames at q
+    ws.kin_robot = kinematics_id_;
+    ws.kin_level = 1;
+    ws.M_valid = false;
+    std::memcpy(ws.kin_q.data(), q, sizeof(double) * static_cast<size_t>(n_));
+    ws.n = n_;
+    ws.R[0] = base_.linear();
+    ws.o[0] = base_.translation();
     for (int k = 0; k < n_; ++k) {
+      const Link& L = links_[k];
       const Pre& P = pre_[k];
-      ws.c[k].noalias() = ws.o[k + 1] + ws.R[k + 1] * P.p_com;
-      const Eigen::Matrix3d RI = ws.R[k + 1] * P.I_local;
-      ws.Iw[k].noalias() = RI * ws.R[k + 1].transpose();
+      double ct = P.ct, st = P.st, d = L.dh.d;
+      if (L.type == JointType::Revolute) {
+        ::sincos(L.dh.theta + q[k], &st, &ct);
+      } else {
+        d += q[k];
+      }
+      const double ca = P.ca, sa = P.sa, a = L.dh.a;
+      Eigen::Matrix3d Rl;
+      Rl << ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0, sa, ca;
+      const Eigen::Vector3d pl(a * ct, a * st, d);
+      ws.o[k + 1].noalias() = ws.o[k] + ws.R[k] * pl;
+      ws.R[k + 1].noalias() = ws.R[k] * Rl;
     }
-    ws.kin_level = 2;
-    return;
   }
-  ws.kin_robot = kinematics_id_;
-  ws.kin_level = level;
-  ws.M_valid = false;
-  std::memcpy(ws.kin_q.data(), q, sizeof(double) * static_cast<size_t>(n_));
-  ws.n = n_;
-  ws.R[0] = base_.linear();
-  ws.o[0] = base_.translation();
-  for (int k = 0; k < n_; ++k) {
-    const Link& L = links_[k];
+  if (!inertia) return;
+  for (int k = 0; k < n_; ++k) {  // the centres of mass and world inertias, from the frames
     const Pre& P = pre_[k];
-    double ct = P.ct, st = P.st, d = L.dh.d;
-    if (L.type == JointType::Revolute) {
-      ::sincos(L.dh.theta + q[k], &st, &ct);
-    } else {
-      d += q[k];
-    }
-    const double ca = P.ca, sa = P.sa, a = L.dh.a;
-    Eigen::Matrix3d Rl;
-    Rl << ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0, sa, ca;
-    const Eigen::Vector3d pl(a * ct, a * st, d);
-    ws.o[k + 1].noalias() = ws.o[k] + ws.R[k] * pl;
-    ws.R[k + 1].noalias() = ws.R[k] * Rl;
-    if (!inertia) continue;
     ws.c[k].noalias() = ws.o[k + 1] + ws.R[k + 1] * P.p_com;
     const Eigen::Matrix3d RI = ws.R[k + 1] * P.I_local;
     ws.Iw[k].noalias() = RI * ws.R[k + 1].transpose();
   }
+  ws.kin_level = 2;
 }
 
 void Robot::poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const {
