@@ -17,6 +17,9 @@ The targets are read on the random rows. The default 2,880 steps are 16 episodes
 row, the vector environment of 8 runs 360 steps each (two episodes each, the second's reset inside a step).
 Each run also prints the mean wall time of a reset (ms) of the one environment.
 
+"GIL released" is the share of the row's wall time the caller's thread spent in the engine's calls with the GIL
+released (``coopsim.gil_released_seconds``; on 1 thread: the engine's part of a step, the rest is Python holding the
+GIL, which bounds what a second thread can add; on 2 threads the engine runs on the worker threads, not counted).
 "cores" is the process's CPU time over the wall time of the row: the cores the figure had (on a shared machine a
 ratio on 2 threads means something only when cores came near 2); "per CPU s" is steps/s over cores, the steps
 per second of CPU time (what one core would give if it were the row's alone, contention aside). Each figure is the best of ``--repeats``.
@@ -41,6 +44,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # numpy's BLAS threads wo
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
+import coopsim as cs  # noqa: E402
 import coopsim.envs  # noqa: E402,F401  (registers the environments)
 from coopsim.envs import DualCarryEnv  # noqa: E402
 
@@ -60,7 +64,7 @@ def single(steps: int, seed: int = 0, scripted: bool = False) -> dict:
     env.action_space.seed(seed)
     env.reset(seed=seed)
     episodes, in_step, in_reset = 1, 0.0, 0.0
-    c0, t0 = _cpu(), time.perf_counter()
+    c0, g0, t0 = _cpu(), cs.gil_released_seconds(), time.perf_counter()
     for _ in range(steps):
         a = env.scripted_action if scripted else env.action_space.sample()
         s = time.perf_counter()
@@ -72,9 +76,10 @@ def single(steps: int, seed: int = 0, scripted: bool = False) -> dict:
             in_reset += time.perf_counter() - s
             episodes += 1
     wall = time.perf_counter() - t0
+    gil = (cs.gil_released_seconds() - g0) / wall
     env.close()
     return dict(rate=steps / wall, rate_steps=steps / in_step, cores=(_cpu() - c0) / wall, episodes=episodes,
-                reset_ms=1e3 * in_reset / max(1, episodes - 1))
+                reset_ms=1e3 * in_reset / max(1, episodes - 1), released=gil)
 
 
 def vector(n_envs: int, threads: int, steps: int, seed: int = 0, scripted: bool = False) -> dict:
@@ -85,14 +90,15 @@ def vector(n_envs: int, threads: int, steps: int, seed: int = 0, scripted: bool 
     v.action_space.seed(seed)
     v.reset(seed=seed)
     episodes = n_envs
-    c0, t0 = _cpu(), time.perf_counter()
+    c0, g0, t0 = _cpu(), cs.gil_released_seconds(), time.perf_counter()
     scripted_actions = np.tile(v.unwrapped.envs[0].scripted_action, (n_envs, 1))
     for _ in range(steps):
         _, _, term, trunc, _ = v.step(scripted_actions if scripted else v.action_space.sample())
         episodes += int(np.sum(term | trunc))
     wall = time.perf_counter() - t0
+    gil = (cs.gil_released_seconds() - g0) / wall
     v.close()
-    return dict(rate=steps * n_envs / wall, cores=(_cpu() - c0) / wall, episodes=episodes)
+    return dict(rate=steps * n_envs / wall, cores=(_cpu() - c0) / wall, episodes=episodes, released=gil)
 
 
 def best(fn, repeats: int) -> dict:
@@ -121,15 +127,16 @@ def main():
                         best(lambda: vector(n, 1, vsteps, scripted=sc), repeats),
                         best(lambda: vector(n, 2, vsteps, scripted=sc), repeats))
     print()
-    print(f"{'':52s} {'steps/s':>9s} {'cores':>6s} {'episodes':>9s} {'per CPU s':>10s}")
+    print(f"{'':52s} {'steps/s':>9s} {'cores':>6s} {'episodes':>9s} {'per CPU s':>10s} {'GIL released':>13s}")
     for policy, (one, v1, v2) in rows.items():
         print(f"{f'{policy} actions: one environment':52s} {one['rate']:9.0f} {one['cores']:6.2f} {one['episodes']:9d} "
-              f"{one['rate'] / one['cores']:10.0f}")
+              f"{one['rate'] / one['cores']:10.0f} {100 * one['released']:12.1f}%")
         print(f"{f'{policy} actions: one environment, time in step() only':52s} {one['rate_steps']:9.0f}")
         print(f"{f'{policy} actions: one environment, a reset (ms)':52s} {one['reset_ms']:9.1f}")
         for threads, v in ((1, v1), (2, v2)):
             label = f"{policy} actions: vector, {n} environments, {threads} thread{'s' if threads > 1 else ''}"
-            print(f"{label:52s} {v['rate']:9.0f} {v['cores']:6.2f} {v['episodes']:9d} {v['rate'] / v['cores']:10.0f}")
+            gil = f"{100 * v['released']:12.1f}%" if threads == 1 else f"{'':13s}"
+            print(f"{label:52s} {v['rate']:9.0f} {v['cores']:6.2f} {v['episodes']:9d} {v['rate'] / v['cores']:10.0f} {gil}")
     print(f"{'robosuite two-arm tasks (their figures)':52s} {f'{ROBOSUITE[0]}-{ROBOSUITE[1]}':>9s}")
     one, v1, v2 = rows["random"]
     print()

@@ -204,6 +204,76 @@ def test_a_heavier_bar_is_carried_by_the_same_commands():
     assert up[0] == pytest.approx(0.3 * 9.81, rel=0.15) and up[1] == pytest.approx(0.1 * 9.81, rel=0.15)
 
 
+def _rotation(quaternion):
+    w, x, y, z = quaternion
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def test_the_pair_readout_is_what_the_separate_calls_read():
+    """Simulation.pair_readout (one engine call per step of the carry) against the dozen calls it replaces,
+    during a hold and after a clamp let go (the pair's part zeros then), for two simulations at once."""
+    envs = [DualCarryEnv(), DualCarryEnv()]
+    for i, env in enumerate(envs):
+        env.reset(seed=5 + i)
+        for k in range(30):
+            env.step(_gentle(k, None))
+    envs[1].sim.release(1)
+    rows = coopsim.Simulation.pair_readout([e.sim for e in envs], 0, 1, "bar")
+    assert rows.shape == (2, 96) and rows.dtype == np.float64
+    for env, row in zip(envs, rows):
+        sim, robots = env.sim, env.plan.robots
+        together = sim.holding(0) == "bar" and sim.holding(1) == "bar"
+        c = sim.cooperation(0, 1)
+        assert row[0] == sim.time and row[1] == float(together) == float(c.holding)
+        assert list(row[2:4]) == [float(sim.holding(i) == "bar") for i in range(2)]
+        assert row[4] == len(sim.contact_events()["a"]) and row[5] == len(sim.grasp_events()["t"])
+        for i, at in enumerate((6, 37)):
+            q, qd = sim.state(i)
+            T = robots[i].fk(q)
+            np.testing.assert_array_equal(row[at:at + 12], np.r_[q, qd])
+            np.testing.assert_allclose(row[at + 12:at + 15], T[:3, 3], atol=1e-12)
+            assert row[at + 15] >= 0.0
+            np.testing.assert_allclose(_rotation(row[at + 15:at + 19]), T[:3, :3], atol=1e-7)
+            np.testing.assert_allclose(row[at + 19:at + 25], robots[i].tool_jacobian(q) @ qd, atol=1e-12)
+            np.testing.assert_array_equal(row[at + 25:at + 31], sim.sensor(i).ft_world)
+        b = sim.body_state("bar")
+        np.testing.assert_array_equal(row[68:71], b.pose[:3, 3])
+        np.testing.assert_allclose(_rotation(row[71:75]), b.pose[:3, :3], atol=1e-7)
+        np.testing.assert_array_equal(row[75:81], np.r_[b.velocity, b.angular_velocity])
+        pair = np.r_[c.internal, c.squeeze, c.load_share] if together else np.zeros(15)
+        np.testing.assert_array_equal(row[81:96], pair)
+    assert rows[0, 1] == 1.0 and rows[1, 1] == 0.0 and np.all(rows[1, 81:] == 0.0)
+    for args, match in ((("bar", 1, 0), "a"), (("bar", 0, 2), "b"), (("stand", 0, 1), "stand")):
+        body, a, b = args
+        with pytest.raises(ValueError, match=match):
+            coopsim.Simulation.pair_readout([envs[0].sim], a, b, body)
+    with pytest.raises(ValueError, match="world"):
+        coopsim.Simulation.pair_readout([coopsim.Simulation()], 0, 1, "bar")
+
+
+def test_the_carry_observation_is_the_simulation_s_state_and_the_plan_s_error():
+    env = DualCarryEnv()
+    env.reset(seed=2)
+    for k in range(50):
+        obs, *_ = env.step(_gentle(k, None))
+    sim, plan = env.sim, env.plan
+    for i in range(2):
+        q, qd = sim.state(i)
+        T = plan.robots[i].fk(q)
+        np.testing.assert_array_equal(obs["q"][i], q)
+        np.testing.assert_allclose(obs["clamp_pose"][i][:3], T[:3, 3], atol=1e-12)
+        np.testing.assert_allclose(_rotation(obs["clamp_pose"][i][3:]), T[:3, :3], atol=1e-7)
+    B, P = sim.body_state("bar").pose, plan.bar.pose(sim.time)
+    np.testing.assert_allclose(obs["bar_error"][:3], P[:3, 3] - B[:3, 3], atol=1e-12)
+    R = P[:3, :3] @ B[:3, :3].T                       # the plan's rotation times the bar's transposed
+    angle = np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / (2.0 * np.sin(angle))
+    np.testing.assert_allclose(obs["bar_error"][3:], angle * axis, atol=1e-7)
+    assert 0.0 < obs["phase"][0] < 1.0 and obs["phase"][0] == pytest.approx((sim.time - env.t0) / (env.t_end - env.t0))
+
+
 # ---- seeds ----
 
 def test_the_same_seed_gives_the_same_episode_bit_for_bit():
@@ -384,6 +454,37 @@ def test_vector_same_step_autoreset_returns_the_final_observation():
     assert final[-3:] @ final[-3:] > 0 and not np.array_equal(final, obs[0])
     assert v.unwrapped.sims[0].time == 0.0           # reset in the same step
     v.close()
+
+
+def _same_info(a, b):
+    assert list(a) == list(b)
+    for key in a:
+        if isinstance(a[key], dict):
+            _same_info(a[key], b[key])
+            continue
+        assert type(a[key]) is type(b[key]) and a[key].dtype == b[key].dtype and a[key].shape == b[key].shape, key
+        if a[key].dtype == object:
+            assert all(x is y for x, y in zip(a[key], b[key])), key
+        else:
+            np.testing.assert_array_equal(a[key], b[key])
+
+
+def test_the_vector_info_is_gymnasium_s_add_info_of_each_environment_in_turn():
+    venv = gym.make_vec("coopsim/Reach-v0", num_envs=4, vectorization_mode="vector_entry_point", threads=1)
+    obs = {"q": np.ones(3)}
+    entries = [(0, dict(time=0.5, step="lift", ok=True, n=3, v=np.arange(3.0), s=np.float32(2.0), start=(1.0, 2.0),
+                        terms=dict(a=np.zeros(2), b=1.0), flag=np.bool_(True))),
+               (2, dict(final_obs=obs, final_info=dict(time=0.7, failure=dict(reason="let go", t=0.6)))),
+               (2, dict(time=1.5, step="carry", ok=False, n=4.0, v=np.ones(3), extra=None, terms=dict(b=2.0))),
+               (3, dict(step="place", start=(3.0, 4.0), final_obs=obs))]
+    expected: dict = {}
+    for i, info in entries:
+        expected = venv.unwrapped._add_info(expected, info, i)
+    _same_info(venv.unwrapped._gathered(entries), expected)
+    _, _, _, _, info = venv.step(venv.action_space.sample())          # a step's info, as _add_info builds it
+    assert list(info)[:6] == ["distance", "_distance", "speed", "_speed", "time", "_time"]
+    assert info["distance"].shape == (4,) and info["_distance"].all() and info["success"].dtype == np.bool_
+    venv.close()
 
 
 def test_vector_keywords_are_checked():

@@ -639,6 +639,11 @@ torques between controller updates, the log and tracking metrics.)doc")
          }
          return py::make_tuple(out, secs);
        }, py::arg("sims"), py::arg("t_end"), py::arg("threads") = 0, doc_run_batch);
+  m.def("pair_readout", [](const std::vector<Simulation*>& sims, int a, int b, const std::string& body) {
+         Simulation::ReadoutRows rows;
+         { coopsim::py_nogil::NoGil nogil; rows = Simulation::pair_readout(sims, a, b, body); }
+         return to_numpy(rows);
+       }, py::arg("sims"), py::arg("a"), py::arg("b"), py::arg("body"), doc_Simulation_pair_readout);
   m.def("gil_released_seconds", &coopsim::py_nogil::released_seconds,
         "Wall seconds the calling thread spent in the engine's calls with the GIL released (a running total; "
         "coopsim.gil_released_seconds).");

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'pair_readout', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -2870,6 +2870,19 @@ def load_generated_library(path: str) -> str:
 def log_schema() -> list:
     """
     The quantities a simulation logs per robot, in column order: [(name, description)], one column per joint.
+    """
+def pair_readout(sims: collections.abc.Sequence[SimulationCore], a: typing.SupportsInt | typing.SupportsIndex, b: typing.SupportsInt | typing.SupportsIndex, body: str) -> numpy.typing.NDArray[numpy.float64]:
+    """
+    Robots a and b and free body `body` (its name) of each of `sims` now, one row per simulation (what
+    a learning environment reads after each step, coopsim.envs): time s; 1 when a and b hold one body
+    (else 0); 1 when a holds `body`, 1 when b does; the counts of contact events and of grasp events so
+    far; then for a and for b: q (n), qd (n), the TCP's position (3) m and quaternion [w, x, y, z] (4,
+    w >= 0), its twist J qd (6) m/s, rad/s, the force/torque sensor in world axes (6) N, N m (as
+    ft_world); the body's position (3) m, quaternion (4), velocity (3) m/s and angular velocity (3) rad/s
+    (as body_state); the pair's internal wrench (12) N, N m, squeeze (1) N and load shares (2), as
+    cooperation (zeros unless a and b hold one body). Each simulation is taken as cooperation() takes
+    it. Throws std::invalid_argument for robots not 0 <= a < b < robot_count(), robots of other joints
+    than sims[0]'s, a simulation without a world or an unknown body.
     """
 def rk4_step(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, dt: typing.SupportsFloat | typing.SupportsIndex = 0.0002, tau_ext: typing.Any = None, end_stops: bool = True) -> tuple:
     """

@@ -703,6 +703,17 @@ constexpr const char* doc_Simulation_cooperation = "Robots a < b: their welds' q
     "tells whether they hold one body (else the values are zeros). Throws std::invalid_argument unless\n"
     "0 <= a < b < robot_count().";
 constexpr const char* doc_Simulation_cooperation_log = "Their log column: one row of cooperation_schema() per log row.";
+constexpr const char* doc_Simulation_pair_readout_width = "The width of pair_readout's rows for robots of na and nb joints.";
+constexpr const char* doc_Simulation_pair_readout = "Robots a and b and free body `body` (its name) of each of `sims` now, one row per simulation (what\n"
+    "a learning environment reads after each step, coopsim.envs): time s; 1 when a and b hold one body\n"
+    "(else 0); 1 when a holds `body`, 1 when b does; the counts of contact events and of grasp events so\n"
+    "far; then for a and for b: q (n), qd (n), the TCP's position (3) m and quaternion [w, x, y, z] (4,\n"
+    "w >= 0), its twist J qd (6) m/s, rad/s, the force/torque sensor in world axes (6) N, N m (as\n"
+    "ft_world); the body's position (3) m, quaternion (4), velocity (3) m/s and angular velocity (3) rad/s\n"
+    "(as body_state); the pair's internal wrench (12) N, N m, squeeze (1) N and load shares (2), as\n"
+    "cooperation (zeros unless a and b hold one body). Each simulation is taken as cooperation() takes\n"
+    "it. Throws std::invalid_argument for robots not 0 <= a < b < robot_count(), robots of other joints\n"
+    "than sims[0]'s, a simulation without a world or an unknown body.";
 constexpr const char* doc_Simulation_set_sensor = "Configures robot i's force/torque sensor; the noise generator restarts from the seed, the\n"
     "filter keeps its state. Throws std::invalid_argument naming a bad option.";
 constexpr const char* doc_Simulation_ft_clamp = "Robot i's reading at the present time (as the log's row at t_k), [force N; moment N m about the\n"

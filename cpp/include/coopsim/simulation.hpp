@@ -241,6 +241,21 @@ class Simulation {
   Cooperation cooperation(int a, int b, bool* holding = nullptr);
   // Their log column: one row of cooperation_schema() per log row.
   const LogColumn& cooperation_log(int a, int b);
+  // ---- two holders of one body read at once (env_readout.cpp) ----
+  using ReadoutRows = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  // The width of pair_readout's rows for robots of na and nb joints.
+  static int pair_readout_width(int na, int nb) { return 72 + 2 * (na + nb); }
+  // Robots a and b and free body `body` (its name) of each of `sims` now, one row per simulation (what
+  // a learning environment reads after each step, coopsim.envs): time s; 1 when a and b hold one body
+  // (else 0); 1 when a holds `body`, 1 when b does; the counts of contact events and of grasp events so
+  // far; then for a and for b: q (n), qd (n), the TCP's position (3) m and quaternion [w, x, y, z] (4,
+  // w >= 0), its twist J qd (6) m/s, rad/s, the force/torque sensor in world axes (6) N, N m (as
+  // ft_world); the body's position (3) m, quaternion (4), velocity (3) m/s and angular velocity (3) rad/s
+  // (as body_state); the pair's internal wrench (12) N, N m, squeeze (1) N and load shares (2), as
+  // cooperation (zeros unless a and b hold one body). Each simulation is taken as cooperation() takes
+  // it. Throws std::invalid_argument for robots not 0 <= a < b < robot_count(), robots of other joints
+  // than sims[0]'s, a simulation without a world or an unknown body.
+  static ReadoutRows pair_readout(const std::vector<Simulation*>& sims, int a, int b, const std::string& body);
   void set_profiling(bool on);
   // ---- sensors (see SensorOptions) ----
   // Configures robot i's force/torque sensor; the noise generator restarts from the seed, the

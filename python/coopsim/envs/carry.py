@@ -98,25 +98,6 @@ INTERNAL_SCALE = 5.0              # N: the internal force's scale
 RATES = dict(dt=DT, world_every=5, control_every=5, log_every=25)
 
 
-def _quaternion(m) -> list:
-    """[w, x, y, z] of the rotation in the top-left 3 x 3 of `m` (nested lists or an array; w >= 0), in floats."""
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m[0][:3], m[1][:3], m[2][:3]
-    w = math.sqrt(max(0.0, 1.0 + m00 + m11 + m22)) / 2.0
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + m00 - m11 - m22)) / 2.0, m21 - m12)
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - m00 + m11 - m22)) / 2.0, m02 - m20)
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - m00 - m11 + m22)) / 2.0, m10 - m01)
-    return [float(w), float(x), float(y), float(z)]
-
-
-def _rotation_vector(m) -> list:
-    """The rotation vector (3,) rad of the rotation matrix `m` (nested lists or an array), in floats."""
-    c = min(1.0, max(-1.0, (m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0))
-    angle = math.acos(c)
-    s = math.sin(angle)
-    f = 0.5 if s < 1e-9 else angle / (2.0 * s)
-    return [float(f * (m[2][1] - m[1][2])), float(f * (m[0][2] - m[2][0])), float(f * (m[1][0] - m[0][1]))]
-
-
 def _shifted(trajectory: CubicTrajectory, t_cut: float) -> CubicTrajectory:
     """`trajectory` from its knot at t_cut (s) on, its times less t_cut: the same cubic pieces."""
     times = np.asarray(trajectory.times)
@@ -147,6 +128,26 @@ def _world(start, end, bar_mass: float) -> World:
     w.add_free_box(_scene.BAR, _scene.BAR_HALF_EXTENTS, bar_mass, _scene.bar_pose(*start),
                    friction=_handover_scene.BAR_FRICTION)
     return w
+
+
+def _row_index(n: int = 6) -> np.ndarray:
+    """Where each entry of the observation's flat vector (97,) is in a row of :meth:`Simulation.pair_readout`
+    of two robots of n joints and the bar (bar_error and phase, which a row has not, point at entry 0 and
+    are written after)."""
+    a, b = 6, 6 + 2 * n + 19                           # each robot's part: q, qd, TCP pose (7), twist, wrench
+    arms = lambda at, m: list(range(a + at, a + at + m)) + list(range(b + at, b + at + m))  # noqa: E731
+    body = b + 2 * n + 19                              # the bar (13), then the pair's internal, squeeze, shares
+    return np.array(arms(0, n) + arms(n, n) + arms(2 * n, 7) + arms(2 * n + 7, 6) + arms(2 * n + 13, 6)
+                    + list(range(body, body + 13)) + [0] * 6 + list(range(body + 13, body + 28)) + [0])
+
+
+_ROW_INDEX = _row_index()
+_BAR = 68                   # the bar's pose in a row of Simulation.pair_readout (SCARAs of 6 joints)
+#: where each part of the observation begins in its flat vector
+_FLAT = dict(zip(("q", "qd", "clamp_pose", "clamp_twist", "wrench", "bar_pose", "bar_twist", "bar_error",
+                  "internal", "squeeze", "load_share", "phase"),
+                 np.cumsum([0, 12, 12, 14, 12, 12, 7, 6, 6, 12, 1, 2]).tolist()))
+_ERROR = _FLAT["bar_error"]
 
 
 class DualCarryEnv(gym.Env):
@@ -186,7 +187,7 @@ class DualCarryEnv(gym.Env):
         self._layout = [("q", (2, 6)), ("qd", (2, 6)), ("clamp_pose", (2, 7)), ("clamp_twist", (2, 6)),
                         ("wrench", (2, 6)), ("bar_pose", (7,)), ("bar_twist", (6,)), ("bar_error", (6,)),
                         ("internal", (12,)), ("squeeze", (1,)), ("load_share", (2,)), ("phase", (1,))]
-        self._layout = [(name, shape, int(np.prod(shape))) for name, shape in self._layout]
+        self._layout = [(name, shape, _FLAT[name], int(np.prod(shape))) for name, shape in self._layout]
         self.runner: Optional[_Runner] = None
         self.sim: Optional[Simulation] = None
         self._frames = None
@@ -281,115 +282,129 @@ class DualCarryEnv(gym.Env):
             return dict(step=e.step, t=e.t, reason=e.reason)
         return dict(step=self.runner.step, t=self.sim.time, reason=f"{type(e).__name__}: {str(e).splitlines()[0]}")
 
-    def _checked(self, error: Optional[BaseException]):
-        """The carry's checks after an advance (as ``_Runner.run_to``'s): the failure (dict) or None."""
+    def _checked(self, error: Optional[BaseException], row: np.ndarray):
+        """The carry's checks after an advance (as ``_Runner.run_to``'s), on the step's readout `row`
+        (:meth:`Simulation.pair_readout`): the failure (dict) or None. The runner's own checks run only when
+        the row shows what they look for: a clamp that no longer holds the bar, new contact events."""
         runner = self.runner
         try:
             if error is not None:
                 if isinstance(error, ValueError) and any(self.sim.holding(i) != _scene.BAR for i in range(2)):
                     runner.check_held()
                 raise error
-            runner.check_held()
-            runner.check_contacts()
+            if row[2] != 1.0 or row[3] != 1.0:
+                runner.check_held()
+            if row[4] > runner.contact_seen:
+                runner.check_contacts()
         except (CarryError, DivergenceError, ValueError) as e:
             return self._failure_info(e)
         return None
 
-    def _phase_marks(self):
-        S, t, runner = self.plan.steps, self.sim.time, self.runner
+    def _phase_marks(self, t: float):
+        S, runner = self.plan.steps, self.runner
         for step, nxt in (("lift", "carry"), ("carry", "place")):
             if runner.step == step and t >= S[step][1] - 1e-9:
                 runner.done()
                 runner.mark(nxt)
 
     def _planned_bar(self, t: float):
-        """The plan's bar pose at t (s), as :meth:`BarPath.pose` gives it: (cos yaw, sin yaw, position (3,) m)."""
+        """The plan's bar pose at t (s), as :meth:`BarPath.pose` gives it: (yaw rad, position (3,) m)."""
         times, path = self._bar_path
         k = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
         u = min(1.0, max(0.0, (t - times[k]) / (times[k + 1] - times[k])))
         u = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
         a, b = self._waypoints[k], self._waypoints[k + 1]
         x = [a[j] + u * (b[j] - a[j]) for j in range(4)]
-        return math.cos(x[3]), math.sin(x[3]), x[:3]
+        return x[3], x[:3]
 
-    def _observe(self) -> dict:
-        sim, plan = self.sim, self.plan
-        t = sim.time
-        q0, qd0 = sim.state(0)
-        q1, qd1 = sim.state(1)
-        r0, r1 = plan.robots
-        T0, T1 = r0.fk(q0).tolist(), r1.fk(q1).tolist()
-        b = sim.body_state(_scene.BAR)
-        B = b.pose.tolist()
-        c, s, p = self._planned_bar(t)
-        self._planned = (c, s, p)
-        # the plan's bar rotation R (the yaw's) times the bar's transposed: R B^T, rows
-        Rb = [[c * B[j][0] - s * B[j][1] for j in range(3)], [s * B[j][0] + c * B[j][1] for j in range(3)],
-              [B[j][2] for j in range(3)]]
-        h = sim.cooperation(0, 1)
-        held = bool(h.holding)
-        phase = (t - self.t0) / max(self.t_end - self.t0, 1e-12)
-        flat = np.array(
-            q0.tolist() + q1.tolist() + qd0.tolist() + qd1.tolist()
-            + [T0[0][3], T0[1][3], T0[2][3]] + _quaternion(T0) + [T1[0][3], T1[1][3], T1[2][3]] + _quaternion(T1)
-            + (r0.tool_jacobian(q0) @ qd0).tolist() + (r1.tool_jacobian(q1) @ qd1).tolist()
-            + sim.sensor(0).ft_world.tolist() + sim.sensor(1).ft_world.tolist()
-            + [B[0][3], B[1][3], B[2][3]] + _quaternion(B) + b.velocity.tolist() + b.angular_velocity.tolist()
-            + [p[0] - B[0][3], p[1] - B[1][3], p[2] - B[2][3]] + _rotation_vector(Rb)
-            + (h.internal.tolist() if held else [0.0] * 12) + [h.squeeze if held else 0.0]
-            + (h.load_share.tolist() if held else [0.0, 0.0]) + [min(1.0, max(0.0, phase))])
+    @staticmethod
+    def _readouts(envs) -> np.ndarray:
+        """The readouts of environments `envs` now, one row each, in one engine call (the vector environment's)."""
+        return Simulation.pair_readout([e.sim for e in envs], 0, 1, _scene.BAR)
+
+    def _readout(self) -> np.ndarray:
+        """The simulation's readout now (:meth:`Simulation.pair_readout` of both arms and the bar): one row."""
+        return Simulation.pair_readout([self.sim], 0, 1, _scene.BAR)[0]
+
+    def _observe(self, row: Optional[np.ndarray] = None) -> dict:
+        """The observation (the Dict's parts: views of one flat float64 array) from the readout `row` (None:
+        read now). Keeps the plan's bar pose at the row's time and the flat values (Python floats) for the
+        reward."""
+        if row is None:
+            row = self._readout()
+        t = float(row[0])
+        yaw, p = self._planned_bar(t)
+        flat = row[_ROW_INDEX]
+        # the bar's error: the plan's position less the bar's, and the rotation vector of the plan's yaw times
+        # the bar's rotation transposed, from their quaternions (q_plan q_bar*, w >= 0)
+        px, py, pz, bw, bx, by, bz = row[_BAR:_BAR + 7].tolist()
+        ch, sh = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+        w, vx, vy, vz = ch * bw + sh * bz, sh * by - ch * bx, -ch * by - sh * bx, sh * bw - ch * bz
+        if w < 0.0:
+            w, vx, vy, vz = -w, -vx, -vy, -vz
+        nv = math.sqrt(vx * vx + vy * vy + vz * vz)
+        f = 2.0 if nv < 1e-300 else 2.0 * math.atan2(nv, w) / nv
+        flat[_ERROR:_ERROR + 6] = (p[0] - px, p[1] - py, p[2] - pz, f * vx, f * vy, f * vz)
+        flat[-1] = min(1.0, max(0.0, (t - self.t0) / max(self.t_end - self.t0, 1e-12)))
         flat = clip(flat)
-        out, k = {}, 0
-        for name, shape, n in self._layout:
-            out[name] = flat[k:k + n].reshape(shape)
-            k += n
-        return out
+        self._planned = (math.cos(yaw), math.sin(yaw), p)
+        self._flat = flat.tolist()
+        return {name: flat[k:k + n].reshape(shape) for name, shape, k, n in self._layout}
 
-    def _terms(self, obs) -> dict:
-        """The reward's terms: each arm's task and share terms and the internal-force factor."""
+    def _terms(self) -> dict:
+        """The reward's terms from the last observation: each arm's task and share terms and the internal-force
+        factor."""
         c, s, p = self._planned
-        pose, (ls0, ls1) = obs["clamp_pose"].tolist(), obs["load_share"].tolist()
+        f = self._flat
+        ls0, ls1 = f[_FLAT["load_share"]], f[_FLAT["load_share"] + 1]
         task = []
-        for i, (g0, g1, g2) in enumerate(self._grips):     # each clamp's planned grip point, m
-            d0 = pose[i][0] - (p[0] + c * g0 - s * g1)
-            d1 = pose[i][1] - (p[1] + s * g0 + c * g1)
-            d2 = pose[i][2] - (p[2] + g2)
+        for k, (g0, g1, g2) in zip((_FLAT["clamp_pose"], _FLAT["clamp_pose"] + 7), self._grips):   # m
+            d0 = f[k] - (p[0] + c * g0 - s * g1)
+            d1 = f[k + 1] - (p[1] + s * g0 + c * g1)
+            d2 = f[k + 2] - (p[2] + g2)
             task.append(math.exp(-math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) / GRIP_SCALE))
-        up = float(obs["wrench"][0, 2] + obs["wrench"][1, 2])
+        up = f[_FLAT["wrench"] + 2] + f[_FLAT["wrench"] + 8]
         if up > 0.2 * self.episode_bar_mass * 9.81 and ls0 != 0.0 and ls1 != 0.0:
             share = [math.exp(-(((x - 0.5) / SHARE_SCALE) ** 2)) for x in (ls0, ls1)]
         else:
             share = [1.0, 1.0]
-        f = obs["internal"]
-        internal = math.sqrt(float(f[0]) ** 2 + float(f[1]) ** 2 + float(f[2]) ** 2)
-        task, share = np.array(task), np.array(share)
-        return dict(task=task, share=share, arms=task * share, internal=internal,
+        k = _FLAT["internal"]
+        internal = math.sqrt(f[k] ** 2 + f[k + 1] ** 2 + f[k + 2] ** 2)
+        arms = [task[0] * share[0], task[1] * share[1]]
+        return dict(task=np.array(task), share=np.array(share), arms=np.array(arms), internal=internal,
                     internal_factor=math.exp(-internal / INTERNAL_SCALE))
 
-    def _outcome(self, error: Optional[BaseException] = None):
-        failure = self._failure if self._failure is not None else self._checked(error)
-        obs = self._observe()
-        info = dict(time=self.sim.time, step=self.runner.step, commands=self.commands.copy(),
+    def _outcome(self, error: Optional[BaseException] = None, row: Optional[np.ndarray] = None):
+        """The step's observation, reward, termination, truncation and info after an advance that raised
+        `error` (or None), from the readout `row` (None: read now; the vector environment reads its
+        environments' rows in one call)."""
+        if row is None:
+            row = self._readout()
+        failure = self._failure if self._failure is not None else self._checked(error, row)
+        obs = self._observe(row)
+        t = float(row[0])
+        info = dict(time=t, step=self.runner.step, commands=self.commands.copy(),
                     success=False, bar_mass=self.episode_bar_mass, push=self._push_now.copy())
         if failure is not None:
             self._done = True
             info["failure"] = failure
             return obs, 0.0, True, False, info
-        self._phase_marks()
-        terms = self._terms(obs)
+        self._phase_marks(t)
+        terms = self._terms()
         info["reward_terms"] = terms
         reward = float(min(terms["arms"][0], terms["arms"][1]) * terms["internal_factor"])
-        terminated = self.sim.time >= self.t_end - 1e-9
+        terminated = t >= self.t_end - 1e-9
         if terminated:
             self.runner.done()
-            b = self.sim.body_state(_scene.BAR)
-            d = float(np.linalg.norm(obs["bar_error"][:3]))
-            ang = float(np.linalg.norm(obs["bar_error"][3:]))
-            speed = float(np.linalg.norm(b.velocity))
+            e = obs["bar_error"].tolist()
+            d = math.sqrt(e[0] ** 2 + e[1] ** 2 + e[2] ** 2)
+            ang = math.sqrt(e[3] ** 2 + e[4] ** 2 + e[5] ** 2)
+            v = row[_BAR + 7:_BAR + 10].tolist()
+            speed = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
             info["placed"] = dict(position_error=d, angle_error=ang, speed=speed)
             info["success"] = bool(d <= PLACE_TOL and ang <= PLACE_TOL_ANGLE and speed <= 0.01)
             if not info["success"]:
-                info["failure"] = dict(step="place", t=self.sim.time, reason=(
+                info["failure"] = dict(step="place", t=t, reason=(
                     f"the bar came to {d * 1e3:.1f} mm and {ang * 1e3:.1f} mrad from its planned pose, moving at "
                     f"{speed * 1e3:.1f} mm/s (allowed {PLACE_TOL * 1e3:.0f} mm, {PLACE_TOL_ANGLE * 1e3:.0f} mrad, "
                     f"10 mm/s)"))

@@ -14,11 +14,13 @@ engine call (environments in step with each other: one call; an environment rese
 others makes a second group), and reads each one's outcome, exactly as the single environment does: the
 same seeds and actions give the single environments' episodes bit for bit.
 
-With ``threads`` of 2 or more (or 0) the step runs its environments' two halves in a pipeline: a worker thread
-resets and advances one half (the engine's calls, the GIL released) while the caller's thread applies the
-other half's actions or reads its outcomes (Python, holding the GIL), so the Python of one half overlaps the
-engine of the other; each environment goes through the same calls in the same order. With ``threads=1`` the
-step runs them in turn on the caller's thread alone (one core).
+With ``threads`` of 2 or more (or 0) the step runs its environments in a pipeline of chunks (twice as many as
+worker threads): the caller's thread applies a chunk's actions (Python, holding the GIL) and hands the chunk to
+a worker, which advances its simulations and reads them (:meth:`coopsim.Simulation.pair_readout` for the
+carry), the engine's calls with the GIL released, while the caller applies the next chunk; the caller then
+reads the chunks' outcomes in order as they finish. The Python of some chunks overlaps the engine of the
+others; each environment goes through the same calls in the same order. With ``threads=1`` the step runs them
+in turn on the caller's thread alone (one core).
 """
 from __future__ import annotations
 
@@ -128,9 +130,10 @@ class CoopsimVectorEnv(VectorEnv):
         rewards = np.zeros(n)
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
-        infos: dict = {}
         results: list = [None] * n
         errors: dict = {}
+        rows: dict = {}              # each environment's readout after its advance (a class that reads at once)
+        reads = getattr(type(self.envs[0]), "_readouts", None)
 
         parallel = self.threads != 1 and n > 1
         ended: list = []             # SAME_STEP: the environments whose episode ended this step
@@ -142,18 +145,22 @@ class CoopsimVectorEnv(VectorEnv):
                     t_next[i] = self.envs[i]._apply(acts[i])
             return t_next
 
-        def engine(part, t_next):    # the engine: the part's simulations in one call per end time
+        def engine(part, t_next):    # the engine: the part's simulations in one call per end time, then
+            threads = 1 if parallel else self.threads      # their readouts in one more (the GIL released)
             for t in sorted(set(t_next.values())):
                 group = [i for i in t_next if t_next[i] == t]
-                got = Simulation.advance_all([self.envs[i].sim for i in group], t, self.threads)
+                got = Simulation.advance_all([self.envs[i].sim for i in group], t, threads)
                 errors.update(zip(group, got))
+            live = [i for i in part if not resetting[i]]
+            if live and reads is not None:
+                rows.update(zip(live, reads([self.envs[i] for i in live])))
 
         def outcome(part):           # Python: each environment's observation, reward and checks
             for i in part:
                 if resetting[i]:
                     continue
-                self._env_obs[i], rewards[i], terminated[i], truncated[i], results[i] = \
-                    self.envs[i]._outcome(errors[i])
+                got = self.envs[i]._outcome(errors[i], rows[i]) if reads else self.envs[i]._outcome(errors[i])
+                self._env_obs[i], rewards[i], terminated[i], truncated[i], results[i] = got
                 if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
                     ended.append(i)
 
@@ -176,33 +183,65 @@ class CoopsimVectorEnv(VectorEnv):
             engine(whole, apply(whole))
             outcome(whole)
         else:
-            # two halves in a pipeline: the engine runs one half (GIL released) while Python applies or reads
-            # the other; each environment goes through the same calls in the same order as on one thread
-            halves = (range(0, n // 2), range(n // 2, n))
+            # chunks in a pipeline: the caller's thread applies each chunk's actions and hands the chunk's engine
+            # calls (the GIL released) to a worker, then reads the chunks' outcomes in order as they finish: the
+            # workers run the engine while the caller runs Python; each environment goes through the same calls
+            # in the same order as on one thread
             pool = self._pool()
-            first = pool.submit(engine, halves[0], apply(halves[0]))
-            t_second = apply(halves[1])
-            first.result()
-            second = pool.submit(engine, halves[1], t_second)
-            outcome(halves[0])
-            second.result()
-            outcome(halves[1])
+            count = min(n, 2 * self._workers())
+            chunks = [range(k * n // count, (k + 1) * n // count) for k in range(count)]
+            running = []
+            for chunk in chunks:
+                running.append(pool.submit(engine, chunk, apply(chunk)))
+            for chunk, done in zip(chunks, running):
+                done.result()
+                outcome(chunk)
         reset(ended)
+        entries = []                 # each environment's infos in the order Gymnasium's _add_info takes them
         for i in range(n):
-            if isinstance(results[i], tuple):
-                infos = self._add_info(infos, results[i][0], i)
-                results[i] = results[i][1]
-            infos = self._add_info(infos, results[i], i)
+            entries.extend((i, x) for x in (results[i] if isinstance(results[i], tuple) else (results[i],)))
         self._autoreset = terminated | truncated
-        return self._batched(), rewards, terminated, truncated, infos
+        return self._batched(), rewards, terminated, truncated, self._gathered(entries)
 
     def _pool(self):
-        """The worker threads: one runs half of a step's engine work while the caller's thread runs Python;
-        resets run side by side on `threads` of them (0: every core)."""
+        """The worker threads (`threads` of them, 0: every core, at least 2): they run a step's chunks' engine
+        calls while the caller's thread runs Python, and the resets of one step side by side."""
         if self._executor is None:
-            workers = max(2, self.threads or (os.cpu_count() or 2))
-            self._executor = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="coopsim-vector")
+            self._executor = concurrent.futures.ThreadPoolExecutor(self._workers(),
+                                                                   thread_name_prefix="coopsim-vector")
         return self._executor
+
+    def _workers(self) -> int:
+        return max(2, self.threads or (os.cpu_count() or 2))
+
+    def _gathered(self, entries) -> dict:
+        """The vector's info from (environment index, info dict) pairs: what Gymnasium's ``_add_info`` gives
+        when called on each pair in turn (each key's (N, ...) array, its dtype from the first value, and its
+        ``_key`` mask; dicts within, recursively; ``final_obs`` an object array), built key by key in one pass
+        over the environments instead of one call per environment."""
+        n, out = self.num_envs, {}
+        keys: dict = {}
+        for _, info in entries:
+            keys.update(dict.fromkeys(info))
+        for key in keys:
+            items = [(i, info[key]) for i, info in entries if key in info]
+            first = items[0][1]
+            if key != "final_obs" and isinstance(first, dict):
+                array = self._gathered(items)
+            else:
+                kind = type(first)
+                if key != "final_obs" and (kind in (int, float, bool) or issubclass(kind, np.number)):
+                    array = np.zeros(n, dtype=kind)
+                elif key != "final_obs" and isinstance(first, np.ndarray):
+                    array = np.zeros((n, *first.shape), dtype=first.dtype)
+                else:
+                    array = np.full(n, None, dtype=object)
+                for i, value in items:
+                    array[i] = value
+            mask = np.zeros(n, dtype=np.bool_)
+            mask[[i for i, _ in items]] = True
+            out[key], out["_" + key] = array, mask
+        return out
 
     def _batched(self):
         """The environments' observations batched, new arrays (each key's (N, ...) for a Dict space): one
