@@ -136,7 +136,8 @@ def main():
         for threads, v in ((1, v1), (2, v2)):
             label = f"{policy} actions: vector, {n} environments, {threads} thread{'s' if threads > 1 else ''}"
             gil = f"{100 * v['released']:12.1f}%" if threads == 1 else f"{'':13s}"
-            print(f"{label:52s} {v['rate']:9.0f} {v['cores']:6.2f} {v['episodes']:9d} {v['rate'] / v['cores']:10.0f} {gil}")
+            per_cpu = v['rate'] / v['cores']
+            print(f"{label:52s} {v['rate']:9.0f} {v['cores']:6.2f} {v['episodes']:9d} {per_cpu:10.0f} {gil}")
     print(f"{'robosuite two-arm tasks (their figures)':52s} {f'{ROBOSUITE[0]}-{ROBOSUITE[1]}':>9s}")
     one, v1, v2 = rows["random"]
     print()

@@ -251,9 +251,10 @@ class DualCarryEnv(gym.Env):
 
     # ---- one step: apply, advance (here or by the vector environment), read ----
 
-    def _apply(self, action) -> float:
-        """Checks and applies `action` (the law's commands); returns the time (s) to advance to."""
-        a = check_action(action, self.action_space)
+    def _apply(self, action, checked: bool = False) -> float:
+        """Checks and applies `action` (the law's commands; `checked`: a float64 array of the space already
+        checked, the environment's own); returns the time (s) to advance to."""
+        a = action if checked else check_action(action, self.action_space)
         sim = self.sim
         if self._failure is not None:      # the approach or grasp failed: nothing to advance
             return sim.time
@@ -266,7 +267,7 @@ class DualCarryEnv(gym.Env):
         law.squeeze = float(a[3])
         law.load_share = float(a[4])
         law.offset = a[:3]
-        self.commands = a.copy()
+        self.commands = a
         if self._push_window is not None:   # on over the periods that start within the push's window
             lo, hi, force = self._push_window
             t = sim.time
@@ -349,6 +350,7 @@ class DualCarryEnv(gym.Env):
         flat = clip(flat)
         self._planned = (math.cos(yaw), math.sin(yaw), p)
         self._flat = flat.tolist()
+        self._obs_flat = flat           # the observation's parts are views of it (the vector env stacks it)
         return {name: flat[k:k + n].reshape(shape) for name, shape, k, n in self._layout}
 
     def _terms(self) -> dict:

@@ -109,9 +109,10 @@ class ReachEnv(gym.Env):
         self._done = False
         self._tau = np.zeros(self.robot.dof)
 
-    def _apply(self, action) -> float:
-        """Checks and applies `action`; returns the time (s) the engine is to advance to."""
-        a = check_action(action, self.action_space)
+    def _apply(self, action, checked: bool = False) -> float:
+        """Checks and applies `action` (`checked`: a float64 array of the space already checked, the
+        environment's own); returns the time (s) the engine is to advance to."""
+        a = action if checked else check_action(action, self.action_space)
         self._ik_failed = False
         if self.mode == "torque":
             self.sim.set_applied(0, forces=a)

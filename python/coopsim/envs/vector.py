@@ -118,15 +118,20 @@ class CoopsimVectorEnv(VectorEnv):
 
     def step(self, actions):
         n = self.num_envs
-        acts = list(iterate(self.action_space, actions)) if not isinstance(actions, (list, tuple)) \
-            else list(actions)
-        if len(acts) != n:
-            raise ValueError(f"actions must hold one action per environment ({n}), got {len(acts)}")
         resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(n, dtype=bool)
-        for i in range(n):           # every action checked before any is applied
-            if not resetting[i]:
-                check_action(acts[i], self.single_action_space, f"actions[{i}]")
+        space = self.action_space
+        checked = (type(actions) is np.ndarray and actions.dtype == np.float64 and actions.shape == space.shape
+                   and bool(((actions >= space.low) & (actions <= space.high)).all()))
+        if checked:                  # the common case: all in their space, checked in one pass; rows of a copy
+            acts = list(actions.copy())
+        else:
+            acts = list(iterate(space, actions)) if not isinstance(actions, (list, tuple)) else list(actions)
+            if len(acts) != n:
+                raise ValueError(f"actions must hold one action per environment ({n}), got {len(acts)}")
+            for i in range(n):       # every action checked before any is applied
+                if not resetting[i]:
+                    check_action(acts[i], self.single_action_space, f"actions[{i}]")
         rewards = np.zeros(n)
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
@@ -142,7 +147,7 @@ class CoopsimVectorEnv(VectorEnv):
             t_next = {}
             for i in part:
                 if not resetting[i]:
-                    t_next[i] = self.envs[i]._apply(acts[i])
+                    t_next[i] = self.envs[i]._apply(acts[i], checked)
             return t_next
 
         def engine(part, t_next):    # the engine: the part's simulations in one call per end time, then
@@ -248,6 +253,12 @@ class CoopsimVectorEnv(VectorEnv):
         np.stack per key, what gymnasium's concatenate and a copy give."""
         obs = self._env_obs
         if isinstance(obs[0], dict):
+            flats = [getattr(env, "_obs_flat", None) for env in self.envs]
+            layout = getattr(self.envs[0], "_layout", None)
+            if layout is not None and all(f is not None and o[layout[0][0]].base is f for o, f in zip(obs, flats)):
+                # each observation's parts are views of one flat array (the carry's): one stack, views of it
+                whole, n = np.stack(flats), self.num_envs
+                return {name: whole[:, k:k + size].reshape(n, *shape) for name, shape, k, size in layout}
             return {k: np.stack([o[k] for o in obs]) for k in self.single_observation_space.spaces}
         return np.stack(obs)
 
