@@ -82,7 +82,7 @@ from ..tasks.carry.constants import PLACE_TOL, PLACE_TOL_ANGLE, STAND_FRICTION
 from ..tasks.carry.disturbances import Disturbances
 from ..tasks.carry.disturbances import disturbances as _disturbances
 from ..tasks.carry.sequence import CarryError, _Runner
-from ._common import DT, Frames, bounded, check_action, check_render_mode, clip, control_period
+from ._common import BOUND, DT, Frames, bounded, check_action, check_render_mode, clip, control_period
 
 __all__ = ["DualCarryEnv"]
 
@@ -347,11 +347,15 @@ class DualCarryEnv(gym.Env):
         f = 2.0 if nv < 1e-300 else 2.0 * math.atan2(nv, w) / nv
         flat[_ERROR:_ERROR + 6] = (p[0] - px, p[1] - py, p[2] - pz, f * vx, f * vy, f * vz)
         flat[-1] = min(1.0, max(0.0, (t - self.t0) / max(self.t_end - self.t0, 1e-12)))
-        flat = clip(flat)
+        values = flat.tolist()
+        if not (math.isfinite(sum(values)) and -BOUND <= min(values) and max(values) <= BOUND):
+            flat = clip(flat)           # a state beyond the bound or not finite (a run that diverged): clipped
+            values = flat.tolist()
         self._planned = (math.cos(yaw), math.sin(yaw), p)
-        self._flat = flat.tolist()
+        self._flat = values
         self._obs_flat = flat           # the observation's parts are views of it (the vector env stacks it)
-        return {name: flat[k:k + n].reshape(shape) for name, shape, k, n in self._layout}
+        return {name: flat[k:k + n] if len(shape) == 1 else flat[k:k + n].reshape(shape)
+                for name, shape, k, n in self._layout}
 
     def _terms(self) -> dict:
         """The reward's terms from the last observation: each arm's task and share terms and the internal-force
