@@ -347,10 +347,9 @@ class DualCarryEnv(gym.Env):
         f = 2.0 if nv < 1e-300 else 2.0 * math.atan2(nv, w) / nv
         flat[_ERROR:_ERROR + 6] = (p[0] - px, p[1] - py, p[2] - pz, f * vx, f * vy, f * vz)
         flat[-1] = min(1.0, max(0.0, (t - self.t0) / max(self.t_end - self.t0, 1e-12)))
-        values = flat.tolist()
-        if not (math.isfinite(sum(values)) and -BOUND <= min(values) and max(values) <= BOUND):
+        if not flat.dot(flat) <= BOUND * BOUND:    # |x_i| <= |x| <= BOUND, and False for NaN or inf
             flat = clip(flat)           # a state beyond the bound or not finite (a run that diverged): clipped
-            values = flat.tolist()
+        values = flat.tolist()
         self._planned = (math.cos(yaw), math.sin(yaw), p)
         self._flat = values
         self._obs_flat = flat           # the observation's parts are views of it (the vector env stacks it)
