@@ -95,26 +95,32 @@ py::array_t<double> checked_pose(const Eigen::Isometry3d& T, const char* what) {
   return to_numpy(T);
 }
 
-py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
+// Ts checked finite and written row-major into p (16 doubles each): no Python, callable without the GIL
+void write_poses(const std::vector<Eigen::Isometry3d>& Ts, double* p) {
   for (const auto& T : Ts)
     if (!T.matrix().allFinite()) throw py::value_error("frames: result is not finite for this input (values out of range?)");
-  py::array_t<double> out({static_cast<py::ssize_t>(Ts.size()), py::ssize_t(4), py::ssize_t(4)});
-  double* p = out.mutable_data();
   for (size_t i = 0; i < Ts.size(); ++i)
     Eigen::Map<Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(p + 16 * i) = Ts[i].matrix();
+}
+
+py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
+  py::array_t<double> out({static_cast<py::ssize_t>(Ts.size()), py::ssize_t(4), py::ssize_t(4)});
+  write_poses(Ts, out.mutable_data());
   return out;
 }
 
-// Robot.poses_of_states for q (N, n): (N, 4, 4), or (N, k, 4, 4) of the k boxes
+// Robot.poses_of_states for q (N, n): (N, 4, 4), or (N, k, 4, 4) of the k boxes; the poses computed, checked and
+// written into the array with the GIL released
 py::array_t<double> poses_of_states(const Robot& r, const py::object& q, bool boxes) {
   Arr Q = array(q, {-1, r.dof()}, "q");
+  std::vector<py::ssize_t> shape{Q.shape(0), py::ssize_t(4), py::ssize_t(4)};
+  if (boxes) shape.insert(shape.begin() + 1, static_cast<py::ssize_t>(r.boxes().size()));
+  py::array_t<double> out(shape);
+  double* p = out.mutable_data();
+  coopsim::py_nogil::NoGil nogil;
   std::vector<Eigen::Isometry3d> T;
-  {
-    coopsim::py_nogil::NoGil nogil;
-    r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), boxes, T);
-  }
-  py::array_t<double> out = poses(T);
-  if (boxes) out.resize({Q.shape(0), static_cast<py::ssize_t>(r.boxes().size()), py::ssize_t(4), py::ssize_t(4)});
+  r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), boxes, T);
+  write_poses(T, p);
   return out;
 }
 

@@ -380,11 +380,13 @@ torques between controller updates, the log and tracking metrics.)doc")
              s.advance(n);
            }, py::arg("n"), doc_Simulation_advance)
       .def("run", [](Simulation& s, double t_end, const py::object& callback, long chunk) {
+             coopsim::py_nogil::NoGil nogil;  // the log's reserve copies its rows: without the GIL too
              long total = 0;
              try {
                total = s.steps_until(t_end);
                s.reserve(total);
              } catch (const std::bad_alloc&) {
+               coopsim::py_nogil::GilAgain gil;
                const long rows = s.options().log_every > 0 ? total / s.options().log_every : 0;
                PyErr_SetString(PyExc_MemoryError,
                                ("no memory for a log of " + std::to_string(rows) + " rows (" +
@@ -399,7 +401,6 @@ torques between controller updates, the log and tracking metrics.)doc")
                if (!callback.is_none()) callback(done, all);
                return true;
              };
-             coopsim::py_nogil::NoGil nogil;
              return s.run(t_end, chunk, between);
            },
            py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096, doc_Simulation_run)

@@ -13,6 +13,7 @@ world (what ``Robot.fk`` returns). Units: m, rad, s.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -96,16 +97,19 @@ def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
     s = np.atleast_1d(np.asarray(s, dtype=float))
     if mode not in ("geodesic", "clamp"):
         raise ValueError(f"mode must be 'geodesic' or 'clamp', got {mode!r}")
-    if ((s == 0.0) | (s == 1.0)).all():      # the end poses themselves (plan_cartesian's knots without poses between)
-        return np.where((s == 1.0)[:, None, None], T1, T0)
+    at0, at1 = s == 0.0, s == 1.0
+    ends = at0 | at1
+    if ends.all():      # the end poses themselves (plan_cartesian's knots without poses between)
+        return np.where(at1[:, None, None], T1, T0)
     R0, R1 = T0[:3, :3], T1[:3, :3]
     if mode == "geodesic":
         w = _log_so3(R0.T @ R1)
         R = R0 @ _exp_so3_many(s[:, None] * w)
     elif mode == "clamp":
-        # yaw: turn of the jaw axis about the vertical; pitch: what is left, about the jaw axis
-        y0, y1 = R0[:, 1], R1[:, 1]
-        dpsi = math.atan2(y0[0] * y1[1] - y0[1] * y1[0], y0[0] * y1[0] + y0[1] * y1[1])
+        # yaw: turn of the jaw axis about the vertical; pitch: what is left, about the jaw axis (the products
+        # and sums on the jaw axes' components as floats: the same operations as on numpy's scalars)
+        (a0, a1), (b0, b1) = R0[:2, 1].tolist(), R1[:2, 1].tolist()
+        dpsi = math.atan2(a0 * b1 - a1 * b0, a0 * b0 + a1 * b1)
         M = R0.T @ rotz(-dpsi) @ R1
         dphi = math.atan2(M[0, 2], M[0, 0])
         R = _rotz_many(s * dpsi) @ R0 @ _roty_many(s * dphi)
@@ -114,8 +118,9 @@ def interpolate_poses(T0, T1, s, mode: str = "geodesic") -> np.ndarray:
     out[:, 3, 3] = 1.0
     out[:, :3, :3] = R
     out[:, :3, 3] = (1.0 - s)[:, None] * T0[:3, 3] + s[:, None] * T1[:3, 3]
-    out[s == 0.0] = T0
-    out[s == 1.0] = T1
+    if ends.any():
+        out[at0] = T0
+        out[at1] = T1
     return out
 
 
@@ -157,10 +162,22 @@ _TIME_LAWS = {
 }
 
 
+@functools.lru_cache(maxsize=64)
+def _fractions(intermediate: int, time_law: str):
+    """plan_cartesian's fractions of a segment's time at its knots, s (intermediate + 2,) evenly spaced in
+    [0, 1], the fractions of the way there (the time law's), and 1 minus those (read-only arrays, made once)."""
+    s = np.linspace(0.0, 1.0, intermediate + 2)
+    way = _TIME_LAWS[time_law](s)
+    rest = 1.0 - way
+    for a in (s, way, rest):
+        a.flags.writeable = False
+    return s, way, rest
+
+
 def _poses_arg(poses) -> np.ndarray:
     if isinstance(poses, (list, tuple)):
         for i, T in enumerate(poses):
-            shape = np.shape(T)
+            shape = T.shape if isinstance(T, np.ndarray) else np.shape(T)
             if shape != (4, 4):
                 raise ValueError(f"wrong shape for poses[{i}]: expected (4, 4), got {shape}")
     try:
@@ -171,7 +188,7 @@ def _poses_arg(poses) -> np.ndarray:
         P = P[None]
     if P.ndim != 3 or P.shape[1:] != (4, 4):
         raise ValueError(f"wrong shape for poses: expected (N, 4, 4), got {np.shape(poses)}")
-    if not np.all(np.isfinite(P)):
+    if not np.isfinite(P).all():
         raise ValueError("poses must be finite (got NaN or inf)")
     return P
 
@@ -213,51 +230,62 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
     the pose that cannot be reached, ValueError on bad input.
     """
     P = _poses_arg(poses)
-    t = CubicTrajectory(times, np.zeros(np.shape(times)[:1])).times  # the engine checks the times
+    # the engine checks the times
+    t = CubicTrajectory(times, np.zeros(len(times) if isinstance(times, (list, tuple)) else np.shape(times)[:1])).times
     if len(P) != len(t):
         raise ValueError(f"poses and times must have the same length: got {len(P)} poses and {len(t)} times")
     if isinstance(intermediate, bool) or int(intermediate) != intermediate or intermediate < 0:
         raise ValueError(f"intermediate must be an integer >= 0, got {intermediate!r}")
     intermediate = int(intermediate)
     N = len(t)
-    mode = "clamp" if robot.ik_kind is not None else "geodesic"
+    kind = robot.ik_kind
+    mode = "clamp" if kind is not None else "geodesic"
     if opening is not None:
         if robot.clamp is None:
             raise ValueError(f"opening applies to a robot with a clamp; robot '{robot.name}' has none "
                              f"(cs.robots.add_clamp puts one on)")
-        op = np.broadcast_to(np.asarray(opening, dtype=float), (N,)) if np.ndim(opening) == 0 else \
-            np.asarray(opening, dtype=float)
+        op = np.asarray(opening, dtype=float)
+        if op.ndim == 0:
+            op = np.full(N, op)
         if op.shape != (N,):
             raise ValueError(f"wrong shape for opening: expected a scalar or ({N},), got {op.shape}")
-        if not np.all(np.isfinite(op)):
+        if not np.isfinite(op).all():
             raise ValueError("opening must be finite")
     else:
         op = None
     if q_start is not None:
         q_start = np.asarray(q_start, dtype=float)
-        if q_start.shape != (robot.dof,) or not np.all(np.isfinite(q_start)):
+        if q_start.shape != (robot.dof,) or not np.isfinite(q_start).all():
             raise ValueError(f"wrong shape for q_start: expected ({robot.dof},) finite, got {q_start.shape}")
 
     # knots: the given poses plus straight-line poses between them, at evenly spaced times and at the
     # fractions of the way the time law gives
     if time_law not in _TIME_LAWS:
         raise ValueError(f"time_law must be one of {', '.join(map(repr, _TIME_LAWS))}, got {time_law!r}")
-    knot_t, knot_T, knot_op, given = [], [], [], []
-    s = np.linspace(0.0, 1.0, intermediate + 2)
-    way = _TIME_LAWS[time_law](s)
-    for k in range(N - 1):
-        seg = P[k:k + 1] if intermediate == 0 else interpolate_poses(P[k], P[k + 1], way[:-1], mode)
-        for j, sj in enumerate(s[:-1]):
-            knot_t.append(t[k] + sj * (t[k + 1] - t[k]))
-            knot_T.append(seg[j])
-            knot_op.append(None if op is None else (1.0 - way[j]) * op[k] + way[j] * op[k + 1])
-            given.append(j == 0)
-    knot_t.append(t[-1])
-    knot_T.append(P[-1])
-    knot_op.append(None if op is None else op[-1])
-    given.append(True)
+    # (segment k, knot j of it: t[k] + s_j (t[k+1] - t[k]), the opening (1 - w_j) op[k] + w_j op[k+1]), all
+    # segments' knots at once, then the last pose's
+    s, way, rest = _fractions(intermediate, time_law)
+    K = (N - 1) * (intermediate + 1) + 1
+    knot_t = np.empty(K)
+    knot_t[:-1] = (t[:-1, None] + s[:-1] * (t[1:] - t[:-1])[:, None]).ravel()
+    knot_t[-1] = t[-1]
+    if intermediate == 0:
+        knot_T = P.copy()
+    else:
+        knot_T = np.empty((K, 4, 4))
+        for k in range(N - 1):
+            knot_T[k * (intermediate + 1):(k + 1) * (intermediate + 1)] = interpolate_poses(P[k], P[k + 1], way[:-1],
+                                                                                            mode)
+        knot_T[-1] = P[-1]
+    if op is None:
+        knot_op = None
+    else:
+        knot_op = np.empty(K)
+        knot_op[:-1] = (rest[:-1] * op[:-1, None] + way[:-1] * op[1:, None]).ravel()
+        knot_op[-1] = op[-1]
+    given = [j == 0 for _ in range(N - 1) for j in range(intermediate + 1)] + [True]
 
-    analytic = robot.ik_kind is not None and method in ("auto", "analytic")
+    analytic = kind is not None and method in ("auto", "analytic")
     if branch is not None and not analytic:
         raise ValueError("branch applies to the closed-form IK (SCARA robots, method 'auto' or 'analytic')")
     # every knot in one engine call: each solved near the one before; a numeric solver kept to the previous knot's
@@ -266,7 +294,7 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
     options = dict(ik_options)
     restarts = options.pop("restarts", 10)
     Q, first_branch, failed, error = robot.ik_path(
-        np.array(knot_T), openings=None if op is None else np.array(knot_op, dtype=float), q_start=q_start,
+        knot_T, openings=knot_op, q_start=q_start,
         branch=branch, method=method, keep_branch=keep_branch, restarts=restarts,
         later_restarts=0 if local else restarts, **options)
     if failed is not None:
@@ -278,8 +306,8 @@ def plan_cartesian(robot: Robot, poses, times, *, opening=None, q_start=None, br
                 "a solution on another branch would flip the arm between the knots. Move the path, add "
                 "poses, or pass keep_branch=False to allow the jump)") if local and i > 0 else ""
         raise IKError(f"{which}{extra}: {error}{hint}")
-    traj = CubicTrajectory(np.array(knot_t), Q, spline=spline, qd_start=qd_start, qd_end=qd_end)
+    traj = CubicTrajectory(knot_t, Q, spline=spline, qd_start=qd_start, qd_end=qd_end)
     if info:
-        return traj, dict(times=np.array(knot_t), poses=np.array(knot_T), q_points=Q,
+        return traj, dict(times=knot_t, poses=knot_T, q_points=Q,
                           given=np.array(given), branch=first_branch)
     return traj

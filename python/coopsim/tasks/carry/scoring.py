@@ -4,6 +4,7 @@ clamps do to the bar together (the engine's cooperation columns: squeeze, intern
 relative pose error) and every grasp and contact event."""
 from __future__ import annotations
 
+import math
 from typing import List
 
 import numpy as np
@@ -41,11 +42,12 @@ def clamp_link_frames(robot, q) -> np.ndarray:
     return robot.fk(q) @ O
 
 
-def weld_stretch(robot, q, bar_poses, anchor) -> np.ndarray:
+def weld_stretch(robot, q, bar_poses, anchor, frames=None) -> np.ndarray:
     """The weld's stretch (m) per row: the distance between its point carried by the clamp's link (at joint
     positions q (rows, n)) and carried by the bar (poses (rows, 4, 4)); anchor: the point in both
-    (``{'link': (3,), 'body': (3,)}``, recorded at the grasp). The clamp rule lets go beyond 5 mm."""
-    F = clamp_link_frames(robot, q)
+    (``{'link': (3,), 'body': (3,)}``, recorded at the grasp). The clamp rule lets go beyond 5 mm. frames: the
+    clamp's link frames at q when the caller has them (:func:`clamp_link_frames`)."""
+    F = clamp_link_frames(robot, q) if frames is None else frames
     by_link = F[:, :3, :3] @ anchor["link"] + F[:, :3, 3]
     by_body = bar_poses[:, :3, :3] @ anchor["body"] + bar_poses[:, :3, 3]
     return np.linalg.norm(by_link - by_body, axis=1)
@@ -69,11 +71,13 @@ def score(runner, report: dict) -> dict:
     carried = both & (t >= plan.steps["lift"][0]) & (t <= plan.steps["place"][1])
     weld = np.stack([rl.weld for rl in log.robots], axis=1)
     stretch = np.zeros((len(t), 2))
+    frames = [None, None]   # each clamp's link frames over the rows it holds (the stretch's and the weld points')
     for i, (r, rl) in enumerate(zip(robots, log.robots)):
         a = runner.anchors[i]
         if a is not None and holding[:, i].any():
             rows = np.flatnonzero(holding[:, i])
-            stretch[rows, i] = weld_stretch(r, rl.q[rows], bar[rows], a)
+            frames[i] = (rows, clamp_link_frames(r, rl.q[rows]))
+            stretch[rows, i] = weld_stretch(r, rl.q[rows], bar[rows], a, frames[i][1])
     shapes = [r.shapes(rl.q) for r, rl in zip(robots, log.robots)]
     d_rr = shape_clearances(shapes[0][0], list(robots[0].boxes), shapes[1][0], list(robots[1].boxes))[0]
     # the tool's tracking error with the jaw where it is (closed on the bar the jaw stops at the bar's width,
@@ -106,41 +110,50 @@ def score(runner, report: dict) -> dict:
     # ---- the two clamps together: the engine's cooperation columns (SimulationLog.cooperation) ----
     co = log.cooperation(0, 1)
     pair = co["holding"] & (co["body"] == scene.BAR) & carried   # as the bar's pose: lift, carry, place
-    airborne = pair & ~_touching_stands(log.contacts, t)
+    grasps, contacts = _events(runner.sim)
+    airborne = pair & ~_touching_stands(contacts, t)
     s["cooperation"] = cooperation_scores(co, pair, airborne, report.get("commanded"))
     k = np.flatnonzero(np.isfinite(d_rr))
     j = k[np.argmin(d_rr[k])] if len(k) else 0
     s["clearance_robots"] = dict(min=float(d_rr[j]), t=float(t[j])) if len(k) else None
-    g = log.grasps
-    s["grasp_events"] = [dict(t=float(e.t), robot=int(e.robot), body=e.body, event=e.event, reason=e.reason)
-                         for e in g.itertuples()]
-    c = log.contacts
-    s["contact_events"] = [dict(a=x.a, b=x.b, kind=x.kind, begin=float(x.begin),
-                                end=None if np.isnan(x.end) else float(x.end), peak_force=float(x.peak_force))
-                           for x in c.itertuples()]
+    s["grasp_events"] = [dict(t=float(t_), robot=int(robot), body=body, event=event, reason=reason)
+                         for t_, robot, body, event, reason in zip(grasps["t"].tolist(), grasps["robot"], grasps["body"],
+                                                                   grasps["event"], grasps["reason"])]
+    s["contact_events"] = [dict(a=a, b=b, kind=kind, begin=float(begin), end=None if math.isnan(end) else float(end),
+                                peak_force=float(peak))
+                           for a, b, kind, begin, end, peak in zip(contacts["a"], contacts["b"], contacts["kind"],
+                                                                   contacts["begin"].tolist(), contacts["end"].tolist(),
+                                                                   contacts["peak_force"].tolist())]
     report["scores"] = s
     weld_points = np.full((len(t), 2, 3), np.nan)
     for i, r in enumerate(robots):
         a = runner.anchors[i]
-        if a is not None:
-            rows = np.flatnonzero(holding[:, i])
-            if len(rows):
-                F = clamp_link_frames(r, log.robots[i].q[rows])
-                weld_points[rows, i] = F[:, :3, :3] @ a["link"] + F[:, :3, 3]
+        if a is not None and frames[i] is not None:
+            rows, F = frames[i]
+            weld_points[rows, i] = F[:, :3, :3] @ a["link"] + F[:, :3, 3]
     return dict(t=t, bar=bar, bar_planned=planned, position_error=pos_err, angle_error=ang_err, weld=weld,
                 weld_points=weld_points, weld_stretch=stretch, holding=holding, carried=carried,
                 tau=[rl.tau for rl in log.robots], clearance_robots=d_rr, tool_error=tcp_err, cooperation=co,
                 pair=pair, airborne=airborne)
 
 
+def _events(sim):
+    """The run's grasp and contact events as the engine keeps them (Simulation.grasp_events and
+    contact_events: time arrays and lists per column), without a table."""
+    if sim.world is None:
+        return (dict(t=np.zeros(0), robot=[], body=[], event=[], reason=[]),
+                dict(a=[], b=[], kind=[], begin=np.zeros(0), end=np.zeros(0), peak_force=np.zeros(0)))
+    return sim.grasp_events(), sim.contact_events()
+
+
 def _touching_stands(contacts, t) -> np.ndarray:
     """(rows,) bool: the bar touches a stand at the log's times t (its contact events with the stands, an
-    event's end NaN while it lasts)."""
+    event's end NaN while it lasts; contacts: Simulation.contact_events' columns)."""
     out = np.zeros(len(t), bool)
-    for x in contacts.itertuples():
-        other = x.b if x.a == scene.BAR else x.a if x.b == scene.BAR else None
+    for a, b, begin, end in zip(contacts["a"], contacts["b"], contacts["begin"].tolist(), contacts["end"].tolist()):
+        other = b if a == scene.BAR else a if b == scene.BAR else None
         if other is not None and "stand" in other:
-            out |= (t >= x.begin) & (t <= (np.inf if np.isnan(x.end) else x.end))
+            out |= (t >= begin) & (t <= (np.inf if math.isnan(end) else end))
     return out
 
 
