@@ -13,11 +13,14 @@ loaded from the same URDF by both. Rows per robot, at the same random states:
 
 Before anything is timed each pair is compared at the timed states (Pinocchio's results with the
 robot's friction added, its armature set alike): a pair that disagrees by more than 1e-9 relative gets
-no ratio. Each figure is the median over repeats, the calls interleaved; ratios (Pinocchio's time over
-coopsim's: > 1 means coopsim is faster) are taken within this run. The last lines set the figures
-beside the targets (the generated SCARAs at most 1.5 µs per call, faster than Pinocchio on every robot,
-the batch at most 0.5 µs per state): printed, never asserted. On a shared machine the absolute figures
-move with the load (printed first); the ratios less so.
+no ratio. Each function is warmed up, then timed in repeats interleaved with the others' (so that a
+change of the machine's speed touches all alike), and each figure is the best repeat: on a shared
+machine the other loads only ever slow a repeat down. Ratios (Pinocchio's time over coopsim's: > 1
+means coopsim is faster) are taken within this run. The last lines set the figures beside the targets
+(the generated SCARAs at most 1.5 µs per call, faster than Pinocchio on every robot, the batch at most
+0.5 µs per state): printed, never asserted. The absolute figures move with the machine and its load
+(printed first); the ratios less so, and the instruction counts (callgrind) not at all: those are in
+docs/planning-and-control.md, with how they are counted.
 
     python benchmarks/bench_derivatives.py [--quick]
 """
@@ -108,8 +111,12 @@ def agree(pin, robot, model, data, sts):
     return worst
 
 
-def interleaved(fns, calls, repeats):
-    """Median µs per call of each function, the functions timed in turn in each repeat."""
+def interleaved(fns, calls, repeats, warmup=None):
+    """Best µs per call of each function over the repeats, the functions timed in turn in each repeat,
+    after `warmup` calls of each (default: a tenth of `calls`, at least one)."""
+    for fn in fns:
+        for _ in range(max(1, calls // 10) if warmup is None else warmup):
+            fn()
     times = [[] for _ in fns]
     for _ in range(repeats):
         for i, fn in enumerate(fns):
@@ -117,14 +124,14 @@ def interleaved(fns, calls, repeats):
             for _ in range(calls):
                 fn()
             times[i].append((time.perf_counter() - t0) / calls * 1e6)
-    return [float(np.median(t)) for t in times]
+    return [float(np.min(t)) for t in times]
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer calls and repeats")
     args = ap.parse_args(argv)
-    calls, repeats, N = (500, 3, 2000) if args.quick else (5000, 7, 20000)
+    calls, repeats, N = (500, 3, 2000) if args.quick else (2000, 25, 20000)
     try:
         import pinocchio as pin
     except ImportError:
@@ -154,8 +161,8 @@ def main(argv=None):
         ], calls, repeats)
         big = states(robot, N, seed=1)
         Q, QD, TAU = (np.array([s[i] for s in big]) for i in (0, 1, 3))
-        batch = min(interleaved([lambda: cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU, threads=1)],
-                                1, max(3, repeats // 2))) * 1e3 / N
+        batch = interleaved([lambda: cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU, threads=1)],
+                            1, max(3, repeats // 2), warmup=1)[0] * 1e3 / N
         ok = worst <= 1e-9
         r_fd = f"{fd_pin / fd_ours:8.2f}" if ok else "       -"
         r_id = f"{id_pin / id_ours:8.2f}" if ok else "       -"
@@ -175,6 +182,8 @@ def main(argv=None):
           f" (ratios {min(r[4] / r[2] for r in rows):.2f} to {max(r[4] / r[2] for r in rows):.2f})")
     print("  batch on one thread <= 0.5 µs per state: " +
           ", ".join(f"{r[0]} {r[5] / 1e3:.2f}" for r in rows))
+    print("instruction counts of these calls (callgrind, load-independent): docs/planning-and-control.md, "
+          "'Linear models: the dynamics' derivatives'")
     return 0
 
 

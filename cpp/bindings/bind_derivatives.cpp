@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -41,7 +42,7 @@ const double* ptr(const VecN& v) { return v.size() ? v.data() : nullptr; }
 // The data of `obj` when it is a float64 (native byte order), aligned, C-contiguous numpy array of shape
 // (rows,) (cols = 0) or (rows, cols), writeable if asked; null otherwise.
 double* direct(const py::handle& obj, py::ssize_t rows, py::ssize_t cols, bool writeable) {
-  const auto& api = py::detail::npy_api::get();
+  static const auto& api = py::detail::npy_api::get();
   if (!api.PyArray_Check_(obj.ptr())) return nullptr;
   const auto* a = py::detail::array_proxy(obj.ptr());
   const auto* d = py::detail::array_descriptor_proxy(a->descr);
@@ -75,23 +76,23 @@ class VecArg {
   const double* p_;
 };
 
-// m (column-major) into numpy's row-major (n, n) at p
-void write_rows(const MatN& m, double* p) {
-  const Eigen::Index n = m.rows();
-  for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index j = 0; j < n; ++j) p[i * n + j] = m(i, j);
+// the three matrices (column-major) into numpy's row-major (n, n) layout, one after the other at p
+void write_rows(const MatN& a, const MatN& b, const MatN& c, double* p) {
+  const Eigen::Index n = a.rows();
+  for (const MatN* m : {&a, &b, &c})
+    for (Eigen::Index k = 0; k < n * n; ++k) *p++ = (*m)(k / n, k % n);
 }
 
-// A new (n, n) float64 array of m, made by numpy's own constructor (no shape containers on the way).
-py::object new_matrix(const MatN& m) {
-  const auto& api = py::detail::npy_api::get();
-  Py_intptr_t dims[2] = {m.rows(), m.cols()};
+// A new (n, n) float64 array of the row-major values at src, made by numpy's own constructor.
+PyObject* new_matrix(const double* src, Py_intptr_t n) {
+  static const auto& api = py::detail::npy_api::get();
+  Py_intptr_t dims[2] = {n, n};
   PyObject* descr = api.PyArray_DescrFromType_(py::detail::npy_api::NPY_DOUBLE_);
-  if (!descr) throw py::error_already_set();
-  PyObject* arr = api.PyArray_NewFromDescr_(api.PyArray_Type_, descr, 2, dims, nullptr, nullptr, 0, nullptr);
+  PyObject* arr = descr ? api.PyArray_NewFromDescr_(api.PyArray_Type_, descr, 2, dims, nullptr, nullptr, 0, nullptr)
+                        : nullptr;
   if (!arr) throw py::error_already_set();
-  write_rows(m, reinterpret_cast<double*>(py::detail::array_proxy(arr)->data));
-  return py::reinterpret_steal<py::object>(arr);
+  std::memcpy(py::detail::array_proxy(arr)->data, src, sizeof(double) * n * n);
+  return arr;
 }
 
 // What an out= given is, in one line: "a tuple of 3: float64 (6, 6), float32 (6, 6) read-only, ..."
@@ -114,15 +115,28 @@ std::string describe_out(const py::object& out) {
   return s;
 }
 
-// The three results as new arrays, or written into `out` (three float64 C-contiguous writeable (n, n)
-// arrays, returned as a tuple); refused, with nothing written, when a result is not finite.
-py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object& out, const char* what) {
-  if (!a.allFinite() || !b.allFinite() || !c.allFinite())
+// whether the n values at p are finite: x - x is 0 for a finite x, NaN otherwise (in four lanes, vectorised)
+bool finite(const double* p, int n) {
+  double acc[4] = {0.0, 0.0, 0.0, 0.0};
+  int i = 0;
+  for (; i + 4 <= n; i += 4)
+    for (int j = 0; j < 4; ++j) acc[j] += p[i + j] - p[i + j];
+  for (; i < n; ++i) acc[0] += p[i] - p[i];
+  return acc[0] + acc[1] + acc[2] + acc[3] == 0.0;
+}
+
+// The three results (row-major (n, n) each, one after the other at rows) as new arrays, or copied into
+// `out` (three float64 C-contiguous writeable (n, n) arrays, returned as a tuple); refused, with nothing
+// written, when a result is not finite.
+py::object results(const double* rows, py::ssize_t n, const py::object& out, const char* what) {
+  const py::ssize_t nn = n * n;
+  if (!finite(rows, static_cast<int>(3 * nn)))
     throw py::value_error(std::string(what) + ": result is not finite for this input (values out of range?)");
-  if (out.is_none()) return py::reinterpret_steal<py::object>(PyTuple_Pack(3, new_matrix(a).ptr(),
-                                                                           new_matrix(b).ptr(),
-                                                                           new_matrix(c).ptr()));
-  const py::ssize_t n = a.rows();
+  if (out.is_none()) {
+    py::tuple t(3);
+    for (int i = 0; i < 3; ++i) PyTuple_SET_ITEM(t.ptr(), i, new_matrix(rows + i * nn, n));
+    return std::move(t);
+  }
   double* d[3] = {nullptr, nullptr, nullptr};
   PyObject* o = out.ptr();
   if (PyTuple_Check(o) && PyTuple_GET_SIZE(o) == 3)
@@ -135,16 +149,15 @@ py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object
                           shape + " (e.g. tuple(np.empty((3, " + std::to_string(n) + ", " + std::to_string(n) +
                           ")))), got " + describe_out(out));
   }
-  write_rows(a, d[0]);
-  write_rows(b, d[1]);
-  write_rows(c, d[2]);
+  for (int i = 0; i < 3; ++i) std::memcpy(d[i], rows + i * nn, sizeof(double) * nn);
   return PyTuple_Check(out.ptr()) ? out : py::object(py::tuple(out));
 }
 
-bool finite(const double* p, int n) {
-  for (int i = 0; i < n; ++i)
-    if (!std::isfinite(p[i])) return false;
-  return true;
+// MatN results in numpy's layout, then as results()
+py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object& out, const char* what) {
+  double rows[3 * kMaxDof * kMaxDof];
+  write_rows(a, b, c, rows);
+  return results(rows, a.rows(), out, what);
 }
 
 // Robot.forward_dynamics_derivatives(q, qd, tau[, out=]) of three float64 (n,) arrays by CPython's fast
@@ -157,16 +170,19 @@ PyObject* forward_fast(PyObject* self, PyObject* const* args, Py_ssize_t nargs, 
                         PyUnicode_CompareWithASCIIString(PyTuple_GET_ITEM(kwnames, 0), "out") == 0;
   if (nargs == 3 && (!kwnames || with_out)) {
     try {
-      const Robot& r = py::handle(self).cast<const Robot&>();
+      // self is a Robot (the method's descriptor checked it): its C++ object without pybind11's type lookup
+      static const py::detail::type_info* robot_type = py::detail::get_type_info(typeid(Robot));
+      const auto vh = reinterpret_cast<py::detail::instance*>(self)->get_value_and_holder(robot_type, false);
+      if (!vh || !vh.value_ptr()) throw std::invalid_argument("not a constructed Robot");
+      const Robot& r = *static_cast<const Robot*>(vh.value_ptr());
       const int n = r.dof();
       const double *q = direct(args[0], n, 0, false), *qd = direct(args[1], n, 0, false),
                    *tau = direct(args[2], n, 0, false);
       if (q && qd && tau && finite(q, n) && finite(qd, n) && finite(tau, n)) {
-        Workspace ws;
-        MatN a, b, c;
-        r.forward_dynamics_derivatives(q, qd, tau, {}, ws, a, b, c);
+        double rows[3 * kMaxDof * kMaxDof];
+        r.forward_dynamics_derivatives_rows(q, qd, tau, rows, rows + n * n, rows + 2 * n * n);
         const py::object out = with_out ? py::reinterpret_borrow<py::object>(args[3]) : py::none();
-        return results(a, b, c, out, "forward_dynamics_derivatives").release().ptr();
+        return results(rows, n, out, "forward_dynamics_derivatives").release().ptr();
       }
     } catch (...) {
     }

@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
 
@@ -89,8 +90,11 @@ std::shared_ptr<const GeneratedDynamics> load_generated_library(const std::strin
   g->solve = library_symbol<decltype(g->solve)>(h, path, "coopsim_gen_solve");
   // optional: emitted where the derivatives are tractable (the collected form)
   g->derivatives = reinterpret_cast<decltype(g->derivatives)>(dlsym(h, "coopsim_gen_derivatives"));
-  g->forward_derivatives =
-      reinterpret_cast<decltype(g->forward_derivatives)>(dlsym(h, "coopsim_gen_forward_derivatives"));
+  // its results row-major from generator 1.6.0 on (column-major before: left to the general path)
+  int major = 0, minor = 0;
+  if (std::sscanf(g->generator_version.c_str(), "%d.%d", &major, &minor) == 2 && (major > 1 || minor >= 6))
+    g->forward_derivatives =
+        reinterpret_cast<decltype(g->forward_derivatives)>(dlsym(h, "coopsim_gen_forward_derivatives"));
   g->forward_derivatives4 =
       reinterpret_cast<decltype(g->forward_derivatives4)>(dlsym(h, "coopsim_gen_forward_derivatives4"));
   return g;

@@ -374,8 +374,12 @@ void Robot::forward_dynamics_derivatives(const double* q, const double* qd, cons
     Minv.resize(n_, n_);
     if (qdd_out) qdd_out->resize(n_);
     if (generated_->forward_derivatives(gen_params_.data(), q, qd, t, dqdd_dq.data(), dqdd_dqd.data(), Minv.data(),
-                                        qdd_out ? qdd_out->data() : nullptr))
+                                        qdd_out ? qdd_out->data() : nullptr)) {
+      dqdd_dq.transposeInPlace();  // written row-major (numpy's layout)
+      dqdd_dqd.transposeInPlace();
+      Minv.transposeInPlace();
       return;
+    }
     // a pivot lost: the path below raises forward_dynamics' own error
   }
   if (!gen) kinematics(q, ws);
@@ -426,10 +430,23 @@ void Robot::forward_dynamics_derivatives(const double* q, const double* qd, cons
   if (qdd_out) *qdd_out = qdd;
 }
 
+void Robot::forward_dynamics_derivatives_rows(const double* q, const double* qd, const double* tau, double* dqdd_dq,
+                                              double* dqdd_dqd, double* Minv) const {
+  if (uses_generated() && generated_->derivatives && generated_->dynamics && generated_->forward_derivatives &&
+      generated_->forward_derivatives(gen_params_.data(), q, qd, tau, dqdd_dq, dqdd_dqd, Minv, nullptr))
+    return;
+  Workspace ws;
+  MatN a, b, c;
+  forward_dynamics_derivatives(q, qd, tau, {}, ws, a, b, c);
+  using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  RowMap(dqdd_dq, n_, n_) = a;
+  RowMap(dqdd_dqd, n_, n_) = b;
+  RowMap(Minv, n_, n_) = c;
+}
+
 void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, const double* QD, const double* TAU,
                                         int N, double* dqdd_dq, double* dqdd_dqd, double* dqdd_dtau, int threads) {
   const int n = robot.dof();
-  const std::vector<ExternalWrench> none;
   // generated code with the four-lane pass: four consecutive states at once, written straight into the
   // rows of the results; a state whose group of four cannot (the last ones, a pivot lost in a lane) by the
   // single-state path, which names it when it fails
@@ -443,11 +460,8 @@ void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, con
     gen->constants(p.data(), p.data() + base);
   }
   struct State {
-    Workspace ws;
-    MatN A, B, C;
     int done = 0;  // the states before this one are written (by a group of four)
   };
-  using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
   // as forward_dynamics_batch (batch_rows.hpp), in chunks of 64 states (a multiple of four: a group lies
   // in one chunk, done by one thread in order)
   detail::batch_rows(N, 64, threads, [] { return State(); }, [&](State& st, int i) {
@@ -458,10 +472,7 @@ void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, con
       st.done = i + 4;
       return;
     }
-    robot.forward_dynamics_derivatives(Q + o, QD + o, TAU + o, none, st.ws, st.A, st.B, st.C);
-    RowMap(dqdd_dq + oo, n, n) = st.A;
-    RowMap(dqdd_dqd + oo, n, n) = st.B;
-    RowMap(dqdd_dtau + oo, n, n) = st.C;
+    robot.forward_dynamics_derivatives_rows(Q + o, QD + o, TAU + o, dqdd_dq + oo, dqdd_dqd + oo, dqdd_dtau + oo);
   });
 }
 

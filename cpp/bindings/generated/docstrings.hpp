@@ -133,7 +133,8 @@ constexpr const char* doc_GeneratedDynamics_void = "k[0..constant_count) <- the 
 constexpr const char* doc_GeneratedDynamics_bool = "optional, with derivatives: the forward dynamics' derivatives at (q, qd, tau) in one straight-line\n"
     "pass (M and h, M's LDL^T factor, qdd = M^-1 (tau - h), the derivatives above at qdd, the 3n\n"
     "right-hand sides [-dtau_dq, -dtau_dqd, 1] solved with the same factor): dqdd_dq, dqdd_dqd, Minv\n"
-    "n x n column-major, qdd (n) unless null; false where a pivot is not above 1e-13 of M's diagonal\n"
+    "n x n row-major (numpy's layout; libraries of generators before 1.6.0 wrote them column-major and\n"
+    "are not given it), qdd (n) unless null; false where a pivot is not above 1e-13 of M's diagonal\n"
     "entry (forward_dynamics' rule: results undefined). forward_derivatives4: four states at once, one\n"
     "per lane of a vector, q, qd, tau (4, n) row-major and the results (4, n, n) row-major (numpy's)";
 constexpr const char* doc_kParamsPerLink = "Per link parameter block length and offsets into the parameter vector.";
@@ -586,6 +587,8 @@ constexpr const char* doc_Robot_forward_dynamics_derivatives = "The forward dyna
     "joint torques added to tau (held: no derivative), as forward_dynamics' tau_ext. Generated code\n"
     "(as inverse_dynamics_derivatives) gives qdd as forward_dynamics does and the derivatives there;\n"
     "out= as there.";
+constexpr const char* doc_Robot_forward_dynamics_derivatives_rows = "The same without wrenches, each result written row-major (numpy's (n, n) layout) at its pointer:\n"
+    "generated code writes them there directly (the call from Python and the batch).";
 constexpr const char* doc_RobotTables = "A robot as tables: the arguments of Robot.from_dh, documented here\n"
     "(Python's docstring too); an optional table left empty takes the default.";
 constexpr const char* doc_RobotTables_boxes = "none: the default boxes";

@@ -50,7 +50,8 @@ struct GeneratedDynamics {
   // optional, with derivatives: the forward dynamics' derivatives at (q, qd, tau) in one straight-line
   // pass (M and h, M's LDL^T factor, qdd = M^-1 (tau - h), the derivatives above at qdd, the 3n
   // right-hand sides [-dtau_dq, -dtau_dqd, 1] solved with the same factor): dqdd_dq, dqdd_dqd, Minv
-  // n x n column-major, qdd (n) unless null; false where a pivot is not above 1e-13 of M's diagonal
+  // n x n row-major (numpy's layout; libraries of generators before 1.6.0 wrote them column-major and
+  // are not given it), qdd (n) unless null; false where a pivot is not above 1e-13 of M's diagonal
   // entry (forward_dynamics' rule: results undefined). forward_derivatives4: four states at once, one
   // per lane of a vector, q, qd, tau (4, n) row-major and the results (4, n, n) row-major (numpy's)
   bool (*forward_derivatives)(const double* p, const double* q, const double* qd, const double* tau,

@@ -402,6 +402,10 @@ to the base frame's origin.)doc";
                                     const std::vector<ExternalWrench>& wrenches, Workspace& ws, MatN& dqdd_dq,
                                     MatN& dqdd_dqd, MatN& Minv, VecN* qdd = nullptr,
                                     const double* tau_ext = nullptr) const;
+  // The same without wrenches, each result written row-major (numpy's (n, n) layout) at its pointer:
+  // generated code writes them there directly (the call from Python and the batch).
+  void forward_dynamics_derivatives_rows(const double* q, const double* qd, const double* tau, double* dqdd_dq,
+                                         double* dqdd_dqd, double* Minv) const;
 
 
  private:

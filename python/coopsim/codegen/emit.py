@@ -9,6 +9,7 @@ sympy version give the same bytes.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import sympy as sp
@@ -149,14 +150,57 @@ static inline double coulomb_slope(double Fc, double qd, double vc) {
 #: has another ABI in each clone's target), the pivots' test.
 LANES = """\
 typedef double d4 __attribute__((vector_size(32)));  // four states, one per lane
+typedef long long i4 __attribute__((vector_size(32)));
 
+// sin_cos above in the four lanes at once, the same operations (the same results bit for bit); lane by
+// lane where one is out of its range
 static inline void sin_cos(const d4& x, d4& s, d4& c) {
-  for (int l = 0; l < 4; ++l) {
-    double sl, cl;
-    sin_cos(x[l], sl, cl);
-    s[l] = sl;
-    c[l] = cl;
+  const i4 small = (x < 1e5) & (x > -1e5);
+  if (!(small[0] & small[1] & small[2] & small[3])) {
+    for (int l = 0; l < 4; ++l) {
+      double sl, cl;
+      sin_cos(x[l], sl, cl);
+      s[l] = sl;
+      c[l] = cl;
+    }
+    return;
   }
+  const double shift = 6755399441055744.0;
+  const d4 y = x * 0.63661977236758134308 + shift;  // its low mantissa bits: the quadrant
+  const d4 n = y - shift;
+  const i4 quadrant = (i4)y & 3;
+  const d4 r = ((x - n * 1.57079632673412561417e+00) - n * 6.07710050630396597660e-11) -
+               n * 2.02226624871116645580e-21;
+  const d4 z = r * r, w = z * z;
+  const d4 ps = 8.33333333332248946124e-03 + z * (-1.98412698298579493134e-04 + z * 2.75573137070700676789e-06) +
+                z * w * (-2.50507602534068634195e-08 + z * 1.58969099521155010221e-10);
+  const d4 sr = r + z * r * (-1.66666666666666324348e-01 + z * ps);
+  const d4 pc = z * (4.16666666666666019037e-02 + z * (-1.38888888888741095749e-03 + z * 2.48015872894767294178e-05)) +
+                w * w * (-2.75573143513906633035e-07 + z * (2.08757232129817482790e-09 + z * -1.13596475577881948265e-11));
+  const d4 hz = 0.5 * z, one_hz = 1.0 - hz;
+  const d4 cr = one_hz + (((1.0 - one_hz) - hz) + z * pc);
+  // quadrant 0: (sr, cr), 1: (cr, -sr), 2: (-sr, -cr), 3: (-cr, sr): swapped when odd, signs by bit 1
+  const i4 odd = (quadrant & 1) != 0;
+  const i4 ss = ((i4)sr & ~odd) | ((i4)cr & odd);
+  const i4 cc = ((i4)cr & ~odd) | ((i4)sr & odd);
+  const i4 sign = (i4)(-d4{});  // -0.0: the sign bit alone
+  const i4 s_neg = ((quadrant & 2) != 0) & sign, c_neg = (((quadrant + 1) & 2) != 0) & sign;
+  const i4 so = ss ^ s_neg, co = cc ^ c_neg;
+  s = (d4)so;
+  c = (d4)co;
+}
+
+// a, b, c, d (entries k..k+3 of four states' matrices, one state per lane) as four rows of four: state
+// l's at out + l * stride
+static inline void store4(const d4& a, const d4& b, const d4& c, const d4& d, double* out, int stride) {
+  const d4 ab0 = __builtin_shuffle(a, b, i4{0, 4, 2, 6}), ab1 = __builtin_shuffle(a, b, i4{1, 5, 3, 7});
+  const d4 cd0 = __builtin_shuffle(c, d, i4{0, 4, 2, 6}), cd1 = __builtin_shuffle(c, d, i4{1, 5, 3, 7});
+  const d4 r0 = __builtin_shuffle(ab0, cd0, i4{0, 1, 4, 5}), r1 = __builtin_shuffle(ab1, cd1, i4{0, 1, 4, 5});
+  const d4 r2 = __builtin_shuffle(ab0, cd0, i4{2, 3, 6, 7}), r3 = __builtin_shuffle(ab1, cd1, i4{2, 3, 6, 7});
+  __builtin_memcpy(out, &r0, sizeof(d4));  // one unaligned store each
+  __builtin_memcpy(out + stride, &r1, sizeof(d4));
+  __builtin_memcpy(out + 2 * stride, &r2, sizeof(d4));
+  __builtin_memcpy(out + 3 * stride, &r3, sizeof(d4));
 }
 
 static inline void coulomb(double Fc, double qd, double vc, double& r) { r = Fc > 0.0 ? Fc*std::tanh(qd/vc) : 0.0; }
@@ -213,12 +257,27 @@ class _SharedCse:
         return [(sym, e) for sym, e in self.reps if sym in need]
 
 
-def _body(model: SymbolicModel, outputs, names, out_cse, scalar=None):
+def _trig_joints(model: SymbolicModel):
+    """[(joint, s symbol, c symbol, DH theta offset)] of every joint with sin/cos, in joint order: the
+    layout of the array sc (sc[2 k] = sin, sc[2 k + 1] = cos of the k-th) that dynamics_t fills and
+    derivatives_t reads, so that a pass through both computes each sin/cos once."""
+    out = []
+    for i in range(model.n):
+        syms = sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name)
+        if syms:
+            (c,), (sn,) = ([t for t in syms if t.name.startswith(k)] for k in ("c_", "s_"))
+            out.append((i, sn, c, model.trig[c][1]))
+    return out
+
+
+def _body(model: SymbolicModel, outputs, names, out_cse, scalar=None, trig="compute"):
     """Statements computing [(target, expr)]: sin/cos of the joints used, the parameter
     polynomials (kappa) used, read from p, then the outputs with kappa, sin/cos and qd as inputs.
     scalar="T": the body of a template on the state's scalar type T (double, or four states in the
     lanes of a vector): what depends on the state is a T, what depends on the parameters only a
-    double, an output of the parameters only is T{} + (...)."""
+    double, an output of the parameters only is T{} + (...). trig="export": sin/cos of every joint
+    computed and, when sc is not null, written into sc (_trig_joints' layout); "read": those used read
+    from sc."""
     exprs = [e for _, e in outputs]
     lanes = scalar is not None
     printer = _Printer(names, lanes=lanes)
@@ -232,16 +291,22 @@ def _body(model: SymbolicModel, outputs, names, out_cse, scalar=None):
     state = set(model.q) | set(model.qd) | set(model.qdd) | set(model.trig) | set(model.slides)
     st = scalar or "double"
     # sin and cos of each revolute joint used, together, once, in joint order
-    for i in range(model.n):
-        syms = sorted((s for s in model.trig if model.trig[s][0] == i), key=lambda s: s.name)
-        if not any(sym in used for sym in syms):
+    exported = []
+    for k, (i, sn, c, theta) in enumerate(_trig_joints(model)):
+        if trig == "read":
+            lines += [f"  const {st} {x.name} = sc[{2 * k + j}];" for j, x in enumerate((sn, c)) if x in used]
             continue
-        (c,), (sn,) = ([t for t in syms if t.name.startswith(k)] for k in ("c_", "s_"))
-        theta = model.trig[c][1]
+        if trig != "export" and sn not in used and c not in used:
+            continue
         arg = f"q[{i}]" if theta == 0.0 else f"q[{i}] + {repr(theta)}"
         lines.append(f"  {st} {sn.name}, {c.name};")
         lines.append(f"  sin_cos({arg}, {sn.name}, {c.name});")
-        ops += sum(sym in used for sym in syms)
+        exported += [f"sc[{2 * k}] = {sn.name};", f"sc[{2 * k + 1}] = {c.name};"]
+        ops += (sn in used) + (c in used)
+    if exported and trig == "export":
+        lines.append("  if (sc) {")
+        lines += ["    " + e for e in exported]
+        lines.append("  }")
     # displacement of each prismatic joint, offset included
     for sym, (i, d) in model.slides.items():
         if sym in used:
@@ -338,9 +403,9 @@ def emit_functions(model: SymbolicModel) -> list:
     for fname, sig in FUNCTIONS:
         if fname == "dynamics":
             # a template on the scalar type: the forward derivatives evaluate it on four states at once
-            body, ops = _body(model, outputs[fname], names, out_cse, scalar="T")
+            body, ops = _body(model, outputs[fname], names, out_cse, scalar="T", trig="export")
             template = (f"template <class T>\n{_INLINE} void dynamics_t(const double* p, const T* q, const T* qd, "
-                        f"T* M, T* h) {{\n{body}\n}}\n")
+                        f"T* M, T* h, T* sc = nullptr) {{\n{body}\n}}\n")
             out.append(EmittedFunction(fname, sig, "  dynamics_t(p, q, qd, M, h);", ops, template))
             continue
         body, ops = _body(model, outputs[fname], names, out_cse)
@@ -372,11 +437,18 @@ def emit_derivatives(model: SymbolicModel):
     # a template on the scalar type and on the layout of dtau_dq and dtau_dqd ([i RS + k CS]): the
     # forward derivatives write them into the rows they solve in place
     outputs = mat("dtau_dq", dq, True) + mat("dtau_dqd", dqd, True) + mat("M", M, False)
-    body, ops = _body(model, outputs, _names(model), _SharedCse([e for _, e in outputs], "x"), scalar="T")
-    template = (f"template <class T, int RS, int CS>\n{_INLINE} void derivatives_t(const double* p, const T* q, "
-                f"const T* qd, const T* qdd, T* dtau_dq, T* dtau_dqd, T* M) {{\n{body}\n}}\n")
-    return EmittedFunction(DERIVATIVES[0], DERIVATIVES[1],
-                           f"  derivatives_t<double, 1, {n}>(p, q, qd, qdd, dtau_dq, dtau_dqd, M);", ops, template)
+    body, ops = _body(model, outputs, _names(model), _SharedCse([e for _, e in outputs], "x"), scalar="T",
+                      trig="read")
+    # sin and cos of the joints (those dynamics_t computed, when the forward derivatives call both)
+    template = (f"template <class T, int RS, int CS>\n{_INLINE} void derivatives_t(const double* p, const T* sc, "
+                f"const T* q, const T* qd, const T* qdd, T* dtau_dq, T* dtau_dqd, T* M) {{\n{body}\n}}\n")
+    joints = _trig_joints(model)
+    entry = [f"  double {sn.name}, {c.name};\n  sin_cos({f'q[{i}]' if th == 0.0 else f'q[{i}] + {repr(th)}'}, "
+             f"{sn.name}, {c.name});" for i, sn, c, th in joints]
+    sc = ", ".join(f"{sn.name}, {c.name}" for _, sn, c, _ in joints)
+    entry.append(f"  const double sc[] = {{{sc}}};" if joints else "  const double* sc = nullptr;")
+    entry.append(f"  derivatives_t<double, 1, {n}>(p, sc, q, qd, qdd, dtau_dq, dtau_dqd, M);")
+    return EmittedFunction(DERIVATIVES[0], DERIVATIVES[1], "\n".join(entry), ops, template)
 
 
 #: the templates are inlined into each entry point (and so compiled for each target of its clones)
@@ -433,6 +505,52 @@ def _substitution_lines(n, L, row, scale, loop=""):
     return lines
 
 
+def _sparse_substitution_lines(n, L, nz, negate):
+    """The substitutions of _substitution_lines on the rows Z[i][c] of many right-hand sides (columns c),
+    each entry where it may not be zero only: nz[i] the columns where row i of the right-hand sides may
+    not be zero (structurally), followed through the sweeps (fill-in); each row's update over runs of
+    columns with the same rows to subtract, a loop each (vectorised across them). Scaled by -D^-1 on
+    the columns below `negate`, by D^-1 on the others."""
+    P = [set(nz[i]) for i in range(n)]
+    lines = []
+
+    def update(i, ks, coef):
+        by_col = {c: tuple(k for k in ks if c in P[k]) for c in sorted(set().union(*(P[k] for k in ks)))}
+        cols = [c for c in by_col if by_col[c]]
+        runs = []
+        for c in cols:
+            if runs and runs[-1][1] == c and by_col[runs[-1][0]] == by_col[c]:
+                runs[-1][1] = c + 1
+            else:
+                runs.append([c, c + 1])
+        for a, b in runs:
+            terms = " + ".join(f"{coef(k)}*Z[{k}][c]" for k in by_col[a])
+            lines.append(f"for (int c = {a}; c < {b}; ++c) Z[{i}][c] -= {terms};")
+        P[i] |= set(cols)
+
+    def scale(i):
+        for a, b, sign in ((0, negate, "-"), (negate, 3 * n, "")):
+            cols = sorted(c for c in P[i] if a <= c < b)
+            start = None
+            for j, c in enumerate(cols):
+                start = c if start is None else start
+                if j + 1 == len(cols) or cols[j + 1] != c + 1:
+                    lines.append(f"for (int c = {start}; c < {c + 1}; ++c) Z[{i}][c] *= {sign}r_{i};")
+                    start = None
+
+    for i in range(n):
+        ks = [k for k in range(i) if (i, k) in L]
+        if ks:
+            update(i, ks, lambda k: L[i, k])
+    for i in range(n):
+        scale(i)
+    for i in reversed(range(n)):
+        ks = [k for k in range(i + 1, n) if (k, i) in L]
+        if ks:
+            update(i, ks, lambda k: L[k, i])
+    return lines
+
+
 def emit_forward_derivatives(model: SymbolicModel):
     """The forward dynamics' derivatives in one straight-line pass, as two EmittedFunctions:
     ``forward_derivatives(p, q, qd, tau, dqdd_dq, dqdd_dqd, Minv, qdd)`` (one state; results n x n
@@ -447,29 +565,38 @@ def emit_forward_derivatives(model: SymbolicModel):
     W = 3 * n
     fac, L, ops = _ldl_lines(model, "T", "ok")
     sub_x = _substitution_lines(n, L, lambda i: f"x[{i}]", lambda i: [f"x[{i}] *= r_{i};"])
-    # the rows of the 3n columns, a loop over the columns each (vectorised across them); dtau/dq and
-    # dtau/dqd scaled by -D^-1: the minus sign of -M^-1 dtau/dx
+    # the rows of the 3n columns; dtau/dq and dtau/dqd scaled by -D^-1: the minus sign of -M^-1 dtau/dx.
+    # One state: a loop over all columns each (vectorised across them); four states (a vector per
+    # entry already): over the columns where they may not be zero only (dtau/dq's and dtau/dqd's
+    # structural zeros, the identity's, and their fill-in), the same values
     sub_z = _substitution_lines(n, L, lambda i: f"Z[{i}][c]", lambda i: [
         f"for (int c = 0; c < {2 * n}; ++c) Z[{i}][c] *= -r_{i};",
         f"for (int c = {2 * n}; c < {W}; ++c) Z[{i}][c] *= r_{i};"], loop=f"for (int c = 0; c < {W}; ++c) ")
-    body = [f"  T M[{n * n}], h[{n}], x[{n}];", "  dynamics_t(p, q, qd, M, h);", "  bool ok = true;"] + fac
+    dq, dqd = model.inverse_dynamics_derivatives
+    nz = [{c for c in range(n) if dq[i, c] != 0} | {n + c for c in range(n) if dqd[i, c] != 0} | {2 * n + i}
+          for i in range(n)]
+    sparse = _sparse_substitution_lines(n, L, nz, 2 * n)
+    K = 2 * len(_trig_joints(model))
+    body = [f"  T M[{n * n}], h[{n}], x[{n}]" + (f", sc[{K}];" if K else ";"),
+            "  dynamics_t(p, q, qd, M, h" + (", sc);" if K else ");"), "  bool ok = true;"] + fac
     body += ["  if (!ok) return false;", f"  for (int i = 0; i < {n}; ++i) x[i] = tau[i] - h[i];"]
     body += ["  " + line for line in sub_x]
-    body += [f"  derivatives_t<T, {W}, 1>(p, q, qd, x, &Z[0][0], &Z[0][{n}], M);",
+    body += [f"  derivatives_t<T, {W}, 1>(p, {'sc' if K else 'nullptr'}, q, qd, x, &Z[0][0], &Z[0][{n}], M);",
              f"  for (int i = 0; i < {n}; ++i)", f"    for (int c = 0; c < {n}; ++c) Z[i][{2 * n} + c] = "
              "T{} + (i == c ? 1.0 : 0.0);"]
-    body += ["  " + line for line in sub_z]
+    body += ["  if constexpr (sizeof(T) == sizeof(double)) {"] + ["    " + line for line in sub_z]
+    body += ["  } else {"] + ["    " + line for line in sparse] + ["  }"]
     body += [f"  for (int i = 0; i < {n}; ++i) qdd[i] = x[i];", "  return true;"]
     template = (f"template <class T>\n{_INLINE} bool forward_derivatives_t(const double* p, const T* q, const T* qd, "
                 f"const T* tau, T (*Z)[{W}], T* qdd) {{\n" + "\n".join(body) + "\n}\n")
     one = "\n".join([
         f"  double Z[{n}][{W}], x[{n}];",
         "  if (!forward_derivatives_t(p, q, qd, tau, Z, qdd ? qdd : x)) return false;",
-        f"  for (int c = 0; c < {n}; ++c)",
-        f"    for (int i = 0; i < {n}; ++i) {{",
-        f"      dqdd_dq[i + {n} * c] = Z[i][c];",
-        f"      dqdd_dqd[i + {n} * c] = Z[i][{n} + c];",
-        f"      Minv[i + {n} * c] = Z[i][{2 * n} + c];",
+        f"  for (int i = 0; i < {n}; ++i)",
+        f"    for (int c = 0; c < {n}; ++c) {{",
+        f"      dqdd_dq[i * {n} + c] = Z[i][c];",
+        f"      dqdd_dqd[i * {n} + c] = Z[i][{n} + c];",
+        f"      Minv[i * {n} + c] = Z[i][{2 * n} + c];",
         "    }",
         "  return true;"])
     four = "\n".join([
@@ -480,18 +607,26 @@ def emit_forward_derivatives(model: SymbolicModel):
         f"      QD[i][l] = qd[l * {n} + i];",
         f"      TAU[i][l] = tau[l * {n} + i];",
         "    }",
-        "  if (!forward_derivatives_t(p, Q, QD, TAU, Z, x)) return false;",
-        "  for (int l = 0; l < 4; ++l)",
-        f"    for (int i = 0; i < {n}; ++i)",
-        f"      for (int c = 0; c < {n}; ++c) {{",
-        f"        dqdd_dq[(l * {n} + i) * {n} + c] = Z[i][c][l];",
-        f"        dqdd_dqd[(l * {n} + i) * {n} + c] = Z[i][{n} + c][l];",
-        f"        Minv[(l * {n} + i) * {n} + c] = Z[i][{2 * n} + c][l];",
-        "      }",
-        "  return true;"])
-    sub_ops = sum(line.count("*") + line.count("-=") for line in sub_z) * W
+        "  if (!forward_derivatives_t(p, Q, QD, TAU, Z, x)) return false;"]
+        + [f"  store4(Z[{k // n}][{m * n + k % n}], Z[{(k + 1) // n}][{m * n + (k + 1) % n}], "
+           f"Z[{(k + 2) // n}][{m * n + (k + 2) % n}], Z[{(k + 3) // n}][{m * n + (k + 3) % n}], {out} + {k}, {n * n});"
+           for m, out in enumerate(("dqdd_dq", "dqdd_dqd", "Minv")) for k in range(0, n * n - 3, 4)]
+        + ([f"  for (int l = 0; l < 4; ++l)",
+            f"    for (int k = {n * n // 4 * 4}; k < {n * n}; ++k) {{",
+            f"      dqdd_dq[l * {n * n} + k] = Z[k / {n}][k % {n}][l];",
+            f"      dqdd_dqd[l * {n * n} + k] = Z[k / {n}][{n} + k % {n}][l];",
+            f"      Minv[l * {n * n} + k] = Z[k / {n}][{2 * n} + k % {n}][l];",
+            "    }"] if n * n % 4 else [])
+        + ["  return true;"])
+    sub_ops = sum((line.count("*") + line.count("-=")) * _trips(line) for line in sparse)
     return [EmittedFunction(FORWARD[0], FORWARD[1], one, ops + sub_ops, template, "bool"),
             EmittedFunction(FORWARD4[0], FORWARD4[1], four, ops + sub_ops, "", "bool")]
+
+
+def _trips(loop: str) -> int:
+    """The number of iterations of an emitted `for (int c = a; c < b; ++c)`."""
+    a, b = re.match(r"for \(int c = (\d+); c < (\d+);", loop).groups()
+    return int(b) - int(a)
 
 
 def _constants_offset(model: SymbolicModel) -> int:
