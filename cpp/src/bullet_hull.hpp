@@ -9,7 +9,11 @@
 #include <BulletCollision/CollisionShapes/btConvexHullShape.h>
 #include <BulletCollision/CollisionShapes/btConvexPolyhedron.h>
 
+#include <cstring>
+#include <map>
 #include <memory>
+#include <mutex>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -19,7 +23,7 @@ namespace detail {
 
 // The hull of `points` (m), margin zero, reduced to its vertices (the input points that are vertices);
 // with `features`, its faces and edges for Bullet's polyhedral contact clipping and separating axes.
-inline std::unique_ptr<btConvexHullShape> exact_hull(const std::vector<Eigen::Vector3d>& points, bool features) {
+inline std::unique_ptr<btConvexHullShape> exact_hull_made(const std::vector<Eigen::Vector3d>& points, bool features) {
   btConvexHullShape probe;
   for (const Eigen::Vector3d& p : points) probe.addPoint(btVector3(p.x(), p.y(), p.z()), false);
   probe.setMargin(0.0);
@@ -63,6 +67,48 @@ inline std::unique_ptr<btConvexHullShape> exact_hull(const std::vector<Eigen::Ve
   hull->setMargin(0.0);
   hull->recalcLocalAabb();
   if (features) hull->setPolyhedralFeatures(poly);
+  return hull;
+}
+
+// exact_hull_made's result for these points, made once per process: a world built again (every run of a
+// task, every reset of an environment) copies its hulls' vertices and faces instead of computing them again
+// (Bullet's hull and its faces: about a million instructions for a link's mesh). Keyed by the points' bytes;
+// the same points give the same hull bit for bit. At most kCached sets are kept (then the store starts over).
+inline std::unique_ptr<btConvexHullShape> exact_hull(const std::vector<Eigen::Vector3d>& points, bool features) {
+  constexpr size_t kCached = 512;
+  struct Made {
+    std::vector<btVector3> vertices;
+    std::unique_ptr<btConvexPolyhedron> poly;  // with `features`
+  };
+  static std::mutex lock;
+  static std::map<std::string, std::shared_ptr<const Made>> store;
+  std::string key(points.size() * sizeof(Eigen::Vector3d) + 1, '\0');
+  key[0] = features ? 1 : 0;
+  if (!points.empty()) std::memcpy(&key[1], points.data(), points.size() * sizeof(Eigen::Vector3d));
+  std::shared_ptr<const Made> made;
+  {
+    std::lock_guard<std::mutex> hold(lock);
+    const auto it = store.find(key);
+    if (it != store.end()) made = it->second;
+  }
+  if (!made) {
+    const std::unique_ptr<btConvexHullShape> hull = exact_hull_made(points, features);
+    auto m = std::make_shared<Made>();
+    for (int v = 0; v < hull->getNumPoints(); ++v) m->vertices.push_back(hull->getUnscaledPoints()[v]);
+    if (features) m->poly = std::make_unique<btConvexPolyhedron>(*hull->getConvexPolyhedron());
+    made = m;
+    std::lock_guard<std::mutex> hold(lock);
+    if (store.size() >= kCached) store.clear();
+    store.emplace(std::move(key), made);
+  }
+  auto hull = std::make_unique<btConvexHullShape>();
+  for (const btVector3& v : made->vertices) hull->addPoint(v, false);
+  hull->setMargin(0.0);
+  hull->recalcLocalAabb();
+  if (features) {
+    btConvexPolyhedron copy = *made->poly;
+    hull->setPolyhedralFeatures(copy);
+  }
   return hull;
 }
 
