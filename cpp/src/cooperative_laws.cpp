@@ -30,15 +30,20 @@ class Arm : public TaskController {
 // 1 / sqrt(trace(G) ||L^-1||_F^2). Then no direction is near the 1e-3 threshold and the solution is the
 // complete orthogonal decomposition's to round-off (the Gram's squared condition, at most 1e4, keeps the
 // error near 1e-12), for about a tenth of its instructions. False (x untouched) otherwise: the
-// decomposition decides which directions count as zero (the SCARAs' moment about the bar's axis).
+// decomposition decides which directions count as zero.
 template <class Dist>
 bool least_norm_well_conditioned(const Dist& A, const Eigen::Matrix<double, 8, 1>& b,
                                  Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 12, 1>& x) {
+  const int cols = static_cast<int>(A.cols());
+  double a[8][12];  // A's rows, contiguous
+  for (int i = 0; i < 8; ++i)
+    for (int k = 0; k < cols; ++k) a[i][k] = A(i, k);
   double L[8][8];  // G's lower factor, row by row
   double trace = 0.0;
   for (int i = 0; i < 8; ++i) {
     for (int j = 0; j <= i; ++j) {
-      double g = A.row(i).dot(A.row(j));
+      double g = 0.0;
+      for (int k = 0; k < cols; ++k) g += a[i][k] * a[j][k];
       if (i == j) trace += g;
       for (int k = 0; k < j; ++k) g -= L[i][k] * L[j][k];
       if (i == j) {
@@ -72,7 +77,12 @@ bool least_norm_well_conditioned(const Dist& A, const Eigen::Matrix<double, 8, 1
     for (int k = i + 1; k < 8; ++k) s -= L[k][i] * y[k];
     y[i] = s / L[i][i];
   }
-  x = A.transpose() * Eigen::Map<const Eigen::Matrix<double, 8, 1>>(y);
+  x.resize(cols);
+  for (int k = 0; k < cols; ++k) {
+    double v = 0.0;
+    for (int i = 0; i < 8; ++i) v += a[i][k] * y[i];
+    x[k] = v;
+  }
   return true;
 }
 
@@ -297,7 +307,9 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
   // points, from forces whose lever is the TCPs' millimetres off it) left to the structure: singular
   // values below 1e-3 of the largest count as zero
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 12, 1> x(cols);
-  if (!least_norm_well_conditioned(A, b, x)) {
+  // arms commanding all six directions: the distribution loses a direction only with the bar along the
+  // vertical (the share's and the squeeze's rows then meet); the Gram's test proves the rest
+  if (!(n_axes[0] == 3 && n_axes[1] == 3 && least_norm_well_conditioned(A, b, x))) {
     Eigen::CompleteOrthogonalDecomposition<Dist> cod(8, cols);
     cod.setThreshold(1e-3);
     cod.compute(A);
