@@ -242,12 +242,26 @@ def test_two_clamped_ur5s_carry_a_bar_under_object_control():
     assert sim.holding(0) == "box" and sim.holding(1) == "box"
     for i in (0, 1):
         sim.set_reference(i, cs.SetPoint(sim.state(i)[0]))
-    sim.add_cooperative(cs.ObjectControl(m, cs.box_inertia(m, *(2 * he)), load_share=0.6, squeeze=2.0), [0, 1])
+    c = cs.ObjectControl(m, cs.box_inertia(m, *(2 * he)), load_share=0.6, squeeze=2.0)
+    sim.add_cooperative(c, [0, 1])
     sim.run(3.0, progress=False)
     co = sim.log.cooperation(0, 1)
     np.testing.assert_allclose(co["load_share"][-1], [0.6, 0.4], rtol=0.01)
     assert co["squeeze"][-1] == pytest.approx(2.0, rel=0.01)
     assert sim.weld_wrench(0)[2] + sim.weld_wrench(1)[2] == pytest.approx(m * G, rel=1e-3)
+    # the last update (at the state the run ended in), at the TCPs p0, p1: the clamps' wrenches are the
+    # least-norm solution of the distribution (arms that command all six directions take it through the Gram
+    # matrix): it meets the force, share and squeeze rows, and lies in the rows' span: both clamps take the
+    # same moment m, and f0 - f1 - m x (p0 - p1) lies in the plane of the vertical and the line p0 -> p1
+    (f0, m0), (f1, m1) = [(w[:3], w[3:]) for w in c.clamp_wrenches]
+    p0, p1 = [r.fk(sim.state(i)[0])[:3, 3] for i, r in enumerate((a, b))]
+    e, z = (p1 - p0) / np.linalg.norm(p1 - p0), np.array([0.0, 0.0, 1.0])
+    n = np.cross(z, e) / np.linalg.norm(np.cross(z, e))
+    np.testing.assert_allclose(f0 + f1, c.object_wrench[:3], rtol=0, atol=1e-12)
+    assert 0.4 * f0[2] - 0.6 * f1[2] == pytest.approx(0.0, abs=1e-12)
+    assert 0.5 * e @ (f0 - f1) == pytest.approx(2.0, abs=1e-12)
+    np.testing.assert_allclose(m0, m1, rtol=0, atol=1e-12)
+    assert abs(n @ (f0 - f1 - np.cross(m0, p0 - p1))) < 1e-12
 
 
 @pytest.mark.parametrize("call,match", [
