@@ -115,15 +115,7 @@ std::string describe_out(const py::object& out) {
   return s;
 }
 
-// whether the n values at p are finite: x - x is 0 for a finite x, NaN otherwise (in four lanes, vectorised)
-bool finite(const double* p, int n) {
-  double acc[4] = {0.0, 0.0, 0.0, 0.0};
-  int i = 0;
-  for (; i + 4 <= n; i += 4)
-    for (int j = 0; j < 4; ++j) acc[j] += p[i + j] - p[i + j];
-  for (; i < n; ++i) acc[0] += p[i] - p[i];
-  return acc[0] + acc[1] + acc[2] + acc[3] == 0.0;
-}
+bool finite(const double* p, int n) { return coopsim::all_finite(p, static_cast<std::size_t>(n)); }
 
 // The three results (row-major (n, n) each, one after the other at rows) as new arrays, or copied into
 // `out` (three float64 C-contiguous writeable (n, n) arrays, returned as a tuple); refused, with nothing

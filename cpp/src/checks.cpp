@@ -34,7 +34,7 @@ void check_shape(const std::ptrdiff_t* shape, int ndim, std::initializer_list<st
   throw std::invalid_argument(s.str());
 }
 
-static bool all_finite(const double* p, std::size_t count) {
+bool all_finite(const double* p, std::size_t count) {
   // x - x is 0 for a finite x and NaN otherwise: summed in four lanes (vectorised), no branch per value
   double acc[4] = {0.0, 0.0, 0.0, 0.0};
   std::size_t i = 0;

@@ -36,6 +36,7 @@ constexpr const char* doc_Array = "Numbers as the engine takes a table: the valu
 constexpr const char* doc_shape_string = "A shape as Python prints it: \"(3, 4)\", \"(3,)\", \"()\".";
 constexpr const char* doc_check_shape = "Unless `shape` (ndim extents) is `expected` (-1: any extent, printed N):\n"
     "\"wrong shape for NAME: expected (N, 4), got (3, 5)\".";
+constexpr const char* doc_all_finite = "Whether the count values at p are all finite (no NaN, no inf).";
 constexpr const char* doc_check_finite = "Unless the `count` values at p are finite: \"NAME must be finite (got NaN or inf)\".";
 constexpr const char* doc_vector_of = "The n finite values of a (n,) table: \"wrong shape for NAME: ...\", \"NAME must be finite ...\".";
 constexpr const char* doc_per_joint = "One value per joint: `a` is one number (every joint) or (n,), finite; out gets n values.";

@@ -31,6 +31,8 @@ void check_shape(const std::ptrdiff_t* shape, int ndim, std::initializer_list<st
 inline void check_shape(const Array& a, std::initializer_list<std::ptrdiff_t> expected, const char* name) {
   check_shape(a.shape.data(), a.ndim(), expected, name);
 }
+// Whether the count values at p are all finite (no NaN, no inf).
+bool all_finite(const double* p, std::size_t count);
 // Unless the `count` values at p are finite: "NAME must be finite (got NaN or inf)".
 void check_finite(const double* p, std::size_t count, const char* name);
 inline void check_finite(double x, const char* name) { check_finite(&x, 1, name); }
