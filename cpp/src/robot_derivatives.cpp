@@ -460,8 +460,12 @@ void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, con
     gen->constants(p.data(), p.data() + base);
   }
   struct State {
+    Workspace ws;  // the single-state path's, one per thread: nothing allocated per state
+    MatN A, B, C;
     int done = 0;  // the states before this one are written (by a group of four)
   };
+  using RowMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  const std::vector<ExternalWrench> none;
   // as forward_dynamics_batch (batch_rows.hpp), in chunks of 64 states (a multiple of four: a group lies
   // in one chunk, done by one thread in order)
   detail::batch_rows(N, 64, threads, [] { return State(); }, [&](State& st, int i) {
@@ -472,7 +476,10 @@ void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, con
       st.done = i + 4;
       return;
     }
-    robot.forward_dynamics_derivatives_rows(Q + o, QD + o, TAU + o, dqdd_dq + oo, dqdd_dqd + oo, dqdd_dtau + oo);
+    robot.forward_dynamics_derivatives(Q + o, QD + o, TAU + o, none, st.ws, st.A, st.B, st.C);
+    RowMap(dqdd_dq + oo, n, n) = st.A;
+    RowMap(dqdd_dqd + oo, n, n) = st.B;
+    RowMap(dqdd_dtau + oo, n, n) = st.C;
   });
 }
 
