@@ -9,7 +9,8 @@ loaded from the same URDF by both. Rows per robot, at the same random states:
   into arrays of the caller's (``out=``), against ``pin.computeABADerivatives`` (both give dqdd/dq,
   dqdd/dqd and M^-1);
 - coopsim ``robot.inverse_dynamics_derivatives(q, qd, qdd)`` against ``pin.computeRNEADerivatives``;
-- ``cs.forward_dynamics_derivatives_batch`` on one thread: ns per state (N states in one call).
+- ``cs.forward_dynamics_derivatives_batch`` on one thread: ns per state (N states in one call), into new
+  arrays and into the caller's (``out=``, a loop that reuses its buffers: no fresh pages to fault in).
 
 Before anything is timed each pair is compared at the timed states (Pinocchio's results with the
 robot's friction added, its armature set alike): a pair that disagrees by more than 1e-9 relative gets
@@ -17,8 +18,8 @@ no ratio. Each function is warmed up, then timed in repeats interleaved with the
 change of the machine's speed touches all alike), and each figure is the best repeat: on a shared
 machine the other loads only ever slow a repeat down. Ratios (Pinocchio's time over coopsim's: > 1
 means coopsim is faster) are taken within this run. The last lines set the figures beside the targets
-(the generated SCARAs at most 1.5 µs per call, faster than Pinocchio on every robot, the batch at most
-0.5 µs per state): printed, never asserted. The absolute figures move with the machine and its load
+(the generated SCARAs at most 1.5 µs per call and their batch at most 0.5 µs per state, faster than
+Pinocchio on every robot): printed, never asserted. The absolute figures move with the machine and its load
 (printed first); the ratios less so, and the instruction counts (callgrind) not at all: those are in
 docs/planning-and-control.md, with how they are counted.
 
@@ -142,7 +143,7 @@ def main(argv=None):
     if not cs.build_info()["optimised"]:
         print("figures from a debug build do not count")
     head = (f"{'robot':16} {'dof':>3} {'FD der µs':>9} {'out= µs':>8} {'pin ABA der':>11} {'pin/ours':>8}   "
-            f"{'ID der µs':>9} {'pin RNEA der':>12} {'pin/ours':>8}   {'batch ns/state':>14}")
+            f"{'ID der µs':>9} {'pin RNEA der':>12} {'pin/ours':>8}   {'batch ns/state':>14} {'out=':>8}")
     print("\n" + head)
     rows = []
     for label, robot, model in pairs(pin):
@@ -161,16 +162,19 @@ def main(argv=None):
         ], calls, repeats)
         big = states(robot, N, seed=1)
         Q, QD, TAU = (np.array([s[i] for s in big]) for i in (0, 1, 3))
-        batch = interleaved([lambda: cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU, threads=1)],
-                            1, max(3, repeats // 2), warmup=1)[0] * 1e3 / N
+        bout = tuple(np.empty((3, N, robot.dof, robot.dof)))
+        batch, batch_out = (t * 1e3 / N for t in interleaved([
+            lambda: cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU, threads=1),
+            lambda: cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU, threads=1, out=bout),
+        ], 1, max(3, repeats // 2), warmup=1))
         ok = worst <= 1e-9
         r_fd = f"{fd_pin / fd_ours:8.2f}" if ok else "       -"
         r_id = f"{id_pin / id_ours:8.2f}" if ok else "       -"
         print(f"{label:16} {robot.dof:3d} {fd_ours:9.2f} {fd_out:8.2f} {fd_pin:11.2f} {r_fd}   {id_ours:9.2f} "
-              f"{id_pin:12.2f} {r_id}   {batch:14.0f}")
+              f"{id_pin:12.2f} {r_id}   {batch:14.0f} {batch_out:8.0f}")
         if not ok:
             print(f"  {label}: coopsim and Pinocchio differ by {worst:.1e} (relative): no ratio")
-        rows.append((label, ok, fd_ours, fd_out, fd_pin, batch))
+        rows.append((label, ok, fd_ours, fd_out, fd_pin, batch, batch_out))
     print("\ntargets (printed, not asserted):")
     gen = [r for r in rows if r[0].endswith("generated")]
     if gen:
@@ -180,8 +184,11 @@ def main(argv=None):
     print("  faster than pin.computeABADerivatives on every robot: " +
           ("yes" if not slower else "no, not on " + ", ".join(slower)) +
           f" (ratios {min(r[4] / r[2] for r in rows):.2f} to {max(r[4] / r[2] for r in rows):.2f})")
-    print("  batch on one thread <= 0.5 µs per state: " +
-          ", ".join(f"{r[0]} {r[5] / 1e3:.2f}" for r in rows))
+    if gen:
+        print("  generated SCARAs, the batch on one thread <= 0.5 µs per state: " +
+              ", ".join(f"{r[0]} {r[5] / 1e3:.2f} µs ({r[6] / 1e3:.2f} with out=)" for r in gen))
+    print("  the batch on one thread, every robot (µs per state, new arrays / out=): " +
+          ", ".join(f"{r[0]} {r[5] / 1e3:.2f} / {r[6] / 1e3:.2f}" for r in rows))
     print("instruction counts of these calls (callgrind, load-independent): docs/planning-and-control.md, "
           "'Linear models: the dynamics' derivatives'")
     return 0

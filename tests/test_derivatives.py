@@ -317,6 +317,27 @@ def test_batch_equals_the_single_call_on_one_and_on_several_threads():
     assert all(x.shape == (0, 6, 6) for x in empty)
 
 
+def test_batch_writes_into_the_callers_arrays_when_given_out():
+    """out=: the results land in the caller's three (N, n, n) arrays (a tuple is returned as given, a list as
+    a tuple of its arrays), equal bit for bit to new arrays' results; a second call overwrites them."""
+    robot = SCARAS[1]
+    rng = np.random.default_rng(8)
+    N = 70  # a chunk of 64 and six more
+    Q, QD, TAU = rng.uniform(-1, 1, size=(N, 6)), rng.normal(size=(N, 6)), rng.normal(size=(N, 6))
+    fresh = cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU)
+    block = np.full((3, N, 6, 6), np.nan)
+    out = tuple(block)
+    got = cs.forward_dynamics_derivatives_batch(robot, Q, QD, TAU, threads=2, out=out)
+    assert got is out
+    for a, b in zip(fresh, block):
+        np.testing.assert_array_equal(a, b)
+    lst = [np.empty((N, 6, 6)) for _ in range(3)]
+    got = cs.forward_dynamics_derivatives_batch(robot, Q[::-1], QD[::-1], TAU[::-1], threads=1, out=lst)
+    assert isinstance(got, tuple) and all(g is x for g, x in zip(got, lst))
+    for a, b in zip(fresh, lst):
+        np.testing.assert_array_equal(a[::-1], b)
+
+
 @pytest.mark.parametrize("which", ["scara1", "scara2"])
 def test_generated_batch_takes_four_states_at_once_as_the_single_call_takes_one(which):
     """The generated robots' batch evaluates four states at once (one per lane of a vector), the rest and
@@ -368,6 +389,13 @@ def test_bad_input_is_named_in_one_line():
                                                        np.zeros((2, 6))), ("q", "finite")),
         (lambda: cs.forward_dynamics_derivatives_batch(r, np.zeros((2, 6)), np.zeros((2, 6)), np.zeros((2, 6)),
                                                        threads=-1), ("threads",)),
+        (lambda: cs.forward_dynamics_derivatives_batch(r, np.zeros((2, 6)), np.zeros((2, 6)), np.zeros((2, 6)),
+                                                       out=tuple(np.empty((3, 3, 6, 6)))),
+         ("out", "(2, 6, 6)", "float64 (3, 6, 6)")),
+        (lambda: cs.forward_dynamics_derivatives_batch(r, np.zeros((2, 6)), np.zeros((2, 6)), np.zeros((2, 6)),
+                                                       out=(np.empty((2, 6, 6)),) * 3), ("out", "distinct")),
+        (lambda: cs.forward_dynamics_derivatives_batch(r, np.zeros((2, 6)), np.zeros((2, 6)), np.zeros((2, 6)),
+                                                       out=np.empty((3, 2, 6, 6))), ("out", "(3, 2, 6, 6)")),
     ]
     for call, words in cases:
         with pytest.raises(ValueError) as e:

@@ -145,6 +145,33 @@ py::object results(const double* rows, py::ssize_t n, const py::object& out, con
   return PyTuple_Check(out.ptr()) ? out : py::object(py::tuple(out));
 }
 
+// The batch's out=: three distinct float64 C-contiguous writeable (N, n, n) arrays (a tuple or a list),
+// put into res and their data into d; a ValueError saying what was given otherwise.
+void batch_out(const py::object& out, py::ssize_t N, int n, py::tuple& res, double* d[3]) {
+  static const auto& api = py::detail::npy_api::get();
+  const int need = py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_ | py::detail::npy_api::NPY_ARRAY_ALIGNED_ |
+                   py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+  bool ok = (PyTuple_Check(out.ptr()) || PyList_Check(out.ptr())) && py::len(out) == 3;
+  for (int i = 0; ok && i < 3; ++i) {
+    const py::object h = out[py::int_(i)];
+    ok = api.PyArray_Check_(h.ptr());
+    if (!ok) break;
+    const auto* a = py::detail::array_proxy(h.ptr());
+    const auto* dt = py::detail::array_descriptor_proxy(a->descr);
+    ok = dt->type_num == py::detail::npy_api::NPY_DOUBLE_ && dt->byteorder == '=' && (a->flags & need) == need &&
+         a->nd == 3 && a->dimensions[0] == N && a->dimensions[1] == n && a->dimensions[2] == n;
+    d[i] = reinterpret_cast<double*>(a->data);
+    for (int j = 0; ok && N > 0 && j < i; ++j) ok = d[j] != d[i];
+    res[i] = h;
+  }
+  if (!ok) {
+    const std::string shape = "(" + std::to_string(N) + ", " + std::to_string(n) + ", " + std::to_string(n) + ")";
+    throw py::value_error("out must be None or three distinct writeable float64 C-contiguous arrays of shape " +
+                          shape + " (e.g. tuple(np.empty((3, " + std::to_string(N) + ", " + std::to_string(n) +
+                          ", " + std::to_string(n) + ")))), got " + describe_out(out));
+  }
+}
+
 // MatN results in numpy's layout, then as results()
 py::object results(const MatN& a, const MatN& b, const MatN& c, const py::object& out, const char* what) {
   double rows[3 * kMaxDof * kMaxDof];
@@ -222,7 +249,8 @@ void bind_derivatives(py::module_& m) {
   robot.attr("forward_dynamics_derivatives") = py::reinterpret_steal<py::object>(
       PyDescr_NewMethod(reinterpret_cast<PyTypeObject*>(robot.ptr()), &fast));
   m.def("forward_dynamics_derivatives_batch", [](const Robot& r, const py::object& Q, const py::object& QD,
-                                                 const py::object& TAU, const py::object& threads_obj) {
+                                                 const py::object& TAU, const py::object& threads_obj,
+                                                 const py::object& out) {
          const int threads = static_cast<int>(index_arg(threads_obj, "threads", 0, 4096));
          const int n = r.dof();
          Arr q = array(Q, {-1, n}, "q");
@@ -230,16 +258,25 @@ void bind_derivatives(py::module_& m) {
          Arr qd = array(QD, {N, n}, "qd");
          Arr tau = array(TAU, {N, n}, "tau");
          const py::ssize_t nn = n;
-         py::array_t<double> dq({N, nn, nn}), dqd({N, nn, nn}), dtau({N, nn, nn});
-         double *a = dq.mutable_data(), *b = dqd.mutable_data(), *c = dtau.mutable_data();
+         py::tuple res(3);
+         double* d[3] = {nullptr, nullptr, nullptr};
+         if (out.is_none()) {
+           for (int i = 0; i < 3; ++i) {
+             py::array_t<double> a({N, nn, nn});
+             d[i] = a.mutable_data();
+             res[i] = a;
+           }
+         } else {
+           batch_out(out, N, n, res, d);
+         }
          {
            coopsim::py_nogil::NoGil nogil;
-           forward_dynamics_derivatives_batch(r, q.data(), qd.data(), tau.data(), static_cast<int>(N), a, b, c,
-                                              threads);
+           forward_dynamics_derivatives_batch(r, q.data(), qd.data(), tau.data(), static_cast<int>(N), d[0], d[1],
+                                              d[2], threads);
          }
-         return py::make_tuple(dq, dqd, dtau);
-       }, py::arg("robot"), py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("threads") = 0,
-       docs::doc_forward_dynamics_derivatives_batch);
+         return PyTuple_Check(out.ptr()) ? out : py::object(res);  // out given as a tuple: that tuple
+       }, py::arg("robot"), py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("threads") = 0, py::kw_only(),
+       py::arg("out") = py::none(), docs::doc_forward_dynamics_derivatives_batch);
 
   py_struct::Struct<LinearModel>(m, "LinearModel", docs::doc_LinearModel)
       .member("A", &LinearModel::A, docs::doc_LinearModel_A)

@@ -2802,13 +2802,15 @@ def forward_dynamics_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typ
     """
     Forward dynamics of N states in one call: q, qd, tau (N, n) -> qdd (N, n), rad/s^2 or m/s^2; GIL released, on `threads` threads (0: all cores), each taking chunks of 256 states as it becomes idle. A state whose dynamics fail (its forces overflow, its mass matrix is not positive definite) is a ValueError naming its row, the first such row of the batch.
     """
-def forward_dynamics_derivatives_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0) -> tuple[numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64], numpy.typing.NDArray[numpy.float64]]:
+def forward_dynamics_derivatives_batch(robot: Robot, q: typing.Any, qd: typing.Any, tau: typing.Any, threads: typing.Any = 0, *, out: typing.Any = None) -> typing.Any:
     """
     Robot.forward_dynamics_derivatives of N states in one call: q, qd, tau (N, n), row-major, ->
     (dqdd_dq, dqdd_dqd, dqdd_dtau), each (N, n, n), row-major, without f_ext (as forward_dynamics_batch);
     on `threads` threads (0: all cores), the GIL released, each taking chunks of 64 states as it becomes
     idle. A state whose dynamics fail (its mass matrix not positive definite, its forces overflowing) is a
-    ValueError naming its row, the first such row of the batch.
+    ValueError naming its row, the first such row of the batch. From Python, out=(a, b, c) (three distinct
+    float64 C-contiguous (N, n, n) arrays) takes the results instead of new arrays, for loops that reuse
+    their buffers; it is returned, and after an error its contents are unspecified.
     """
 def generated_cache_dir() -> str:
     """

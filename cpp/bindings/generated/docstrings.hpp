@@ -605,7 +605,9 @@ constexpr const char* doc_forward_dynamics_derivatives_batch = "Robot.forward_dy
     "(dqdd_dq, dqdd_dqd, dqdd_dtau), each (N, n, n), row-major, without f_ext (as forward_dynamics_batch);\n"
     "on `threads` threads (0: all cores), the GIL released, each taking chunks of 64 states as it becomes\n"
     "idle. A state whose dynamics fail (its mass matrix not positive definite, its forces overflowing) is a\n"
-    "ValueError naming its row, the first such row of the batch.";
+    "ValueError naming its row, the first such row of the batch. From Python, out=(a, b, c) (three distinct\n"
+    "float64 C-contiguous (N, n, n) arrays) takes the results instead of new arrays, for loops that reuse\n"
+    "their buffers; it is returned, and after an error its contents are unspecified.";
 constexpr const char* doc_solve_spd = "Solves A x = b for symmetric positive definite A by Cholesky, overwriting A\n"
     "with its factor; false if A is not positive definite.";
 constexpr const char* doc_box_inertia = "Solid cuboid inertia about its centre, edges lx, ly, lz along x, y, z (kg m^2).";

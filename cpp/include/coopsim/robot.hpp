@@ -536,7 +536,9 @@ double box_gap(const Eigen::Isometry3d& a, const Eigen::Vector3d& half_a, const 
 // (dqdd_dq, dqdd_dqd, dqdd_dtau), each (N, n, n), row-major, without f_ext (as forward_dynamics_batch);
 // on `threads` threads (0: all cores), the GIL released, each taking chunks of 64 states as it becomes
 // idle. A state whose dynamics fail (its mass matrix not positive definite, its forces overflowing) is a
-// ValueError naming its row, the first such row of the batch.
+// ValueError naming its row, the first such row of the batch. From Python, out=(a, b, c) (three distinct
+// float64 C-contiguous (N, n, n) arrays) takes the results instead of new arrays, for loops that reuse
+// their buffers; it is returned, and after an error its contents are unspecified.
 void forward_dynamics_derivatives_batch(const Robot& robot, const double* Q, const double* QD, const double* TAU,
                                         int N, double* dqdd_dq, double* dqdd_dqd, double* dqdd_dtau, int threads);
 
