@@ -3,13 +3,12 @@
 // simulation: cooperative_stage.cpp.
 #include "coopsim/cooperative_laws.hpp"
 
-#include <Eigen/QR>
-
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
 #include "internal.hpp"
+#include "least_norm.hpp"
 
 namespace coopsim {
 
@@ -23,68 +22,6 @@ class Arm : public TaskController {
     throw std::logic_error("a cooperative arm is driven by its cooperative controller");
   }
 };
-
-// The least-norm solution x = A^T (A A^T)^-1 b of the distribution A x = b (8 rows, 6 to 12 columns) when
-// every singular value of A is above 1e-2 of the largest, proved from the Gram matrix G = A A^T's
-// Cholesky factor L: sigma_max^2 <= trace(G) and sigma_min^2 >= 1 / ||L^-1||_F^2, so sigma_min / sigma_max >=
-// 1 / sqrt(trace(G) ||L^-1||_F^2). Then no direction is near the 1e-3 threshold and the solution is the
-// complete orthogonal decomposition's to round-off (the Gram's squared condition, at most 1e4, keeps the
-// error near 1e-12), for about a tenth of its instructions. False (x untouched) otherwise: the
-// decomposition decides which directions count as zero.
-template <class Dist>
-bool least_norm_well_conditioned(const Dist& A, const Eigen::Matrix<double, 8, 1>& b,
-                                 Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 12, 1>& x) {
-  const int cols = static_cast<int>(A.cols());
-  double a[8][12];  // A's rows, contiguous
-  for (int i = 0; i < 8; ++i)
-    for (int k = 0; k < cols; ++k) a[i][k] = A(i, k);
-  double L[8][8];  // G's lower factor, row by row
-  double trace = 0.0;
-  for (int i = 0; i < 8; ++i) {
-    for (int j = 0; j <= i; ++j) {
-      double g = 0.0;
-      for (int k = 0; k < cols; ++k) g += a[i][k] * a[j][k];
-      if (i == j) trace += g;
-      for (int k = 0; k < j; ++k) g -= L[i][k] * L[j][k];
-      if (i == j) {
-        if (!(g > 0.0)) return false;
-        L[i][i] = std::sqrt(g);
-      } else {
-        L[i][j] = g / L[j][j];
-      }
-    }
-  }
-  // ||L^-1||_F^2, column by column of the inverse (lower triangular)
-  double inv2 = 0.0;
-  for (int c = 0; c < 8; ++c) {
-    double y[8];
-    for (int i = c; i < 8; ++i) {
-      double s = i == c ? 1.0 : 0.0;
-      for (int k = c; k < i; ++k) s -= L[i][k] * y[k];
-      y[i] = s / L[i][i];
-      inv2 += y[i] * y[i];
-    }
-  }
-  if (!(trace * inv2 < 1e4)) return false;
-  double y[8];  // G y = b, then x = A^T y
-  for (int i = 0; i < 8; ++i) {
-    double s = b[i];
-    for (int k = 0; k < i; ++k) s -= L[i][k] * y[k];
-    y[i] = s / L[i][i];
-  }
-  for (int i = 7; i >= 0; --i) {
-    double s = y[i];
-    for (int k = i + 1; k < 8; ++k) s -= L[k][i] * y[k];
-    y[i] = s / L[i][i];
-  }
-  x.resize(cols);
-  for (int k = 0; k < cols; ++k) {
-    double v = 0.0;
-    for (int i = 0; i < 8; ++i) v += a[i][k] * y[i];
-    x[k] = v;
-  }
-  return true;
-}
 
 // world [v; w] <-> task axes of a state
 Vec6 to_world(const TaskState& s, const Vec6& v) {
@@ -309,12 +246,7 @@ void ObjectControl::compute(double t, const std::vector<CoopMember>& m, const st
   Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 12, 1> x(cols);
   // arms commanding all six directions: the distribution loses a direction only with the bar along the
   // vertical (the share's and the squeeze's rows then meet); the Gram's test proves the rest
-  if (!(n_axes[0] == 3 && n_axes[1] == 3 && least_norm_well_conditioned(A, b, x))) {
-    Eigen::CompleteOrthogonalDecomposition<Dist> cod(8, cols);
-    cod.setThreshold(1e-3);
-    cod.compute(A);
-    x = cod.solve(b);
-  }
+  if (!(n_axes[0] == 3 && n_axes[1] == 3 && least_norm::well_conditioned(A, b, x))) least_norm::cod(A, b, 1e-3, x);
   // each arm: its TCP moves with the object; it applies its wrench, closed on its sensor
   for (int k = 0; k < 2; ++k) {
     Vec6 hk = Vec6::Zero();
