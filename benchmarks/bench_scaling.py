@@ -12,7 +12,8 @@ Rows (the measures of the project's issue 35, "Every core"):
   1 s at dt = 0.2 ms, logged every 10th step (``--quick``: 0.25 s), in simulated seconds per wall second;
 - forward_dynamics_batch: 1M random states of the SCARA #1 (``--quick``: 200 000), in ns per state.
 
-Each figure is the best of ``--repeats`` (the machine may be shared: the best is the least disturbed), the ratio is
+Each figure is the best of ``--repeats`` (the machine may be shared: the best is the least disturbed; run_batch and
+forward_dynamics_batch at least 5, their thread counts timed in turn in each round), the ratio is
 one thread's time over N threads' time within this run, and "cores" the process's CPU time over the wall time of
 that repeat (every thread's): the cores the figure had. A ratio on N threads means something only when cores came
 near N: below it, other work on the machine (or the GIL) took the rest.
@@ -80,6 +81,22 @@ def best_of(fn, repeats):
     return best[0], best[1], out
 
 
+def best_interleaved(fn, counts, repeats, before=None):
+    """{n: (least wall time (s) of fn(n), its CPU / wall)} over `repeats` rounds, each round timing every thread
+    count in turn (so that the machine's changes of speed, which on a shared virtual machine move a run by a
+    quarter, touch every count alike); before(n), when given, runs untimed ahead of each timed call."""
+    best = {}
+    for _ in range(repeats):
+        for n in counts:
+            arg = before(n) if before else None
+            c, t = cpu_seconds(), time.perf_counter()
+            fn(n) if before is None else fn(n, arg)
+            w, cpu = time.perf_counter() - t, cpu_seconds() - c
+            if n not in best or w < best[n][0]:
+                best[n] = (w, cpu / w)
+    return best
+
+
 # ---- the rows ----
 
 def carry_sweep(n, threads):
@@ -104,19 +121,6 @@ def batch_runs(n, t_end):
     sim = cs.Simulation(DT, log_every=10)
     sim.add_robot(robot, cs.ComputedTorque(900.0, 60.0), trajectory(robot, t_end))
     return sim.replicate(n)
-
-
-def time_batch(n, t_end, threads, repeats):
-    """(least wall time (s), its CPU / wall) of run_batch over n fresh runs, built outside the timing."""
-    best = None
-    for _ in range(repeats):
-        sims = batch_runs(n, t_end)
-        c, t = cpu_seconds(), time.perf_counter()
-        cs.run_batch(sims, t_end, threads=threads, output="none")
-        w, cpu = time.perf_counter() - t, cpu_seconds() - c
-        if best is None or w < best[0]:
-            best = (w, cpu / w)
-    return best
 
 
 def fd_states(N):
@@ -236,18 +240,16 @@ def main():
         if bad:
             print(f"  ({bad} of {n_hand} handovers failed; their rows count as run)")
 
-    figures = {}
-    for n in counts:
-        w, used = time_batch(n_batch, t_batch, n, repeats)
-        figures[n] = (n_batch * t_batch / w, used)
+    best = best_interleaved(lambda n, sims: cs.run_batch(sims, t_batch, threads=n, output="none"), counts,
+                            max(5, repeats), before=lambda n: batch_runs(n_batch, t_batch))
+    figures = {n: (n_batch * t_batch / w, used) for n, (w, used) in best.items()}
     print_rows(f"run_batch, {n_batch} CT runs of {t_batch:g} s", "sim s / wall s", figures, True, TARGETS_2["batch"])
 
     robot, Q, QD, TAU = fd_states(N_fd)
     cs.forward_dynamics_batch(robot, Q[:1000], QD[:1000], TAU[:1000], threads=1)
-    figures = {}
-    for n in counts:
-        w, used, _ = best_of(lambda: cs.forward_dynamics_batch(robot, Q, QD, TAU, threads=n), max(3, repeats))
-        figures[n] = (w / N_fd * 1e9, used)
+    best = best_interleaved(lambda n: cs.forward_dynamics_batch(robot, Q, QD, TAU, threads=n), counts,
+                            max(5, repeats))
+    figures = {n: (w / N_fd * 1e9, used) for n, (w, used) in best.items()}
     print_rows(f"forward_dynamics_batch, {N_fd} states", "ns / state", figures, False)
 
     if not args.skip_tasks:

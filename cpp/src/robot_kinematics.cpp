@@ -2,6 +2,7 @@
 // on links and of the tool, the tool's bias acceleration (Jdot qd), poses of many states.
 #include "coopsim/robot.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -123,12 +124,13 @@ void Robot::tool_jacobian(const Workspace& ws, Mat6N& J) const {
 // v_j by the forward recursion (joint j+1 turns or slides along z_j through o_j); for column j,
 // with zd_j = w_j x z_j: revolute  [zd_j x (p - o_j) + z_j x (pd - v_j); zd_j],  prismatic
 // [zd_j; 0].
-static void point_bias(const Workspace& ws, const std::vector<Link>& links, int l, const Eigen::Vector3d& p,
-                       const double* qd, Eigen::Vector3d& lin, Eigen::Vector3d& ang) {
-  std::array<Eigen::Vector3d, kMaxDof + 1> w, v;
+//
+// link_velocities: the recursion's w_j, v_j up to link l.
+using Velocities = std::array<Eigen::Vector3d, kMaxDof + 1>;
+static void link_velocities(const Workspace& ws, const std::vector<Link>& links, int l, const double* qd,
+                            Velocities& w, Velocities& v) {
   w[0].setZero();
   v[0].setZero();
-  Eigen::Vector3d pd = Eigen::Vector3d::Zero();
   for (int j = 0; j < l; ++j) {
     const Eigen::Vector3d z = ws.R[j].col(2);
     const bool revolute = links[j].type == JointType::Revolute;
@@ -136,7 +138,13 @@ static void point_bias(const Workspace& ws, const std::vector<Link>& links, int 
     v[j + 1] = v[j] + w[j + 1].cross(ws.o[j + 1] - ws.o[j]);
     if (!revolute) v[j + 1] += qd[j] * z;
   }
-  pd = v[l] + w[l].cross(p - ws.o[l]);
+}
+
+// The bias of point p of link l from the velocities of link_velocities (computed at least up to l).
+static void point_bias(const Workspace& ws, const std::vector<Link>& links, int l, const Eigen::Vector3d& p,
+                       const double* qd, const Velocities& w, const Velocities& v, Eigen::Vector3d& lin,
+                       Eigen::Vector3d& ang) {
+  const Eigen::Vector3d pd = v[l] + w[l].cross(p - ws.o[l]);
   lin.setZero();
   ang.setZero();
   for (int j = 0; j < l; ++j) {
@@ -153,9 +161,11 @@ static void point_bias(const Workspace& ws, const std::vector<Link>& links, int 
 
 void Robot::tool_bias(const Workspace& ws, const double* qd, Vec6& out) const {
   const int la = link_index_(tool_.link, "tool link"), lb = link_index_(tool_.second_link, "tool second link");
+  Velocities w, v;  // one recursion serves both points
+  link_velocities(ws, links_, std::max(la, lb), qd, w, v);
   Eigen::Vector3d lin_a, ang_a, lin_b, ang_b;
-  point_bias(ws, links_, la, ws.o[la] + ws.R[la] * tool_.offset.translation(), qd, lin_a, ang_a);
-  point_bias(ws, links_, lb, ws.o[lb] + ws.R[lb] * tool_.second_point, qd, lin_b, ang_b);
+  point_bias(ws, links_, la, ws.o[la] + ws.R[la] * tool_.offset.translation(), qd, w, v, lin_a, ang_a);
+  point_bias(ws, links_, lb, ws.o[lb] + ws.R[lb] * tool_.second_point, qd, w, v, lin_b, ang_b);
   out.head<3>() = 0.5 * (lin_a + lin_b);
   out.tail<3>() = ang_a;
 }
