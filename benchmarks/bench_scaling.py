@@ -12,8 +12,9 @@ Rows (the measures of the project's issue 35, "Every core"):
   1 s at dt = 0.2 ms, logged every 10th step (``--quick``: 0.25 s), in simulated seconds per wall second;
 - forward_dynamics_batch: 1M random states of the SCARA #1 (``--quick``: 200 000), in ns per state.
 
-Each figure is the best of ``--repeats`` (the machine may be shared: the best is the least disturbed; run_batch and
-forward_dynamics_batch at least 5, their thread counts timed in turn in each round), the ratio is
+Each figure is the best of ``--repeats`` (the machine may be shared: the best is the least disturbed; the sweeps at
+least 3 rounds, run_batch and forward_dynamics_batch at least 5, the thread counts timed in turn in each round, so
+that the machine's changes of speed touch them alike), the ratio is
 one thread's time over N threads' time within this run, and "cores" the process's CPU time over the wall time of
 that repeat (every thread's): the cores the figure had. A ratio on N threads means something only when cores came
 near N: below it, other work on the machine (or the GIL) took the rest.
@@ -82,18 +83,21 @@ def best_of(fn, repeats):
 
 
 def best_interleaved(fn, counts, repeats, before=None):
-    """{n: (least wall time (s) of fn(n), its CPU / wall)} over `repeats` rounds, each round timing every thread
-    count in turn (so that the machine's changes of speed, which on a shared virtual machine move a run by a
-    quarter, touch every count alike); before(n), when given, runs untimed ahead of each timed call."""
+    """{n: (least wall time (s) of fn(n), its CPU / wall, fn(n)'s last result)} over `repeats` rounds, each round
+    timing every thread count in turn (so that the machine's changes of speed, which on a shared virtual machine
+    move a run by a quarter, touch every count alike); before(n), when given, runs untimed ahead of each timed
+    call and its result is fn's second argument."""
     best = {}
     for _ in range(repeats):
         for n in counts:
             arg = before(n) if before else None
             c, t = cpu_seconds(), time.perf_counter()
-            fn(n) if before is None else fn(n, arg)
+            out = fn(n) if before is None else fn(n, arg)
             w, cpu = time.perf_counter() - t, cpu_seconds() - c
             if n not in best or w < best[n][0]:
-                best[n] = (w, cpu / w)
+                best[n] = (w, cpu / w, out)
+            else:
+                best[n] = best[n][:2] + (out,)
     return best
 
 
@@ -223,33 +227,29 @@ def main():
 
     if not args.skip_tasks:
         C.run(controllers="ct", score_run=False)   # warm: imports, the generated dynamics' first calls
-        figures = {}
-        for n in counts:
-            w, used, df = best_of(lambda: carry_sweep(n_carry, n), repeats)
-            figures[n] = (w, used)
-            bad = int((~df.success.astype(bool)).sum())
+        best = best_interleaved(lambda n: carry_sweep(n_carry, n), counts, max(3, repeats))
+        figures = {n: (w, used) for n, (w, used, _) in best.items()}
+        bad = max(int((~df.success.astype(bool)).sum()) for _, _, df in best.values())
         print_rows(f"carry sweep, {n_carry} unscored", "s wall", figures, False, TARGETS_2["carry"])
         if bad:
             print(f"  ({bad} of {n_carry} carries failed; their rows count as run)")
-        figures = {}
-        for n in counts:
-            w, used, df = best_of(lambda: handover_sweep(n_hand, n), repeats)
-            figures[n] = (w, used)
-            bad = int((~df.success.astype(bool)).sum())
+        best = best_interleaved(lambda n: handover_sweep(n_hand, n), counts, max(3, repeats))
+        figures = {n: (w, used) for n, (w, used, _) in best.items()}
+        bad = max(int((~df.success.astype(bool)).sum()) for _, _, df in best.values())
         print_rows(f"handover sweep, {n_hand} unscored", "s wall", figures, False, TARGETS_2["handover"])
         if bad:
             print(f"  ({bad} of {n_hand} handovers failed; their rows count as run)")
 
     best = best_interleaved(lambda n, sims: cs.run_batch(sims, t_batch, threads=n, output="none"), counts,
                             max(5, repeats), before=lambda n: batch_runs(n_batch, t_batch))
-    figures = {n: (n_batch * t_batch / w, used) for n, (w, used) in best.items()}
+    figures = {n: (n_batch * t_batch / w, used) for n, (w, used, _) in best.items()}
     print_rows(f"run_batch, {n_batch} CT runs of {t_batch:g} s", "sim s / wall s", figures, True, TARGETS_2["batch"])
 
     robot, Q, QD, TAU = fd_states(N_fd)
     cs.forward_dynamics_batch(robot, Q[:1000], QD[:1000], TAU[:1000], threads=1)
     best = best_interleaved(lambda n: cs.forward_dynamics_batch(robot, Q, QD, TAU, threads=n), counts,
                             max(5, repeats))
-    figures = {n: (w / N_fd * 1e9, used) for n, (w, used) in best.items()}
+    figures = {n: (w / N_fd * 1e9, used) for n, (w, used, _) in best.items()}
     print_rows(f"forward_dynamics_batch, {N_fd} states", "ns / state", figures, False)
 
     if not args.skip_tasks:
