@@ -253,6 +253,51 @@ def test_the_pair_readout_is_what_the_separate_calls_read():
         coopsim.Simulation.pair_readout([coopsim.Simulation()], 0, 1, "bar")
 
 
+def test_the_engine_pool_advances_and_reads_chunks_as_advance_all_and_pair_readout_do():
+    """Simulation.advance_pool (the vector environment's pipeline): chunks handed to its engine threads one
+    after the other, each simulation to its own end time and then read, give what advance_all and
+    pair_readout give the same simulations one chunk at a time, bit for bit; bad chunks are named."""
+    def started(seeds):
+        envs = [DualCarryEnv() for _ in seeds]
+        for env, seed in zip(envs, seeds):
+            env.reset(seed=seed)
+        return envs
+    seeds = (3, 4, 5, 6)
+    a, b = started(seeds), started(seeds)
+    pool = coopsim.Simulation.advance_pool(2)
+    assert pool.threads == 2
+    ends = [e.sim.time + dt for e, dt in zip(a, (0.02, 0.04, 0.02, 0.06))]
+    jobs = [pool.submit([a[0].sim, a[1].sim], ends[:2], (0, 1, "bar")),
+            pool.submit([a[2].sim, a[3].sim], ends[2:], (0, 1, "bar"))]
+    got = [job.result() for job in jobs]
+    got.append(pool.submit([a[3].sim], [ends[3] + 0.01]).result())     # a second leg, no readout
+    for k, (chunk, t_end) in enumerate((([b[0], b[1]], ends[:2]), ([b[2], b[3]], ends[2:]))):
+        for env, t in zip(chunk, t_end):
+            assert coopsim.Simulation.advance_all([env.sim], t) == [None]
+        errors, rows = got[k]
+        assert errors == [None, None]
+        np.testing.assert_array_equal(rows, coopsim.Simulation.pair_readout([e.sim for e in chunk], 0, 1, "bar"))
+    assert got[2][0] == [None] and got[2][1] is None
+    coopsim.Simulation.advance_all([b[3].sim], ends[3] + 0.01)
+    for x, y in zip(a, b):
+        assert x.sim.time == y.sim.time
+        for i in range(2):
+            for u, v in zip(x.sim.state(i), y.sim.state(i)):
+                np.testing.assert_array_equal(u, v)
+    assert a[0].sim.stats.sim_elapsed == pytest.approx(0.02) and a[0].sim.stats.steps == 100
+    with pytest.raises(ValueError, match="t_end"):
+        pool.submit([a[0].sim, a[1].sim], [1.0])
+    with pytest.raises(ValueError, match="t_end"):
+        pool.submit([a[0].sim], [float("nan")])
+    with pytest.raises(ValueError, match="same simulation"):
+        pool.submit([a[0].sim, a[0].sim], [5.0, 5.0]).result()
+    with pytest.raises(ValueError, match="stand"):
+        pool.submit([a[1].sim], [a[1].sim.time], (0, 1, "stand")).result()
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="threads"):
+            coopsim.Simulation.advance_pool(bad)
+
+
 def test_the_carry_observation_is_the_simulation_s_state_and_the_plan_s_error():
     env = DualCarryEnv()
     env.reset(seed=2)

@@ -13,7 +13,6 @@
 #include "convert.hpp"
 #include "generated/docstrings.hpp"
 #include "struct_binding.hpp"
-#include "coopsim/batch.hpp"
 #include "coopsim/held_body.hpp"
 #include "coopsim/grasp.hpp"
 #include "coopsim/integrator.hpp"
@@ -59,22 +58,6 @@ py::object divergence_object(const DivergenceError& e) {
   return inst;
 }
 
-// The exception a failed batch member raised, as a Python exception object.
-py::object exception_object(const std::exception_ptr& p) {
-  try {
-    std::rethrow_exception(p);
-  } catch (py::error_already_set& e) {
-    return e.value();
-  } catch (const DivergenceError& e) {
-    return divergence_object(e);
-  } catch (const SimulationBusyError& e) {
-    return busy_object(e);
-  } catch (const std::invalid_argument& e) {
-    return py::reinterpret_borrow<py::object>(PyExc_ValueError)(e.what());
-  } catch (const std::exception& e) {
-    return py::reinterpret_borrow<py::object>(PyExc_RuntimeError)(e.what());
-  }
-}
 
 // A Reference (C++ or Python subclass), or a set-point array held at all times.
 std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
@@ -193,6 +176,24 @@ py::dict grasp_options_dict(const GraspOptions& g) {
 }
 
 }  // namespace
+
+// The exception a failed batch member raised, as a Python exception object.
+py::object exception_object(const std::exception_ptr& p) {
+  try {
+    std::rethrow_exception(p);
+  } catch (py::error_already_set& e) {
+    return e.value();
+  } catch (const DivergenceError& e) {
+    return divergence_object(e);
+  } catch (const SimulationBusyError& e) {
+    return busy_object(e);
+  } catch (const std::invalid_argument& e) {
+    return py::reinterpret_borrow<py::object>(PyExc_ValueError)(e.what());
+  } catch (const std::exception& e) {
+    return py::reinterpret_borrow<py::object>(PyExc_RuntimeError)(e.what());
+  }
+}
+
 
 
 void bind_simulation(py::module_& m) {
@@ -623,23 +624,6 @@ torques between controller updates, the log and tracking metrics.)doc")
      py::arg("up") = std::vector<double>{0.0, 0.0, 1.0},
      doc_cooperation);
 
-  m.def("run_batch", [](const py::list& sims, double t_end, int threads) {
-         std::vector<Simulation*> ptrs;
-         for (py::handle h : sims) ptrs.push_back(h.cast<Simulation*>());
-         std::vector<std::exception_ptr> errs;
-         std::vector<double> seconds;
-         {
-           coopsim::py_nogil::NoGil nogil;
-           errs = run_batch(ptrs, t_end, threads, &seconds);
-         }
-         py::list out;
-         py::list secs;
-         for (size_t i = 0; i < errs.size(); ++i) {
-           out.append(errs[i] ? exception_object(errs[i]) : py::none());
-           secs.append(seconds[i]);
-         }
-         return py::make_tuple(out, secs);
-       }, py::arg("sims"), py::arg("t_end"), py::arg("threads") = 0, doc_run_batch);
   m.def("pair_readout", [](const std::vector<Simulation*>& sims, int a, int b, const std::string& body) {
          Simulation::ReadoutRows rows;
          { coopsim::py_nogil::NoGil nogil; rows = Simulation::pair_readout(sims, a, b, body); }

@@ -14,6 +14,7 @@ void bind_task(py::module_& m);
 void bind_cooperative(py::module_& m);
 void bind_world(py::module_& m);
 void bind_simulation(py::module_& m);
+void bind_batch(py::module_& m);
 void bind_model(py::module_& m);
 void bind_build_info(py::module_& m);
 void short_type_errors(py::module_& m);
@@ -42,6 +43,7 @@ PYBIND11_MODULE(_core, m) {
   bind_cooperative(m);
   bind_world(m);
   bind_simulation(m);
+  bind_batch(m);
   bind_model(m);
   bind_build_info(m);
   // last, once every function is bound: a wrong argument type is one short TypeError (short_errors.cpp)

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'pair_readout', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['AdvanceJob', 'AdvancePool', 'BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'pair_readout', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -2717,6 +2717,36 @@ class SimulationCore:
         with a world:
         the world steps every k-th robot step, its contacts held in between
         """
+class AdvanceJob:
+    """
+    What one submit() did, filled by a pool thread; wait() blocks until it is done.
+    """
+    def result(self) -> tuple[list, list, typing.Any]:
+        """
+        (errors, seconds, rows or None) once done (waits with the GIL released); raises the job's own failure.
+        """
+class AdvancePool:
+    """
+    A pool of engine threads that advance chunks of simulations handed to it one at a time, in the order
+    given, each idle thread taking the next: the vector environments' pipeline (coopsim.envs.vector), where
+    the caller's thread prepares the next chunk (Python) while the pool advances and reads the last ones.
+    Its threads never take the GIL.
+    """
+    def __init__(self, threads: typing.SupportsInt | typing.SupportsIndex) -> None:
+        """
+        `threads` >= 1 engine threads, started now and joined by the destructor (after the jobs queued).
+        """
+    def submit(self, sims: collections.abc.Sequence[SimulationCore], t_end: collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], a: typing.SupportsInt | typing.SupportsIndex = 0, b: typing.SupportsInt | typing.SupportsIndex = 0, body: str = '') -> AdvanceJob:
+        """
+        Queues: advance each sims[i] to t_end[i] (those of one end time in one run_batch call on the pool
+        thread, run_batch's checks), then, when `body` is not empty, Simulation::pair_readout(sims, a, b, body).
+        The simulations must stay alive until the job is done; one in two jobs at once is refused to the
+        second (its error a SimulationBusyError: one driver at a time), so a chunk that follows another with
+        the same simulations waits for that one's result first.
+        """
+    @property
+    def threads(self) -> int:
+        ...
 class SimulationModel:
     """
     What a simulation is, apart from where it is (simulation_model.hpp): its options, its robots as

@@ -547,6 +547,13 @@ class Simulation:
         return list(errors)
 
     @staticmethod
+    def advance_pool(threads: int) -> "AdvancePool":
+        """A pool of `threads` engine threads to which chunks of simulations are handed one at a time
+        (:class:`AdvancePool`): what a pipeline of chunks uses when its caller's thread has Python to run
+        between them (the vector environments')."""
+        return AdvancePool(threads)
+
+    @staticmethod
     def pair_readout(sims: Sequence["Simulation"], a: int, b: int, body: str) -> np.ndarray:
         """Robots `a` < `b` and free body `body` (its name) of each of `sims` now, in one engine call with the
         GIL released: an (len(sims), 72 + 2 (na + nb)) float64 array, one row per simulation (na, nb: the robots'
@@ -738,3 +745,58 @@ def gil_released_seconds() -> float:
     the batch functions) are not counted; the calling thread's call is. ``benchmarks/bench_scaling.py``
     divides its growth over a task run by the run's wall time."""
     return _core.gil_released_seconds()
+
+
+class AdvancePool:
+    """`threads` engine threads (1 to 4096) that advance chunks of simulations handed to them one at a time, in
+    the order given, each idle thread taking the next chunk; their threads never take the GIL. ``submit(sims,
+    t_end, readout=None)`` queues a chunk: each simulation advanced to its own end time (s; :meth:`Simulation.advance`'s
+    rules, the simulations distinct and not sharing controllers), then, with ``readout=(a, b, body)``, read by
+    :meth:`Simulation.pair_readout`; it returns an :class:`AdvanceJob` at once. The caller may run Python (the
+    next chunk's commands) while the pool advances the last ones, then collect each job's result. Made by
+    :meth:`Simulation.advance_pool`; the engine's threads stop when the pool is collected."""
+
+    def __init__(self, threads: int):
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= 4096:
+            raise ValueError(f"threads must be an integer from 1 to 4096, got {threads!r}")
+        self._core = _core.AdvancePool(int(threads))
+
+    @property
+    def threads(self) -> int:
+        """The pool's engine threads."""
+        return self._core.threads
+
+    def submit(self, sims: Sequence[Simulation], t_end: Sequence[float],
+               readout: Optional[Tuple[int, int, str]] = None) -> "AdvanceJob":
+        """Queues sims, each to advance to its t_end (s), then their readout when `readout` = (a, b, body) is
+        given; returns the :class:`AdvanceJob`. ValueError when t_end does not hold one finite time per
+        simulation (the rest of the checks come with the job's result)."""
+        sims = list(sims)
+        a, b, body = readout if readout is not None else (0, 0, "")
+        marks = [(s.time, s.steps) for s in sims]
+        job = self._core.submit([s._core for s in sims], [float(t) for t in t_end], int(a), int(b), str(body))
+        return AdvanceJob(job, sims, marks)
+
+
+class AdvanceJob:
+    """A chunk handed to an :class:`AdvancePool`; :meth:`result` waits for it. It keeps its simulations alive
+    until the engine is done with them, even if dropped uncollected."""
+
+    def __init__(self, job, sims, marks):
+        self._job, self._sims, self._marks = job, sims, marks
+
+    def result(self):
+        """(errors, rows) once the pool has advanced (and read) the chunk, waiting with the GIL released: per
+        simulation the exception that stopped it or None (as :meth:`Simulation.advance_all`), and the readout's
+        rows (len(sims), width) or None. Sets each simulation's :attr:`~Simulation.stats`. Raises the chunk's own
+        error (ValueError: a simulation repeated, controllers shared, robots or body not there to read)."""
+        errors, seconds, rows = self._job.result()
+        for s, w, (t0, k0) in zip(self._sims, seconds, self._marks):
+            s.stats = RunStats._make(s.time, s.time - t0, w, w, s.dt, s.steps - k0)
+        return errors, rows
+
+    def __del__(self):
+        try:
+            self._job.result()
+        except Exception:
+            pass

@@ -11,6 +11,21 @@ constexpr const char* doc_run_batch = "Runs each simulation up to time t_end on 
     "finished), so that one failed run does not stop the others; `seconds`, when\n"
     "given, receives each run's wall time (s). Throws std::invalid_argument on a\n"
     "null or repeated simulation, a shared controller or a non-finite t_end.";
+constexpr const char* doc_AdvancePool = "A pool of engine threads that advance chunks of simulations handed to it one at a time, in the order\n"
+    "given, each idle thread taking the next: the vector environments' pipeline (coopsim.envs.vector), where\n"
+    "the caller's thread prepares the next chunk (Python) while the pool advances and reads the last ones.\n"
+    "Its threads never take the GIL.";
+constexpr const char* doc_AdvancePool_Job = "What one submit() did, filled by a pool thread; wait() blocks until it is done.";
+constexpr const char* doc_AdvancePool_Job_errors = "per simulation, as run_batch's";
+constexpr const char* doc_AdvancePool_Job_seconds = "per simulation, its run's wall time (s)";
+constexpr const char* doc_AdvancePool_Job_rows = "pair_readout's rows, when asked";
+constexpr const char* doc_AdvancePool_Job_failure = "run_batch's or pair_readout's own exception (bad arguments)";
+constexpr const char* doc_AdvancePool_AdvancePool = "`threads` >= 1 engine threads, started now and joined by the destructor (after the jobs queued).";
+constexpr const char* doc_AdvancePool_submit = "Queues: advance each sims[i] to t_end[i] (those of one end time in one run_batch call on the pool\n"
+    "thread, run_batch's checks), then, when `body` is not empty, Simulation::pair_readout(sims, a, b, body).\n"
+    "The simulations must stay alive until the job is done; one in two jobs at once is refused to the\n"
+    "second (its error a SimulationBusyError: one driver at a time), so a chunk that follows another with\n"
+    "the same simulations waits for that one's result first.";
 constexpr const char* doc_box_distance = "Distance between two boxes (world poses of their centres, half extents), m:\n"
     "> 0 the gap between their nearest points, <= 0 minus the depth of their\n"
     "overlap (Bullet's GJK with EPA, margins zero, double precision). Rows i, j\n"

@@ -318,6 +318,8 @@ class DualCarryEnv(gym.Env):
         x = [a[j] + u * (b[j] - a[j]) for j in range(4)]
         return x[3], x[:3]
 
+    _readout_args = (0, 1, _scene.BAR)   # the robots and the body of each step's readout (Simulation.pair_readout)
+
     @staticmethod
     def _readouts(envs) -> np.ndarray:
         """The readouts of environments `envs` now, one row each, in one engine call (the vector environment's)."""

@@ -16,9 +16,9 @@ same seeds and actions give the single environments' episodes bit for bit.
 
 With ``threads`` of 2 or more (or 0) the step runs its environments in a pipeline of chunks (twice as many as
 worker threads): the caller's thread applies a chunk's actions (Python, holding the GIL) and hands the chunk to
-a worker, which advances its simulations and reads them (:meth:`coopsim.Simulation.pair_readout` for the
-carry), the engine's calls with the GIL released, while the caller applies the next chunk; the caller then
-reads the chunks' outcomes in order as they finish. The Python of some chunks overlaps the engine of the
+the engine's pool (:meth:`coopsim.Simulation.advance_pool`), whose threads advance its simulations and read them
+(:meth:`coopsim.Simulation.pair_readout` for the carry) without ever taking the GIL, while the caller applies the
+next chunk; the caller then reads the chunks' outcomes in order as they finish. The Python of some chunks overlaps the engine of the
 others; each environment goes through the same calls in the same order. With ``threads=1`` the step runs them
 in turn on the caller's thread alone (one core).
 """
@@ -87,6 +87,7 @@ class CoopsimVectorEnv(VectorEnv):
         self._env_obs: list = [None] * self.num_envs
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._executor: Optional[concurrent.futures.ThreadPoolExecutor] = None
+        self._advance_pool = None
 
     # ---- Gymnasium ----
 
@@ -109,11 +110,15 @@ class CoopsimVectorEnv(VectorEnv):
             if mask.shape != (n,) or mask.dtype != np.bool_:
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got {mask!r}")
         infos: dict = {}
-        for i, env in enumerate(self.envs):
-            if mask[i]:
-                self._env_obs[i], info = env.reset(seed=seeds[i], options=options or None)
-                self._autoreset[i] = False
-                infos = self._add_info(infos, info, i)
+        indices = [i for i in range(n) if mask[i]]
+
+        def one(i):                  # each environment's reset (its grasp in the engine, the GIL released)
+            return self.envs[i].reset(seed=seeds[i], options=options or None)
+        parallel = self.threads != 1 and len(indices) > 1
+        for i, (obs, info) in zip(indices, list(self._pool().map(one, indices) if parallel else map(one, indices))):
+            self._env_obs[i] = obs
+            self._autoreset[i] = False
+            infos = self._add_info(infos, info, i)
         return self._batched(), infos
 
     def step(self, actions):
@@ -188,18 +193,28 @@ class CoopsimVectorEnv(VectorEnv):
             engine(whole, apply(whole))
             outcome(whole)
         else:
-            # chunks in a pipeline: the caller's thread applies each chunk's actions and hands the chunk's engine
-            # calls (the GIL released) to a worker, then reads the chunks' outcomes in order as they finish: the
-            # workers run the engine while the caller runs Python; each environment goes through the same calls
-            # in the same order as on one thread
-            pool = self._pool()
+            # chunks in a pipeline: the caller's thread applies each chunk's actions and hands the chunk to the
+            # engine's pool (its threads advance and read it without ever taking the GIL), then takes the chunks'
+            # outcomes in order as they finish: the pool runs the engine while the caller runs Python; each
+            # environment goes through the same calls in the same order as on one thread
+            pool = self._engine_pool()
+            readout = getattr(type(self.envs[0]), "_readout_args", None) if reads is not None else None
             count = min(n, 2 * self._workers())
             chunks = [range(k * n // count, (k + 1) * n // count) for k in range(count)]
-            running = []
+            jobs = []
             for chunk in chunks:
-                running.append(pool.submit(engine, chunk, apply(chunk)))
-            for chunk, done in zip(chunks, running):
-                done.result()
+                t_next = apply(chunk)
+                live = [i for i in chunk if i in t_next]
+                jobs.append((live, pool.submit([self.envs[i].sim for i in live], [t_next[i] for i in live],
+                                               readout) if live else None))
+            for chunk, (live, job) in zip(chunks, jobs):
+                if job is not None:
+                    got, read = job.result()
+                    errors.update(zip(live, got))
+                    if readout is not None:
+                        rows.update(zip(live, read))
+                    elif reads is not None and live:
+                        rows.update(zip(live, reads([self.envs[i] for i in live])))
                 outcome(chunk)
         reset(ended)
         entries = []                 # each environment's infos in the order Gymnasium's _add_info takes them
@@ -215,6 +230,12 @@ class CoopsimVectorEnv(VectorEnv):
             self._executor = concurrent.futures.ThreadPoolExecutor(self._workers(),
                                                                    thread_name_prefix="coopsim-vector")
         return self._executor
+
+    def _engine_pool(self):
+        """The engine's threads (as many as workers) that advance and read a step's chunks in the pipeline."""
+        if self._advance_pool is None:
+            self._advance_pool = Simulation.advance_pool(self._workers())
+        return self._advance_pool
 
     def _workers(self) -> int:
         return max(2, self.threads or (os.cpu_count() or 2))
@@ -269,6 +290,7 @@ class CoopsimVectorEnv(VectorEnv):
         if self._executor is not None:
             self._executor.shutdown()
             self._executor = None
+        self._advance_pool = None      # its engine threads stop when it is collected
         for env in self.envs:
             env.close()
 
