@@ -69,19 +69,6 @@ def cpu_seconds():
     return r.ru_utime + r.ru_stime
 
 
-def best_of(fn, repeats):
-    """(the least wall time (s) of fn() over `repeats`, the CPU time over the wall time of that repeat: the cores
-    the process had, fn's last result)."""
-    best, out = None, None
-    for _ in range(repeats):
-        c, t = cpu_seconds(), time.perf_counter()
-        out = fn()
-        w, cpu = time.perf_counter() - t, cpu_seconds() - c
-        if best is None or w < best[0]:
-            best = (w, cpu / w)
-    return best[0], best[1], out
-
-
 def best_interleaved(fn, counts, repeats, before=None):
     """{n: (least wall time (s) of fn(n), its CPU / wall, fn(n)'s last result)} over `repeats` rounds, each round
     timing every thread count in turn (so that the machine's changes of speed, which on a shared virtual machine

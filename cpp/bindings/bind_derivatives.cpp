@@ -39,20 +39,21 @@ VecN optional_vec(const py::object& obj, int n, const char* name) {
 
 const double* ptr(const VecN& v) { return v.size() ? v.data() : nullptr; }
 
-// The data of `obj` when it is a float64 (native byte order), aligned, C-contiguous numpy array of shape
-// (rows,) (cols = 0) or (rows, cols), writeable if asked; null otherwise.
-double* direct(const py::handle& obj, py::ssize_t rows, py::ssize_t cols, bool writeable) {
+// The data of `obj` when it is a float64 (native byte order), aligned, C-contiguous numpy array of the
+// given shape (1 to 3 extents), writeable if asked; null otherwise.
+double* direct(const py::handle& obj, std::initializer_list<py::ssize_t> shape, bool writeable) {
   static const auto& api = py::detail::npy_api::get();
   if (!api.PyArray_Check_(obj.ptr())) return nullptr;
   const auto* a = py::detail::array_proxy(obj.ptr());
   const auto* d = py::detail::array_descriptor_proxy(a->descr);
   int need = py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_ | py::detail::npy_api::NPY_ARRAY_ALIGNED_;
   if (writeable) need |= py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-  if (d->type_num != py::detail::npy_api::NPY_DOUBLE_ || d->byteorder != '=' || (a->flags & need) != need)
+  if (d->type_num != py::detail::npy_api::NPY_DOUBLE_ || d->byteorder != '=' || (a->flags & need) != need ||
+      a->nd != static_cast<int>(shape.size()))
     return nullptr;
-  if (cols == 0 ? (a->nd != 1 || a->dimensions[0] != rows)
-                : (a->nd != 2 || a->dimensions[0] != rows || a->dimensions[1] != cols))
-    return nullptr;
+  int k = 0;
+  for (const py::ssize_t extent : shape)
+    if (a->dimensions[k++] != extent) return nullptr;
   return reinterpret_cast<double*>(a->data);
 }
 
@@ -61,7 +62,7 @@ double* direct(const py::handle& obj, py::ssize_t rows, py::ssize_t cols, bool w
 class VecArg {
  public:
   VecArg(const py::handle& obj, int n, const char* name) {
-    if (const double* d = direct(obj, n, 0, false)) {
+    if (const double* d = direct(obj, {n}, false)) {
       check_finite(d, static_cast<size_t>(n), name);
       p_ = d;
     } else {
@@ -115,6 +116,28 @@ std::string describe_out(const py::object& out) {
   return s;
 }
 
+// out=: three distinct writeable float64 C-contiguous arrays of `shape` (a tuple or a list), their data
+// into d; a ValueError saying what was given otherwise.
+void out_arrays(const py::object& out, std::initializer_list<py::ssize_t> shape, double* d[3]) {
+  PyObject* o = out.ptr();
+  const bool three = (PyTuple_Check(o) && PyTuple_GET_SIZE(o) == 3) || (PyList_Check(o) && PyList_GET_SIZE(o) == 3);
+  bool ok = three;
+  for (int i = 0; ok && i < 3; ++i) {
+    d[i] = direct(PyTuple_Check(o) ? PyTuple_GET_ITEM(o, i) : PyList_GET_ITEM(o, i), shape, true);
+    ok = d[i] != nullptr;
+  }
+  py::ssize_t size = 1;
+  std::string dims, example;
+  for (const py::ssize_t extent : shape) {
+    size *= extent;
+    dims += (dims.empty() ? "" : ", ") + std::to_string(extent);
+  }
+  if (ok && size > 0) ok = d[0] != d[1] && d[1] != d[2] && d[0] != d[2];
+  if (!ok)
+    throw py::value_error("out must be None or three distinct writeable float64 C-contiguous arrays of shape (" +
+                          dims + ") (e.g. tuple(np.empty((3, " + dims + ")))), got " + describe_out(out));
+}
+
 bool finite(const double* p, int n) { return coopsim::all_finite(p, static_cast<std::size_t>(n)); }
 
 // The three results (row-major (n, n) each, one after the other at rows) as new arrays, or copied into
@@ -129,47 +152,10 @@ py::object results(const double* rows, py::ssize_t n, const py::object& out, con
     for (int i = 0; i < 3; ++i) PyTuple_SET_ITEM(t.ptr(), i, new_matrix(rows + i * nn, n));
     return std::move(t);
   }
-  double* d[3] = {nullptr, nullptr, nullptr};
-  PyObject* o = out.ptr();
-  if (PyTuple_Check(o) && PyTuple_GET_SIZE(o) == 3)
-    for (int i = 0; i < 3; ++i) d[i] = direct(PyTuple_GET_ITEM(o, i), n, n, true);
-  else if (PyList_Check(o) && PyList_GET_SIZE(o) == 3)
-    for (int i = 0; i < 3; ++i) d[i] = direct(PyList_GET_ITEM(o, i), n, n, true);
-  if (!d[0] || !d[1] || !d[2] || d[0] == d[1] || d[1] == d[2] || d[0] == d[2]) {
-    const std::string shape = "(" + std::to_string(n) + ", " + std::to_string(n) + ")";
-    throw py::value_error("out must be None or three distinct writeable float64 C-contiguous arrays of shape " +
-                          shape + " (e.g. tuple(np.empty((3, " + std::to_string(n) + ", " + std::to_string(n) +
-                          ")))), got " + describe_out(out));
-  }
+  double* d[3];
+  out_arrays(out, {n, n}, d);
   for (int i = 0; i < 3; ++i) std::memcpy(d[i], rows + i * nn, sizeof(double) * nn);
   return PyTuple_Check(out.ptr()) ? out : py::object(py::tuple(out));
-}
-
-// The batch's out=: three distinct float64 C-contiguous writeable (N, n, n) arrays (a tuple or a list),
-// put into res and their data into d; a ValueError saying what was given otherwise.
-void batch_out(const py::object& out, py::ssize_t N, int n, py::tuple& res, double* d[3]) {
-  static const auto& api = py::detail::npy_api::get();
-  const int need = py::detail::npy_api::NPY_ARRAY_C_CONTIGUOUS_ | py::detail::npy_api::NPY_ARRAY_ALIGNED_ |
-                   py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-  bool ok = (PyTuple_Check(out.ptr()) || PyList_Check(out.ptr())) && py::len(out) == 3;
-  for (int i = 0; ok && i < 3; ++i) {
-    const py::object h = out[py::int_(i)];
-    ok = api.PyArray_Check_(h.ptr());
-    if (!ok) break;
-    const auto* a = py::detail::array_proxy(h.ptr());
-    const auto* dt = py::detail::array_descriptor_proxy(a->descr);
-    ok = dt->type_num == py::detail::npy_api::NPY_DOUBLE_ && dt->byteorder == '=' && (a->flags & need) == need &&
-         a->nd == 3 && a->dimensions[0] == N && a->dimensions[1] == n && a->dimensions[2] == n;
-    d[i] = reinterpret_cast<double*>(a->data);
-    for (int j = 0; ok && N > 0 && j < i; ++j) ok = d[j] != d[i];
-    res[i] = h;
-  }
-  if (!ok) {
-    const std::string shape = "(" + std::to_string(N) + ", " + std::to_string(n) + ", " + std::to_string(n) + ")";
-    throw py::value_error("out must be None or three distinct writeable float64 C-contiguous arrays of shape " +
-                          shape + " (e.g. tuple(np.empty((3, " + std::to_string(N) + ", " + std::to_string(n) +
-                          ", " + std::to_string(n) + ")))), got " + describe_out(out));
-  }
 }
 
 // MatN results in numpy's layout, then as results()
@@ -195,8 +181,8 @@ PyObject* forward_fast(PyObject* self, PyObject* const* args, Py_ssize_t nargs, 
       if (!vh || !vh.value_ptr()) throw std::invalid_argument("not a constructed Robot");
       const Robot& r = *static_cast<const Robot*>(vh.value_ptr());
       const int n = r.dof();
-      const double *q = direct(args[0], n, 0, false), *qd = direct(args[1], n, 0, false),
-                   *tau = direct(args[2], n, 0, false);
+      const double *q = direct(args[0], {n}, false), *qd = direct(args[1], {n}, false),
+                   *tau = direct(args[2], {n}, false);
       if (q && qd && tau && finite(q, n) && finite(qd, n) && finite(tau, n)) {
         double rows[3 * kMaxDof * kMaxDof];
         r.forward_dynamics_derivatives_rows(q, qd, tau, rows, rows + n * n, rows + 2 * n * n);
@@ -267,14 +253,15 @@ void bind_derivatives(py::module_& m) {
              res[i] = a;
            }
          } else {
-           batch_out(out, N, n, res, d);
+           out_arrays(out, {N, nn, nn}, d);
          }
          {
            coopsim::py_nogil::NoGil nogil;
            forward_dynamics_derivatives_batch(r, q.data(), qd.data(), tau.data(), static_cast<int>(N), d[0], d[1],
                                               d[2], threads);
          }
-         return PyTuple_Check(out.ptr()) ? out : py::object(res);  // out given as a tuple: that tuple
+         if (out.is_none()) return py::object(res);
+         return PyTuple_Check(out.ptr()) ? out : py::object(py::tuple(out));  // as given, or the list's tuple
        }, py::arg("robot"), py::arg("q"), py::arg("qd"), py::arg("tau"), py::arg("threads") = 0, py::kw_only(),
        py::arg("out") = py::none(), docs::doc_forward_dynamics_derivatives_batch);
 

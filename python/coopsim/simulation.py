@@ -542,8 +542,7 @@ class Simulation:
         """
         marks = [(s.time, s.steps) for s in sims]
         errors, seconds = _core.run_batch([s._core for s in sims], float(t_end), int(threads))
-        for s, w, (t0, k0) in zip(sims, seconds, marks):
-            s.stats = RunStats._make(s.time, s.time - t0, w, w, s.dt, s.steps - k0)
+        _batch_stats(sims, seconds, marks)
         return list(errors)
 
     @staticmethod
@@ -747,6 +746,13 @@ def gil_released_seconds() -> float:
     return _core.gil_released_seconds()
 
 
+def _batch_stats(sims, seconds, marks) -> None:
+    """Each of `sims`' :attr:`~Simulation.stats` after a batch advanced it: its run's wall time (s, the runs
+    overlapping on the threads) and what it covered since its (time, steps) mark taken before."""
+    for s, w, (t0, k0) in zip(sims, seconds, marks):
+        s.stats = RunStats._make(s.time, s.time - t0, w, w, s.dt, s.steps - k0)
+
+
 class AdvancePool:
     """`threads` engine threads (1 to 4096) that advance chunks of simulations handed to them one at a time, in
     the order given, each idle thread taking the next chunk; their threads never take the GIL. ``submit(sims,
@@ -791,8 +797,7 @@ class AdvanceJob:
         rows (len(sims), width) or None. Sets each simulation's :attr:`~Simulation.stats`. Raises the chunk's own
         error (ValueError: a simulation repeated, controllers shared, robots or body not there to read)."""
         errors, seconds, rows = self._job.result()
-        for s, w, (t0, k0) in zip(self._sims, seconds, self._marks):
-            s.stats = RunStats._make(s.time, s.time - t0, w, w, s.dt, s.steps - k0)
+        _batch_stats(self._sims, seconds, self._marks)
         return errors, rows
 
     def __del__(self):

@@ -320,14 +320,9 @@ class DualCarryEnv(gym.Env):
 
     _readout_args = (0, 1, _scene.BAR)   # the robots and the body of each step's readout (Simulation.pair_readout)
 
-    @staticmethod
-    def _readouts(envs) -> np.ndarray:
-        """The readouts of environments `envs` now, one row each, in one engine call (the vector environment's)."""
-        return Simulation.pair_readout([e.sim for e in envs], 0, 1, _scene.BAR)
-
     def _readout(self) -> np.ndarray:
         """The simulation's readout now (:meth:`Simulation.pair_readout` of both arms and the bar): one row."""
-        return Simulation.pair_readout([self.sim], 0, 1, _scene.BAR)[0]
+        return Simulation.pair_readout([self.sim], *self._readout_args)[0]
 
     def _observe(self, row: Optional[np.ndarray] = None) -> dict:
         """The observation (the Dict's parts: views of one flat float64 array) from the readout `row` (None:

@@ -18,8 +18,8 @@ With ``threads`` of 2 or more (or 0) the step runs its environments in a pipelin
 worker threads): the caller's thread applies a chunk's actions (Python, holding the GIL) and hands the chunk to
 the engine's pool (:meth:`coopsim.Simulation.advance_pool`), whose threads advance its simulations and read them
 (:meth:`coopsim.Simulation.pair_readout` for the carry) without ever taking the GIL, while the caller applies the
-next chunk; the caller then reads the chunks' outcomes in order as they finish. The Python of some chunks overlaps the engine of the
-others; each environment goes through the same calls in the same order. With ``threads=1`` the step runs them
+next chunk; the caller then reads the chunks' outcomes in order as they finish. The Python of some chunks
+overlaps the engine of the others; each environment goes through the same calls in the same order. With ``threads=1`` the step runs them
 in turn on the caller's thread alone (one core).
 """
 from __future__ import annotations
@@ -143,7 +143,7 @@ class CoopsimVectorEnv(VectorEnv):
         results: list = [None] * n
         errors: dict = {}
         rows: dict = {}              # each environment's readout after its advance (a class that reads at once)
-        reads = getattr(type(self.envs[0]), "_readouts", None)
+        readout = getattr(type(self.envs[0]), "_readout_args", None)   # pair_readout's (a, b, body), or None
 
         parallel = self.threads != 1 and n > 1
         ended: list = []             # SAME_STEP: the environments whose episode ended this step
@@ -156,20 +156,19 @@ class CoopsimVectorEnv(VectorEnv):
             return t_next
 
         def engine(part, t_next):    # the engine: the part's simulations in one call per end time, then
-            threads = 1 if parallel else self.threads      # their readouts in one more (the GIL released)
-            for t in sorted(set(t_next.values())):
+            for t in sorted(set(t_next.values())):     # their readouts in one more (the GIL released)
                 group = [i for i in t_next if t_next[i] == t]
-                got = Simulation.advance_all([self.envs[i].sim for i in group], t, threads)
+                got = Simulation.advance_all([self.envs[i].sim for i in group], t, self.threads)
                 errors.update(zip(group, got))
             live = [i for i in part if not resetting[i]]
-            if live and reads is not None:
-                rows.update(zip(live, reads([self.envs[i] for i in live])))
+            if live and readout is not None:
+                rows.update(zip(live, Simulation.pair_readout([self.envs[i].sim for i in live], *readout)))
 
         def outcome(part):           # Python: each environment's observation, reward and checks
             for i in part:
                 if resetting[i]:
                     continue
-                got = self.envs[i]._outcome(errors[i], rows[i]) if reads else self.envs[i]._outcome(errors[i])
+                got = self.envs[i]._outcome(errors[i], rows[i]) if readout else self.envs[i]._outcome(errors[i])
                 self._env_obs[i], rewards[i], terminated[i], truncated[i], results[i] = got
                 if self.autoreset_mode == AutoresetMode.SAME_STEP and (terminated[i] or truncated[i]):
                     ended.append(i)
@@ -198,7 +197,6 @@ class CoopsimVectorEnv(VectorEnv):
             # outcomes in order as they finish: the pool runs the engine while the caller runs Python; each
             # environment goes through the same calls in the same order as on one thread
             pool = self._engine_pool()
-            readout = getattr(type(self.envs[0]), "_readout_args", None) if reads is not None else None
             count = min(n, 2 * self._workers())
             chunks = [range(k * n // count, (k + 1) * n // count) for k in range(count)]
             jobs = []
@@ -213,8 +211,6 @@ class CoopsimVectorEnv(VectorEnv):
                     errors.update(zip(live, got))
                     if readout is not None:
                         rows.update(zip(live, read))
-                    elif reads is not None and live:
-                        rows.update(zip(live, reads([self.envs[i] for i in live])))
                 outcome(chunk)
         reset(ended)
         entries = []                 # each environment's infos in the order Gymnasium's _add_info takes them
@@ -224,8 +220,8 @@ class CoopsimVectorEnv(VectorEnv):
         return self._batched(), rewards, terminated, truncated, self._gathered(entries)
 
     def _pool(self):
-        """The worker threads (`threads` of them, 0: every core, at least 2): they run a step's chunks' engine
-        calls while the caller's thread runs Python, and the resets of one step side by side."""
+        """The Python worker threads (`threads` of them, 0: every core, at least 2): they run the resets of one
+        step, or of reset(), side by side (a step's chunks go to the engine's pool, :meth:`_engine_pool`)."""
         if self._executor is None:
             self._executor = concurrent.futures.ThreadPoolExecutor(self._workers(),
                                                                    thread_name_prefix="coopsim-vector")
