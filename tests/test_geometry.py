@@ -339,6 +339,11 @@ def test_box_clearances_is_the_minimum_of_box_distances_in_every_row():
     for k in range(0, 2 * n, 7):
         D = cs.box_distances(P1[k], H1, W, HW)
         assert d[k] == D.min() and D[i[k], j[k]] == d[k]
+    # the tables are read in place when they can be, and copied when numpy must convert them (a strided
+    # view, a transposed copy in Fortran order): the same rows
+    d2, i2, j2 = cs.box_clearances(P1[::3], H1, np.asfortranarray(P2[::3]), H2)
+    e2, k2, l2 = cs.box_clearances(np.ascontiguousarray(P1[::3]), H1, np.ascontiguousarray(P2[::3]), H2)
+    assert np.array_equal(d2, e2) and np.array_equal(i2, k2) and np.array_equal(j2, l2)
     # no rows
     d, i, j = cs.box_clearances(P1[:0], H1, P2[:0], H2)
     assert d.shape == (0,)

@@ -74,7 +74,9 @@ void bind_world(py::module_& m) {
         "half extents (m, > 0). Bullet's GJK and EPA on exact boxes (no collision margin).");
   m.def("box_clearances", [](const py::object& pa, const py::object& ha, const py::object& pb,
                              const py::object& hb) {
-          const Array A = table(pa, "poses_a"), x = table(ha, "half_a"), B = table(pb, "poses_b"), y = table(hb, "half_b");
+          Arr keep_a, keep_b;
+          const ArrayView A = table_view(pa, "poses_a", keep_a), B = table_view(pb, "poses_b", keep_b);
+          const Array x = table(ha, "half_a"), y = table(hb, "half_b");
           BoxClearances c;
           {
             coopsim::py_nogil::NoGil nogil;
@@ -104,7 +106,8 @@ void bind_world(py::module_& m) {
         "shapes' frames (for a robot's shapes, Robot.shapes(q)'s poses). Two boxes give box_distance.");
   m.def("shape_clearances", [](const py::object& pa, const std::vector<LinkBox>& sa, const py::object& pb,
                                const std::vector<LinkBox>& sb) {
-          const Array A = table(pa, "poses_a"), B = table(pb, "poses_b");
+          Arr keep_a, keep_b;
+          const ArrayView A = table_view(pa, "poses_a", keep_a), B = table_view(pb, "poses_b", keep_b);
           const std::vector<Shape> x(sa.begin(), sa.end()), y(sb.begin(), sb.end());
           BoxClearances c;
           {

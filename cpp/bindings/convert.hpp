@@ -100,6 +100,13 @@ inline Array table(const py::handle& obj, const char* name) {
   return Array{{a.data(), a.data() + a.size()}, {a.shape(), a.shape() + a.ndim()}};
 }
 
+// The numbers of obj read in place (a copy only where numpy must convert it): `keep` holds the array,
+// and must outlive the view.
+inline ArrayView table_view(const py::handle& obj, const char* name, Arr& keep) {
+  keep = as_array(obj, name);
+  return ArrayView{keep.data(), {keep.shape(), keep.shape() + keep.ndim()}};
+}
+
 inline std::optional<Array> optional_table(const py::handle& obj, const char* name) {
   if (obj.is_none()) return std::nullopt;
   return table(obj, name);

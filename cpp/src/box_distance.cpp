@@ -359,10 +359,20 @@ std::vector<Eigen::Vector3d> halves(const Array& h, std::ptrdiff_t n, const char
 }
 
 // The k-th pose of a table of poses (its rows of `per_row` poses when per_row > 0), named "NAME[r][i]".
-Eigen::Isometry3d pose_at(const Array& a, std::ptrdiff_t k, std::ptrdiff_t per_row, const char* name) {
-  std::string who = name;
-  if (per_row > 0) who += "[" + std::to_string(k / per_row) + "]";
-  return rigid_pose(a.values.data() + 16 * k, who + "[" + std::to_string(per_row > 0 ? k % per_row : k) + "]");
+Eigen::Isometry3d pose_at(const ArrayView& a, std::ptrdiff_t k, std::ptrdiff_t per_row, const char* name) {
+  return rigid_pose(a.values + 16 * k, [&] {
+    std::string who = name;
+    if (per_row > 0) who += "[" + std::to_string(k / per_row) + "]";
+    return who + "[" + std::to_string(per_row > 0 ? k % per_row : k) + "]";
+  });
+}
+
+// The poses of a table of `count` poses (rows of `per_row` when per_row > 0), each checked.
+std::vector<Eigen::Isometry3d> poses_of(const ArrayView& a, std::ptrdiff_t count, std::ptrdiff_t per_row, const char* name) {
+  std::vector<Eigen::Isometry3d> out;
+  out.reserve(static_cast<size_t>(count));
+  for (std::ptrdiff_t k = 0; k < count; ++k) out.push_back(pose_at(a, k, per_row, name));
+  return out;
 }
 
 }  // namespace
@@ -387,7 +397,7 @@ Array box_distances(const Array& poses_a, const Array& half_a, const Array& pose
   return out;
 }
 
-BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b) {
+BoxClearances box_clearances(const ArrayView& poses_a, const Array& half_a, const ArrayView& poses_b, const Array& half_b) {
   check_shape(poses_a, {-1, -1, 4, 4}, "poses_a");
   check_finite(poses_a, "poses_a");
   const std::ptrdiff_t rows = poses_a.shape[0], na = poses_a.shape[1];
@@ -399,15 +409,13 @@ BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Ar
   const std::ptrdiff_t nb = fixed ? poses_b.shape[0] : poses_b.shape[1];
   const auto y = halves(half_b, nb, "half_b");
   if (na == 0 || nb == 0) throw std::invalid_argument("poses_a and poses_b need at least one box each");
-  std::vector<Eigen::Isometry3d> a, b;
-  for (std::ptrdiff_t k = 0; k < rows * na; ++k) a.push_back(pose_at(poses_a, k, na, "poses_a"));
-  for (std::ptrdiff_t k = 0; k < (fixed ? nb : rows * nb); ++k) b.push_back(pose_at(poses_b, k, fixed ? 0 : nb, "poses_b"));
+  const auto a = poses_of(poses_a, rows * na, na, "poses_a"), b = poses_of(poses_b, fixed ? nb : rows * nb, fixed ? 0 : nb, "poses_b");
   BoxClearances out{std::vector<double>(rows), std::vector<long>(rows), std::vector<long>(rows)};
   box_clearances(static_cast<int>(rows), a, x, b, y, fixed, out.d.data(), out.ia.data(), out.ib.data());
   return out;
 }
 
-BoxClearances shape_clearances(const Array& poses_a, const std::vector<Shape>& shapes_a, const Array& poses_b,
+BoxClearances shape_clearances(const ArrayView& poses_a, const std::vector<Shape>& shapes_a, const ArrayView& poses_b,
                                const std::vector<Shape>& shapes_b) {
   const std::ptrdiff_t na = static_cast<std::ptrdiff_t>(shapes_a.size()), nb = static_cast<std::ptrdiff_t>(shapes_b.size());
   if (na == 0 || nb == 0) throw std::invalid_argument("shapes_a and shapes_b need at least one shape each");
@@ -418,9 +426,7 @@ BoxClearances shape_clearances(const Array& poses_a, const std::vector<Shape>& s
   if (fixed) check_shape(poses_b, {nb, 4, 4}, "poses_b");
   else check_shape(poses_b, {rows, nb, 4, 4}, "poses_b");
   check_finite(poses_b, "poses_b");
-  std::vector<Eigen::Isometry3d> a, b;
-  for (std::ptrdiff_t k = 0; k < rows * na; ++k) a.push_back(pose_at(poses_a, k, na, "poses_a"));
-  for (std::ptrdiff_t k = 0; k < (fixed ? nb : rows * nb); ++k) b.push_back(pose_at(poses_b, k, fixed ? 0 : nb, "poses_b"));
+  const auto a = poses_of(poses_a, rows * na, na, "poses_a"), b = poses_of(poses_b, fixed ? nb : rows * nb, fixed ? 0 : nb, "poses_b");
   BoxClearances out{std::vector<double>(rows), std::vector<long>(rows), std::vector<long>(rows)};
   shape_clearances(static_cast<int>(rows), a, shapes_a, b, shapes_b, fixed, out.d.data(), out.ia.data(), out.ib.data());
   return out;

@@ -73,12 +73,16 @@ void check_rotation(const Eigen::Matrix3d& R, const std::string& name) {
   if (!is_rotation(R)) throw std::invalid_argument(name + " must be a rotation matrix (orthonormal, determinant +1)");
 }
 
-void check_rigid(const Eigen::Matrix4d& T, const std::string& name) {
-  if (!T.allFinite()) throw std::invalid_argument(name + " must be finite (got NaN or inf)");
+const char* rigid_problem(const Eigen::Matrix4d& T) {
+  if (!T.allFinite()) return "must be finite (got NaN or inf)";
   if ((T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-12)
-    throw std::invalid_argument(name + " must be a homogeneous transform (last row 0 0 0 1)");
-  if (!is_rotation(T.topLeftCorner<3, 3>()))
-    throw std::invalid_argument(name + " must be a rigid transform (orthonormal rotation)");
+    return "must be a homogeneous transform (last row 0 0 0 1)";
+  if (!is_rotation(T.topLeftCorner<3, 3>())) return "must be a rigid transform (orthonormal rotation)";
+  return nullptr;
+}
+
+void check_rigid(const Eigen::Matrix4d& T, const std::string& name) {
+  if (const char* problem = rigid_problem(T)) throw std::invalid_argument(name + " " + problem);
 }
 
 Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name) {
@@ -88,12 +92,20 @@ Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name) {
   return T;
 }
 
+Eigen::Isometry3d rigid_pose(const double* row_major, const std::function<std::string()>& name) {
+  Eigen::Isometry3d T;
+  T.matrix() = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(row_major);
+  if (const char* problem = rigid_problem(T.matrix())) throw std::invalid_argument(name() + " " + problem);
+  return T;
+}
+
 std::vector<Eigen::Isometry3d> rigid_poses(const Array& a, const char* name) {
   check_shape(a, {-1, 4, 4}, name);
   check_finite(a, name);
   std::vector<Eigen::Isometry3d> out;
+  out.reserve(static_cast<size_t>(a.shape[0]));
   for (std::ptrdiff_t k = 0; k < a.shape[0]; ++k)
-    out.push_back(rigid_pose(a.values.data() + 16 * k, std::string(name) + "[" + std::to_string(k) + "]"));
+    out.push_back(rigid_pose(a.values.data() + 16 * k, [&] { return std::string(name) + "[" + std::to_string(k) + "]"; }));
   return out;
 }
 

@@ -44,10 +44,12 @@ constexpr const char* doc_shape_distance = "Distance between two convex shapes o
 constexpr const char* doc_shape_clearances = "box_clearances of shapes of any kind (the world poses of their frames): shape_distance's minimum\n"
     "over every pair, with the same lower bounds (their bounds' spheres and separating axes: a shape lies\n"
     "in its bound); for boxes alone box_clearances itself.";
-constexpr const char* doc_BoxClearances = "box_clearances of poses_a (N, ka, 4, 4), half_a (ka, 3), poses_b (N, kb, 4, 4) or (kb, 4, 4)\n"
+constexpr const char* doc_BoxClearances = "box_clearances of poses_a (N, ka, 4, 4) (read in place: the caller keeps the tables), half_a (ka, 3), poses_b (N, kb, 4, 4) or (kb, 4, 4)\n"
     "(boxes that do not move), half_b (kb, 3): N rows each of d, ia, ib.";
 constexpr const char* doc_Array = "Numbers as the engine takes a table: the values in row-major order and the\n"
     "shape (empty: one number).";
+constexpr const char* doc_ArrayView = "A table of numbers read in place (row-major), which the caller keeps alive and unchanged during the\n"
+    "call: how the bindings hand the engine large inputs without a copy.";
 constexpr const char* doc_shape_string = "A shape as Python prints it: \"(3, 4)\", \"(3,)\", \"()\".";
 constexpr const char* doc_check_shape = "Unless `shape` (ndim extents) is `expected` (-1: any extent, printed N):\n"
     "\"wrong shape for NAME: expected (N, 4), got (3, 5)\".";
@@ -60,6 +62,7 @@ constexpr const char* doc_check_rotation = "Unless R is a rotation: \"NAME must 
 constexpr const char* doc_check_rigid = "Unless T is a finite rigid transform (a rotation and a translation, last\n"
     "row 0 0 0 1): \"NAME must be a homogeneous transform (last row 0 0 0 1)\",\n"
     "\"NAME must be a rigid transform (orthonormal rotation)\".";
+constexpr const char* doc_rigid_problem = "What keeps T from being such a transform (check_rigid's message without the name), or nullptr.";
 constexpr const char* doc_rigid_pose = "The rigid transform of 16 row-major numbers (checked by check_rigid).";
 constexpr const char* doc_rigid_poses = "The rigid transforms of a (N, 4, 4) table of finite numbers, the k-th named \"NAME[k]\".";
 constexpr const char* doc_check_inertia = "Unless I (kg m^2) is a rigid body's inertia tensor: \"NAME must be finite\", \"NAME must be symmetric\",\n"

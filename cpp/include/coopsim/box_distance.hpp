@@ -52,16 +52,16 @@ void shape_clearances(int rows, const std::vector<Eigen::Isometry3d>& a, const s
 double box_distance(const Array& pose_a, const Array& half_a, const Array& pose_b, const Array& half_b);
 Array box_distances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b,
                     bool pairwise);
-// box_clearances of poses_a (N, ka, 4, 4), half_a (ka, 3), poses_b (N, kb, 4, 4) or (kb, 4, 4)
+// box_clearances of poses_a (N, ka, 4, 4) (read in place: the caller keeps the tables), half_a (ka, 3), poses_b (N, kb, 4, 4) or (kb, 4, 4)
 // (boxes that do not move), half_b (kb, 3): N rows each of d, ia, ib.
 struct BoxClearances {
   std::vector<double> d;
   std::vector<long> ia, ib;
 };
-BoxClearances box_clearances(const Array& poses_a, const Array& half_a, const Array& poses_b, const Array& half_b);
+BoxClearances box_clearances(const ArrayView& poses_a, const Array& half_a, const ArrayView& poses_b, const Array& half_b);
 // The same of shapes of any kind: poses_a (N, ka, 4, 4) of shapes_a's ka shapes, poses_b (N, kb, 4, 4)
 // or (kb, 4, 4) of shapes_b's kb.
-BoxClearances shape_clearances(const Array& poses_a, const std::vector<Shape>& shapes_a, const Array& poses_b,
+BoxClearances shape_clearances(const ArrayView& poses_a, const std::vector<Shape>& shapes_a, const ArrayView& poses_b,
                                const std::vector<Shape>& shapes_b);
 
 }  // namespace coopsim
