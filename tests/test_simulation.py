@@ -1060,6 +1060,17 @@ def test_contact_events_tau_ext_and_link_states_without_the_log():
     contacts = sim.log.contacts
     assert len(contacts) > 0 and list(ev["a"]) == list(contacts.a) and list(ev["b"]) == list(contacts.b)
     np.testing.assert_array_equal(ev["begin"], contacts["begin"].to_numpy())
+    # the events from the first-th on: the tail of every event's columns (what a caller that looks after each
+    # piece of a run asks for); the count itself gives empty columns; outside 0 .. count a one-line error
+    n = len(ev["a"])
+    for first in (0, n - 1, n):
+        tail = sim.contact_events(first)
+        assert set(tail) == set(ev) and tail["a"] == ev["a"][first:] and tail["kind"] == ev["kind"][first:]
+        for k in ("begin", "end", "peak_force", "max_depth", "steps"):
+            np.testing.assert_array_equal(tail[k], ev[k][first:])
+    for bad in (-1, n + 1):
+        with pytest.raises(ValueError, match=rf"first must be 0 \.\. {n} \(the events so far\), got {bad}"):
+            sim.contact_events(bad)
     # each link box where the world holds it: at the robot's kinematics, as of the last world step
     P, _ = r.shapes(sim.state(0)[0])
     for k in range(len(r.boxes)):

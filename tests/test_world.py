@@ -47,6 +47,31 @@ def test_a_bar_resting_on_the_floor_weighs_m_g_and_stays_put():
     assert np.isnan(events["end"].iloc[0]) and events["peak_force"].iloc[0] == pytest.approx(BAR_MASS * G, rel=1e-3)
 
 
+def test_one_bodys_log_and_one_robots_reference_without_the_rest():
+    """Simulation.body_log(name) is log.bodies[name] (the same rows, the same numbers), and
+    Simulation.reference(i) is references[i], each without making the others; a bad name or index is a
+    one-line error."""
+    w = cs.World()
+    w.add_free_box("bar", BAR, BAR_MASS, position=[0.3, 0.2, BAR[2] + 0.01], friction=0.5)
+    w.add_free_box("cube", [0.02, 0.02, 0.02], 0.1, position=[0.5, 0.0, 0.05])
+    sim = cs.Simulation(dt=DT, world=w, log_every=10)
+    q0 = np.array([0.0, 0.3, 0.10, 0.0, np.pi / 2, 0.02])
+    ref = cs.CubicTrajectory([0.0, 0.2], np.array([q0, q0 + 0.1]))
+    sim.add_robot(cs.robots.scara1(), cs.PID(400.0, 0.0, 40.0), ref)
+    sim.advance(0.1)
+    for name in ("bar", "cube"):
+        b, full = sim.body_log(name), sim.log.bodies[name]
+        assert b.name == name
+        np.testing.assert_array_equal(b.t, full.t)
+        np.testing.assert_array_equal(b.data, full.data)
+    np.testing.assert_array_equal(sim.reference(0).evaluate(0.13)[0], sim.references[0].evaluate(0.13)[0])
+    np.testing.assert_array_equal(sim.reference(-1).evaluate(0.05)[1], ref.evaluate(0.05)[1])
+    with pytest.raises(ValueError, match=r"name must be a free body of the world \('bar', 'cube'\), got 'floor'"):
+        sim.body_log("floor")
+    with pytest.raises(ValueError, match=r"robot must be an index in \[0, 1\), got 1"):
+        sim.reference(1)
+
+
 def incline(alpha, mu):
     """A bar lying along the slope of a static plate tilted by alpha about y."""
     w = cs.World(floor=False)

@@ -135,16 +135,16 @@ struct ColumnField {
   std::function<py::object(const Row&)> object;
 };
 template <class Row>
-py::dict columns(const std::vector<Row>& rows, const std::vector<ColumnField<Row>>& fields) {
+py::dict columns(const std::vector<Row>& rows, const std::vector<ColumnField<Row>>& fields, size_t first = 0) {
   py::dict d;
   for (const ColumnField<Row>& f : fields) {
     if (f.number) {
-      py::array_t<double> col(static_cast<py::ssize_t>(rows.size()));
-      for (size_t i = 0; i < rows.size(); ++i) col.mutable_data()[i] = f.number(rows[i]);
+      py::array_t<double> col(static_cast<py::ssize_t>(rows.size() - first));
+      for (size_t i = first; i < rows.size(); ++i) col.mutable_data()[i - first] = f.number(rows[i]);
       d[py::str(f.name)] = col;
     } else {
       py::list col;
-      for (const Row& r : rows) col.append(f.object(r));
+      for (size_t i = first; i < rows.size(); ++i) col.append(f.object(rows[i]));
       d[py::str(f.name)] = col;
     }
   }
@@ -490,9 +490,13 @@ torques between controller updates, the log and tracking metrics.)doc")
              for (const LogColumn& c : s.body_log()) out.append(view(c, s.log_rows(), true));
              return out;
            }, doc_Simulation_body_log)
-      .def("contact_events", [](const Simulation& s) {
+      .def("contact_events", [](const Simulation& s, std::int64_t first) {
              if (!s.world()) return py::dict();
              const World& w = *s.world();
+             const auto count = static_cast<std::int64_t>(w.events().size());
+             if (first < 0 || first > count)
+               throw py::value_error("first must be 0 .. " + std::to_string(count) + " (the events so far), got " +
+                                     std::to_string(first));
              return columns<ContactEvent>(w.events(), {
                  {"a", nullptr, [&w](const ContactEvent& e) { return py::str(w.body(e.a).name); }},
                  {"b", nullptr, [&w](const ContactEvent& e) { return py::str(w.body(e.b).name); }},
@@ -501,8 +505,15 @@ torques between controller updates, the log and tracking metrics.)doc")
                  {"end", [](const ContactEvent& e) { return e.end; }, nullptr},
                  {"peak_force", [](const ContactEvent& e) { return e.peak_force; }, nullptr},
                  {"max_depth", [](const ContactEvent& e) { return e.max_depth; }, nullptr},
-                 {"steps", [](const ContactEvent& e) { return static_cast<double>(e.steps); }, nullptr}});
-           }, doc_ContactEvent)
+                 {"steps", [](const ContactEvent& e) { return static_cast<double>(e.steps); }, nullptr}},
+                 static_cast<size_t>(first));
+           }, py::arg("first") = 0,
+           "The world's contact events, from the `first` on (0: every one; a caller that looks after each piece "
+           "of a run passes the count it has seen and gets only the new ones), as columns: a, b (body names), "
+           "kind, begin, end (s; NaN while the contact lasts), peak_force (N, the largest magnitude of the pair's "
+           "total force), max_depth (m), steps (world steps in contact). An event is a contact between two bodies "
+           "from the first world step where they touch to the first where they no longer do. {} without a world; "
+           "ValueError for a `first` outside 0 .. the count so far.")
       .def("set_sensor", [](Simulation& s, int i, double noise_force, double noise_moment, double time_constant,
                             std::int64_t seed) {
              SensorOptions o;

@@ -2387,10 +2387,9 @@ class SimulationCore:
         """
     def body_wrench(self, name: str) -> numpy.typing.NDArray[numpy.float64]:
         ...
-    def contact_events(self) -> dict:
+    def contact_events(self, first: typing.SupportsInt | typing.SupportsIndex = 0) -> dict:
         """
-        A contact between two bodies over time: from the first world step where
-        they touch to the first where they no longer do (end NaN while ongoing).
+        The world's contact events, from the `first` on (0: every one; a caller that looks after each piece of a run passes the count it has seen and gets only the new ones), as columns: a, b (body names), kind, begin, end (s; NaN while the contact lasts), peak_force (N, the largest magnitude of the pair's total force), max_depth (m), steps (world steps in contact). An event is a contact between two bodies from the first world step where they touch to the first where they no longer do. {} without a world; ValueError for a `first` outside 0 .. the count so far.
         """
     def contact_log(self) -> dict:
         """

@@ -625,6 +625,20 @@ class Simulation:
         out.update(c.log(_index(robot, self.robot_count)))
         return out
 
+    def body_log(self, name: str) -> BodyLog:
+        """Free body `name`'s log so far, as :attr:`log`'s ``bodies[name]`` (read-only views, no copy), without
+        the rest of the log. ValueError naming the bodies for a name that is not a free body of the world."""
+        c = self._core
+        names = c.free_body_names()
+        if name not in names:
+            raise ValueError(f"name must be a free body of the world ({', '.join(map(repr, names)) or 'none'}), "
+                             f"got {name!r}")
+        return BodyLog(name, c.log_t(), c.body_log()[names.index(name)])
+
+    def reference(self, robot: int = 0):
+        """Robot `robot`'s reference (:attr:`references`' entry, without making the others')."""
+        return self._core.reference(_index(robot, self.robot_count))
+
     def log_snapshot(self, *, contact_points: bool = True) -> SimulationLog:
         """The log up to now, as :attr:`log`; contact_points=False leaves out every contact point of every
         world step (the one part copied, in time growing with the run: the tables do not hold them), so the

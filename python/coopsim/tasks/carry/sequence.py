@@ -165,15 +165,13 @@ class _Runner:
         return False              # the floor, a robot's other links
 
     def check_contacts(self):
-        ev = self.sim.contact_events()
+        ev = self.sim.contact_events(self.contact_seen)     # the events since the last look
         if not ev:
             return
-        n = len(ev["a"])
-        for k in range(self.contact_seen, n):
-            a, b, begin = ev["a"][k], ev["b"][k], float(ev["begin"][k])
+        for a, b, begin in zip(ev["a"], ev["b"], ev["begin"].tolist()):
             if not self.allowed(a, b, begin):
                 raise CarryError(self.step, begin, f"unexpected contact between {a} and {b}", (a, b))
-        self.contact_seen = n
+        self.contact_seen += len(ev["a"])
 
     # ---- the carry ----
 

@@ -99,7 +99,7 @@ class _Runner(Planner):
     # ---- running ----
 
     def q_ref(self, i) -> np.ndarray:
-        return self.sim.references[i].evaluate(self.sim.time)[0]
+        return self.sim.reference(i).evaluate(self.sim.time)[0]
 
     def move_joints(self, i, points, durations):
         """Robot i through joint points (each (6,)) from its present reference, at rest at each."""
@@ -208,15 +208,13 @@ class _Runner(Planner):
         return False
 
     def check_contacts(self):
-        ev = self.sim.contact_events()
+        ev = self.sim.contact_events(self.contact_seen)     # the events since the last look
         if not ev:
             return
-        n = len(ev["a"])
-        for k in range(self.contact_seen, n):
-            a, b = ev["a"][k], ev["b"][k]
+        for a, b, begin in zip(ev["a"], ev["b"], ev["begin"].tolist()):
             if not self.allowed(a, b):
-                raise TaskError(self.step, float(ev["begin"][k]), f"forbidden contact between {a} and {b}", (a, b))
-        self.contact_seen = n
+                raise TaskError(self.step, begin, f"forbidden contact between {a} and {b}", (a, b))
+        self.contact_seen += len(ev["a"])
 
     # ---- one cycle ----
 
@@ -326,7 +324,7 @@ class _Runner(Planner):
         """The bar, since its release (once the weld has faded out), slid down the tube: its centre within the tube's section while in it,
         never moving back up the axis faster than SLIDE_BACK m/s, at least SLIDE_MIN m further down, and
         now inside the tube or out of its lower mouth."""
-        b = self.sim.log.bodies[name]
+        b = self.sim.body_log(name)
         k = b.t >= t_release + RELEASE_FADE
         rel = b.position[k] - self.mouth
         a = self.axes[:, 0]
