@@ -285,6 +285,25 @@ def test_the_engine_pool_advances_and_reads_chunks_as_advance_all_and_pair_reado
             for u, v in zip(x.sim.state(i), y.sim.state(i)):
                 np.testing.assert_array_equal(u, v)
     assert a[0].sim.stats.sim_elapsed == pytest.approx(0.02) and a[0].sim.stats.steps == 100
+    # the caller helping its pool: run_one runs the chunk queued first on the caller's thread (True) until none
+    # is queued (False); done() tells without waiting; the same states and rows as advance_all's
+    c, d = started(seeds[:3]), started(seeds[:3])
+    solo = coopsim.Simulation.advance_pool(1)
+    ends = [e.sim.time + 0.02 for e in c]
+    jobs = [solo.submit([e.sim], [t], (0, 1, "bar")) for e, t in zip(c, ends)]
+    helped = 0
+    while solo.run_one():
+        helped += 1
+    assert 0 <= helped <= 3 and solo.run_one() is False
+    got = [job.result() for job in jobs]
+    assert all(job.done() for job in jobs)
+    for e, t, (errors, rows) in zip(d, ends, got):
+        assert coopsim.Simulation.advance_all([e.sim], t) == [None] and errors == [None]
+        np.testing.assert_array_equal(rows, coopsim.Simulation.pair_readout([e.sim], 0, 1, "bar"))
+    for x, y in zip(c, d):
+        for i in range(2):
+            for u, v in zip(x.sim.state(i), y.sim.state(i)):
+                np.testing.assert_array_equal(u, v)
     with pytest.raises(ValueError, match="t_end"):
         pool.submit([a[0].sim, a[1].sim], [1.0])
     with pytest.raises(ValueError, match="t_end"):

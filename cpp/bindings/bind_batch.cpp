@@ -49,10 +49,15 @@ void bind_batch(py::module_& m) {
            secs.append(j.seconds[i]);
          }
          return py::make_tuple(errs, secs, j.rows.size() ? py::object(to_numpy(j.rows)) : py::object(py::none()));
-       }, "(errors, seconds, rows or None) once done (waits with the GIL released); raises the job's own failure.");
+       }, "(errors, seconds, rows or None) once done (waits with the GIL released); raises the job's own failure.")
+      .def("done", &AdvancePool::Job::done, "Whether the job is done (no wait).");
   py::class_<AdvancePool>(m, "AdvancePool", doc_AdvancePool)
       .def(py::init<int>(), py::arg("threads"), doc_AdvancePool_AdvancePool)
       .def("submit", &AdvancePool::submit, py::arg("sims"), py::arg("t_end"), py::arg("a") = 0, py::arg("b") = 0,
            py::arg("body") = std::string(), py::keep_alive<0, 2>(), doc_AdvancePool_submit)
+      .def("run_one", [](AdvancePool& p) {
+             coopsim::py_nogil::NoGil nogil;
+             return p.run_one();
+           }, doc_AdvancePool_run_one)
       .def_property_readonly("threads", &AdvancePool::threads);
 }

@@ -62,6 +62,11 @@ void AdvancePool::Job::wait() {
   cv_.wait(lock, [this] { return done_; });
 }
 
+bool AdvancePool::Job::done() {
+  std::lock_guard<std::mutex> lock(m_);
+  return done_;
+}
+
 AdvancePool::AdvancePool(int threads) {
   if (threads < 1 || threads > 4096)
     throw std::invalid_argument("threads must be 1 to 4096, got " + std::to_string(threads));
@@ -108,38 +113,54 @@ void AdvancePool::work() {
       job = std::move(queue_.front());
       queue_.pop_front();
     }
-    const size_t n = job->sims_.size();
-    job->errors.assign(n, nullptr);
-    job->seconds.assign(n, 0.0);
-    try {
-      std::vector<double> ends = job->t_end_;  // each end time's simulations in one call, in order
-      std::sort(ends.begin(), ends.end());
-      ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
-      for (const double t : ends) {
-        std::vector<Simulation*> group;
-        std::vector<size_t> at;
-        for (size_t i = 0; i < n; ++i)
-          if (job->t_end_[i] == t) {
-            group.push_back(job->sims_[i]);
-            at.push_back(i);
-          }
-        std::vector<double> secs;
-        const auto errs = run_batch(group, t, 1, &secs);
-        for (size_t k = 0; k < at.size(); ++k) {
-          job->errors[at[k]] = errs[k];
-          job->seconds[at[k]] = secs[k];
-        }
-      }
-      if (!job->body_.empty()) job->rows = Simulation::pair_readout(job->sims_, job->a_, job->b_, job->body_);
-    } catch (...) {
-      job->failure = std::current_exception();
-    }
-    {
-      std::lock_guard<std::mutex> lock(job->m_);
-      job->done_ = true;
-    }
-    job->cv_.notify_all();
+    run(*job);
   }
+}
+
+bool AdvancePool::run_one() {
+  std::shared_ptr<Job> job;
+  {
+    std::lock_guard<std::mutex> lock(m_);
+    if (queue_.empty()) return false;
+    job = std::move(queue_.front());
+    queue_.pop_front();
+  }
+  run(*job);
+  return true;
+}
+
+void AdvancePool::run(Job& job) {
+  const size_t n = job.sims_.size();
+  job.errors.assign(n, nullptr);
+  job.seconds.assign(n, 0.0);
+  try {
+    std::vector<double> ends = job.t_end_;  // each end time's simulations in one call, in order
+    std::sort(ends.begin(), ends.end());
+    ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
+    for (const double t : ends) {
+      std::vector<Simulation*> group;
+      std::vector<size_t> at;
+      for (size_t i = 0; i < n; ++i)
+        if (job.t_end_[i] == t) {
+          group.push_back(job.sims_[i]);
+          at.push_back(i);
+        }
+      std::vector<double> secs;
+      const auto errs = run_batch(group, t, 1, &secs);
+      for (size_t k = 0; k < at.size(); ++k) {
+        job.errors[at[k]] = errs[k];
+        job.seconds[at[k]] = secs[k];
+      }
+    }
+    if (!job.body_.empty()) job.rows = Simulation::pair_readout(job.sims_, job.a_, job.b_, job.body_);
+  } catch (...) {
+    job.failure = std::current_exception();
+  }
+  {
+    std::lock_guard<std::mutex> lock(job.m_);
+    job.done_ = true;
+  }
+  job.cv_.notify_all();
 }
 
 }  // namespace coopsim

@@ -2720,6 +2720,10 @@ class AdvanceJob:
     """
     What one submit() did, filled by a pool thread; wait() blocks until it is done.
     """
+    def done(self) -> bool:
+        """
+        Whether the job is done (no wait).
+        """
     def result(self) -> tuple[list, list, typing.Any]:
         """
         (errors, seconds, rows or None) once done (waits with the GIL released); raises the job's own failure.
@@ -2734,6 +2738,11 @@ class AdvancePool:
     def __init__(self, threads: typing.SupportsInt | typing.SupportsIndex) -> None:
         """
         `threads` >= 1 engine threads, started now and joined by the destructor (after the jobs queued).
+        """
+    def run_one(self) -> bool:
+        """
+        Runs the job queued first on the calling thread, as a pool thread would (the caller helping its pool
+        instead of waiting: a pipeline whose caller has nothing else to do); false when none is queued.
         """
     def submit(self, sims: collections.abc.Sequence[SimulationCore], t_end: collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], a: typing.SupportsInt | typing.SupportsIndex = 0, b: typing.SupportsInt | typing.SupportsIndex = 0, body: str = '') -> AdvanceJob:
         """

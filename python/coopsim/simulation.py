@@ -786,6 +786,13 @@ class AdvancePool:
         """The pool's engine threads."""
         return self._core.threads
 
+    def run_one(self) -> bool:
+        """Runs the chunk queued first on the caller's thread, as the pool's threads do (the GIL released), and
+        returns True; False when none is queued. A caller with nothing else to do helps its pool so instead of
+        waiting: its thread becomes one more engine thread (a pipeline of N cores: N - 1 pool threads and the
+        caller, never more threads than cores)."""
+        return self._core.run_one()
+
     def submit(self, sims: Sequence[Simulation], t_end: Sequence[float],
                readout: Optional[Tuple[int, int, str]] = None) -> "AdvanceJob":
         """Queues sims, each to advance to its t_end (s), then their readout when `readout` = (a, b, body) is
@@ -804,6 +811,10 @@ class AdvanceJob:
 
     def __init__(self, job, sims, marks):
         self._job, self._sims, self._marks = job, sims, marks
+
+    def done(self) -> bool:
+        """Whether the pool has advanced (and read) the chunk, without waiting."""
+        return self._job.done()
 
     def result(self):
         """(errors, rows) once the pool has advanced (and read) the chunk, waiting with the GIL released: per

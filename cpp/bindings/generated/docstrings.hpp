@@ -20,12 +20,15 @@ constexpr const char* doc_AdvancePool_Job_errors = "per simulation, as run_batch
 constexpr const char* doc_AdvancePool_Job_seconds = "per simulation, its run's wall time (s)";
 constexpr const char* doc_AdvancePool_Job_rows = "pair_readout's rows, when asked";
 constexpr const char* doc_AdvancePool_Job_failure = "run_batch's or pair_readout's own exception (bad arguments)";
+constexpr const char* doc_AdvancePool_Job_done = "whether it is done, without waiting";
 constexpr const char* doc_AdvancePool_AdvancePool = "`threads` >= 1 engine threads, started now and joined by the destructor (after the jobs queued).";
 constexpr const char* doc_AdvancePool_submit = "Queues: advance each sims[i] to t_end[i] (those of one end time in one run_batch call on the pool\n"
     "thread, run_batch's checks), then, when `body` is not empty, Simulation::pair_readout(sims, a, b, body).\n"
     "The simulations must stay alive until the job is done; one in two jobs at once is refused to the\n"
     "second (its error a SimulationBusyError: one driver at a time), so a chunk that follows another with\n"
     "the same simulations waits for that one's result first.";
+constexpr const char* doc_AdvancePool_run_one = "Runs the job queued first on the calling thread, as a pool thread would (the caller helping its pool\n"
+    "instead of waiting: a pipeline whose caller has nothing else to do); false when none is queued.";
 constexpr const char* doc_box_distance = "Distance between two boxes (world poses of their centres, half extents), m:\n"
     "> 0 the gap between their nearest points, <= 0 minus the depth of their\n"
     "overlap (Bullet's GJK with EPA, margins zero, double precision). Rows i, j\n"

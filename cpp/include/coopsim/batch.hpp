@@ -37,6 +37,7 @@ class AdvancePool {
     Simulation::ReadoutRows rows;            // pair_readout's rows, when asked
     std::exception_ptr failure;              // run_batch's or pair_readout's own exception (bad arguments)
     void wait();
+    bool done();  // whether it is done, without waiting
 
    private:
     friend class AdvancePool;
@@ -60,10 +61,14 @@ class AdvancePool {
   // the same simulations waits for that one's result first.
   std::shared_ptr<Job> submit(std::vector<Simulation*> sims, std::vector<double> t_end, int a = 0, int b = 0,
                               std::string body = {});
+  // Runs the job queued first on the calling thread, as a pool thread would (the caller helping its pool
+  // instead of waiting: a pipeline whose caller has nothing else to do); false when none is queued.
+  bool run_one();
   int threads() const { return static_cast<int>(threads_.size()); }
 
  private:
   void work();
+  static void run(Job& job);
   std::vector<std::thread> threads_;
   std::deque<std::shared_ptr<Job>> queue_;
   std::mutex m_;

@@ -14,12 +14,13 @@ engine call (environments in step with each other: one call; an environment rese
 others makes a second group), and reads each one's outcome, exactly as the single environment does: the
 same seeds and actions give the single environments' episodes bit for bit.
 
-With ``threads`` of 2 or more (or 0) the step runs its environments in a pipeline of chunks (twice as many as
-worker threads): the caller's thread applies a chunk's actions (Python, holding the GIL) and hands the chunk to
-the engine's pool (:meth:`coopsim.Simulation.advance_pool`), whose threads advance its simulations and read them
-(:meth:`coopsim.Simulation.pair_readout` for the carry) without ever taking the GIL, while the caller applies the
-next chunk; the caller then reads the chunks' outcomes in order as they finish. The Python of some chunks
-overlaps the engine of the others; each environment goes through the same calls in the same order. With ``threads=1`` the step runs them
+With ``threads`` of 2 or more (or 0) the step runs its environments in a pipeline of chunks: the caller's
+thread applies a chunk's actions (Python, holding the GIL) and hands the chunk to the engine's pool
+(:meth:`coopsim.Simulation.advance_pool`, a thread less than ``threads``), whose threads advance its
+simulations and read them (:meth:`coopsim.Simulation.pair_readout` for the carry) without ever taking the GIL,
+while the caller applies the next chunk; the caller then takes each chunk's outcome as it finishes, and runs
+queued chunks itself (the GIL released) while none has: as many threads as cores, none waiting for a core while
+another runs Python. Each environment goes through the same calls in the same order. With ``threads=1`` the step runs them
 in turn on the caller's thread alone (one core).
 """
 from __future__ import annotations
@@ -193,11 +194,13 @@ class CoopsimVectorEnv(VectorEnv):
             outcome(whole)
         else:
             # chunks in a pipeline: the caller's thread applies each chunk's actions and hands the chunk to the
-            # engine's pool (its threads advance and read it without ever taking the GIL), then takes the chunks'
-            # outcomes in order as they finish: the pool runs the engine while the caller runs Python; each
-            # environment goes through the same calls in the same order as on one thread
+            # engine's pool (its threads advance and read it without ever taking the GIL); then, until every
+            # chunk's outcome is taken, it takes the outcome of a chunk that is done, or else runs the next queued
+            # chunk itself (the GIL released), or else waits for the first one not done. The pool has a thread
+            # less than the workers: with the caller, as many threads as cores, none waiting for a core while
+            # another runs Python. Each environment goes through the same calls in the same order as on one thread
             pool = self._engine_pool()
-            count = min(n, 2 * self._workers())
+            count = min(n, 4 * self._workers())
             chunks = [range(k * n // count, (k + 1) * n // count) for k in range(count)]
             jobs = []
             for chunk in chunks:
@@ -205,13 +208,22 @@ class CoopsimVectorEnv(VectorEnv):
                 live = [i for i in chunk if i in t_next]
                 jobs.append((live, pool.submit([self.envs[i].sim for i in live], [t_next[i] for i in live],
                                                readout) if live else None))
-            for chunk, (live, job) in zip(chunks, jobs):
-                if job is not None:
-                    got, read = job.result()
-                    errors.update(zip(live, got))
-                    if readout is not None:
-                        rows.update(zip(live, read))
-                outcome(chunk)
+            pending = list(range(count))
+            while pending:
+                ready = [k for k in pending if jobs[k][1] is None or jobs[k][1].done()]
+                if not ready:
+                    if pool.run_one():
+                        continue
+                    ready = pending[:1]             # (its result() waits, the GIL released)
+                for k in ready:
+                    live, job = jobs[k]
+                    if job is not None:
+                        got, read = job.result()
+                        errors.update(zip(live, got))
+                        if readout is not None:
+                            rows.update(zip(live, read))
+                    outcome(chunks[k])
+                    pending.remove(k)
         reset(ended)
         entries = []                 # each environment's infos in the order Gymnasium's _add_info takes them
         for i in range(n):
@@ -228,9 +240,10 @@ class CoopsimVectorEnv(VectorEnv):
         return self._executor
 
     def _engine_pool(self):
-        """The engine's threads (as many as workers) that advance and read a step's chunks in the pipeline."""
+        """The engine's threads that advance and read a step's chunks in the pipeline: one less than the workers
+        (the caller's thread runs chunks too, :meth:`coopsim.AdvancePool.run_one`)."""
         if self._advance_pool is None:
-            self._advance_pool = Simulation.advance_pool(self._workers())
+            self._advance_pool = Simulation.advance_pool(self._workers() - 1)
         return self._advance_pool
 
     def _workers(self) -> int:
