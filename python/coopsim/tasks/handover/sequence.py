@@ -4,6 +4,7 @@ or release that does not happen or a bar that does not slide down the tube; :fun
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import time
 from typing import Dict, List, Optional, Sequence
@@ -56,6 +57,13 @@ class TaskResult:
 
 
 
+def _times(t0: float, durations) -> list:
+    """[t0, t0 + d0, t0 + (d0 + d1), ...] (s): what ``[t0] + list(t0 + np.cumsum(durations))`` gives, bit for bit
+    (the running sum first, then t0 added), on Python floats (a few values: numpy's calls cost more than the
+    sums)."""
+    return [t0] + [t0 + c for c in itertools.accumulate(float(d) for d in durations)]
+
+
 class _Runner(Planner):
     """The task on one simulation: plans and runs the phases of every cycle (scored by
     :func:`~coopsim.tasks.handover.scoring.score`)."""
@@ -105,7 +113,7 @@ class _Runner(Planner):
         """Robot i through joint points (each (6,)) from its present reference, at rest at each."""
         q0 = self.q_ref(i)
         t0 = self.sim.time
-        times = [t0] + list(t0 + np.cumsum(durations))
+        times = _times(t0, durations)
         self.sim.set_reference(i, CubicTrajectory(times, np.vstack([q0] + [np.asarray(p, float) for p in points])))
         return times[-1]
 
@@ -114,7 +122,7 @@ class _Runner(Planner):
         r = (self.r1, self.r2)[i]
         q0 = self.q_ref(i)
         t0 = self.sim.time
-        times = [t0] + list(t0 + np.cumsum(durations))
+        times = _times(t0, durations)
         P = [r.fk(q0)] + [self._reachable(i, T) for T in poses]
         op = [q0[5]] + [opening] * len(poses)
         try:
