@@ -166,8 +166,14 @@ def _check_emitted(text, structure, prefix):
     # the derivatives where the generator emits them (the collected form), with the forward ones; the
     # dynamics' body in a template that the entry point (and the forward derivatives) call
     deriv = {prefix + f for f in ("derivatives", "forward_derivatives", "forward_derivatives4")} | set(TEMPLATES[1:])
-    assert set(funcs) - deriv == {prefix + f for f in EMITTED + ("solve", "constants")} | {"dynamics_t"}
-    assert funcs[prefix + "dynamics"].strip() == "dynamics_t(p, q, qd, M, h);"
+    # with dynamics_level where gravity's horizontal components have terms: the entry point takes it when they
+    # are zero (p's gravity along z)
+    level = {"dynamics_level"} & set(funcs)
+    assert set(funcs) - deriv == {prefix + f for f in EMITTED + ("solve", "constants")} | {"dynamics_t"} | level
+    g = 19 * structure.dof
+    assert funcs[prefix + "dynamics"].strip() == (
+        f"if (p[{g}] == 0.0 && p[{g + 1}] == 0.0)\n    dynamics_level(p, q, qd, M, h);\n  else\n    "
+        if level else "") + "dynamics_t(p, q, qd, M, h);"
     if prefix + "derivatives" in funcs:
         assert deriv <= set(funcs)
         assert text.count("static inline double coulomb_slope(") == 1
@@ -194,7 +200,7 @@ def _check_emitted(text, structure, prefix):
             for j, at in re.findall(r"^  const double kappa_(\d+) = p\[(\d+)\];$", body, re.M):
                 assert int(at) == base + int(j) and int(j) < len(written), (fname, j, at)
             assert not re.search(r"^  const double (a\d+|kappa_\d+) = (?!p\[\d+\];$)", body, re.M), fname
-        temps = re.findall(r"^  const (?:double|T) ((?:x|a)\d+) = ", body, re.M)
+        temps = re.findall(r"^  const (?:double|T) ((?:x|y|a)\d+) = ", body, re.M)
         assert len(set(temps)) == len(temps), f"{fname}: a temporary defined twice"
         dead = [x for x in temps if len(re.findall(rf"\b{x}\b", body)) < 2]
         assert not dead, f"{fname}: temporaries never used: {dead}"
@@ -497,14 +503,21 @@ def test_friction_check_detects_wrong_friction(tmp_path):
     for label, factor in (("dropped", "0.0"), ("doubled", "2.0")):
         s = codegen.structure_of(_arm2(), name=f"test_friction_{label}")
         text, _ = runtime_source(s)
-        body = _functions(text)["dynamics_t"]  # the body coopsim_gen_dynamics calls
-        mutated = body
+        funcs = _functions(text)
+        # the bodies coopsim_gen_dynamics calls: dynamics_t, and dynamics_level for gravity along z (the test's)
+        bodies = [funcs["dynamics_t"]] + ([funcs["dynamics_level"]] if "dynamics_level" in funcs else [])
         for k in range(s.dof):
             term = f"p[{19 * k + 15}]*qd[{k}]"
-            assert text.count(term) == body.count(term) == 1, term  # K qd only in h of dynamics
-            mutated = mutated.replace(term, f"{factor}*{term}")
+            # K qd only in h of dynamics (once in each body)
+            assert text.count(term) == len(bodies) and all(b.count(term) == 1 for b in bodies), term
+        for body in bodies:
+            mutated = body
+            for k in range(s.dof):
+                term = f"p[{19 * k + 15}]*qd[{k}]"
+                mutated = mutated.replace(term, f"{factor}*{term}")
+            text = text.replace(body, mutated)
         src, lib = tmp_path / f"{s.name}.cpp", tmp_path / f"{s.name}.so"
-        src.write_text(text.replace(body, mutated))
+        src.write_text(text)
         res = subprocess.run([cxx, "-O2", "-std=c++17", "-shared", "-fPIC", "-o", str(lib), str(src)],
                              capture_output=True, text=True)
         assert res.returncode == 0, res.stderr[-2000:]
@@ -513,6 +526,18 @@ def test_friction_check_detects_wrong_friction(tmp_path):
         bad = {k for _, k in _mismatches(r, _arm2(), n_states=20)}
         # the forward derivatives are taken at the forward dynamics' qdd: dqdd/dq follows the wrong h
         assert bad == {"friction", "inverse", "forward", "forward derivatives 0"}, (label, bad)
+
+
+def test_gravity_along_z_and_any_gravity_both_equal_the_numeric_dynamics():
+    """The generated dynamics take dynamics_level when gravity in frame 0 is along its z axis (both SCARAs on the
+    floor) and dynamics_t otherwise (a base tilted, gravity with horizontal components): both give M, C, G, the
+    friction and the forward and inverse dynamics of the recursive algorithms, on random states."""
+    for name in ("scara1", "scara2"):
+        gen, num = getattr(cs.robots, name)(), getattr(cs.robots, name)(backend="numeric")
+        assert gen.parameter_vector[-3:-1].tolist() == [0.0, 0.0]      # the level path
+        assert _mismatches(gen, num) == []
+        for g in ([0.8, -0.5, -9.76], [0.0, 1e-3, -9.81], [2.0, 0.0, -9.6]):   # the general path, each component
+            assert _mismatches(gen.with_gravity(g), num.with_gravity(g)) == [], (name, g)
 
 
 def _arm6(scale=1.0):

@@ -406,7 +406,21 @@ def emit_functions(model: SymbolicModel) -> list:
             body, ops = _body(model, outputs[fname], names, out_cse, scalar="T", trig="export")
             template = (f"template <class T>\n{_INLINE} void dynamics_t(const double* p, const T* q, const T* qd, "
                         f"T* M, T* h, T* sc = nullptr) {{\n{body}\n}}\n")
-            out.append(EmittedFunction(fname, sig, "  dynamics_t(p, q, qd, M, h);", ops, template))
+            call = "  dynamics_t(p, q, qd, M, h);"
+            level = _level_base(model)
+            if level is not None:
+                # a base whose gravity is along its z axis (g_x = g_y = 0, as for every arm standing on the
+                # floor): M and h without the terms of the horizontal components, which would multiply zeros
+                zero, gx, gy = level
+                lv = [(t, e.subs(zero)) for t, e in outputs[fname]]
+                lv_body, lv_ops = _body(model, lv, names, _SharedCse([e for _, e in lv], "y"))
+                template += (f"\n// dynamics_t where p's gravity is along z ({names[gx]} = {names[gy]} = 0): "
+                             f"{lv_ops} operations\n"
+                             f"{_INLINE} void dynamics_level(const double* p, const double* q, const double* qd, "
+                             f"double* M, double* h) {{\n{lv_body}\n}}\n")
+                call = (f"  if ({names[gx]} == 0.0 && {names[gy]} == 0.0)\n    dynamics_level(p, q, qd, M, h);\n"
+                        f"  else\n  {call}")
+            out.append(EmittedFunction(fname, sig, call, ops, template))
             continue
         body, ops = _body(model, outputs[fname], names, out_cse)
         out.append(EmittedFunction(fname, sig, body, ops))
@@ -415,6 +429,20 @@ def emit_functions(model: SymbolicModel) -> list:
         out.append(deriv)
         out.extend(emit_forward_derivatives(model))
     return out
+
+
+def _level_base(model: SymbolicModel):
+    """({g_x: 0, g_y: 0, and each parameter polynomial that vanishes with them: 0}, g_x, g_y) for dynamics_level,
+    or None when no polynomial depends on g_x or g_y (nothing to leave out)."""
+    gx, gy = model.g[0], model.g[1]
+    zero = {gx: 0, gy: 0}
+    found = False
+    for k, poly in model.kappa.items():
+        if poly.has(gx) or poly.has(gy):
+            found = True
+            if sp.expand(poly.subs({gx: 0, gy: 0})) == 0:
+                zero[k] = 0
+    return (zero, gx, gy) if found else None
 
 
 def emit_derivatives(model: SymbolicModel):

@@ -10,7 +10,7 @@ __all__ = ["GENERATOR_VERSION", "COMMAND", "SYMPY_VERSION", "builtin_sources", "
            "header_line"]
 
 #: Bump when the emitted code changes for the same structure.
-GENERATOR_VERSION = "1.6.0"
+GENERATOR_VERSION = "1.7.0"
 #: The documented command that regenerates cpp/generated.
 COMMAND = "python -m coopsim.codegen"
 #: The sympy version the committed files were generated with (pyproject pins it).
