@@ -93,17 +93,30 @@ def test_contacts_on_the_jaws_are_sensed_without_a_weld(kind):
         r, w = scene(BOX * [1, 2 / 3, 1], friction=1.0)
         sim = closing(r, w, jaw_ref=0.01, grasp=False)
     sim.run(0.3, progress=False)
+    clamp = {f"{r.name}/{b.name}" for b in r.boxes if b.link >= r.clamp.fixed_link}
+
+    def on_the_clamp():
+        """The newtons on the clamp's boxes now, and minus their wrench about the TCP."""
+        p = sim.sensor(0).pose[:3, 3]
+        h, pushed = np.zeros(6), 0.0
+        for c in sim.contacts():
+            for name, point, force in ((c.a, c.point_a, c.force), (c.b, c.point_b, -c.force)):
+                if name in clamp:
+                    pushed += np.linalg.norm(force)
+                    h -= np.concatenate([force, np.cross(point - p, force)])
+        return pushed, h
+
+    pushed, h = on_the_clamp()
+    # the jaws closing hard on the free box chatter (its contacts come and go from one world step to the
+    # next, which step depending on round-off): the reading is checked at the first step from 0.3 s on
+    # with the jaws pushed
+    t_stop = sim.time + 0.2
+    while pushed <= 1.0 and sim.time < t_stop:
+        sim.advance(sim.time + DT)
+        pushed, h = on_the_clamp()
     assert sim.holding(0) is None
     s = sim.sensor(0)
     p = s.pose[:3, 3]
-    clamp = {f"{r.name}/{b.name}" for b in r.boxes if b.link >= r.clamp.fixed_link}
-    h = np.zeros(6)
-    pushed = 0.0
-    for c in sim.contacts():
-        for name, point, force in ((c.a, c.point_a, c.force), (c.b, c.point_b, -c.force)):
-            if name in clamp:
-                pushed += np.linalg.norm(force)
-                h -= np.concatenate([force, np.cross(point - p, force)])
     assert pushed > 1.0  # newtons on the jaws
     if kind.startswith("scenery"):
         assert h[2] < -5.0  # pressing down with several newtons
