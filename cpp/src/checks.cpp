@@ -86,10 +86,7 @@ void check_rigid(const Eigen::Matrix4d& T, const std::string& name) {
 }
 
 Eigen::Isometry3d rigid_pose(const double* row_major, const std::string& name) {
-  Eigen::Isometry3d T;
-  T.matrix() = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(row_major);
-  check_rigid(T.matrix(), name);
-  return T;
+  return rigid_pose(row_major, [&name] { return name; });
 }
 
 Eigen::Isometry3d rigid_pose(const double* row_major, const std::function<std::string()>& name) {

@@ -35,7 +35,6 @@ struct ArrayView {
     return n;
   }
 };
-inline ArrayView view(const Array& a) { return ArrayView{a.values.data(), a.shape}; }
 
 // A shape as Python prints it: "(3, 4)", "(3,)", "()".
 std::string shape_string(const std::ptrdiff_t* shape, int ndim);
