@@ -59,14 +59,6 @@ py::object divergence_object(const DivergenceError& e) {
 }
 
 
-// A Reference (C++ or Python subclass), or a set-point array held at all times.
-std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
-  if (py::isinstance<Reference>(ref)) return ref.cast<std::shared_ptr<Reference>>();
-  if (ref.is_none())
-    throw py::value_error("reference must be a coopsim.Reference (e.g. CubicTrajectory) or a set-point (n,)");
-  return std::make_shared<ConstantReference>(vec(ref, n, "reference"));
-}
-
 // A read-only numpy view of the first `rows` rows of a log column, keeping
 // its memory block alive: rows once written never change in a block.
 py::array_t<double> view(const LogColumn& c, long rows, bool matrix) {
@@ -151,13 +143,6 @@ py::dict columns(const std::vector<Row>& rows, const std::vector<ColumnField<Row
   return d;
 }
 
-const World& world_of(const Simulation& s) {
-  if (!s.world()) throw py::value_error("the simulation has no world (give one: Simulation(world=...))");
-  return *s.world();
-}
-
-int body_id(const Simulation& s, const std::string& name) { return world_of(s).id(name); }
-
 // The options a default-constructed SimulationOptions holds: the one source of the defaults.
 const SimulationOptions kDefaults{};
 const SensorOptions kSensorDefaults{};
@@ -176,6 +161,22 @@ py::dict grasp_options_dict(const GraspOptions& g) {
 }
 
 }  // namespace
+
+// (also bind_schedule.cpp's)
+const World& world_of(const Simulation& s) {
+  if (!s.world()) throw py::value_error("the simulation has no world (give one: Simulation(world=...))");
+  return *s.world();
+}
+
+int body_id(const Simulation& s, const std::string& name) { return world_of(s).id(name); }
+
+// A Reference (C++ or Python subclass), or a set-point array held at all times.
+std::shared_ptr<const Reference> reference_arg(const py::object& ref, int n) {
+  if (py::isinstance<Reference>(ref)) return ref.cast<std::shared_ptr<Reference>>();
+  if (ref.is_none())
+    throw py::value_error("reference must be a coopsim.Reference (e.g. CubicTrajectory) or a set-point (n,)");
+  return std::make_shared<ConstantReference>(vec(ref, n, "reference"));
+}
 
 // The exception a failed batch member raised, as a Python exception object.
 py::object exception_object(const std::exception_ptr& p) {

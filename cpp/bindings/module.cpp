@@ -15,6 +15,7 @@ void bind_cooperative(py::module_& m);
 void bind_world(py::module_& m);
 void bind_simulation(py::module_& m);
 void bind_batch(py::module_& m);
+void bind_schedule(py::module_& m);
 void bind_model(py::module_& m);
 void bind_build_info(py::module_& m);
 void short_type_errors(py::module_& m);
@@ -44,6 +45,7 @@ PYBIND11_MODULE(_core, m) {
   bind_world(m);
   bind_simulation(m);
   bind_batch(m);
+  bind_schedule(m);
   bind_model(m);
   bind_build_info(m);
   // last, once every function is bound: a wrong argument type is one short TypeError (short_errors.cpp)

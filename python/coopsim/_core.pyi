@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['AdvanceJob', 'AdvancePool', 'BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'pair_readout', 'rk4_step', 'run_batch', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
+__all__: list[str] = ['AdvanceJob', 'AdvancePool', 'BodyState', 'Clamp', 'ComputedTorque', 'Contact', 'Controller', 'CoopMember', 'Cooperation', 'CooperativeController', 'CubicTrajectory', 'DivergenceError', 'GraspCheck', 'HeldCooperation', 'HybridForce', 'IKError', 'Impedance', 'InertiaWarning', 'LeaderFollower', 'LinearModel', 'LinkBox', 'ObjectControl', 'PID', 'Payload', 'Reference', 'Robot', 'ScheduleOutcome', 'ScheduleRecord', 'SensorOptions', 'SensorReading', 'SetPoint', 'SimulationBusyError', 'SimulationCore', 'SimulationHold', 'SimulationModel', 'StateFeedback', 'StepProfile', 'TASK_AXES', 'TaskController', 'TaskState', 'Tool', 'TrackingMetrics', 'World', 'Wrench', 'box_clearances', 'box_distance', 'box_distances', 'box_inertia', 'build_optimised', 'build_sanitizers', 'build_toolchain', 'commandable_directions', 'compiled_generated_names', 'cooperation_schema', 'cooperation_wrenches', 'dh_transform', 'euler_step', 'forward_dynamics_batch', 'forward_dynamics_derivatives_batch', 'generated_cache_dir', 'generated_info', 'gil_released_seconds', 'integrate', 'linearize', 'load_generated_library', 'log_schema', 'pair_readout', 'rk4_step', 'run_batch', 'run_schedule', 'sensor_defaults', 'shape_clearances', 'shape_distance', 'simulation_defaults', 'task_axes']
 class Tool:
     """
     The tool centre point (TCP).
@@ -2755,6 +2755,144 @@ class AdvancePool:
     @property
     def threads(self) -> int:
         ...
+class ScheduleRecord:
+    """
+    A record condition come true: its step and index in the step's `record`, the time, robot's q and
+    the body's pose then (the body's: identity for a condition on holding nothing).
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('step', 'condition', 't', 'q', 'pose')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def condition(self) -> typing.Any:
+        """
+        the condition's index in the step's record list
+        """
+    @property
+    def pose(self) -> typing.Any:
+        """
+        the body's pose then (4, 4; identity for nothing)
+        """
+    @property
+    def q(self) -> typing.Any:
+        """
+        the robot's joints then (n)
+        """
+    @property
+    def step(self) -> typing.Any:
+        """
+        the step's index
+        """
+    @property
+    def t(self) -> typing.Any:
+        """
+        s: the end of the piece at which it was first true
+        """
+class ScheduleOutcome:
+    """
+    What a schedule's run did: its steps' times, the groups it added, its records, the contacts it looked
+    at, and its failure if it failed.
+    """
+    __hash__: typing.ClassVar[None] = None
+    fields: typing.ClassVar[tuple] = ('times', 'groups', 'records', 'contacts_seen', 'failed_step', 'kind', 'condition', 't', 'bodies', 'reason', 'error')
+    def __contains__(self, arg0: typing.Any) -> bool:
+        ...
+    def __eq__(self, other: typing.Any) -> typing.Any:
+        ...
+    def __getitem__(self, key: str) -> ...:
+        """
+        Deprecated: the field `key` (use the attribute).
+        """
+    def __iter__(self) -> typing.Any:
+        ...
+    def __len__(self) -> int:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def asdict(self) -> dict:
+        """
+        The fields as a dict {name: value} (for tables: pandas.DataFrame of these).
+        """
+    def keys(self) -> list:
+        """
+        Deprecated: the fields' names (see `fields`).
+        """
+    @property
+    def bodies(self) -> typing.Any:
+        """
+        contact: the two bodies' names
+        """
+    @property
+    def condition(self) -> typing.Any:
+        """
+        hold, wait, at_end: the condition's index in its list
+        """
+    @property
+    def contacts_seen(self) -> typing.Any:
+        """
+        the contact events looked at (the next run's `first`)
+        """
+    @property
+    def error(self) -> typing.Any:
+        """
+        kind "error": what the engine threw
+        """
+    @property
+    def failed_step(self) -> typing.Any:
+        """
+        the failure (failed_step -1: none)
+        """
+    @property
+    def groups(self) -> typing.Any:
+        """
+        the group index of each add_cooperative done, in order
+        """
+    @property
+    def kind(self) -> typing.Any:
+        """
+        "contact", "hold", "wait", "at_end", "error"
+        """
+    @property
+    def reason(self) -> typing.Any:
+        """
+        one line
+        """
+    @property
+    def records(self) -> typing.Any:
+        """
+        the record conditions come true, in order
+        """
+    @property
+    def t(self) -> typing.Any:
+        """
+        s: when (a contact: its begin)
+        """
+    @property
+    def times(self) -> typing.Any:
+        """
+        each step reached: its start and end (s)
+        """
 class SimulationModel:
     """
     What a simulation is, apart from where it is (simulation_model.hpp): its options, its robots as
@@ -2937,6 +3075,10 @@ def run_batch(sims: list, t_end: typing.SupportsFloat | typing.SupportsIndex, th
     finished), so that one failed run does not stop the others; `seconds`, when
     given, receives each run's wall time (s). Throws std::invalid_argument on a
     null or repeated simulation, a shared controller or a non-finite t_end.
+    """
+def run_schedule(sim: typing.Any, steps: list, check_contacts: bool, allowed: list, contacts_seen: typing.SupportsInt | typing.SupportsIndex) -> ScheduleOutcome:
+    """
+    The engine's schedule (coopsim.Simulation.run_schedule builds its arguments): steps as tuples (name, until, every, actions, hold, wait, at_end, record), the allowed contacts as (a, b, from, to). Returns a ScheduleOutcome.
     """
 def sensor_defaults() -> SensorOptions:
     """

@@ -22,6 +22,8 @@ from typing import Callable, Iterator, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _core
+from . import _checks
+from . import schedule as _schedule
 from ._core import ComputedTorque, Controller, DivergenceError, PID, Robot, SimulationBusyError, World
 from .log import BodyLog, RobotLog, SimulationLog
 from .pacing import Pacer, RunStats
@@ -531,6 +533,52 @@ class Simulation:
             raise ValueError("until must name at least one event ('grasp', 'contact')")
         found = self._timed(self._core.run_until, t_end, flags, self.dt if every is None else every)
         return "+".join(n for n, f in _UNTIL.items() if found & f) or None
+
+    def run_schedule(self, steps, *, allowed_contacts=None, contacts_seen: int = 0):
+        """Runs a schedule (:mod:`coopsim.schedule`: a list of :class:`~coopsim.schedule.Step`) in one engine call
+        with the GIL released: each step's actions, then its advance in pieces with its checks and waits.
+
+        allowed_contacts: None (contacts not checked) or the contacts allowed, each (a, b) or (a, b, from, to):
+        body names or patterns ('name', 'prefix*', '*suffix', '*'), either way round, beginning within [from,
+        to] s (None: unbounded); a contact that begins and matches none fails the run. contacts_seen: the
+        contact events already looked at (a previous schedule's :attr:`~coopsim.schedule.ScheduleResult.contacts_seen`):
+        those before it are not checked.
+
+        Returns a :class:`~coopsim.schedule.ScheduleResult`. Raises :class:`~coopsim.schedule.ScheduleError`
+        (one line naming the step, the time and the reason) for a failed check, a wait that timed out or a
+        condition false at a step's end, with the run stopped there; an engine error while advancing as it is,
+        with ``schedule_step`` (the step's name) and ``schedule_result`` (the
+        :class:`~coopsim.schedule.ScheduleResult` up to it) on it; ValueError, before anything runs, naming the step and the
+        action or condition for a bad schedule (a robot or body out of range, a missing controller, a time
+        before the previous one), and naming the step, its time and the action for one the simulation refuses
+        when it comes. Statistics go to :attr:`stats`.
+        """
+        plain, rules = _schedule.plain(steps, allowed_contacts)
+        seen = _checks.integer(contacts_seen, "contacts_seen", 0, 2 ** 62)
+        out = self._timed(_core.run_schedule, self._core, plain, allowed_contacts is not None, rules, seen)
+        groups = self.__dict__.setdefault("_groups", {})
+        added, mine = iter(out.groups), []
+        for st in plain[:len(out.times)]:      # the groups the schedule added and removed, as the calls do
+            for a in st[3]:
+                if a[0] == "add_cooperative":
+                    k = next(added, None)
+                    if k is not None:
+                        groups[k] = (a[1], tuple(int(i) for i in a[2]))
+                        mine.append(k)
+                elif a[0] == "remove_cooperative":
+                    groups.pop(a[1] if a[1] is not None else (mine[-1] if mine else None), None)
+        result = _schedule.ScheduleResult([tuple(t) for t in out.times], list(out.groups),
+                                          [_schedule.Record(r.step, r.condition, r.t, r.q, r.pose) for r in out.records],
+                                          int(out.contacts_seen))
+        if out.failed_step < 0:
+            return result
+        name = plain[out.failed_step][0]
+        if out.kind == "error":
+            e = out.error
+            e.schedule_step, e.schedule_result = name, result
+            raise e
+        raise _schedule.ScheduleError(name, out.failed_step, out.t, out.kind, out.reason, out.condition, out.bodies,
+                                      result)
 
     @staticmethod
     def advance_all(sims: Sequence["Simulation"], t_end: float, threads: int = 0) -> list:

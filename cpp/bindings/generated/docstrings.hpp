@@ -642,6 +642,54 @@ constexpr const char* doc_com_row_from_vector = "The paper's CoM row (frame i-1 
     "the joint axis to rounding (within 16 eps max(|a| + |r|, scale), scale\n"
     "the robot's size in m) gets theta_c = theta. Exact for both joint types:\n"
     "the CoM frame's pose in frame i is constant and its origin is r.";
+constexpr const char* doc_ScheduleAction = "A change a step makes to the run at its start (Simulation's calls of those names).";
+constexpr const char* doc_ScheduleAction_robot = "set_controller, set_reference, release";
+constexpr const char* doc_ScheduleAction_controller = "set_controller";
+constexpr const char* doc_ScheduleAction_reference = "set_reference";
+constexpr const char* doc_ScheduleAction_cooperative = "add_cooperative, with `robots`";
+constexpr const char* doc_ScheduleAction_group = "remove_cooperative: the group's index; -1: the last one this schedule added";
+constexpr const char* doc_ScheduleAction_body = "set_body_wrench: a free body's id, with `wrench` (world force N, moment N m)";
+constexpr const char* doc_ScheduleAction_kind_name = "\"set_controller\", \"set_reference\", ...";
+constexpr const char* doc_ScheduleCondition = "Robot `robot` holds body `body` (a free body's id; -1: holds nothing).";
+constexpr const char* doc_ContactRule = "A contact allowed between a body whose name matches `a` and one whose name matches `b` (either\n"
+    "way round) beginning at a time within [from, to] s. A pattern is a name, \"prefix*\", \"*suffix\" or \"*\".";
+constexpr const char* doc_ScheduleStep_name = "named in failures and errors";
+constexpr const char* doc_ScheduleStep_actions = "at the step's start, in order";
+constexpr const char* doc_ScheduleStep_until = "s: where the step ends (a wait step's timeout)";
+constexpr const char* doc_ScheduleStep_every = "s: the checks' pieces (0: the step in one piece)";
+constexpr const char* doc_ScheduleStep_hold = "true after every piece";
+constexpr const char* doc_ScheduleStep_wait = "all true: the step ends (checked at its start too)";
+constexpr const char* doc_ScheduleStep_at_end = "true when the step ends";
+constexpr const char* doc_ScheduleStep_record = "recorded when first true at a piece's end";
+constexpr const char* doc_Schedule_check_contacts = "the contacts that begin are checked against `allowed`";
+constexpr const char* doc_ScheduleRecord = "A record condition come true: its step and index in the step's `record`, the time, robot's q and\n"
+    "the body's pose then (the body's: identity for a condition on holding nothing).";
+constexpr const char* doc_ScheduleRecord_step = "the step's index";
+constexpr const char* doc_ScheduleRecord_condition = "the condition's index in the step's record list";
+constexpr const char* doc_ScheduleRecord_t = "s: the end of the piece at which it was first true";
+constexpr const char* doc_ScheduleRecord_q = "the robot's joints then (n)";
+constexpr const char* doc_ScheduleRecord_pose = "the body's pose then (4, 4; identity for nothing)";
+constexpr const char* doc_ScheduleOutcome = "What a schedule's run did: its steps' times, the groups it added, its records, the contacts it looked\n"
+    "at, and its failure if it failed.";
+constexpr const char* doc_ScheduleOutcome_times = "each step reached: its start and end (s)";
+constexpr const char* doc_ScheduleOutcome_groups = "the group index of each add_cooperative done, in order";
+constexpr const char* doc_ScheduleOutcome_records = "the record conditions come true, in order";
+constexpr const char* doc_ScheduleOutcome_contacts_seen = "the contact events looked at (the next run's `first`)";
+constexpr const char* doc_ScheduleOutcome_failed_step = "the failure (failed_step -1: none)";
+constexpr const char* doc_ScheduleOutcome_kind = "\"contact\", \"hold\", \"wait\", \"at_end\", \"error\"";
+constexpr const char* doc_ScheduleOutcome_condition = "hold, wait, at_end: the condition's index in its list";
+constexpr const char* doc_ScheduleOutcome_t = "s: when (a contact: its begin)";
+constexpr const char* doc_ScheduleOutcome_bodies = "contact: the two bodies' names";
+constexpr const char* doc_ScheduleOutcome_reason = "one line";
+constexpr const char* doc_ScheduleOutcome_error = "kind \"error\": what the engine threw";
+constexpr const char* doc_check_schedule = "Checks `schedule` for `sim` without running it: std::invalid_argument naming the step (index and\n"
+    "name) and the action or condition for a robot or body out of range, a missing controller,\n"
+    "reference or law, a reference of another dof, a body that is not free, a non-finite wrench, a\n"
+    "remove without a group, an until before the previous one (or now) or not finite, an every < 0.";
+constexpr const char* doc_run_schedule = "Runs `schedule` on `sim` (checked first), holding the run for its whole length (label \"a\n"
+    "schedule\"). contacts_seen: the contact events already looked at (checked from there on).\n"
+    "between(): called between pieces at most every 4096 steps; throwing stops the run there and\n"
+    "propagates (a Ctrl-C), the state and log consistent.";
 constexpr const char* doc_shape_kind_name = "\"box\", \"sphere\", \"cylinder\", \"hull\"";
 constexpr const char* doc_Shape = "A convex shape in its own frame (m). Every kind keeps `half_extents`: for a box its half extents, for\n"
     "the others the half extents of a box centred at the frame's origin, along its axes, that holds the\n"

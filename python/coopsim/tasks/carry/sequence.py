@@ -9,6 +9,7 @@ from typing import Dict, List, Optional, Sequence
 import numpy as np
 
 from ..._core import CooperativeController, DivergenceError, IKError, LinkBox, shape_clearances
+from ...schedule import AddCooperative, Holding, RemoveCooperative, ScheduleError, SetBodyWrench, SetController, SetReference, Step
 from ...simulation import Simulation
 from . import scene
 from .constants import BACKED_OFF, END, PLACE_TOL, PLACE_TOL_ANGLE, START
@@ -18,7 +19,9 @@ from .pairs import pair as make_pair
 from .planning import STEPS, Plan, _pose4, make_plan, random_start
 from .scoring import score
 
-__all__ = ["CarryError", "CarryResult", "run"]
+__all__ = ["CarryError", "CarryResult", "SEQUENCING", "run"]
+
+SEQUENCING = ("engine", "python")   # run's ways of running the sequence
 
 JAWS = ("/fixed_jaw", "/link6")   # the SCARAs' jaws' boxes in the world (a pair's: "/" + Pair.jaws)
 CHUNK = 0.001          # s: while a grasp or release is awaited, and while the bar is held, the run goes in chunks
@@ -121,14 +124,16 @@ class _Runner:
                 why = f" ({g['reason'][last[-1]]} at t = {float(g['t'][last[-1]]):.4f} s)" if last else ""
                 raise CarryError(self.step, self.sim.time, f"{self.names[i]} let go of the bar{why}")
 
-    def record_anchor(self, i):
-        """The weld's point (midway between the pads now, just after the grasp) in the clamp's link frame and in
-        the bar's frame: the slip (the weld's stretch) is their distance later."""
-        r, q = self.robots[i], self.sim.state(i)[0]
+    def record_anchor(self, i, t=None, q=None, bar=None):
+        """The weld's point (midway between the pads now, just after the grasp; or at time t with robot i's
+        joints q and the bar's pose `bar` then) in the clamp's link frame and in the bar's frame: the slip (the
+        weld's stretch) is their distance later."""
+        if t is None:
+            t, q, bar = self.sim.time, self.sim.state(i)[0], self.sim.body_state(scene.BAR).pose
+        r = self.robots[i]
         p_link = grip_point(r, q)
         p_world = (r.frames(q)[r.clamp.fixed_link] @ np.append(p_link, 1.0))[:3]
-        bar = self.sim.body_state(scene.BAR).pose
-        self.anchors[i] = dict(t=self.sim.time, link=p_link, body=np.linalg.solve(bar, np.append(p_world, 1.0))[:3])
+        self.anchors[i] = dict(t=t, link=p_link, body=np.linalg.solve(bar, np.append(p_world, 1.0))[:3])
 
     def wait_grasps(self, t_end):
         """Runs to t_end in CHUNK steps, recording each weld's anchor when it appears; CarryError('grasp') if
@@ -139,6 +144,10 @@ class _Runner:
             for i in range(2):
                 if self.anchors[i] is None and self.sim.holding(i) == scene.BAR:
                     self.record_anchor(i)
+        self.check_grasped()
+
+    def check_grasped(self):
+        """CarryError('grasp') unless both clamps hold the bar, naming the clamp rule's conditions that failed."""
         for i in range(2):
             if self.sim.holding(i) != scene.BAR:
                 c = self.sim.grasp_check(i, scene.BAR)
@@ -222,6 +231,91 @@ class _Runner:
         self.mark("back off")
         self.run_to(S["back off"][1])
         self.done()
+        self.check_placed()
+        self.check_backed_off()
+
+    def contact_rules(self) -> list:
+        """:meth:`allowed` as the engine's schedule takes it: the bar with the jaws at any time, with the start
+        stands until the lift's end, with the end stands from the place's start."""
+        S = self.plan.steps
+        return ([(scene.BAR, "*" + j) for j in self.jaws] +
+                [(scene.BAR, "start_stand*", None, float(S["lift"][1])),
+                 (scene.BAR, "end_stand*", float(S["place"][0]), None)])
+
+    def scheduled(self, steps) -> None:
+        """Runs `steps` (coopsim.schedule.Step, the carry's step names) in one engine call, with the checks
+        :meth:`run_to` and :meth:`wait_grasps` make between pieces; the runner follows (its steps' times, the
+        anchors, the cooperative group, the contacts seen, the step now). A failure is the CarryError the
+        Python checks raise, with the same reason; an engine error propagates with the runner's step set."""
+        try:
+            res = self.sim.run_schedule(steps, allowed_contacts=self.contact_rules(), contacts_seen=self.contact_seen)
+        except ScheduleError as e:
+            self._follow(steps, e.result)
+            if e.kind == "hold":
+                self.check_held()              # the release's reason, as the Python check gives it
+            elif e.kind == "at_end" and e.step == "grasp":
+                self.check_grasped()           # the clamp rule's conditions that failed
+            elif e.kind == "at_end" and e.step == "release":
+                raise CarryError("release", e.t, f"{self.names[steps[e.index].at_end[e.condition].robot]} did "
+                                 f"not let go of the bar") from None
+            raise CarryError(e.step, e.t, e.reason, e.bodies) from None
+        except Exception as e:
+            if getattr(e, "schedule_result", None) is not None:
+                self._follow(steps, e.schedule_result)
+            raise
+        self._follow(steps, res)
+
+    def _follow(self, steps, res) -> None:
+        for k, (t0, t1) in enumerate(res.times):
+            name = steps[k].name
+            if name != self.step or name not in self.steps:
+                self.steps[name] = [t0, t1]
+            else:
+                self.steps[name][1] = t1
+            self.step = name
+        for rec in res.records:
+            i = steps[rec.step].record[rec.condition].robot
+            self.record_anchor(i, rec.t, rec.q, rec.pose)
+        added = iter(res.groups)
+        for st in steps[:len(res.times)]:
+            for a in st.actions:
+                if isinstance(a, AddCooperative):
+                    self.group = next(added, self.group)
+                elif isinstance(a, RemoveCooperative):
+                    self.group = None
+        self.contact_seen = res.contacts_seen
+
+    def carry_scheduled(self):
+        """The carry of :meth:`carry` as one engine schedule: the same steps, actions and checks."""
+        S = self.plan.steps
+        held = [Holding(0, scene.BAR), Holding(1, scene.BAR)]
+        lift = []
+        if self.phased:
+            lift += [SetController(i, c) for i, c in enumerate(self.phased.held)]
+        if self.coop:
+            lift.append(AddCooperative(self.coop.law, [0, 1]))
+        steps = [Step("approach", S["approach"][1]),
+                 Step("grasp", S["grasp"][1], CHUNK, record=held, at_end=held),
+                 Step("lift", S["lift"][1], HELD_CHUNK, lift, hold=held)]
+        t0, t1 = S["carry"]
+        if self.dist.push is not None:
+            force, at, T = self.dist.push
+            mid = t0 + at * (t1 - t0)
+            steps += [Step("carry", mid - T / 2, HELD_CHUNK, hold=held),
+                      Step("carry", mid + T / 2, HELD_CHUNK, [SetBodyWrench(scene.BAR, np.r_[force, 0.0, 0.0, 0.0])],
+                           hold=held),
+                      Step("carry", t1, HELD_CHUNK, [SetBodyWrench(scene.BAR, np.zeros(6))], hold=held)]
+        else:
+            steps.append(Step("carry", t1, HELD_CHUNK, hold=held))
+        steps.append(Step("place", S["place"][1], HELD_CHUNK, hold=held))
+        release = []
+        if self.coop:     # the bar rests on the end stands: the free controllers open the jaws
+            release = [RemoveCooperative()] + [SetReference(i, ref) for i, ref in enumerate(self.plan.references)]
+        steps.append(Step("release", S["release"][1], CHUNK, release, at_end=[Holding(0), Holding(1)]))
+        back = [SetController(i, c) for i, c in enumerate(self.phased.free)] if self.phased else []
+        steps.append(Step("back off", S["back off"][1], 0.0, back))
+        self.step = "approach"
+        self.scheduled(steps)
         self.check_placed()
         self.check_backed_off()
 
@@ -339,7 +433,7 @@ def check_controllers(controllers, options: Optional[dict] = None, robots=None) 
 def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, controllers=computed_torque,
         controller_name: Optional[str] = None, controller_options: Optional[dict] = None, mass_factor: Optional[float] = None, jaws_close=(True, True),
         robots=None, dt: Optional[float] = None, log_every: Optional[int] = None, world_every: Optional[int] = None,
-        control_every: Optional[int] = None, score_run: bool = True) -> CarryResult:
+        control_every: Optional[int] = None, score_run: bool = True, sequencing: str = "engine") -> CarryResult:
     """Runs the dual carry and scores it.
 
     seed: the start stands shifted and turned by a seeded draw (:func:`~.planning.random_start`; None: the
@@ -361,7 +455,10 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     two clamped robots and their bases. dt (s), log_every, world_every, control_every: the simulation's (None:
     the pair's, Pair.simulation; the SCARAs' robots integrated at 5 kHz, the controllers and the world at 1 kHz;
     the UR5s' and Pandas' robots, controllers and world all at 1 kHz; a log row every 5 ms). score_run: compute
-    the scores (:func:`~.scoring.score`).
+    the scores (:func:`~.scoring.score`). sequencing: 'engine' (default: the steps, their actions, waits and
+    checks run as one engine schedule with the GIL released, :meth:`coopsim.Simulation.run_schedule`) or
+    'python' (the same sequence advanced piece by piece from Python, checking between pieces: the same run and
+    report, the GIL held between the pieces).
 
     A run fails, naming its step (approach, grasp, lift, carry, place, release, back off), time and reason, on
     an unexpected contact (robot-robot, a robot with a stand or the floor or its own links, the bar with
@@ -375,6 +472,8 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     """
     if seed is not None and start is not None:
         raise ValueError("give start or seed, not both: seed draws the start")
+    if sequencing not in SEQUENCING:
+        raise ValueError(f"sequencing must be one of {', '.join(map(repr, SEQUENCING))}, got {sequencing!r}")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
         raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     start = random_start(int(seed)) if seed is not None else (START if start is None else start)
@@ -401,7 +500,7 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
     failure = None
     t_wall = time.perf_counter()
     try:
-        runner.carry()
+        runner.carry() if sequencing == "python" else runner.carry_scheduled()
     except CarryError as e:
         failure = dict(step=e.step, t=e.t, reason=e.reason, bodies=list(e.bodies))
     except (IKError, DivergenceError) as e:

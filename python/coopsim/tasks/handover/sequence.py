@@ -13,6 +13,7 @@ import numpy as np
 
 from ..._core import ComputedTorque, CubicTrajectory, DivergenceError, IKError
 from ...planning import plan_cartesian, rotz
+from ...schedule import Holding, ScheduleError, Step
 from ...simulation import Simulation
 from ... import view
 from ...view.live import Restart
@@ -163,30 +164,46 @@ class _Runner(Planner):
             # paced, with the page live (coopsim.view.live); the page's Reset raises view.live.Restart: the
             # task starts over (run)
             self.live.run_to(t_end, restart=True)
-        else:
-            self.sim.advance(t_end)
-        self.check_contacts()
+            self.check_contacts()
+        else:      # one engine step, its contacts checked there
+            self.scheduled(Step(self.step, t_end))
 
-    def wait_for(self, predicate, timeout, what):
-        """Runs in 10 ms chunks until predicate() holds, at most `timeout` s; TaskError with `what` if not.
-        predicate: of the clamps' holds, which change only at a grasp or release. Headless, the engine does the
-        chunks' waiting (Simulation.advance_until): it stops after a chunk in which a grasp event happened or a
-        contact began, the only chunks after which the predicate or the contacts' check can find anything new."""
+    def scheduled(self, step: Step) -> None:
+        """Runs one engine schedule's `step` with the contacts checked against :meth:`contact_rules`; a
+        forbidden contact or a wait that times out is the TaskError the Python checks raise."""
+        try:
+            res = self.sim.run_schedule([step], allowed_contacts=self.contact_rules(), contacts_seen=self.contact_seen)
+        except ScheduleError as e:
+            self.contact_seen = e.result.contacts_seen
+            if e.kind == "contact":
+                raise TaskError(e.step, e.t, f"forbidden contact between {e.bodies[0]} and {e.bodies[1]}",
+                                e.bodies) from None
+            raise TaskError(e.step, e.t, "") from None      # a wait's timeout: its caller says why
+        self.contact_seen = res.contacts_seen
+
+    def wait_for(self, condition: Holding, timeout, what):
+        """Runs in 10 ms chunks until `condition` (robot i holds a bar, or nothing) holds, at most `timeout` s;
+        TaskError with `what` if not. Headless, one engine schedule's wait step does the chunks' waiting and the
+        contacts' checks; in a live page (or past the time limit) Python advances chunk by chunk."""
         t_end = self.sim.time + timeout
-        while not predicate():
+        if self.live is None and t_end <= self.t_limit:
+            try:
+                self.scheduled(Step(self.step, t_end, _WAIT_CHUNK, wait=[condition]))
+            except TaskError as e:
+                if e.reason:
+                    raise
+                raise TaskError(self.step, self.sim.time, what) from None
+            return
+        while self.sim.holding(condition.robot) != condition.body:
             if self.sim.time >= t_end - 1e-12:
                 raise TaskError(self.step, self.sim.time, what)
-            if self.live is None and t_end <= self.t_limit:   # (else chunk by chunk: the limit's check in each)
-                self.sim.advance_until(t_end, ("grasp", "contact"), every=_WAIT_CHUNK)
-                self.check_contacts()
-            else:
-                self.run_to(min(self.sim.time + _WAIT_CHUNK, t_end))
+            self.run_to(min(self.sim.time + _WAIT_CHUNK, t_end))
 
     def wait_grasp(self, i, name):
         """Runs until robot i holds `name` (GRASP_TIMEOUT s at most); else TaskError naming the clamp
         rule's conditions that failed at the end."""
         try:
-            self.wait_for(lambda: self.sim.holding(i) == name, GRASP_TIMEOUT, "")
+            self.wait_for(Holding(i, name), GRASP_TIMEOUT, "")
         except TaskError as e:
             if e.reason:   # something else went wrong while waiting (a forbidden contact): that is the reason
                 raise
@@ -214,6 +231,21 @@ class _Runner(Planner):
                     return st == "released"
                 return False
         return False
+
+    def contact_rules(self) -> list:
+        """:meth:`allowed` now, as the engine's schedule takes it: each bar with the jaws; with the floor on it,
+        grasped or released; with the container and the other released bars once released."""
+        rules = []
+        released = [x for x in self.names if self.state[x] == "released"]
+        for x in self.names:
+            st = self.state[x]
+            rules += [(x, "*/fixed_jaw"), (x, "*/link6")]
+            if st in ("floor", "grasped", "released"):
+                rules.append((x, "floor"))
+            if st == "released":
+                rules.append((x, "container*"))
+                rules += [(x, y) for y in released if y > x]
+        return rules
 
     def check_contacts(self):
         ev = self.sim.contact_events(self.contact_seen)     # the events since the last look
@@ -280,7 +312,7 @@ class _Runner(Planner):
         # 4. #2 opens and leaves
         mark("release by #2")
         self.jaw(1, OPEN, T["open"])
-        self.wait_for(lambda: sim.holding(1) is None, GRASP_TIMEOUT, "SCARA #2 did not let go")
+        self.wait_for(Holding(1), GRASP_TIMEOUT, "SCARA #2 did not let go")
         up = self.r2.fk(self.q_ref(1))
         up[2, 3] += RETREAT2
         self.run_to(self.move_line(1, [up], [T["retreat"]], OPEN))
@@ -314,7 +346,7 @@ class _Runner(Planner):
         # 7. open, back off along the approach, return
         mark("release")
         self.jaw(0, OPEN, T["open"])
-        self.wait_for(lambda: sim.holding(0) is None, GRASP_TIMEOUT, "SCARA #1 did not let go")
+        self.wait_for(Holding(0), GRASP_TIMEOUT, "SCARA #1 did not let go")
         self.state[name] = "released"
         T1 = self.r1.fk(self.q_ref(0))
         T1[:3, 3] -= T1[:3, 2] * BACK_OFF
