@@ -171,6 +171,11 @@ def _conditions(items, where: str) -> list:
     return out
 
 
+def _time(x, what) -> float:
+    """A step's time (s): a finite float as it is (the common case, without building the message), else checked."""
+    return x if type(x) is float and math.isfinite(x) else _checks.number(x, what(), unit="s")
+
+
 def plain(steps: Sequence[Step], allowed_contacts) -> tuple:
     """The engine's form of a schedule: (steps as tuples, the allowed contacts as (a, b, from, to)); ValueError
     naming the step and the item for what is not a step, an action or a condition."""
@@ -180,22 +185,26 @@ def plain(steps: Sequence[Step], allowed_contacts) -> tuple:
     for k, st in enumerate(steps):
         if not isinstance(st, Step):
             raise ValueError(f"{_where(k, st)} must be a coopsim.schedule.Step, got {type(st).__name__}")
-        where = _where(k, st)
         if not isinstance(st.name, str) or not st.name:
-            raise ValueError(f"{where}: name must be a non-empty str")
+            raise ValueError(f"{_where(k, st)}: name must be a non-empty str")
         acts = []
         for j, a in enumerate(st.actions):
             spec = _ACTIONS.get(type(a))
             if spec is None:
-                raise ValueError(f"{where}, action {j + 1}: not an action (SetController, SetReference, "
+                raise ValueError(f"{_where(k, st)}, action {j + 1}: not an action (SetController, SetReference, "
                                  f"AddCooperative, RemoveCooperative, SetBodyWrench, Release), got {a!r}")
             acts.append((spec[0],) + tuple(getattr(a, f) for f in spec[1:]))
-        out.append((st.name, _checks.number(st.until, f"{where}: until", unit="s"),
-                    _checks.positive(st.every, f"{where}: every", zero=True, unit="s"), acts,
-                    _conditions(st.hold, f"{where}, hold"), _conditions(st.wait, f"{where}, wait"),
-                    _conditions(st.at_end, f"{where}, at_end"), _conditions(st.record, f"{where}, record")))
+        every = _time(st.every, lambda: f"{_where(k, st)}: every")
+        if every < 0.0:
+            _checks.positive(every, f"{_where(k, st)}: every", zero=True, unit="s")
+        cond = [_conditions(c, f"{_where(k, st)}, {n}") if c else []
+                for c, n in ((st.hold, "hold"), (st.wait, "wait"), (st.at_end, "at_end"), (st.record, "record"))]
+        out.append((st.name, _time(st.until, lambda: f"{_where(k, st)}: until"), every, acts, *cond))
     rules = []
     for j, r in enumerate(allowed_contacts or ()):
+        if type(r) is tuple and len(r) == 2 and type(r[0]) is str and type(r[1]) is str:
+            rules.append((r[0], r[1], -math.inf, math.inf))       # the common case: two names or patterns
+            continue
         r = tuple(r)
         if len(r) not in (2, 3, 4) or not all(isinstance(x, str) for x in r[:2]):
             raise ValueError(f"allowed contact {j + 1} must be (a, b) or (a, b, from, to) with body names or "

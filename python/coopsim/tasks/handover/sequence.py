@@ -104,6 +104,7 @@ class _Runner(Planner):
         self.state = {name: "floor" for name in self.names}   # floor -> grasped -> held (lifted) -> released
         self.label: Dict[str, np.ndarray] = {}   # the task's frame of each bar in its body frame
         self.outcome: Dict[str, str] = {}
+        self._rules = None       # (the bars' states, contact_rules for them)
 
     # ---- running ----
 
@@ -235,6 +236,9 @@ class _Runner(Planner):
     def contact_rules(self) -> list:
         """:meth:`allowed` now, as the engine's schedule takes it: each bar with the jaws; with the floor on it,
         grasped or released; with the container and the other released bars once released."""
+        key = tuple(self.state[x] for x in self.names)
+        if self._rules is not None and self._rules[0] == key:
+            return self._rules[1]
         rules = []
         released = [x for x in self.names if self.state[x] == "released"]
         for x in self.names:
@@ -245,6 +249,7 @@ class _Runner(Planner):
             if st == "released":
                 rules.append((x, "container*"))
                 rules += [(x, y) for y in released if y > x]
+        self._rules = (key, rules)
         return rules
 
     def check_contacts(self):
