@@ -109,17 +109,18 @@ py::array_t<double> poses(const std::vector<Eigen::Isometry3d>& Ts) {
   return out;
 }
 
-// Robot.poses_of_states for q (N, n): (N, 4, 4), or (N, k, 4, 4) of the k boxes; the poses computed, checked and
-// written into the array with the GIL released
-py::array_t<double> poses_of_states(const Robot& r, const py::object& q, bool boxes) {
+// Robot.poses_of_states for q (N, n): (N, 4, 4) of the tool, (N, k, 4, 4) of the k boxes or (N, n + 1, 4, 4) of
+// the DH frames; the poses computed, checked and written into the array with the GIL released
+py::array_t<double> poses_of_states(const Robot& r, const py::object& q, Robot::PosesOf what) {
   Arr Q = array(q, {-1, r.dof()}, "q");
   std::vector<py::ssize_t> shape{Q.shape(0), py::ssize_t(4), py::ssize_t(4)};
-  if (boxes) shape.insert(shape.begin() + 1, static_cast<py::ssize_t>(r.boxes().size()));
+  if (what == Robot::PosesOf::kBoxes) shape.insert(shape.begin() + 1, static_cast<py::ssize_t>(r.boxes().size()));
+  if (what == Robot::PosesOf::kFrames) shape.insert(shape.begin() + 1, static_cast<py::ssize_t>(r.dof() + 1));
   py::array_t<double> out(shape);
   double* p = out.mutable_data();
   coopsim::py_nogil::NoGil nogil;
   std::vector<Eigen::Isometry3d> T;
-  r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), boxes, T);
+  r.poses_of_states(Q.data(), static_cast<long>(Q.shape(0)), what, T);
   write_poses(T, p);
   return out;
 }
@@ -418,16 +419,18 @@ void bind_robot(py::module_& m) {
   // kinematics
   R.def("fk", [](const Robot& r, const py::object& q) -> py::object {
          if (as_array(q, "q").ndim() != 2) return checked_pose(r.tool_pose(At(r, q).ws), "fk");
-         return poses_of_states(r, q, false);  // N states at once
+         return poses_of_states(r, q, Robot::PosesOf::kTool);  // N states at once
        },
         py::arg("q"), "Tool centre point pose (4, 4) in the world for joint positions q (n,); for N states q (N, n), "
         "the poses (N, 4, 4).")
-      .def("frames", [](const Robot& r, const py::object& q) {
+      .def("frames", [](const Robot& r, const py::object& q) -> py::object {
+         if (as_array(q, "q").ndim() == 2) return poses_of_states(r, q, Robot::PosesOf::kFrames);  // N states
          const At at(r, q);
          std::vector<Eigen::Isometry3d> T;
          for (int i = 0; i <= r.dof(); ++i) T.push_back(r.frame(at.ws, i));
          return poses(T);
-       }, py::arg("q"), "World poses (n + 1, 4, 4) of DH frames 0..n.")
+       }, py::arg("q"), "World poses (n + 1, 4, 4) of DH frames 0..n at q (n,); for N states q (N, n), the poses "
+       "(N, n + 1, 4, 4) (computed with the GIL released).")
       .def("com_frames", [](const Robot& r, const py::object& q) {
          const At at(r, q);
          std::vector<Eigen::Isometry3d> T;
@@ -447,7 +450,8 @@ void bind_robot(py::module_& m) {
          py::array_t<double> he({k, py::ssize_t(3)});
          for (py::ssize_t i = 0; i < k; ++i)
            Eigen::Map<Eigen::RowVector3d>(he.mutable_data() + 3 * i) = r.boxes()[i].half_extents.transpose();
-         if (as_array(q, "q").ndim() == 2) return py::make_tuple(poses_of_states(r, q, true), he);  // (N, k, 4, 4)
+         if (as_array(q, "q").ndim() == 2)
+           return py::make_tuple(poses_of_states(r, q, Robot::PosesOf::kBoxes), he);  // (N, k, 4, 4)
          std::vector<Eigen::Isometry3d> T;
          r.box_poses(At(r, q).ws, T);
          return py::make_tuple(poses(T), he);

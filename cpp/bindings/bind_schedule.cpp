@@ -4,6 +4,7 @@
 #include <pybind11/stl.h>
 
 #include <exception>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -175,10 +176,13 @@ void bind_schedule(py::module_& m) {
       }
     ScheduleOutcome o;
     {
-      auto between = []() {
-        coopsim::py_nogil::GilAgain gil;
-        if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-      };
+      // between pieces on the main thread: Ctrl-C stops the run, the state and log consistent
+      std::function<void()> between;
+      if (coopsim::py_nogil::on_main_thread())
+        between = []() {
+          coopsim::py_nogil::GilAgain gil;
+          if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+        };
       coopsim::py_nogil::NoGil nogil;
       o = run_schedule(sim, s, contacts_seen, between);
     }

@@ -407,12 +407,14 @@ torques between controller updates, the log and tracking metrics.)doc")
            },
            py::arg("t_end"), py::arg("callback") = py::none(), py::arg("chunk") = 4096, doc_Simulation_run)
       .def("run_until", [](Simulation& s, double t_end, int until, double every, long chunk) {
-             // every `chunk` steps: Ctrl-C stops the run with the log kept
-             auto between = [](long, long) {
-               coopsim::py_nogil::GilAgain gil;
-               if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-               return true;
-             };
+             // every `chunk` steps on the main thread: Ctrl-C stops the run with the log kept
+             std::function<bool(long, long)> between;
+             if (coopsim::py_nogil::on_main_thread())
+               between = [](long, long) {
+                 coopsim::py_nogil::GilAgain gil;
+                 if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+                 return true;
+               };
              coopsim::py_nogil::NoGil nogil;
              return s.run_until(t_end, until, every, chunk, between);
            },

@@ -37,4 +37,13 @@ struct GilAgain {  // members: resume runs after acquire's destructor has releas
 
 inline double released_seconds() { return static_cast<double>(Count::mine().ns) * 1e-9; }
 
+// Whether the calling thread is Python's main thread, the only one its signal handlers run on: a Ctrl-C
+// check between an engine call's chunks takes the GIL back for nothing on another thread (a sweep's worker,
+// which would wait for it while other threads run Python). Call with the GIL held.
+inline bool on_main_thread() {
+  static const unsigned long main_ident =
+      pybind11::module_::import("threading").attr("main_thread")().attr("ident").cast<unsigned long>();
+  return PyThread_get_thread_ident() == main_ident;
+}
+
 }  // namespace coopsim::py_nogil

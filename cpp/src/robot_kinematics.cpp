@@ -57,19 +57,22 @@ void Robot::kinematics(const double* q, Workspace& ws, bool inertia) const {
   ws.kin_level = 2;
 }
 
-void Robot::poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const {
+void Robot::poses_of_states(const double* Q, long N, PosesOf what, std::vector<Eigen::Isometry3d>& out) const {
   Workspace ws;
   std::vector<Eigen::Isometry3d> T;
   out.clear();
-  out.reserve(static_cast<size_t>(N) * (boxes ? boxes_.size() : 1));
+  const size_t per = what == PosesOf::kBoxes ? boxes_.size() : what == PosesOf::kFrames ? n_ + 1 : 1;
+  out.reserve(static_cast<size_t>(N) * per);
   for (long i = 0; i < N; ++i) {
     kinematics(Q + i * n_, ws, false);  // the frames only
-    if (!boxes) {
+    if (what == PosesOf::kTool) {
       out.push_back(tool_pose(ws));
-      continue;
+    } else if (what == PosesOf::kFrames) {
+      for (int j = 0; j <= n_; ++j) out.push_back(frame(ws, j));
+    } else {
+      box_poses(ws, T);
+      out.insert(out.end(), T.begin(), T.end());
     }
-    box_poses(ws, T);
-    out.insert(out.end(), T.begin(), T.end());
   }
 }
 

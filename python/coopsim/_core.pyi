@@ -424,9 +424,9 @@ class Robot:
         (as inverse_dynamics_derivatives) gives qdd as forward_dynamics does and the derivatives there;
         out= as there.
         """
-    def frames(self, q: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
+    def frames(self, q: typing.Any) -> typing.Any:
         """
-        World poses (n + 1, 4, 4) of DH frames 0..n.
+        World poses (n + 1, 4, 4) of DH frames 0..n at q (n,); for N states q (N, n), the poses (N, n + 1, 4, 4) (computed with the GIL released).
         """
     def friction(self, qd: typing.Any) -> numpy.typing.NDArray[numpy.float64]:
         """

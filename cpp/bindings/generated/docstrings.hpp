@@ -559,9 +559,10 @@ constexpr const char* doc_Robot_frame_velocities = "Angular velocity w[i] (rad/s
     "DH frames i = 0..n in the world, for the kinematics in ws and qd.";
 constexpr const char* doc_Robot_box_poses = "World poses of every box, in the order of boxes(), for the kinematics\n"
     "in ws (see kinematics()).";
-constexpr const char* doc_Robot_poses_of_states = "For N states Q (row-major N x n): the tool pose of each (N poses), or\n"
-    "with boxes the poses of every box of each (N x boxes().size(), state by\n"
-    "state).";
+constexpr const char* doc_Robot_int = "What poses_of_states gives per state: the tool pose, every box's pose (boxes() order), or the\n"
+    "DH frames 0..n.";
+constexpr const char* doc_Robot_poses_of_states = "For N states Q (row-major N x n): the poses `what` names of each, state by state (N, N x\n"
+    "boxes().size() or N x (n + 1) poses).";
 constexpr const char* doc_Robot_clamp_faces = "World poses of the clamp's fixed and moving inner faces (see Clamp)\n"
     "for the kinematics of q in ws; throws when the robot has no clamp.";
 constexpr const char* doc_Robot_parameter_vector = "Parameter vector read by generated code: per link [theta d a alpha,\n"

@@ -315,10 +315,12 @@ to the base frame's origin.)doc";
   // World poses of every box, in the order of boxes(), for the kinematics
   // in ws (see kinematics()).
   void box_poses(const Workspace& ws, std::vector<Eigen::Isometry3d>& out) const;
-  // For N states Q (row-major N x n): the tool pose of each (N poses), or
-  // with boxes the poses of every box of each (N x boxes().size(), state by
-  // state).
-  void poses_of_states(const double* Q, long N, bool boxes, std::vector<Eigen::Isometry3d>& out) const;
+  // What poses_of_states gives per state: the tool pose, every box's pose (boxes() order), or the
+  // DH frames 0..n.
+  enum class PosesOf : int { kTool, kBoxes, kFrames };
+  // For N states Q (row-major N x n): the poses `what` names of each, state by state (N, N x
+  // boxes().size() or N x (n + 1) poses).
+  void poses_of_states(const double* Q, long N, PosesOf what, std::vector<Eigen::Isometry3d>& out) const;
   // World poses of the clamp's fixed and moving inner faces (see Clamp)
   // for the kinematics of q in ws; throws when the robot has no clamp.
   void clamp_faces(const Workspace& ws, const double* q, Eigen::Isometry3d& fixed,

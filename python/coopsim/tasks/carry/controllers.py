@@ -148,12 +148,12 @@ def with_point_mass(robot: Robot, link: int, point, mass: float) -> Robot:
                          coulomb_width=robot.coulomb_width, base_orientation=robot.base_orientation)
 
 
-def grip_point(robot: Robot, q) -> np.ndarray:
+def grip_point(robot: Robot, q, frame=None) -> np.ndarray:
     """The point midway between the clamp's pads' centres at q (where a weld holds), in the DH frame of the
-    clamp's link: (3,) m."""
+    clamp's link: (3,) m. frame: that link's pose (4, 4) at q when the caller has it."""
     faces = robot.clamp_faces(q)
     mid = (faces[0, :3, 3] + faces[1, :3, 3]) / 2.0
-    F = robot.frames(q)[robot.clamp.fixed_link]
+    F = robot.frames(q)[robot.clamp.fixed_link] if frame is None else frame
     return np.linalg.solve(F, np.append(mid, 1.0))[:3]
 
 

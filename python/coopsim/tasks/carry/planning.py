@@ -253,10 +253,16 @@ def make_plan(start=START, end=END, *, robots=None, grip_offsets=(0.0, 0.0), clo
         # lift, carry, place: the clamp's tool at the bar's pose times its grip, at the bar's knot times
         opening = SQUEEZE if close[i] else OPEN
         G = grips[i] if close[i] else G_open
-        for step, (a, b) in (("lift", (t_lift, t_carry)), ("carry", (t_carry, t_place)),
-                             ("place", (t_place, t_release))):
-            tk = np.linspace(a, b, KNOTS[step] + 2)
-            k.tool(bar.pose(tk) @ G, tk, opening, step)
+        held = (("lift", (t_lift, t_carry)), ("carry", (t_carry, t_place)), ("place", (t_place, t_release)))
+        tk = [np.linspace(a, b, KNOTS[step] + 2) for step, (a, b) in held]
+        joined = np.concatenate([tk[0]] + [x[1:] for x in tk[1:]])   # a step's first knot is the last one's end
+        n0 = len(k.t)
+        try:      # the three steps in one call: the same knots, each solved from the one before it
+            k.tool(bar.pose(joined) @ G, joined, opening, "lift")
+        except IKError:       # step by step, for the error naming the step whose pose is out of reach
+            del k.t[n0:], k.q[n0:]
+            for (step, _), x in zip(held, tk):
+                k.tool(bar.pose(x) @ G, x, opening, step)
         k.jaw([OPEN], [t_open])
         k.hold(t_back)
         here = r.fk(k.q[-1])

@@ -19,11 +19,17 @@ def _angles(R) -> np.ndarray:
 
 
 def _rms(x) -> float:
-    return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
+    """The root mean square of x, as np.sqrt(np.mean(np.square(x))) computes it (0 for none)."""
+    return math.sqrt(np.add.reduce(x * x) / len(x)) if len(x) else 0.0
 
 
 def _max(x) -> float:
-    return float(np.max(x)) if len(x) else 0.0
+    return float(x.max()) if len(x) else 0.0
+
+
+def _norms(x) -> np.ndarray:
+    """The rows' Euclidean norms of x (rows, k), as np.linalg.norm(x, axis=1) computes them."""
+    return np.sqrt(np.add.reduce(x * x, axis=1))
 
 
 def _peak(x) -> float:
@@ -32,57 +38,56 @@ def _peak(x) -> float:
 
 
 def clamp_link_frames(robot, q) -> np.ndarray:
-    """The world poses (rows, 4, 4) of the clamp's link (the fixed jaw's) at joint positions q (rows, n): the
-    tool pose with the jaw at a fixed opening times that link's constant offset from it (one forward
-    kinematics call for all rows)."""
-    q = np.array(q, float)
-    q0 = q[0].copy()
-    q[:, -1] = q0[-1]
-    O = np.linalg.solve(robot.fk(q0), robot.frames(q0)[robot.clamp.fixed_link])
-    return robot.fk(q) @ O
+    """The world poses (rows, 4, 4) of the clamp's link (the fixed jaw's) at joint positions q (rows, n): its DH
+    frame, the robot's frames computed for all rows in one engine call."""
+    return robot.frames(np.asarray(q, float))[:, robot.clamp.fixed_link]
 
 
-def weld_stretch(robot, q, bar_poses, anchor, frames=None) -> np.ndarray:
+def weld_stretch(robot, q, bar_poses, anchor, frames=None, points: bool = False):
     """The weld's stretch (m) per row: the distance between its point carried by the clamp's link (at joint
     positions q (rows, n)) and carried by the bar (poses (rows, 4, 4)); anchor: the point in both
     (``{'link': (3,), 'body': (3,)}``, recorded at the grasp). The clamp rule lets go beyond 5 mm. frames: the
-    clamp's link frames at q when the caller has them (:func:`clamp_link_frames`)."""
+    clamp's link frames at q when the caller has them (:func:`clamp_link_frames`). points: also return the
+    point carried by the link, (rows, 3) m (world)."""
     F = clamp_link_frames(robot, q) if frames is None else frames
     by_link = F[:, :3, :3] @ anchor["link"] + F[:, :3, 3]
     by_body = bar_poses[:, :3, :3] @ anchor["body"] + bar_poses[:, :3, 3]
-    return np.linalg.norm(by_link - by_body, axis=1)
+    stretch = _norms(by_link - by_body)
+    return (stretch, by_link) if points else stretch
 
 
-def score(runner, report: dict) -> dict:
+def score(runner, report: dict, log=None) -> dict:
     """Adds report['scores'] from the run's log and returns the series behind the figures (numpy arrays over the
     log's rows): t, bar_planned (rows, 4, 4), bar (rows, 4, 4), position_error (m), angle_error (rad),
     weld (rows, 2, 6) N and N m, weld_stretch (rows, 2) m, tau (2 lists of (rows, n)), holding (rows, 2) bool,
     clearance_robots (m), cooperation (the log's cooperation columns of the two robots), pair (rows) bool (both
-    carry the bar: the rows of the cooperation scores), airborne (rows) bool (and it touches no stand)."""
-    log, plan, robots = runner.sim.log, runner.plan, runner.robots
+    carry the bar: the rows of the cooperation scores), airborne (rows) bool (and it touches no stand). log: the
+    run's log when the caller has it (else read)."""
+    log = runner.sim.log if log is None else log
+    plan, robots = runner.plan, runner.robots
     t = log.t
     body = log.bodies[scene.BAR]
     bar = body.poses() if len(body.t) == len(t) else _resample(body, t)
     planned = plan.bar.pose(t)
-    pos_err = np.linalg.norm(bar[:, :3, 3] - planned[:, :3, 3], axis=1)
+    pos_err = _norms(bar[:, :3, 3] - planned[:, :3, 3])
     ang_err = _angles(np.swapaxes(planned[:, :3, :3], 1, 2) @ bar[:, :3, :3])
     holding = np.column_stack([rl.holding == scene.BAR for rl in log.robots])
     both = holding.all(axis=1)
     carried = both & (t >= plan.steps["lift"][0]) & (t <= plan.steps["place"][1])
     weld = np.stack([rl.weld for rl in log.robots], axis=1)
     stretch = np.zeros((len(t), 2))
-    frames = [None, None]   # each clamp's link frames over the rows it holds (the stretch's and the weld points')
+    weld_points = np.full((len(t), 2, 3), np.nan)   # each weld's point carried by its clamp, where it holds
     for i, (r, rl) in enumerate(zip(robots, log.robots)):
         a = runner.anchors[i]
         if a is not None and holding[:, i].any():
             rows = np.flatnonzero(holding[:, i])
-            frames[i] = (rows, clamp_link_frames(r, rl.q[rows]))
-            stretch[rows, i] = weld_stretch(r, rl.q[rows], bar[rows], a, frames[i][1])
+            q = rl.q[rows]
+            stretch[rows, i], weld_points[rows, i] = weld_stretch(r, q, bar[rows], a, clamp_link_frames(r, q), True)
     shapes = [r.shapes(rl.q) for r, rl in zip(robots, log.robots)]
     d_rr = shape_clearances(shapes[0][0], list(robots[0].boxes), shapes[1][0], list(robots[1].boxes))[0]
     # the tool's tracking error with the jaw where it is (closed on the bar the jaw stops at the bar's width,
     # short of its squeezing reference, and the tool centre point midway between the jaws would count that)
-    tcp_err = np.column_stack([np.linalg.norm(r.fk(rl.q)[:, :3, 3] - r.fk(_jaw_as(rl.q_ref, rl.q))[:, :3, 3], axis=1)
+    tcp_err = np.column_stack([_norms(r.fk(rl.q)[:, :3, 3] - r.fk(_jaw_as(rl.q_ref, rl.q))[:, :3, 3])
                                for r, rl in zip(robots, log.robots)])
     s = dict(
         # the bar against its planned path while both clamps carry it (lift, carry, place)
@@ -93,11 +98,12 @@ def score(runner, report: dict) -> dict:
     for i, (r, rl) in enumerate(zip(robots, log.robots)):
         h = holding[:, i]
         tau = np.abs(rl.tau)
+        sensed = _norms(rl.ft_world[h, :3] - weld[h, i, :3])
         s["robots"].append(dict(
             robot=runner.names[i],
             # the raw weld wrench on the bar, world axes, moment about the weld's point
-            peak_weld_force=_max(np.linalg.norm(weld[h, i, :3], axis=1)),
-            peak_weld_moment=_max(np.linalg.norm(weld[h, i, 3:], axis=1)),
+            peak_weld_force=_max(_norms(weld[h, i, :3])),
+            peak_weld_moment=_max(_norms(weld[h, i, 3:])),
             max_slip_mm=_max(stretch[h, i]) * 1e3,
             peak_torque=tau.max(axis=0).tolist(),
             peak_torque_held=(tau[both].max(axis=0) if both.any() else np.zeros(r.dof)).tolist(),
@@ -105,8 +111,7 @@ def score(runner, report: dict) -> dict:
             tool_error_mm=dict(rms=_rms(tcp_err[:, i]) * 1e3, max=_max(tcp_err[:, i]) * 1e3),
             # the force sensor's reading against the weld's force it measures while holding (nothing else
             # touches the clamp then): its noise and filter
-            sensed_force_error=dict(rms=_rms(np.linalg.norm(rl.ft_world[h, :3] - weld[h, i, :3], axis=1)),
-                                    max=_max(np.linalg.norm(rl.ft_world[h, :3] - weld[h, i, :3], axis=1)))))
+            sensed_force_error=dict(rms=_rms(sensed), max=_max(sensed))))
     # ---- the two clamps together: the engine's cooperation columns (SimulationLog.cooperation) ----
     co = log.cooperation(0, 1)
     pair = co["holding"] & (co["body"] == scene.BAR) & carried   # as the bar's pose: lift, carry, place
@@ -125,12 +130,6 @@ def score(runner, report: dict) -> dict:
                                                                    contacts["begin"].tolist(), contacts["end"].tolist(),
                                                                    contacts["peak_force"].tolist())]
     report["scores"] = s
-    weld_points = np.full((len(t), 2, 3), np.nan)
-    for i, r in enumerate(robots):
-        a = runner.anchors[i]
-        if a is not None and frames[i] is not None:
-            rows, F = frames[i]
-            weld_points[rows, i] = F[:, :3, :3] @ a["link"] + F[:, :3, 3]
     return dict(t=t, bar=bar, bar_planned=planned, position_error=pos_err, angle_error=ang_err, weld=weld,
                 weld_points=weld_points, weld_stretch=stretch, holding=holding, carried=carried,
                 tau=[rl.tau for rl in log.robots], clearance_robots=d_rr, tool_error=tcp_err, cooperation=co,
@@ -176,7 +175,7 @@ def cooperation_scores(co: dict, pair, airborne, commanded=None) -> dict:
     - squeeze_commanded_N, load_share_commanded; rows_pair, rows_airborne (the rows counted)."""
     pair, airborne = np.asarray(pair, bool), np.asarray(airborne, bool)
     sq = co["squeeze"][pair]
-    f_int = np.linalg.norm(co["internal"][pair][:, :3], axis=1)
+    f_int = _norms(co["internal"][pair][:, :3])
     share = co["load_share"][airborne, 0]
     share = share[np.isfinite(share)]
     want = (commanded or {}).get("load_share", [0.5, 0.5])[0]
@@ -187,8 +186,8 @@ def cooperation_scores(co: dict, pair, airborne, commanded=None) -> dict:
         twist_Nm=_max(np.abs(co["twist"][pair])), bending_Nm=_max(np.abs(co["bending"][pair])),
         load_share=dict(mean=float(np.mean(share)) if len(share) else float("nan"),
                         mean_abs_deviation=float(np.mean(np.abs(share - want))) if len(share) else float("nan")),
-        relative_position_error_mm=_max(np.linalg.norm(rel[:, :3], axis=1)) * 1e3,
-        relative_angle_error_mrad=_max(np.linalg.norm(rel[:, 3:], axis=1)) * 1e3,
+        relative_position_error_mm=_max(_norms(rel[:, :3])) * 1e3,
+        relative_angle_error_mrad=_max(_norms(rel[:, 3:])) * 1e3,
         squeeze_commanded_N=float((commanded or {}).get("squeeze", 0.0)), load_share_commanded=float(want),
         rows_pair=int(pair.sum()), rows_airborne=int(airborne.sum()))
 

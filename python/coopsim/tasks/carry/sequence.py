@@ -131,8 +131,9 @@ class _Runner:
         if t is None:
             t, q, bar = self.sim.time, self.sim.state(i)[0], self.sim.body_state(scene.BAR).pose
         r = self.robots[i]
-        p_link = grip_point(r, q)
-        p_world = (r.frames(q)[r.clamp.fixed_link] @ np.append(p_link, 1.0))[:3]
+        F = r.frames(q)[r.clamp.fixed_link]
+        p_link = grip_point(r, q, F)
+        p_world = (F @ np.append(p_link, 1.0))[:3]
         self.anchors[i] = dict(t=t, link=p_link, body=np.linalg.solve(bar, np.append(p_world, 1.0))[:3])
 
     def wait_grasps(self, t_end):
@@ -517,7 +518,8 @@ def run(*, seed: Optional[int] = None, start=None, end=None, disturbance=None, c
                   dt=dt, log_every=log_every, world_every=world_every, control_every=control_every,
                   placed=getattr(runner, "placed", None), backed_off=getattr(runner, "backed_off", None))
     series = None
+    log = runner.sim.log
     if score_run:
-        series = score(runner, report)
+        series = score(runner, report, log)
     timing = dict(run=t_run, scoring=time.perf_counter() - t_wall - t_run)
-    return CarryResult(report, runner.sim, runner.sim.log, plan, series, timing)
+    return CarryResult(report, runner.sim, log, plan, series, timing)
