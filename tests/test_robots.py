@@ -219,3 +219,22 @@ def test_from_dh_accepts_six_component_inertias():
     I6 = [[0.1, 0.2, 0.25, 0.01, -0.02, 0.03]]
     r = cs.Robot.from_dh([[0, 0.1, 0.2, 0.3]], [[0, 0, 0.1, 0]], [1.0], I6, joint_types="R")
     np.testing.assert_array_equal(r.inertias[0], [[0.1, 0.01, -0.02], [0.01, 0.2, 0.03], [-0.02, 0.03, 0.25]])
+
+
+@pytest.mark.parametrize("make", [cs.robots.scara1, cs.robots.scara2])
+def test_poses_of_many_states_equal_each_states_own(make):
+    """Robot.frames, fk and shapes on (N, n) states (one engine call, the GIL released) give each row what the
+    call on that state alone gives, bit for bit; a wrong width is a one-line ValueError."""
+    r = make()
+    rng = np.random.default_rng(3)
+    lo, hi = np.asarray(r.q_limits, float).T
+    Q = lo + (hi - lo) * rng.random((7, r.dof))
+    F, T, (P, H) = r.frames(Q), r.fk(Q), r.shapes(Q)
+    assert F.shape == (7, r.dof + 1, 4, 4) and T.shape == (7, 4, 4) and P.shape == (7, len(r.boxes), 4, 4)
+    for k, q in enumerate(Q):
+        np.testing.assert_array_equal(F[k], r.frames(q))
+        np.testing.assert_array_equal(T[k], r.fk(q))
+        np.testing.assert_array_equal(P[k], r.shapes(q)[0])
+    with pytest.raises(ValueError, match="q") as info:
+        r.frames(np.zeros((3, r.dof + 1)))
+    assert "\n" not in str(info.value)
