@@ -259,3 +259,24 @@ def test_a_schedule_runs_with_the_gil_released():
     assert res.success and counts[0] > 0
     assert cs.gil_released_seconds() > c0
     del plan
+
+
+def test_ctrl_c_stops_a_schedule_between_pieces_with_the_log_kept():
+    """A KeyboardInterrupt while the engine runs a schedule on the main thread stops it within 4096 steps, the
+    state and the log consistent (every row up to the time it stopped), and the run goes on from there."""
+    import _thread
+
+    sim = cs.Simulation(dt=2e-4, log_every=25)
+    sim.add_robot(cs.robots.scara1(), cs.ComputedTorque(400.0, 40.0), Q0)
+    timer = threading.Timer(0.02, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sim.run_schedule([Step("long", until=600.0)])
+    finally:
+        timer.cancel()
+    assert 0.0 < sim.time < 600.0 and sim.steps % 4096 == 0
+    assert len(sim.log.t) == sim.steps // 25 + 1 and sim.log.t[-1] == pytest.approx((sim.steps // 25) * 25 * 2e-4)
+    t = sim.time
+    sim.run_schedule([Step("on", until=t + 0.01)])
+    assert sim.time == pytest.approx(t + 0.01)

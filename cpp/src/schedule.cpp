@@ -274,35 +274,32 @@ ScheduleOutcome run_schedule(Simulation& sim, const Schedule& s, long contacts_s
     long done = 0;
     while (!waited && done < total) {
       const long c = std::min(every, total - done);
-      try {
-        // the piece in runs of at most kBetween steps, between() after each full run (a Ctrl-C)
-        for (long left = c; left > 0;) {
-          const long a = std::min(left, kBetween - since_between);
+      // the piece in runs of at most kBetween steps, between() after each full run (a Ctrl-C: what it throws
+      // propagates as it is, the state and log consistent)
+      for (long left = c; left > 0;) {
+        const long a = std::min(left, kBetween - since_between);
+        try {
           sim.advance(a);
-          left -= a;
-          done += a;
-          since_between += a;
-          if (since_between >= kBetween) {
-            since_between = 0;
-            if (between) {
-              out.times.back()[1] = sim.time();
-              between();
-            }
+        } catch (const std::exception& e) {
+          out.times.back()[1] = sim.time();
+          if (!hold_ok(k)) return out;  // a clamp let go, and a law holding both refused it
+          out.failed_step = static_cast<int>(k);
+          out.kind = "error";
+          out.t = sim.time();
+          out.error = std::current_exception();
+          out.reason = e.what();
+          return out;
+        }
+        left -= a;
+        done += a;
+        since_between += a;
+        if (since_between >= kBetween) {
+          since_between = 0;
+          if (between) {
+            out.times.back()[1] = sim.time();
+            between();
           }
         }
-      } catch (const std::exception&) {
-        out.times.back()[1] = sim.time();
-        if (!hold_ok(k)) return out;  // a clamp let go, and a law holding both refused it
-        out.failed_step = static_cast<int>(k);
-        out.kind = "error";
-        out.t = sim.time();
-        out.error = std::current_exception();
-        try {
-          throw;
-        } catch (const std::exception& e) {
-          out.reason = e.what();
-        }
-        return out;
       }
       if (!hold_ok(k) || !contacts_ok(k)) return out;
       for (size_t j = 0; j < st.record.size(); ++j)
