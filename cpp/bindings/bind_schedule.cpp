@@ -48,35 +48,13 @@ std::vector<ScheduleCondition> conditions(const Simulation& sim, const py::handl
   return out;
 }
 
-ScheduleAction parse_action(const Simulation& sim, const py::handle& item, const std::string& where);
-
-// an action's tuple; ValueError naming the step and the action for a bad argument
-ScheduleAction action(const Simulation& sim, const py::handle& item, const std::string& where) {
-  try {
-    return parse_action(sim, item, where);
-  } catch (const py::value_error& e) {
-    const std::string what = e.what();
-    if (what.rfind(where, 0) == 0) throw;
-    const std::string kind = py::reinterpret_borrow<py::tuple>(item)[0].cast<std::string>();
-    throw py::value_error(where + " (" + kind + "): " + what);
-  } catch (const std::invalid_argument& e) {
-    const std::string kind = py::reinterpret_borrow<py::tuple>(item)[0].cast<std::string>();
-    throw py::value_error(where + " (" + kind + "): " + e.what());
-  } catch (const py::cast_error&) {
-    const std::string kind = py::reinterpret_borrow<py::tuple>(item)[0].cast<std::string>();
-    throw py::value_error(where + " (" + kind + "): an argument of the wrong type in " +
-                          std::string(py::repr(item)));
-  }
-}
-
-ScheduleAction parse_action(const Simulation& sim, const py::handle& item, const std::string& where) {
-  const auto t = py::reinterpret_borrow<py::tuple>(item);
-  const std::string kind = t[0].cast<std::string>();
+// An action's tuple (kind, arguments...) read for `sim`, throwing what the arguments' conversions throw.
+ScheduleAction parse_action(const Simulation& sim, const py::tuple& t, const std::string& kind) {
   ScheduleAction a;
-  auto robot = [&](const py::handle& h) {
+  auto robot = [&](const py::handle& h) {  // checked here: set_reference reads the robot's dof
     const int i = h.cast<int>();
     if (i < 0 || i >= sim.robot_count())
-      throw py::value_error(where + " (" + kind + "): robot " + std::to_string(i) + " out of range (0 .. " +
+      throw py::value_error("robot " + std::to_string(i) + " out of range (0 .. " +
                             std::to_string(sim.robot_count() - 1) + ")");
     return i;
   };
@@ -97,18 +75,34 @@ ScheduleAction parse_action(const Simulation& sim, const py::handle& item, const
     a.group = t[1].is_none() ? -1 : t[1].cast<int>();
   } else if (kind == "set_body_wrench") {
     a.kind = ScheduleAction::kSetBodyWrench;
-    try {
-      a.body = body_id(sim, t[1].cast<std::string>());
-    } catch (const std::exception& e) {
-      throw py::value_error(where + " (" + kind + "): " + e.what());
-    }
+    a.body = body_id(sim, t[1].cast<std::string>());
     a.wrench = vector_arg<Vec6>(t[2], 6, "wrench");
   } else if (kind == "release") {
     a.kind = ScheduleAction::kRelease;
     a.robot = robot(t[1]);
   } else {
-    throw py::value_error(where + ": unknown action '" + kind + "'");
+    throw py::value_error("unknown action '" + kind + "'");
   }
+  return a;
+}
+
+// An action's tuple as the engine's action, its controller, reference or law kept alive by the simulation
+// (as set_controller's keep_alive does); ValueError naming the step and the action for a bad argument.
+ScheduleAction action(const py::object& sim_obj, const Simulation& sim, const py::handle& item,
+                      const std::string& where) {
+  const auto t = py::reinterpret_borrow<py::tuple>(item);
+  const std::string kind = t[0].cast<std::string>();
+  const std::string at = where + " (" + kind + "): ";
+  ScheduleAction a;
+  try {
+    a = parse_action(sim, t, kind);
+  } catch (const py::cast_error&) {
+    throw py::value_error(at + "an argument of the wrong type in " + std::string(py::repr(item)));
+  } catch (const std::exception& e) {  // ValueErrors of the conversions, the world's unknown body
+    throw py::value_error(at + e.what());
+  }
+  if (a.controller || a.reference) py::detail::keep_alive_impl(sim_obj, t[2]);
+  if (a.cooperative) py::detail::keep_alive_impl(sim_obj, t[1]);
   return a;
 }
 
@@ -150,7 +144,7 @@ void bind_schedule(py::module_& m) {
       st.every = t[2].cast<double>();
       const auto acts = py::reinterpret_borrow<py::sequence>(t[3]);
       for (size_t j = 0; j < acts.size(); ++j)
-        st.actions.push_back(action(sim, acts[j], where + ", action " + std::to_string(j + 1)));
+        st.actions.push_back(action(sim_obj, sim, acts[j], where + ", action " + std::to_string(j + 1)));
       st.hold = conditions(sim, t[4], where + ", hold");
       st.wait = conditions(sim, t[5], where + ", wait");
       st.at_end = conditions(sim, t[6], where + ", at_end");
@@ -166,14 +160,6 @@ void bind_schedule(py::module_& m) {
       r.to = t[3].cast<double>();
       s.allowed.push_back(std::move(r));
     }
-    // the run keeps what the schedule installs, as set_controller's keep_alive does
-    for (size_t k = 0; k < steps.size(); ++k)
-      for (const py::handle& item : py::reinterpret_borrow<py::sequence>(steps[k].cast<py::tuple>()[3])) {
-        const auto t = py::reinterpret_borrow<py::tuple>(item);
-        const std::string kind = t[0].cast<std::string>();
-        if (kind == "set_controller" || kind == "set_reference") py::detail::keep_alive_impl(sim_obj, t[2]);
-        if (kind == "add_cooperative") py::detail::keep_alive_impl(sim_obj, t[1]);
-      }
     ScheduleOutcome o;
     {
       // between pieces on the main thread: Ctrl-C stops the run, the state and log consistent

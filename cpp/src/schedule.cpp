@@ -281,13 +281,9 @@ ScheduleOutcome run_schedule(Simulation& sim, const Schedule& s, long contacts_s
         try {
           sim.advance(a);
         } catch (const std::exception& e) {
-          out.times.back()[1] = sim.time();
           if (!hold_ok(k)) return out;  // a clamp let go, and a law holding both refused it
-          out.failed_step = static_cast<int>(k);
-          out.kind = "error";
-          out.t = sim.time();
+          fail(k, "error", sim.time(), e.what());
           out.error = std::current_exception();
-          out.reason = e.what();
           return out;
         }
         left -= a;

@@ -267,6 +267,8 @@ class _Runner:
         self._follow(steps, res)
 
     def _follow(self, steps, res) -> None:
+        """The runner after a schedule's result `res` (coopsim.schedule.ScheduleResult) of `steps`: its steps'
+        times, the step now, the welds' anchors from the records, the cooperative group, the contacts seen."""
         for k, (t0, t1) in enumerate(res.times):
             name = steps[k].name
             if name != self.step or name not in self.steps:
@@ -277,13 +279,8 @@ class _Runner:
         for rec in res.records:
             i = steps[rec.step].record[rec.condition].robot
             self.record_anchor(i, rec.t, rec.q, rec.pose)
-        added = iter(res.groups)
-        for st in steps[:len(res.times)]:
-            for a in st.actions:
-                if isinstance(a, AddCooperative):
-                    self.group = next(added, self.group)
-                elif isinstance(a, RemoveCooperative):
-                    self.group = None
+        # the pair's cooperative group, as the simulation keeps it after the schedule's adds and removes
+        self.group = next((g["group"] for g in self.sim.cooperatives if g["robots"] == [0, 1]), None)
         self.contact_seen = res.contacts_seen
 
     def carry_scheduled(self):
